@@ -1,0 +1,48 @@
+//! Criterion: forward kinematics of every link, Panda (7 joints) and Talos (free-flyer + 28).
+//! Needs example-robot-data: GENPLAN_ROBOTS_DIR or the project's .venv (scripts/setup).
+
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use genplan_core::robot::{find_robots_dir, RobotSpec};
+use rand::{rngs::StdRng, Rng, SeedableRng};
+
+/// Configurations uniform within the joint limits; a free-flyer base at 1 m, upright.
+pub fn random_configurations(model: &genplan_core::KinematicModel, n: usize, seed: u64) -> Vec<Vec<f64>> {
+    let mut rng = StdRng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let mut q: Vec<f64> = model
+                .lower
+                .iter()
+                .zip(&model.upper)
+                .map(|(&l, &u)| if l.is_finite() && u.is_finite() { rng.random_range(l..=u) } else { 0.0 })
+                .collect();
+            if model.floating_base {
+                q[2] = 1.0;
+                q[6] = 1.0;
+            }
+            q
+        })
+        .collect()
+}
+
+fn fk(c: &mut Criterion) {
+    let root = find_robots_dir().expect("example-robot-data");
+    for name in ["panda", "talos"] {
+        let (model, _) = RobotSpec::by_name(name).unwrap().load(&root).unwrap();
+        let qs = random_configurations(&model, 1024, 1);
+        let mut out = Vec::new();
+        let mut i = 0;
+        c.bench_function(&format!("fk_all_links/{name}"), |b| {
+            b.iter(|| {
+                i = (i + 1) % qs.len();
+                model.forward_kinematics_unchecked(black_box(&qs[i]), &mut out);
+                black_box(&out);
+            })
+        });
+    }
+}
+
+criterion_group!(benches, fk);
+criterion_main!(benches);

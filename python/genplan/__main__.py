@@ -1,0 +1,5 @@
+import sys
+
+from genplan.cli import main
+
+sys.exit(main())

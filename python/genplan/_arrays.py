@@ -1,0 +1,25 @@
+"""Input checks shared by the Python front ends: clear errors before anything runs."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+def as_configurations(q: Any, nq: int, what: str = "q") -> NDArray[np.float64]:
+    """``q`` as a C-contiguous float64 array of shape (nq,) or (n, nq), finite.
+
+    Raises ValueError naming the problem: wrong shape, or the first non-finite element.
+    """
+    try:
+        arr = np.ascontiguousarray(q, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what}: cannot be read as an array of floats ({exc})") from None
+    if arr.ndim not in (1, 2) or arr.shape[-1] != nq:
+        raise ValueError(f"{what}: expected shape ({nq},) or (n, {nq}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        raise ValueError(f"{what}: element {tuple(int(i) for i in bad)} is not finite ({arr[tuple(bad)]})")
+    return arr

@@ -1,0 +1,77 @@
+"""The ``genplan`` command line."""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import platform
+import sys
+import time
+from collections.abc import Sequence
+
+
+def _version(dist: str) -> str:
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return "not installed"
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """Print versions and the robots genplan can load."""
+    from genplan import _core, robots
+
+    print(f"genplan {_core.__version__}  (python {platform.python_version()}, {platform.machine()})")
+    crates = ", ".join(f"{k} {v}" for k, v in sorted(_core.CRATE_VERSIONS.items()))
+    print(f"  rust core: {crates}")
+    for dist in ("numpy", "pin", "coal", "example-robot-data", "torch", "safetensors"):
+        print(f"  {dist:<19}{_version(dist)}")
+    try:
+        root = robots.robots_dir()
+    except FileNotFoundError as exc:
+        print(f"robots: {exc}")
+        return 1
+    print(f"robots ({root}):")
+    status = 0
+    for name in robots.ROBOT_NAMES:
+        t0 = time.perf_counter()
+        try:
+            robot = robots.load(name)
+            world = robot.collision_world()
+        except Exception as exc:  # report every robot, then fail
+            print(f"  {name:<6} FAILED: {exc}")
+            status = 1
+            continue
+        ms = (time.perf_counter() - t0) * 1e3
+        frames = ", ".join(f"{k}={v}" for k, v in robot.frames.items())
+        print(
+            f"  {name:<6} nq={robot.nq:<3} nv={robot.nv:<3} joints={len(robot.joint_names):<3}"
+            f" collision geometries={len(world.geometry_names):<3} self pairs={len(world.self_pairs):<4}"
+            f" loaded in {ms:.0f} ms  frames: {frames}"
+        )
+    return status
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="genplan",
+        description="Learned, constraint-aware robot motion generation (GAN samplers, constrained "
+        "IK and planning, latent trajectory adjustment) with a Rust core.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    p = sub.add_parser("info", help="print versions and the robots found")
+    p.set_defaults(func=cmd_info)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "func"):
+        parser.print_help()
+        return 2
+    return int(args.func(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

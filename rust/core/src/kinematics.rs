@@ -1,0 +1,352 @@
+//! Forward kinematics of a URDF tree, with an optional free-flyer base and locked joints.
+//!
+//! The configuration vector follows Pinocchio's convention, so the same `q` can be handed to
+//! Pinocchio and to genplan: a free-flyer base takes 7 values `[x, y, z, qx, qy, qz, qw]`,
+//! a revolute or prismatic joint one value, a continuous joint two (`cos`, `sin`).
+
+use std::collections::HashMap;
+
+use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+
+use crate::error::{check_vector, unknown, Error, Result};
+use crate::urdf::{JointType, Urdf};
+
+/// How a joint moves its child link, after its fixed origin transform.
+#[derive(Debug, Clone)]
+pub enum Motion {
+    /// Rigid (a fixed joint or a locked one, with its locked transform).
+    Fixed,
+    Revolute { axis: Unit<Vector3<f64>> },
+    Continuous { axis: Unit<Vector3<f64>> },
+    Prismatic { axis: Unit<Vector3<f64>> },
+}
+
+/// One edge of the tree: parent link -> child link.
+#[derive(Debug, Clone)]
+pub struct Joint {
+    pub name: String,
+    pub parent: usize,
+    pub child: usize,
+    /// Fixed placement of the joint frame in the parent link (a locked joint folds its
+    /// locked motion in here).
+    pub origin: Isometry3<f64>,
+    pub motion: Motion,
+    /// First index of this joint in `q` (only for active joints).
+    pub q_index: usize,
+}
+
+/// Options that select which joints move and where the base is.
+#[derive(Debug, Clone, Default)]
+pub struct ModelOptions {
+    /// Add a free-flyer joint (7 values in q) above the root link.
+    pub floating_base: bool,
+    /// Movable joints that are held at a value (default 0) and leave q.
+    pub locked_joints: HashMap<String, f64>,
+    /// The order of the active joints in q. `None`: depth-first order of the URDF tree, children
+    /// in joint-name order (what Pinocchio's URDF parser does). When given it must name every movable
+    /// joint that is not locked, once.
+    pub joint_order: Option<Vec<String>>,
+}
+
+/// A kinematic tree: links in topological order (parent before child).
+#[derive(Debug, Clone)]
+pub struct KinematicModel {
+    pub link_names: Vec<String>,
+    /// `joints[i]` moves link `joints[i].child`; ordered so that parents come first.
+    pub joints: Vec<Joint>,
+    pub root: usize,
+    pub floating_base: bool,
+    /// Names of the active joints, in q order (without the free-flyer).
+    pub active_joints: Vec<String>,
+    pub nq: usize,
+    pub nv: usize,
+    /// Joint limits per q element (infinite where none; the free-flyer has none).
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    /// For each link: the index of the link whose pose moves it rigidly (its "body"): the
+    /// child link of the nearest active joint above it, or the root.
+    pub body_of_link: Vec<usize>,
+    link_index: HashMap<String, usize>,
+}
+
+fn normalized_axis(joint: &str, axis: Vector3<f64>) -> Result<Unit<Vector3<f64>>> {
+    Unit::try_new(axis, 1e-12)
+        .ok_or_else(|| Error::Invalid(format!("joint '{joint}' has a zero axis")))
+}
+
+impl KinematicModel {
+    pub fn from_urdf(urdf: &Urdf, options: &ModelOptions) -> Result<KinematicModel> {
+        let link_pos: HashMap<&str, usize> = urdf
+            .links
+            .iter()
+            .enumerate()
+            .map(|(i, l)| (l.name.as_str(), i))
+            .collect();
+        let link_names_all: Vec<&str> = urdf.links.iter().map(|l| l.name.as_str()).collect();
+        let mut parent_joint: Vec<Option<usize>> = vec![None; urdf.links.len()];
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); urdf.links.len()];
+        for (ji, j) in urdf.joints.iter().enumerate() {
+            let p = *link_pos
+                .get(j.parent.as_str())
+                .ok_or_else(|| unknown("parent link", &j.parent, &link_names_all))?;
+            let c = *link_pos
+                .get(j.child.as_str())
+                .ok_or_else(|| unknown("child link", &j.child, &link_names_all))?;
+            if parent_joint[c].is_some() {
+                return Err(Error::Parse {
+                    what: "URDF".into(),
+                    msg: format!("link '{}' has two parent joints", j.child),
+                });
+            }
+            parent_joint[c] = Some(ji);
+            children[p].push(ji);
+        }
+        let roots: Vec<usize> = (0..urdf.links.len())
+            .filter(|&i| parent_joint[i].is_none())
+            .collect();
+        if roots.len() != 1 {
+            return Err(Error::Parse {
+                what: "URDF".into(),
+                msg: format!(
+                    "expected one root link, found {}: {:?}",
+                    roots.len(),
+                    roots.iter().map(|&i| &urdf.links[i].name).collect::<Vec<_>>()
+                ),
+            });
+        }
+        let joint_names_all: Vec<&str> = urdf.joints.iter().map(|j| j.name.as_str()).collect();
+        for name in options.locked_joints.keys() {
+            if !joint_names_all.contains(&name.as_str()) {
+                return Err(unknown("locked joint", name, &joint_names_all));
+            }
+        }
+
+        // Depth-first traversal gives the link order and the default joint order. Children are
+        // visited in joint-name order: urdfdom keeps joints in a name-sorted map, so this is the
+        // order Pinocchio's URDF parser produces.
+        for c in children.iter_mut() {
+            c.sort_by(|&a, &b| urdf.joints[a].name.cmp(&urdf.joints[b].name));
+        }
+        let mut order_links = Vec::with_capacity(urdf.links.len());
+        let mut order_joints = Vec::with_capacity(urdf.joints.len());
+        let mut stack = vec![roots[0]];
+        while let Some(l) = stack.pop() {
+            order_links.push(l);
+            for &ji in children[l].iter().rev() {
+                stack.push(link_pos[urdf.joints[ji].child.as_str()]);
+            }
+        }
+        for &l in &order_links {
+            if let Some(ji) = parent_joint[l] {
+                order_joints.push(ji);
+            }
+        }
+        let new_index: HashMap<usize, usize> = order_links
+            .iter()
+            .enumerate()
+            .map(|(new, &old)| (old, new))
+            .collect();
+
+        let is_active = |ji: usize| {
+            let j = &urdf.joints[ji];
+            j.joint_type != JointType::Fixed && !options.locked_joints.contains_key(&j.name)
+        };
+        let default_order: Vec<String> = order_joints
+            .iter()
+            .copied()
+            .filter(|&ji| is_active(ji))
+            .map(|ji| urdf.joints[ji].name.clone())
+            .collect();
+        let active_joints = match &options.joint_order {
+            None => default_order,
+            Some(given) => {
+                let mut a = given.clone();
+                let mut b = default_order.clone();
+                a.sort();
+                b.sort();
+                if a != b {
+                    return Err(Error::Invalid(format!(
+                        "joint_order must list each active joint once; expected the set {:?}, got {:?}",
+                        default_order, given
+                    )));
+                }
+                given.clone()
+            }
+        };
+        let base_nq = if options.floating_base { 7 } else { 0 };
+        let mut q_index_of: HashMap<&str, usize> = HashMap::new();
+        let mut nq = base_nq;
+        let mut nv = if options.floating_base { 6 } else { 0 };
+        let mut lower = vec![f64::NEG_INFINITY; base_nq];
+        let mut upper = vec![f64::INFINITY; base_nq];
+        for name in &active_joints {
+            let j = urdf.joints.iter().find(|j| &j.name == name).expect("checked above");
+            q_index_of.insert(name.as_str(), nq);
+            match j.joint_type {
+                JointType::Revolute | JointType::Prismatic => {
+                    nq += 1;
+                    nv += 1;
+                    lower.push(j.lower);
+                    upper.push(j.upper);
+                }
+                JointType::Continuous => {
+                    nq += 2;
+                    nv += 1;
+                    lower.extend([-1.0, -1.0]);
+                    upper.extend([1.0, 1.0]);
+                }
+                other => {
+                    return Err(Error::Invalid(format!(
+                        "joint '{name}' of type {other:?} is not supported"
+                    )))
+                }
+            }
+        }
+
+        let mut joints = Vec::with_capacity(order_joints.len());
+        for &ji in &order_joints {
+            let j = &urdf.joints[ji];
+            let active = is_active(ji);
+            let axis = || normalized_axis(&j.name, j.axis);
+            let motion_kind = match j.joint_type {
+                JointType::Fixed => Motion::Fixed,
+                JointType::Revolute => Motion::Revolute { axis: axis()? },
+                JointType::Continuous => Motion::Continuous { axis: axis()? },
+                JointType::Prismatic => Motion::Prismatic { axis: axis()? },
+                other => {
+                    return Err(Error::Invalid(format!(
+                        "joint '{}' of type {other:?} is not supported",
+                        j.name
+                    )))
+                }
+            };
+            let (origin, motion) = if active || j.joint_type == JointType::Fixed {
+                (j.origin, motion_kind)
+            } else {
+                let value = options.locked_joints[&j.name];
+                let locked = match &motion_kind {
+                    Motion::Revolute { axis } | Motion::Continuous { axis } => {
+                        Isometry3::from_parts(
+                            Translation3::identity(),
+                            UnitQuaternion::from_axis_angle(axis, value),
+                        )
+                    }
+                    Motion::Prismatic { axis } => Isometry3::from_parts(
+                        Translation3::from(axis.into_inner() * value),
+                        UnitQuaternion::identity(),
+                    ),
+                    Motion::Fixed => Isometry3::identity(),
+                };
+                (j.origin * locked, Motion::Fixed)
+            };
+            joints.push(Joint {
+                name: j.name.clone(),
+                parent: new_index[&link_pos[j.parent.as_str()]],
+                child: new_index[&link_pos[j.child.as_str()]],
+                origin,
+                q_index: q_index_of.get(j.name.as_str()).copied().unwrap_or(usize::MAX),
+                motion,
+            });
+        }
+        let link_names: Vec<String> = order_links
+            .iter()
+            .map(|&l| urdf.links[l].name.clone())
+            .collect();
+        let mut body_of_link: Vec<usize> = (0..link_names.len()).collect();
+        for j in &joints {
+            if matches!(j.motion, Motion::Fixed) {
+                body_of_link[j.child] = body_of_link[j.parent];
+            }
+        }
+        let link_index = link_names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.clone(), i))
+            .collect();
+        Ok(KinematicModel {
+            link_names,
+            joints,
+            root: 0,
+            floating_base: options.floating_base,
+            active_joints,
+            nq,
+            nv,
+            lower,
+            upper,
+            body_of_link,
+            link_index,
+        })
+    }
+
+    pub fn n_links(&self) -> usize {
+        self.link_names.len()
+    }
+
+    /// Index of a link by name, or an error that lists the known names.
+    pub fn link_index(&self, name: &str) -> Result<usize> {
+        self.link_index.get(name).copied().ok_or_else(|| {
+            let known: Vec<&str> = self.link_names.iter().map(String::as_str).collect();
+            unknown("link", name, &known)
+        })
+    }
+
+    /// Check a configuration: length nq, finite, and a free-flyer quaternion that is not zero.
+    pub fn check_configuration(&self, q: &[f64]) -> Result<()> {
+        check_vector("configuration q", q, self.nq)?;
+        if self.floating_base {
+            let n = (q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6]).sqrt();
+            if n < 1e-9 {
+                return Err(Error::Invalid(
+                    "configuration q: the base quaternion q[3..7] is zero".into(),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// World pose of every link (indexed like `link_names`) for a checked configuration.
+    /// `out` is resized to `n_links()`.
+    pub fn forward_kinematics(&self, q: &[f64], out: &mut Vec<Isometry3<f64>>) -> Result<()> {
+        self.check_configuration(q)?;
+        self.forward_kinematics_unchecked(q, out);
+        Ok(())
+    }
+
+    /// As [`forward_kinematics`](Self::forward_kinematics) for a q already checked by
+    /// [`check_configuration`](Self::check_configuration).
+    pub fn forward_kinematics_unchecked(&self, q: &[f64], out: &mut Vec<Isometry3<f64>>) {
+        out.clear();
+        out.resize(self.link_names.len(), Isometry3::identity());
+        if self.floating_base {
+            let rot = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                q[6], q[3], q[4], q[5],
+            ));
+            out[self.root] = Isometry3::from_parts(Translation3::new(q[0], q[1], q[2]), rot);
+        }
+        for j in &self.joints {
+            let motion = match &j.motion {
+                Motion::Fixed => None,
+                Motion::Revolute { axis } => Some(Isometry3::from_parts(
+                    Translation3::identity(),
+                    UnitQuaternion::from_axis_angle(axis, q[j.q_index]),
+                )),
+                Motion::Continuous { axis } => {
+                    let angle = q[j.q_index + 1].atan2(q[j.q_index]);
+                    Some(Isometry3::from_parts(
+                        Translation3::identity(),
+                        UnitQuaternion::from_axis_angle(axis, angle),
+                    ))
+                }
+                Motion::Prismatic { axis } => Some(Isometry3::from_parts(
+                    Translation3::from(axis.into_inner() * q[j.q_index]),
+                    UnitQuaternion::identity(),
+                )),
+            };
+            let placed = out[j.parent] * j.origin;
+            out[j.child] = match motion {
+                Some(m) => placed * m,
+                None => placed,
+            };
+        }
+    }
+}

@@ -1,0 +1,21 @@
+//! genplan-core: the pure-Rust part of genplan.
+//!
+//! * [`urdf`] / [`srdf`]: strict readers for the robot description files.
+//! * [`kinematics`]: forward kinematics of every link, q in Pinocchio's convention.
+//! * [`collision`]: parry collision world (self-collision with SRDF filtering, obstacles),
+//!   answering "in collision?" and signed minimum distance.
+//! * [`robot`]: loading a robot (URDF + SRDF + options) into both, in one call.
+//!
+//! Nothing here depends on Python: `cargo test` and `cargo bench` run without it.
+
+pub mod collision;
+pub mod error;
+pub mod kinematics;
+pub mod robot;
+pub mod srdf;
+pub mod urdf;
+
+pub use collision::{CollisionWorld, Scratch};
+pub use error::{Error, Result};
+pub use kinematics::{KinematicModel, ModelOptions};
+pub use robot::RobotSpec;

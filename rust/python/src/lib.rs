@@ -1,0 +1,411 @@
+//! `genplan._core`: the private native module. Thin wrappers around `genplan-core`.
+//!
+//! Inputs are float64 C-contiguous numpy arrays (the Python layer converts); batched calls
+//! release the GIL and run in parallel; every error is a Python exception, never a panic.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
+use numpy::ndarray::{Array, IxDyn};
+use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::IntoPyObjectExt;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+
+use genplan_core::collision::CollisionWorld;
+use genplan_core::kinematics::{KinematicModel, ModelOptions};
+use genplan_core::robot::{package_dirs_for, RobotSpec, ROBOT_NAMES};
+use genplan_core::srdf::Srdf;
+use genplan_core::urdf::Urdf;
+use genplan_core::{Error, Scratch};
+
+fn to_py(e: Error) -> PyErr {
+    match &e {
+        Error::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+            PyFileNotFoundError::new_err(e.to_string())
+        }
+        Error::Io { .. } => PyOSError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
+}
+
+/// A batch of configurations: leading dims and the flat data, rows of `nq`.
+struct Batch<'a> {
+    lead: Vec<usize>,
+    data: &'a [f64],
+}
+
+fn batch<'a>(arr: &'a PyReadonlyArrayDyn<'_, f64>, nq: usize, what: &str) -> PyResult<Batch<'a>> {
+    let shape = arr.shape();
+    if shape.is_empty() || shape[shape.len() - 1] != nq || shape.len() > 2 {
+        return Err(PyValueError::new_err(format!(
+            "{what}: expected shape ({nq},) or (n, {nq}), got {shape:?}"
+        )));
+    }
+    let data = arr
+        .as_slice()
+        .map_err(|_| PyValueError::new_err(format!("{what}: array must be C-contiguous")))?;
+    Ok(Batch {
+        lead: shape[..shape.len() - 1].to_vec(),
+        data,
+    })
+}
+
+/// Check every row up front so that an error names the row and nothing runs on bad input.
+fn check_rows(model: &KinematicModel, b: &Batch, what: &str) -> PyResult<()> {
+    for (i, q) in b.data.chunks(model.nq.max(1)).enumerate() {
+        model.check_configuration(q).map_err(|e| {
+            let msg = if b.lead.is_empty() {
+                format!("{what}: {e}")
+            } else {
+                format!("{what}[{i}]: {e}")
+            };
+            PyValueError::new_err(msg)
+        })?;
+    }
+    Ok(())
+}
+
+fn rows_map<T: Send>(data: &[f64], nq: usize, f: impl Fn(&[f64], &mut Scratch) -> T + Sync) -> Vec<T> {
+    if data.len() <= nq {
+        let mut s = Scratch::default();
+        return data.chunks(nq.max(1)).map(|q| f(q, &mut s)).collect();
+    }
+    data.par_chunks(nq.max(1))
+        .map_init(Scratch::default, |s, q| f(q, s))
+        .collect()
+}
+
+fn pose_from(center: [f64; 3], rotation: Option<[[f64; 3]; 3]>, what: &str) -> PyResult<Isometry3<f64>> {
+    let rot = match rotation {
+        None => UnitQuaternion::identity(),
+        Some(r) => {
+            let m = Matrix3::from_fn(|i, j| r[i][j]);
+            let err = (m.transpose() * m - Matrix3::identity()).amax();
+            if !err.is_finite() || err > 1e-6 || (m.determinant() - 1.0).abs() > 1e-6 {
+                return Err(PyValueError::new_err(format!(
+                    "{what}: rotation is not a proper rotation matrix (|R^T R - I| = {err:e})"
+                )));
+            }
+            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m))
+        }
+    };
+    Ok(Isometry3::from_parts(Translation3::from(center), rot))
+}
+
+/// Forward kinematics of a URDF tree (q in Pinocchio's convention).
+#[pyclass(name = "KinematicModel", module = "genplan._core", frozen)]
+struct PyKinematicModel {
+    inner: Arc<KinematicModel>,
+}
+
+#[pymethods]
+impl PyKinematicModel {
+    /// Load from a URDF file.
+    #[staticmethod]
+    #[pyo3(signature = (urdf_path, *, floating_base=false, locked_joints=None, joint_order=None))]
+    fn from_urdf(
+        urdf_path: PathBuf,
+        floating_base: bool,
+        locked_joints: Option<std::collections::HashMap<String, f64>>,
+        joint_order: Option<Vec<String>>,
+    ) -> PyResult<Self> {
+        let urdf = Urdf::from_file(&urdf_path).map_err(to_py)?;
+        let options = ModelOptions {
+            floating_base,
+            locked_joints: locked_joints.unwrap_or_default(),
+            joint_order,
+        };
+        let inner = KinematicModel::from_urdf(&urdf, &options).map_err(to_py)?;
+        Ok(Self { inner: Arc::new(inner) })
+    }
+
+    #[getter]
+    fn nq(&self) -> usize {
+        self.inner.nq
+    }
+    #[getter]
+    fn nv(&self) -> usize {
+        self.inner.nv
+    }
+    #[getter]
+    fn floating_base(&self) -> bool {
+        self.inner.floating_base
+    }
+    #[getter]
+    fn link_names(&self) -> Vec<String> {
+        self.inner.link_names.clone()
+    }
+    #[getter]
+    fn active_joints(&self) -> Vec<String> {
+        self.inner.active_joints.clone()
+    }
+    #[getter]
+    fn lower<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
+        self.inner.lower.clone().into_pyarray(py)
+    }
+    #[getter]
+    fn upper<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
+        self.inner.upper.clone().into_pyarray(py)
+    }
+
+    fn link_index(&self, name: &str) -> PyResult<usize> {
+        self.inner.link_index(name).map_err(to_py)
+    }
+
+    /// World poses of links as 4x4 matrices: q of shape (nq,) or (n, nq) gives
+    /// (L, 4, 4) or (n, L, 4, 4), L = len(links) or every link.
+    #[pyo3(signature = (q, links=None))]
+    fn forward_kinematics<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        links: Option<Vec<String>>,
+    ) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+        let m = &*self.inner;
+        let b = batch(&q, m.nq, "q")?;
+        check_rows(m, &b, "q")?;
+        let idx: Vec<usize> = match links {
+            None => (0..m.n_links()).collect(),
+            Some(names) => names
+                .iter()
+                .map(|n| m.link_index(n))
+                .collect::<Result<_, _>>()
+                .map_err(to_py)?,
+        };
+        let data = b.data;
+        let nq = m.nq;
+        let rows: Vec<Vec<f64>> = py.detach(|| {
+            rows_map(data, nq, |q, _| {
+                let mut poses = Vec::new();
+                m.forward_kinematics_unchecked(q, &mut poses);
+                let mut out = Vec::with_capacity(idx.len() * 16);
+                for &i in &idx {
+                    let h = poses[i].to_homogeneous();
+                    for r in 0..4 {
+                        for c in 0..4 {
+                            out.push(h[(r, c)]);
+                        }
+                    }
+                }
+                out
+            })
+        });
+        let mut shape = b.lead.clone();
+        shape.extend([idx.len(), 4, 4]);
+        let flat: Vec<f64> = rows.into_iter().flatten().collect();
+        let arr = Array::from_shape_vec(IxDyn(&shape), flat)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(arr.into_pyarray(py))
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "KinematicModel(nq={}, nv={}, links={}, floating_base={})",
+            self.inner.nq,
+            self.inner.nv,
+            self.inner.n_links(),
+            self.inner.floating_base
+        )
+    }
+}
+
+/// The robot's collision geometry and environment obstacles (parry).
+#[pyclass(name = "CollisionWorld", module = "genplan._core")]
+struct PyCollisionWorld {
+    inner: CollisionWorld,
+}
+
+impl PyCollisionWorld {
+    /// Check q (one row or a batch), run `f` per row without the GIL (in parallel for a batch),
+    /// return a scalar for one row and a numpy array for a batch.
+    fn per_configuration<'py, T>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        f: fn(&CollisionWorld, &[f64], &mut Scratch) -> T,
+    ) -> PyResult<Py<PyAny>>
+    where
+        T: Send + numpy::Element + for<'a> IntoPyObject<'a>,
+    {
+        let w = &self.inner;
+        let b = batch(&q, w.model.nq, "q")?;
+        check_rows(&w.model, &b, "q")?;
+        let data = b.data;
+        let mut out: Vec<T> = py.detach(|| rows_map(data, w.model.nq, |q, s| f(w, q, s)));
+        if b.lead.is_empty() {
+            let first = out.swap_remove(0);
+            first.into_py_any(py)
+        } else {
+            Ok(out.into_pyarray(py).into_any().unbind())
+        }
+    }
+}
+
+#[pymethods]
+impl PyCollisionWorld {
+    /// Build from the model, the URDF that holds the collision geometry, the package dirs
+    /// for `package://` meshes and an optional SRDF (its disabled pairs are not checked).
+    #[new]
+    #[pyo3(signature = (model, collision_urdf, package_dirs=Vec::new(), srdf_path=None))]
+    fn new(
+        model: &PyKinematicModel,
+        collision_urdf: PathBuf,
+        package_dirs: Vec<PathBuf>,
+        srdf_path: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let urdf = Urdf::from_file(&collision_urdf).map_err(to_py)?;
+        let srdf = match srdf_path {
+            Some(p) => Some(Srdf::from_file(&p).map_err(to_py)?),
+            None => None,
+        };
+        let inner = CollisionWorld::from_urdf(model.inner.clone(), &urdf, &package_dirs, srdf.as_ref())
+            .map_err(to_py)?;
+        Ok(Self { inner })
+    }
+
+    #[getter]
+    fn model(&self) -> PyKinematicModel {
+        PyKinematicModel { inner: self.inner.model.clone() }
+    }
+    #[getter]
+    fn geometry_names(&self) -> Vec<String> {
+        self.inner.geometries.iter().map(|g| g.name.clone()).collect()
+    }
+    /// Link name of each geometry.
+    #[getter]
+    fn geometry_links(&self) -> Vec<String> {
+        self.inner
+            .geometries
+            .iter()
+            .map(|g| self.inner.model.link_names[g.link].clone())
+            .collect()
+    }
+    #[getter]
+    fn self_pairs(&self) -> Vec<(String, String)> {
+        self.inner.self_pair_names()
+    }
+    #[getter]
+    fn obstacle_names(&self) -> Vec<String> {
+        self.inner.obstacles.iter().map(|o| o.name.clone()).collect()
+    }
+    #[getter]
+    fn get_check_self(&self) -> bool {
+        self.inner.check_self
+    }
+    #[setter]
+    fn set_check_self(&mut self, value: bool) {
+        self.inner.check_self = value;
+    }
+
+    /// Add a box obstacle (half extents, centre, optional 3x3 rotation).
+    #[pyo3(signature = (name, half_extents, center, rotation=None))]
+    fn add_box(&mut self, name: &str, half_extents: [f64; 3], center: [f64; 3], rotation: Option<[[f64; 3]; 3]>) -> PyResult<()> {
+        let pose = pose_from(center, rotation, &format!("box '{name}'"))?;
+        self.inner.add_box(name, half_extents, pose).map_err(to_py)
+    }
+    fn add_sphere(&mut self, name: &str, radius: f64, center: [f64; 3]) -> PyResult<()> {
+        self.inner.add_sphere(name, radius, center).map_err(to_py)
+    }
+    /// Add the half-space below the plane normal . x = offset.
+    fn add_halfspace(&mut self, name: &str, normal: [f64; 3], offset: f64) -> PyResult<()> {
+        self.inner.add_halfspace(name, normal, offset).map_err(to_py)
+    }
+    fn remove_obstacle(&mut self, name: &str) -> PyResult<()> {
+        self.inner.remove_obstacle(name).map_err(to_py)
+    }
+    fn clear_obstacles(&mut self) {
+        self.inner.obstacles.clear();
+    }
+
+    /// True where a configuration collides: q (nq,) -> bool; q (n, nq) -> bool array (n,).
+    fn in_collision<'py>(&self, py: Python<'py>, q: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Py<PyAny>> {
+        self.per_configuration(py, q, CollisionWorld::in_collision_unchecked)
+    }
+
+    /// Minimum signed distance (m, negative = penetration depth): q (nq,) -> float; (n, nq) -> (n,).
+    fn min_distance<'py>(&self, py: Python<'py>, q: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Py<PyAny>> {
+        self.per_configuration(py, q, CollisionWorld::min_distance_unchecked)
+    }
+
+    /// Pairs closer than `margin` for one configuration: [(a, b, signed distance)], closest first.
+    #[pyo3(signature = (q, margin=0.0))]
+    fn close_pairs(&self, q: Vec<f64>, margin: f64) -> PyResult<Vec<(String, String, f64)>> {
+        let pairs = self.inner.close_pairs(&q, margin).map_err(to_py)?;
+        Ok(pairs.into_iter().map(|p| (p.a, p.b, p.distance)).collect())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "CollisionWorld(geometries={}, self_pairs={}, obstacles={}, check_self={})",
+            self.inner.geometries.len(),
+            self.inner.self_pairs.len(),
+            self.inner.obstacles.len(),
+            self.inner.check_self
+        )
+    }
+}
+
+/// The preset of a robot as a dict (files relative to example-robot-data's robots/ folder).
+#[pyfunction]
+fn robot_spec<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+    let s = RobotSpec::by_name(name).map_err(to_py)?;
+    let d = PyDict::new(py);
+    d.set_item("name", s.name)?;
+    d.set_item("urdf", s.urdf)?;
+    d.set_item("collision_urdf", s.collision_urdf)?;
+    d.set_item("srdf", s.srdf)?;
+    d.set_item("floating_base", s.floating_base)?;
+    d.set_item("locked_joints", s.locked_joints.to_vec())?;
+    d.set_item("reference_state", s.reference_state)?;
+    d.set_item("frames", s.frames.iter().map(|(a, b)| (*a, *b)).collect::<Vec<_>>())?;
+    Ok(d)
+}
+
+/// Load a preset robot from example-robot-data's robots/ folder: (KinematicModel, CollisionWorld).
+#[pyfunction]
+fn load_robot(py: Python<'_>, name: &str, robots_dir: PathBuf) -> PyResult<(PyKinematicModel, PyCollisionWorld)> {
+    let spec = RobotSpec::by_name(name).map_err(to_py)?;
+    let (model, world) = py.detach(|| spec.load(&robots_dir)).map_err(to_py)?;
+    Ok((PyKinematicModel { inner: model }, PyCollisionWorld { inner: world }))
+}
+
+/// package dirs for `package://example-robot-data/...` given the robots/ folder.
+#[pyfunction]
+fn package_dirs(robots_dir: PathBuf) -> Vec<PathBuf> {
+    package_dirs_for(&robots_dir)
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("ROBOT_NAMES", ROBOT_NAMES.to_vec())?;
+    let crates: Vec<(String, String)> = env!("GENPLAN_CRATE_VERSIONS")
+        .split(',')
+        .filter_map(|kv| kv.split_once('=').map(|(k, v)| (k.to_string(), v.to_string())))
+        .collect();
+    m.add("CRATE_VERSIONS", crates.into_py_dict_compat(m.py())?)?;
+    m.add_class::<PyKinematicModel>()?;
+    m.add_class::<PyCollisionWorld>()?;
+    m.add_function(wrap_pyfunction!(robot_spec, m)?)?;
+    m.add_function(wrap_pyfunction!(load_robot, m)?)?;
+    m.add_function(wrap_pyfunction!(package_dirs, m)?)?;
+    Ok(())
+}
+
+trait IntoPyDictCompat {
+    fn into_py_dict_compat<'py>(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>>;
+}
+
+impl IntoPyDictCompat for Vec<(String, String)> {
+    fn into_py_dict_compat<'py>(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (k, v) in self {
+            d.set_item(k, v)?;
+        }
+        Ok(d)
+    }
+}

@@ -1,0 +1,183 @@
+"""Rust collision (parry) against Pinocchio + coal on the same geometry, obstacles, errors."""
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import genplan
+from tests.conftest import random_configurations
+
+
+def _pair_set(pairs):
+    return {tuple(sorted(p)) for p in pairs}
+
+
+def _coal_pairs(robot: genplan.Robot, geom: pin.GeometryModel):
+    return _pair_set(
+        (geom.geometryObjects[p.first].name, geom.geometryObjects[p.second].name) for p in geom.collisionPairs
+    )
+
+
+def test_panda_geometry_and_pairs_match_pinocchio(panda: genplan.Robot) -> None:
+    world = panda.collision_world()
+    geom = panda.collision_model
+    assert sorted(world.geometry_names) == sorted(g.name for g in geom.geometryObjects)
+    assert _pair_set(world.self_pairs) == _coal_pairs(panda, geom)
+    # SRDF-disabled link pairs never appear
+    links = dict(zip(world.geometry_names, world.native.geometry_links))
+    disabled = {tuple(sorted(p)) for p in panda.srdf_disabled_pairs}
+    assert not any(tuple(sorted((links[a], links[b]))) in disabled for a, b in world.self_pairs)
+
+
+@pytest.mark.parametrize("name", ["talos", "ur5"])
+def test_mesh_robot_pairs_match_pinocchio(name: str) -> None:
+    robot = genplan.load(name)
+    assert _pair_set(robot.collision_world().self_pairs) == _coal_pairs(robot, robot.collision_model)
+
+
+def _coal_collides(robot, geom, gdata, q) -> bool:
+    return bool(pin.computeCollisions(robot.model, robot.data, geom, gdata, q, True))
+
+
+def test_panda_self_collision_agrees_with_coal_on_10000_configurations(panda: genplan.Robot) -> None:
+    world = panda.collision_world()
+    geom = panda.collision_model
+    gdata = pin.GeometryData(geom)
+    qs = random_configurations(panda, 10_000, seed=11)
+    ours = world.in_collision(qs)
+    ref = np.array([_coal_collides(panda, geom, gdata, q) for q in qs])
+    assert 0.05 < ref.mean() < 0.5  # the sample really exercises both answers
+    disagree = ours != ref
+    assert 1.0 - disagree.mean() >= 0.999
+    dist = world.min_distance(qs)
+    assert np.all(np.abs(dist[disagree]) <= 1e-3), dist[disagree]
+    # the signed distance is consistent with the boolean answer
+    assert np.all((dist <= 1e-9) | ~ours) and np.all((dist >= -1e-9) | ours)
+
+
+def test_panda_distance_agrees_with_coal(panda: genplan.Robot) -> None:
+    world = panda.collision_world()
+    geom = panda.collision_model
+    gdata = pin.GeometryData(geom)
+    qs = random_configurations(panda, 300, seed=5)
+    qs = qs[~world.in_collision(qs)]
+    ours = world.min_distance(qs)
+    for q, d in zip(qs, ours):
+        pin.computeDistances(panda.model, panda.data, geom, gdata, q)
+        ref = min(r.min_distance for r in gdata.distanceResults)
+        assert d == pytest.approx(ref, abs=1e-6)
+
+
+def test_panda_obstacles_agree_with_coal(panda: genplan.Robot) -> None:
+    """Random boxes near the arm, in Rust and as coal boxes attached to the world."""
+    rng = np.random.default_rng(2)
+    geom = panda.collision_model.copy()
+    n_robot = geom.ngeoms
+    world = panda.collision_world(self_collision=False)
+    for k in range(4):
+        half = rng.uniform(0.02, 0.1, size=3)
+        radius, angle = rng.uniform(0.35, 0.7), rng.uniform(-np.pi, np.pi)
+        center = np.array([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(0.1, 0.9)])
+        rot = pin.exp3(rng.normal(size=3))
+        world.add_box(f"box{k}", half, center, rot)
+        obj = pin.GeometryObject(f"box{k}", 0, 0, pin.SE3(rot, center), coal.Box(*(2 * half)))
+        geom.addGeometryObject(obj)
+    geom.removeAllCollisionPairs()
+    for i in range(n_robot):
+        for j in range(n_robot, geom.ngeoms):
+            geom.addCollisionPair(pin.CollisionPair(i, j))
+    gdata = pin.GeometryData(geom)
+    qs = random_configurations(panda, 3000, seed=9)
+    ours = world.in_collision(qs)
+    ref = np.array([_coal_collides(panda, geom, gdata, q) for q in qs])
+    assert 0.05 < ref.mean() < 0.95
+    disagree = ours != ref
+    assert 1.0 - disagree.mean() >= 0.999
+    assert np.all(np.abs(world.min_distance(qs)[disagree]) <= 1e-3)
+
+
+@pytest.mark.parametrize("name", ["talos", "ur5"])
+def test_mesh_hulls_agree_with_coal_convex_hulls(name: str) -> None:
+    """Talos and UR5 collide as convex hulls of their STL meshes: coal's hulls of the same meshes
+    must give the same answers (disagreements only within 1 mm of contact)."""
+    robot = genplan.load(name)
+    geom = robot.collision_model.copy()
+    for g in geom.geometryObjects:
+        if isinstance(g.geometry, coal.BVHModelBase):
+            g.geometry.buildConvexHull(True, "Qt")
+            g.geometry = g.geometry.convex
+    gdata = pin.GeometryData(geom)
+    world = robot.collision_world()
+    qs = robot.random_configurations(1500, 4)
+    ours = world.in_collision(qs)
+    ref = np.array([_coal_collides(robot, geom, gdata, q) for q in qs])
+    assert 0.05 < ref.mean() < 0.95
+    disagree = ours != ref
+    assert 1.0 - disagree.mean() >= 0.995, disagree.sum()
+    assert np.all(np.abs(world.min_distance(qs)[disagree]) <= 1e-3)
+
+
+def test_default_postures_are_collision_free() -> None:
+    for name in ("panda", "talos", "ur5"):
+        robot = genplan.load(name)
+        assert not robot.collision_world().in_collision(robot.q_default), name
+
+
+def test_obstacle_management_and_queries(panda: genplan.Robot) -> None:
+    world = panda.collision_world()
+    q = panda.q_default
+    base = world.min_distance(q)
+    world.add_halfspace("floor", [0, 0, 1], -0.5)
+    assert world.obstacle_names == ["floor"]
+    assert not world.in_collision(q)
+    world.add_box("on_hand", [0.05, 0.05, 0.05], panda.frame_placement(q, "hand").translation)
+    assert world.in_collision(q)
+    pairs = world.close_pairs(q)
+    assert pairs and all(b == "on_hand" and d <= 0 for _, b, d in pairs)
+    world.remove_obstacle("on_hand")
+    assert world.min_distance(q) == pytest.approx(base)
+    world.clear_obstacles()
+    assert world.obstacle_names == []
+    qs = np.repeat(q[None], 4, axis=0)
+    assert world.in_collision(qs).shape == (4,) and world.in_collision(qs).dtype == bool
+    assert isinstance(world.in_collision(q), bool) and isinstance(world.min_distance(q), float)
+
+
+def test_collision_bad_input(panda: genplan.Robot) -> None:
+    world = panda.collision_world()
+    with pytest.raises(ValueError, match=r"expected shape \(7,\)"):
+        world.in_collision(np.zeros(8))
+    with pytest.raises(ValueError, match="not finite"):
+        world.min_distance(np.full(7, np.nan))
+    world.add_box("b", [0.1, 0.1, 0.1], [1, 1, 1])
+    with pytest.raises(ValueError, match="already exists"):
+        world.add_box("b", [0.1, 0.1, 0.1], [1, 1, 1])
+    with pytest.raises(ValueError, match="half extents must be positive"):
+        world.add_box("c", [0.1, -0.1, 0.1], [1, 1, 1])
+    with pytest.raises(ValueError, match="not a proper rotation"):
+        world.add_box("c", [0.1, 0.1, 0.1], [1, 1, 1], rotation=2 * np.eye(3))
+    with pytest.raises(ValueError, match="expected 3 numbers"):
+        world.add_sphere("s", 0.1, [0, 0])
+    with pytest.raises(ValueError, match="normal is zero"):
+        world.add_halfspace("p", [0, 0, 0], 0.0)
+    with pytest.raises(ValueError, match="unknown obstacle 'zz'.*known: b"):
+        world.remove_obstacle("zz")
+
+
+def test_collision_world_file_errors(panda: genplan.Robot, tmp_path) -> None:
+    from genplan import _core
+
+    with pytest.raises(FileNotFoundError, match="nope.urdf"):
+        _core.CollisionWorld(panda.kinematics, tmp_path / "nope.urdf")
+    broken = tmp_path / "broken.srdf"
+    broken.write_text("<robot><disable_collisions link1='a'/></robot>")
+    with pytest.raises(ValueError, match="lacks link1 or link2"):
+        _core.CollisionWorld(panda.kinematics, panda.collision_urdf_path, [], broken)
+    mesh_urdf = tmp_path / "mesh.urdf"
+    mesh_urdf.write_text(
+        "<robot name='r'><link name='panda_link0'><collision><geometry>"
+        "<mesh filename='package://nowhere/x.stl'/></geometry></collision></link></robot>"
+    )
+    with pytest.raises(ValueError, match="not found in package dirs"):
+        _core.CollisionWorld(panda.kinematics, mesh_urdf, [tmp_path])
