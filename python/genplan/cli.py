@@ -61,6 +61,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     p = sub.add_parser("info", help="print versions and the robots found")
     p.set_defaults(func=cmd_info)
+
+    bench = sub.add_parser("bench", help="run a benchmark: print its table, write JSON")
+    bench_sub = bench.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
+    from genplan.benchmarks import projection as bench_projection
+
+    p = bench_sub.add_parser("projection", help="Table I: projection and IK (Gauss-Newton or scipy)",
+                             description=bench_projection.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    bench_projection.add_arguments(p)
+    p.set_defaults(func=bench_projection.main)
     return parser
 
 

@@ -6,9 +6,10 @@
 
 use std::collections::HashMap;
 
-use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
 
 use crate::error::{check_vector, unknown, Error, Result};
+use crate::lie::{action, exp6, jlog6, log6, skew};
 use crate::urdf::{JointType, Urdf};
 
 /// How a joint moves its child link, after its fixed origin transform.
@@ -33,6 +34,8 @@ pub struct Joint {
     pub motion: Motion,
     /// First index of this joint in `q` (only for active joints).
     pub q_index: usize,
+    /// Index of this joint in the tangent space `v` (only for active joints).
+    pub v_index: usize,
 }
 
 /// Options that select which joints move and where the base is.
@@ -66,6 +69,15 @@ pub struct KinematicModel {
     /// For each link: the index of the link whose pose moves it rigidly (its "body"): the
     /// child link of the nearest active joint above it, or the root.
     pub body_of_link: Vec<usize>,
+    /// Parent link of each link (None for the root).
+    pub parent_link: Vec<Option<usize>>,
+    /// For each link: the active joints (indices into `joints`) between the root and it.
+    pub active_ancestors: Vec<Vec<usize>>,
+    /// Mass and centre of mass (link frame) of each link (zero mass for the links fixed to the
+    /// world of a fixed-base robot, as in Pinocchio).
+    pub masses: Vec<f64>,
+    pub local_coms: Vec<Vector3<f64>>,
+    pub total_mass: f64,
     link_index: HashMap<String, usize>,
 }
 
@@ -175,6 +187,7 @@ impl KinematicModel {
         };
         let base_nq = if options.floating_base { 7 } else { 0 };
         let mut q_index_of: HashMap<&str, usize> = HashMap::new();
+        let mut v_index_of: HashMap<&str, usize> = HashMap::new();
         let mut nq = base_nq;
         let mut nv = if options.floating_base { 6 } else { 0 };
         let mut lower = vec![f64::NEG_INFINITY; base_nq];
@@ -182,6 +195,7 @@ impl KinematicModel {
         for name in &active_joints {
             let j = urdf.joints.iter().find(|j| &j.name == name).expect("checked above");
             q_index_of.insert(name.as_str(), nq);
+            v_index_of.insert(name.as_str(), nv);
             match j.joint_type {
                 JointType::Revolute | JointType::Prismatic => {
                     nq += 1;
@@ -245,6 +259,7 @@ impl KinematicModel {
                 child: new_index[&link_pos[j.child.as_str()]],
                 origin,
                 q_index: q_index_of.get(j.name.as_str()).copied().unwrap_or(usize::MAX),
+                v_index: v_index_of.get(j.name.as_str()).copied().unwrap_or(usize::MAX),
                 motion,
             });
         }
@@ -263,6 +278,44 @@ impl KinematicModel {
             .enumerate()
             .map(|(i, n)| (n.clone(), i))
             .collect();
+        let mut parent_link = vec![None; link_names.len()];
+        let mut joint_of_link = vec![None; link_names.len()];
+        for (ji, j) in joints.iter().enumerate() {
+            parent_link[j.child] = Some(j.parent);
+            joint_of_link[j.child] = Some(ji);
+        }
+        let mut active_ancestors: Vec<Vec<usize>> = vec![Vec::new(); link_names.len()];
+        for l in 0..link_names.len() {
+            let mut chain = match parent_link[l] {
+                Some(p) => active_ancestors[p].clone(),
+                None => Vec::new(),
+            };
+            if let Some(ji) = joint_of_link[l] {
+                if !matches!(joints[ji].motion, Motion::Fixed) {
+                    chain.push(ji);
+                }
+            }
+            active_ancestors[l] = chain;
+        }
+        let (masses, local_coms): (Vec<f64>, Vec<Vector3<f64>>) = order_links
+            .iter()
+            .map(|&l| match urdf.links[l].inertial {
+                Some(i) => (i.mass, i.com),
+                None => (0.0, Vector3::zeros()),
+            })
+            .unzip();
+        // As Pinocchio: on a fixed base, the links rigidly attached to the world do not count
+        // towards the centre of mass (they belong to the universe, not to the robot's bodies).
+        let masses: Vec<f64> = if options.floating_base {
+            masses
+        } else {
+            masses
+                .iter()
+                .enumerate()
+                .map(|(l, &m)| if body_of_link[l] == 0 { 0.0 } else { m })
+                .collect()
+        };
+        let total_mass = masses.iter().sum();
         Ok(KinematicModel {
             link_names,
             joints,
@@ -274,6 +327,11 @@ impl KinematicModel {
             lower,
             upper,
             body_of_link,
+            parent_link,
+            active_ancestors,
+            masses,
+            local_coms,
+            total_mass,
             link_index,
         })
     }
@@ -348,5 +406,162 @@ impl KinematicModel {
                 None => placed,
             };
         }
+    }
+}
+
+impl KinematicModel {
+    /// Pose of the free-flyer base encoded in `q[0..7]`.
+    fn base_pose(q: &[f64]) -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::new(q[0], q[1], q[2]),
+            UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5])),
+        )
+    }
+
+    fn write_base(q: &mut [f64], m: &Isometry3<f64>) {
+        let t = m.translation.vector;
+        let r = m.rotation.coords; // (x, y, z, w)
+        q[..3].copy_from_slice(&[t.x, t.y, t.z]);
+        q[3..7].copy_from_slice(&[r.x, r.y, r.z, r.w]);
+    }
+
+    /// Jacobian (6 x nv) of a link frame in its own (LOCAL) axes: the frame's linear velocity
+    /// and angular velocity, expressed in the frame, as Pinocchio's `getFrameJacobian(LOCAL)`.
+    /// `poses` are the link poses from [`forward_kinematics`](Self::forward_kinematics).
+    pub fn frame_jacobian_local(&self, poses: &[Isometry3<f64>], link: usize, out: &mut DMatrix<f64>) {
+        if out.nrows() != 6 || out.ncols() != self.nv {
+            *out = DMatrix::zeros(6, self.nv);
+        } else {
+            out.fill(0.0);
+        }
+        let mf = &poses[link];
+        let rf_t = mf.rotation.inverse();
+        if self.floating_base {
+            let ad = action(&(mf.inverse() * poses[self.root]));
+            out.view_mut((0, 0), (6, 6)).copy_from(&ad);
+        }
+        for &ji in &self.active_ancestors[link] {
+            let j = &self.joints[ji];
+            let mj = &poses[j.child];
+            let (lin, ang) = match &j.motion {
+                Motion::Revolute { axis } | Motion::Continuous { axis } => {
+                    let w = mj.rotation * axis.into_inner();
+                    (w.cross(&(mf.translation.vector - mj.translation.vector)), w)
+                }
+                Motion::Prismatic { axis } => (mj.rotation * axis.into_inner(), Vector3::zeros()),
+                Motion::Fixed => continue,
+            };
+            let (lin, ang) = (rf_t * lin, rf_t * ang);
+            for k in 0..3 {
+                out[(k, j.v_index)] = lin[k];
+                out[(k + 3, j.v_index)] = ang[k];
+            }
+        }
+    }
+
+    /// Centre of mass in the world, and (if `jacobian` is given) its Jacobian (3 x nv), as
+    /// Pinocchio's `jacobianCenterOfMass`.
+    pub fn center_of_mass(&self, poses: &[Isometry3<f64>], jacobian: Option<&mut DMatrix<f64>>) -> Vector3<f64> {
+        let n = self.link_names.len();
+        // subtree mass and mass-weighted centre, accumulated from the leaves up
+        let mut m_sub = self.masses.clone();
+        let mut mc_sub: Vec<Vector3<f64>> = (0..n)
+            .map(|l| (poses[l] * nalgebra::Point3::from(self.local_coms[l])).coords * self.masses[l])
+            .collect();
+        for l in (1..n).rev() {
+            if let Some(p) = self.parent_link[l] {
+                m_sub[p] += m_sub[l];
+                let add = mc_sub[l];
+                mc_sub[p] += add;
+            }
+        }
+        let total = self.total_mass.max(f64::MIN_POSITIVE);
+        let com = mc_sub[self.root] / total;
+        if let Some(jac) = jacobian {
+            if jac.nrows() != 3 || jac.ncols() != self.nv {
+                *jac = DMatrix::zeros(3, self.nv);
+            } else {
+                jac.fill(0.0);
+            }
+            if self.floating_base {
+                let mb = &poses[self.root];
+                let rb = mb.rotation.to_rotation_matrix().into_inner();
+                jac.view_mut((0, 0), (3, 3)).copy_from(&rb);
+                let ang: Matrix3<f64> = -skew(&(com - mb.translation.vector)) * rb;
+                jac.view_mut((0, 3), (3, 3)).copy_from(&ang);
+            }
+            for j in &self.joints {
+                let mj = &poses[j.child];
+                let col = match &j.motion {
+                    Motion::Revolute { axis } | Motion::Continuous { axis } => {
+                        let w = mj.rotation * axis.into_inner();
+                        w.cross(&(mc_sub[j.child] - mj.translation.vector * m_sub[j.child])) / total
+                    }
+                    Motion::Prismatic { axis } => mj.rotation * axis.into_inner() * (m_sub[j.child] / total),
+                    Motion::Fixed => continue,
+                };
+                for k in 0..3 {
+                    jac[(k, j.v_index)] = col[k];
+                }
+            }
+        }
+        com
+    }
+
+    /// q (+) v: Pinocchio's `integrate` (free-flyer: M exp6(v), joints: q + v).
+    pub fn integrate(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        out.copy_from_slice(q);
+        if self.floating_base {
+            let m = Self::base_pose(q) * exp6(&Vector6::from_column_slice(&v[..6]));
+            let mut m = m;
+            m.rotation.renormalize();
+            Self::write_base(out, &m);
+        }
+        for j in &self.joints {
+            match j.motion {
+                Motion::Revolute { .. } | Motion::Prismatic { .. } => out[j.q_index] += v[j.v_index],
+                Motion::Continuous { .. } => {
+                    let a = q[j.q_index + 1].atan2(q[j.q_index]) + v[j.v_index];
+                    out[j.q_index] = a.cos();
+                    out[j.q_index + 1] = a.sin();
+                }
+                Motion::Fixed => {}
+            }
+        }
+    }
+
+    /// q1 (-) q0 in the tangent space: Pinocchio's `difference(q0, q1)`.
+    pub fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
+        if self.floating_base {
+            let d = log6(&(Self::base_pose(q0).inverse() * Self::base_pose(q1)));
+            out[..6].copy_from_slice(d.as_slice());
+        }
+        for j in &self.joints {
+            match j.motion {
+                Motion::Revolute { .. } | Motion::Prismatic { .. } => out[j.v_index] = q1[j.q_index] - q0[j.q_index],
+                Motion::Continuous { .. } => {
+                    let a0 = q0[j.q_index + 1].atan2(q0[j.q_index]);
+                    let a1 = q1[j.q_index + 1].atan2(q1[j.q_index]);
+                    let mut d = a1 - a0;
+                    if d > std::f64::consts::PI {
+                        d -= 2.0 * std::f64::consts::PI;
+                    } else if d < -std::f64::consts::PI {
+                        d += 2.0 * std::f64::consts::PI;
+                    }
+                    out[j.v_index] = d;
+                }
+                Motion::Fixed => {}
+            }
+        }
+    }
+
+    /// d difference(q0, q1) / d q1 (nv x nv): identity but for the free-flyer block, Jlog6.
+    pub fn difference_jacobian(&self, q0: &[f64], q1: &[f64]) -> DMatrix<f64> {
+        let mut out = DMatrix::identity(self.nv, self.nv);
+        if self.floating_base {
+            let j = jlog6(&(Self::base_pose(q0).inverse() * Self::base_pose(q1)));
+            out.view_mut((0, 0), (6, 6)).copy_from(&j);
+        }
+        out
     }
 }

@@ -11,6 +11,8 @@
 pub mod collision;
 pub mod error;
 pub mod kinematics;
+pub mod lie;
+pub mod projection;
 pub mod robot;
 pub mod srdf;
 pub mod urdf;

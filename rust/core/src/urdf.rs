@@ -27,10 +27,19 @@ pub struct Collision {
     pub geometry: Geometry,
 }
 
+/// Mass properties of a link (only what the centre of mass needs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inertial {
+    pub mass: f64,
+    /// Centre of mass in the link frame.
+    pub com: Vector3<f64>,
+}
+
 #[derive(Debug, Clone)]
 pub struct Link {
     pub name: String,
     pub collisions: Vec<Collision>,
+    pub inertial: Option<Inertial>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -211,9 +220,30 @@ impl Urdf {
                             });
                         }
                     }
+                    let inertial = match child(node, "inertial") {
+                        None => None,
+                        Some(i) => {
+                            let mass = child(i, "mass")
+                                .map(|m| required_f64(m, "value"))
+                                .transpose()?
+                                .unwrap_or(0.0);
+                            if mass < 0.0 {
+                                return Err(Error::Parse {
+                                    what: "URDF".into(),
+                                    msg: format!("link '{name}' has negative mass {mass}"),
+                                });
+                            }
+                            let com = match child(i, "origin") {
+                                Some(o) => vec3_attr(o, "xyz", Vector3::zeros())?,
+                                None => Vector3::zeros(),
+                            };
+                            Some(Inertial { mass, com })
+                        }
+                    };
                     links.push(Link {
                         name: name.to_string(),
                         collisions,
+                        inertial,
                     });
                 }
                 "joint" => joints.push(parse_joint(node)?),

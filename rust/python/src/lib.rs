@@ -12,10 +12,11 @@ use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
-use pyo3::types::PyDict;
+use pyo3::types::{PyAnyMethods, PyDict};
 use rayon::prelude::*;
 
 use genplan_core::collision::CollisionWorld;
+use genplan_core::projection::{Projector, Settings, Term, TermKind};
 use genplan_core::kinematics::{KinematicModel, ModelOptions};
 use genplan_core::robot::{package_dirs_for, RobotSpec, ROBOT_NAMES};
 use genplan_core::srdf::Srdf;
@@ -349,6 +350,226 @@ impl PyCollisionWorld {
     }
 }
 
+fn get<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, what: &str) -> PyResult<T> {
+    match d.get_item(key)? {
+        Some(v) => v.extract::<T>().map_err(|e| PyValueError::new_err(format!("{what}: '{key}': {}", Into::<PyErr>::into(e)))),
+        None => Err(PyValueError::new_err(format!("{what}: missing '{key}'"))),
+    }
+}
+
+fn get_or<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, default: T, what: &str) -> PyResult<T> {
+    match d.get_item(key)? {
+        Some(v) if !v.is_none() => v.extract::<T>().map_err(|e| PyValueError::new_err(format!("{what}: '{key}': {}", Into::<PyErr>::into(e)))),
+        _ => Ok(default),
+    }
+}
+
+fn term_from_dict(model: &genplan_core::KinematicModel, d: &Bound<'_, PyDict>) -> PyResult<Term> {
+    let kind_name: String = get(d, "type", "term")?;
+    let name: String = get_or(d, "name", kind_name.clone(), "term")?;
+    let what = format!("term '{name}'");
+    let link = |d: &Bound<'_, PyDict>| -> PyResult<usize> {
+        let l: String = get(d, "link", &what)?;
+        model.link_index(&l).map_err(to_py)
+    };
+    let mat3 = |m: [[f64; 3]; 3]| Matrix3::from_fn(|i, j| m[i][j]);
+    let kind = match kind_name.as_str() {
+        "frame_pose" => {
+            let t: [[f64; 4]; 4] = get(d, "target", &what)?;
+            let rot = Rotation3::from_matrix_unchecked(Matrix3::from_fn(|i, j| t[i][j]));
+            TermKind::FramePose {
+                link: link(d)?,
+                target: Isometry3::from_parts(Translation3::new(t[0][3], t[1][3], t[2][3]), UnitQuaternion::from_rotation_matrix(&rot)),
+                mask: get_or(d, "mask", [1.0; 6], &what)?,
+            }
+        }
+        "frame_position" => TermKind::FramePosition {
+            link: link(d)?,
+            target: nalgebra::Vector3::from(get::<[f64; 3]>(d, "target", &what)?),
+            mask: get_or(d, "mask", [1.0; 3], &what)?,
+        },
+        "frame_orientation" => TermKind::FrameOrientation {
+            link: link(d)?,
+            target: mat3(get_or(d, "target", [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], &what)?),
+            offset: mat3(get_or(d, "offset", [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], &what)?),
+            mask: get_or(d, "mask", [1.0; 3], &what)?,
+        },
+        "joint_limits" => TermKind::JointLimits { margin: get_or(d, "margin", 1e-3, &what)? },
+        "com_box" => TermKind::ComBox {
+            lower: nalgebra::Vector3::from(get::<[f64; 3]>(d, "lower", &what)?),
+            upper: nalgebra::Vector3::from(get::<[f64; 3]>(d, "upper", &what)?),
+            margin: get_or(d, "margin", 1e-3, &what)?,
+        },
+        "posture" => TermKind::Posture {
+            q_nom: get_or(d, "q_nom", None::<Vec<f64>>, &what)?,
+            weights: get_or(d, "weights", vec![1.0; model.nv], &what)?,
+            overrides: get_or(d, "overrides", Vec::<(usize, f64)>::new(), &what)?,
+        },
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "unknown term type '{other}' (known: frame_pose, frame_position, frame_orientation, joint_limits, com_box, posture)"
+            )))
+        }
+    };
+    Ok(Term {
+        name,
+        kind,
+        weight: get_or(d, "weight", 1.0, &what)?,
+        tolerance: get_or(d, "tolerance", 1e-3, &what)?,
+    })
+}
+
+/// Native damped Gauss-Newton projector (see genplan.projection for the Python front end).
+#[pyclass(name = "Projector", module = "genplan._core", frozen)]
+struct PyProjector {
+    inner: Projector,
+}
+
+#[pymethods]
+impl PyProjector {
+    #[new]
+    #[pyo3(signature = (model, primary, secondary=Vec::new(), settings=None))]
+    fn new(
+        model: &PyKinematicModel,
+        primary: Vec<Bound<'_, PyDict>>,
+        secondary: Vec<Bound<'_, PyDict>>,
+        settings: Option<Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        let m = &*model.inner;
+        let primary = primary.iter().map(|d| term_from_dict(m, d)).collect::<PyResult<Vec<_>>>()?;
+        let secondary = secondary.iter().map(|d| term_from_dict(m, d)).collect::<PyResult<Vec<_>>>()?;
+        let mut st = Settings::default();
+        if let Some(d) = settings {
+            let w = "settings";
+            st.max_iterations = get_or(&d, "max_iterations", st.max_iterations, w)?;
+            st.mu = get_or(&d, "mu", st.mu, w)?;
+            st.mu_bar = get_or(&d, "mu_bar", st.mu_bar, w)?;
+            st.armijo_c1 = get_or(&d, "armijo_c1", st.armijo_c1, w)?;
+            st.backtrack = get_or(&d, "backtrack", st.backtrack, w)?;
+            st.max_backtracks = get_or(&d, "max_backtracks", st.max_backtracks, w)?;
+            st.clip_to_limits = get_or(&d, "clip_to_limits", st.clip_to_limits, w)?;
+            st.secondary_backtracks = get_or(&d, "secondary_backtracks", st.secondary_backtracks, w)?;
+            st.secondary_slack = get_or(&d, "secondary_slack", st.secondary_slack, w)?;
+        }
+        let inner = Projector::new(model.inner.clone(), primary, secondary, st).map_err(to_py)?;
+        Ok(Self { inner })
+    }
+
+    #[getter]
+    fn term_names(&self) -> Vec<String> {
+        self.inner.primary.iter().map(|t| t.name.clone()).collect()
+    }
+
+    /// Solve from each row of q0 ((n, nq)); q_nom likewise or None. Returns
+    /// (q (n, nq), success (n,), iterations (n,), residuals (n, terms), time_s (n,)).
+    /// The rows run in parallel (GIL released) when `parallel`.
+    #[pyo3(signature = (q0, q_nom=None, parallel=true, target_term=None, targets=None))]
+    #[allow(clippy::type_complexity, clippy::too_many_arguments)]
+    fn solve_batch<'py>(
+        &self,
+        py: Python<'py>,
+        q0: PyReadonlyArrayDyn<'py, f64>,
+        q_nom: Option<PyReadonlyArrayDyn<'py, f64>>,
+        parallel: bool,
+        target_term: Option<String>,
+        targets: Option<PyReadonlyArrayDyn<'py, f64>>,
+    ) -> PyResult<(
+        Bound<'py, numpy::PyArrayDyn<f64>>,
+        Bound<'py, numpy::PyArray1<bool>>,
+        Bound<'py, numpy::PyArray1<i64>>,
+        Bound<'py, numpy::PyArrayDyn<f64>>,
+        Bound<'py, numpy::PyArray1<f64>>,
+    )> {
+        let m = &*self.inner.model;
+        let b = batch(&q0, m.nq, "q0")?;
+        check_rows(m, &b, "q0")?;
+        let noms = match &q_nom {
+            Some(a) => {
+                let nb = batch(a, m.nq, "q_nom")?;
+                if nb.lead != b.lead {
+                    return Err(PyValueError::new_err(format!("q_nom: expected {} rows like q0, got {:?}", b.lead.first().copied().unwrap_or(1), nb.lead)));
+                }
+                genplan_core::error::check_finite("q_nom", nb.data).map_err(to_py)?;
+                Some(nb.data)
+            }
+            None => None,
+        };
+        let nq = m.nq;
+        let n = b.data.len() / nq.max(1);
+        let data = b.data;
+        let solver = &self.inner;
+        // per-row targets of one primary term: build each row's solver up front (errors surface
+        // before any work), then solve
+        let per_row: Option<Vec<Projector>> = match (&target_term, &targets) {
+            (None, None) => None,
+            (Some(name), Some(arr)) => {
+                let ti = solver.primary.iter().position(|t| &t.name == name).ok_or_else(|| {
+                    PyValueError::new_err(format!("unknown target term '{name}' (primary terms: {:?})", solver.primary.iter().map(|t| &t.name).collect::<Vec<_>>()))
+                })?;
+                let tdata = arr.as_slice().map_err(|_| PyValueError::new_err("targets: array must be C-contiguous"))?;
+                if arr.shape().first().copied() != Some(n) || tdata.len() % n.max(1) != 0 {
+                    return Err(PyValueError::new_err(format!("targets: expected {n} rows, got shape {:?}", arr.shape())));
+                }
+                let k = tdata.len() / n.max(1);
+                Some((0..n).map(|i| solver.retargeted(ti, &tdata[i * k..(i + 1) * k]).map_err(|e| PyValueError::new_err(format!("targets[{i}]: {e}")))).collect::<PyResult<_>>()?)
+            }
+            _ => return Err(PyValueError::new_err("give both target_term and targets, or neither")),
+        };
+        let run = |i: usize| {
+            let s = per_row.as_ref().map_or(solver, |v| &v[i]);
+            s.solve_unchecked(&data[i * nq..(i + 1) * nq], noms.map(|d| &d[i * nq..(i + 1) * nq]))
+        };
+        let outs: Vec<genplan_core::projection::Outcome> = py.detach(|| {
+            if parallel && n > 1 {
+                (0..n).into_par_iter().map(run).collect()
+            } else {
+                (0..n).map(run).collect()
+            }
+        });
+        let nt = solver.primary.len();
+        let q = Array::from_shape_vec(IxDyn(&[n, nq]), outs.iter().flat_map(|o| o.q.iter().copied()).collect())
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let res = Array::from_shape_vec(IxDyn(&[n, nt]), outs.iter().flat_map(|o| o.residuals.iter().copied()).collect())
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok((
+            q.into_pyarray(py),
+            outs.iter().map(|o| o.success).collect::<Vec<_>>().into_pyarray(py),
+            outs.iter().map(|o| o.iterations as i64).collect::<Vec<_>>().into_pyarray(py),
+            res.into_pyarray(py),
+            outs.iter().map(|o| o.time_s).collect::<Vec<_>>().into_pyarray(py),
+        ))
+    }
+
+    /// Frame Jacobian in the frame's own axes (6 x nv) at q: for cross-checks.
+    fn frame_jacobian_local<'py>(&self, py: Python<'py>, q: Vec<f64>, link: &str) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+        let m = &*self.inner.model;
+        let li = m.link_index(link).map_err(to_py)?;
+        let mut poses = Vec::new();
+        m.forward_kinematics(&q, &mut poses).map_err(to_py)?;
+        let mut j = nalgebra::DMatrix::zeros(6, m.nv);
+        m.frame_jacobian_local(&poses, li, &mut j);
+        dmatrix_to_py(py, &j)
+    }
+
+    /// Centre of mass (3,) and its Jacobian (3 x nv) at q: for cross-checks.
+    fn center_of_mass<'py>(&self, py: Python<'py>, q: Vec<f64>) -> PyResult<(Vec<f64>, Bound<'py, numpy::PyArrayDyn<f64>>)> {
+        let m = &*self.inner.model;
+        let mut poses = Vec::new();
+        m.forward_kinematics(&q, &mut poses).map_err(to_py)?;
+        let mut j = nalgebra::DMatrix::zeros(3, m.nv);
+        let c = m.center_of_mass(&poses, Some(&mut j));
+        Ok((vec![c.x, c.y, c.z], dmatrix_to_py(py, &j)?))
+    }
+}
+
+fn dmatrix_to_py<'py>(py: Python<'py>, j: &nalgebra::DMatrix<f64>) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+    let (r, c) = j.shape();
+    let data: Vec<f64> = (0..r).flat_map(|i| (0..c).map(move |k| j[(i, k)])).collect();
+    Ok(Array::from_shape_vec(IxDyn(&[r, c]), data)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
 /// The preset of a robot as a dict (files relative to example-robot-data's robots/ folder).
 #[pyfunction]
 fn robot_spec<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
@@ -390,6 +611,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("CRATE_VERSIONS", crates.into_py_dict_compat(m.py())?)?;
     m.add_class::<PyKinematicModel>()?;
     m.add_class::<PyCollisionWorld>()?;
+    m.add_class::<PyProjector>()?;
     m.add_function(wrap_pyfunction!(robot_spec, m)?)?;
     m.add_function(wrap_pyfunction!(load_robot, m)?)?;
     m.add_function(wrap_pyfunction!(package_dirs, m)?)?;

@@ -1,0 +1,1 @@
+"""Benchmarks behind ``genplan bench ...``: each prints its table and writes JSON."""

@@ -1,0 +1,209 @@
+"""Table I of the GAN paper: projection and IK from a given initialisation, N tasks per robot.
+
+    genplan bench projection --robot panda --init uniform --tasks 500 --seed 0 --out F.json
+    genplan bench projection --robot panda --solver scipy ...   # the baseline, same tasks
+
+The same seed gives the same tasks (initial configurations and IK targets) for every solver, so
+ratios are measured, not guessed. Times are per task, one task after the other on one core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+import genplan
+from genplan import projection as P
+from genplan.benchmarks.common import machine, table, write_json
+
+#: Table I of the GAN paper: (success %, T_ave ms, T*_ave ms, steps*).
+PAPER_TABLE_I: dict[tuple[str, str, str], tuple[float, float, float, float]] = {
+    ("panda", "projection", "uniform"): (98.6, 4.2, 3.6, 6.5),
+    ("panda", "projection", "gan"): (100.0, 1.0, 1.0, 1.9),
+    ("panda", "ik", "uniform"): (76.4, 29.3, 8.8, 7.9),
+    ("panda", "ik", "gan"): (88.6, 12.5, 2.2, 2.9),
+    ("talos", "projection", "uniform"): (84.4, 20.5, 10.5, 8.7),
+    ("talos", "projection", "gan"): (100.0, 2.1, 2.1, 2.1),
+    ("talos", "ik", "uniform"): (82.6, 28.7, 15.7, 10.4),
+    ("talos", "ik", "gan"): (100.0, 2.8, 2.8, 2.5),
+}
+
+SOLVERS = ("gauss-newton", "scipy")
+INITS = ("uniform",)
+
+
+def ik_box(robot: genplan.Robot) -> NDArray[np.float64]:
+    return P.PANDA_IK_BOX if robot.name == "panda" else P.TALOS_IK_BOX
+
+
+def make_problems(robot: genplan.Robot, n: int, seed: int) -> dict[str, Any]:
+    """Seeded tasks: initial configurations for projection and for IK, and the IK targets."""
+    rng = np.random.default_rng(seed)
+    box = ik_box(robot)
+    return {
+        "projection": {"q0": robot.random_configurations(n, rng)},
+        "ik": {"q0": robot.random_configurations(n, rng), "targets": rng.uniform(box[0], box[1], size=(n, 3))},
+    }
+
+
+def summarize(success: NDArray[np.bool_], times_s: NDArray[np.float64], steps: NDArray[np.int64]) -> dict[str, Any]:
+    ok = success.astype(bool)
+    t_ms = times_s * 1e3
+    return {
+        "success_rate": 100.0 * float(ok.mean()),  # percent, as in the paper
+        "t_ave_ms": float(t_ms.mean()),
+        "t_std_ms": float(t_ms.std()),
+        "t_median_ms": float(np.median(t_ms)),
+        "t_star_ave_ms": float(t_ms[ok].mean()) if ok.any() else None,
+        "steps_star": float(steps[ok].mean()) if ok.any() else None,
+        "steps_star_std": float(steps[ok].std()) if ok.any() else None,
+        "tasks": int(len(ok)),
+    }
+
+
+def target_term(task: P.Task) -> str:
+    return task.primary[0].name  # the paper's IK tasks put the hand position first
+
+
+def run_gauss_newton(robot: genplan.Robot, problems: dict[str, Any], backend: str) -> dict[str, Any]:
+    out = {}
+    for kind in P.TASK_KINDS:
+        task = P.paper_task(robot, kind)
+        solver = P.GaussNewtonProjector(robot, task, backend=backend)
+        targets = {target_term(task): problems[kind]["targets"]} if kind == "ik" else None
+        t0 = time.perf_counter()
+        res = solver.solve_batch(problems[kind]["q0"], targets=targets, parallel=False, progress=True)
+        wall = time.perf_counter() - t0
+        out[kind] = summarize(res.success, res.time_s, res.iterations)
+        out[kind]["wall_s"] = wall
+    return out
+
+
+def scipy_solve(robot: genplan.Robot, task: P.Task, q0: NDArray[np.float64]) -> tuple[bool, float, int]:
+    """What users write today: scipy.optimize.least_squares (trust-region reflective) on the
+    same weighted primary residuals and analytic Jacobians, joint limits as box bounds,
+    optimising a tangent displacement x from q0 (q = q0 (+) x)."""
+    t0 = time.perf_counter()
+    model = robot.model
+    bound = [t.bind(robot) for t in task.primary]
+    weights = [float(t.weight) for t in task.primary]
+    tols = [float(t.tolerance) for t in task.primary]
+    q0 = np.clip(q0, robot.lower, robot.upper)
+    lb = np.full(robot.nv, -np.inf)
+    ub = np.full(robot.nv, np.inf)
+    for jid in range(1, model.njoints):
+        j = model.joints[jid]
+        if j.nq == 1 and np.isfinite(robot.lower[j.idx_q]):
+            lb[j.idx_v] = robot.lower[j.idx_q] - q0[j.idx_q]
+            ub[j.idx_v] = robot.upper[j.idx_q] - q0[j.idx_q]
+
+    def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        s = P._State(robot, pin.integrate(model, q0, x), False)
+        return np.concatenate([w * b.residual(s) for w, b in zip(weights, bound)])
+
+    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        s = P._State(robot, pin.integrate(model, q0, x), True)
+        j = np.vstack([w * b.jacobian(s) for w, b in zip(weights, bound)])
+        return j @ pin.dIntegrate(model, q0, x, pin.ARG1)
+
+    res = least_squares(fun, np.zeros(robot.nv), jac=jac, bounds=(lb, ub), method="trf",
+                        xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)
+    s = P._State(robot, pin.integrate(model, q0, res.x), False)
+    ok = all(float(np.abs(b.residual(s)).max(initial=0.0)) < tol for b, tol in zip(bound, tols))
+    return ok, time.perf_counter() - t0, int(res.nfev)
+
+
+def run_scipy(robot: genplan.Robot, problems: dict[str, Any]) -> dict[str, Any]:
+    from tqdm import tqdm
+
+    out = {}
+    for kind in P.TASK_KINDS:
+        base = P.paper_task(robot, kind)
+        q0s = problems[kind]["q0"]
+        rows = []
+        t0 = time.perf_counter()
+        for i in tqdm(range(len(q0s)), desc=f"scipy {kind}", unit="task", leave=False):
+            task = base.with_targets(**{target_term(base): problems[kind]["targets"][i]}) if kind == "ik" else base
+            rows.append(scipy_solve(robot, task, q0s[i]))
+        wall = time.perf_counter() - t0
+        ok, ts, nfev = (np.array(c) for c in zip(*rows))
+        out[kind] = summarize(ok, ts, nfev)
+        out[kind]["wall_s"] = wall
+    return out
+
+
+def task_description(robot: genplan.Robot) -> dict[str, Any]:
+    """Weights and thresholds of the tasks that were run."""
+    desc = {}
+    for kind in P.TASK_KINDS:
+        task = P.paper_task(robot, kind)
+        desc[kind] = {t.label(): {"type": type(t).__name__, "weight": t.weight, "tolerance": t.tolerance}
+                      for t in [*task.primary, *task.secondary]}
+    return desc
+
+
+def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend: str) -> dict[str, Any]:
+    robot = genplan.load(robot_name)
+    problems = make_problems(robot, tasks, seed)
+    if solver == "gauss-newton":
+        results = run_gauss_newton(robot, problems, backend)
+    else:
+        results = run_scipy(robot, problems)
+    payload: dict[str, Any] = {
+        "benchmark": "projection",
+        "robot": robot_name,
+        "init": init,
+        "solver": solver,
+        "backend": backend if solver == "gauss-newton" else "scipy.optimize.least_squares(trf)",
+        "tasks": tasks,
+        "seed": seed,
+        "units": {"success_rate": "percent", "t_*": "milliseconds per task", "steps_star": "solver iterations"
+                  + (" (function evaluations for scipy)" if solver == "scipy" else "")},
+        "ik_target_box": ik_box(robot).tolist(),
+        "settings": P.SolverSettings().__dict__,
+        "task_terms": task_description(robot),
+        "machine": machine(),
+        **results,
+        "paper": {kind: dict(zip(("success_rate", "t_ave_ms", "t_star_ave_ms", "steps_star"),
+                                 PAPER_TABLE_I[(robot_name, kind, init)])) for kind in P.TASK_KINDS},
+    }
+    return payload
+
+
+def print_table(payload: dict[str, Any]) -> None:
+    rows = []
+    for kind in P.TASK_KINDS:
+        r, p = payload[kind], payload["paper"][kind]
+        rows.append([payload["robot"], kind, f"{payload['init']} ({payload['solver']})",
+                     f"{r['success_rate']:.1f}", f"{r['t_ave_ms']:.3f} ± {r['t_std_ms']:.3f}",
+                     "-" if r["t_star_ave_ms"] is None else f"{r['t_star_ave_ms']:.3f}",
+                     "-" if r["steps_star"] is None else f"{r['steps_star']:.1f}",
+                     f"{p['success_rate']} / {p['t_ave_ms']} / {p['t_star_ave_ms']} / {p['steps_star']}"])
+    print(table(["robot", "task", "init (solver)", "success %", "T_ave ms", "T*_ave ms", "steps*",
+                 "paper: success / T_ave / T* / steps*"], rows))
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--robot", choices=["panda", "talos"], required=True)
+    p.add_argument("--init", choices=INITS, default="uniform", help="initial configurations")
+    p.add_argument("--tasks", type=int, default=500, help="tasks per kind (projection, IK)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--solver", choices=SOLVERS, default="gauss-newton")
+    p.add_argument("--backend", choices=P.BACKENDS, default="native", help="Gauss-Newton implementation")
+    p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.tasks < 1:
+        raise SystemExit("--tasks must be at least 1")
+    payload = run(args.robot, args.init, args.tasks, args.seed, args.solver, args.backend)
+    print_table(payload)
+    write_json(args.out, payload)
+    return 0

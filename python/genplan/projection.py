@@ -1,0 +1,735 @@
+"""Constraint projection and inverse kinematics: damped Gauss-Newton with a task hierarchy.
+
+The GAN paper's Section III-B: residual terms with analytic Jacobians from Pinocchio, stacked
+into a primary task; a secondary posture task runs in the null space of the primary (eq. 3);
+damping lambda = mu r^T r + mu_bar (eq. 4); Armijo backtracking; clipping to the joint limits
+after every step. A task succeeds when every primary term's residual is below its tolerance
+(max absolute component of the unweighted residual, as in the authors' code).
+
+Tasks are data: a list of terms. The paper's tasks are built by :func:`panda_task` and
+:func:`talos_task`; a user task is any list of :class:`Term` objects::
+
+    task = Task(primary=[FramePosition("hand", target=[0.5, 0, 0.6], weight=50),
+                         JointLimits(weight=30)],
+                secondary=[Posture()])
+    result = GaussNewtonProjector(genplan.load("panda"), task).solve(q0)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike, NDArray
+
+from genplan import _core
+from genplan._arrays import as_configurations
+from genplan.robots import Robot
+
+Array = NDArray[np.float64]
+
+
+# --------------------------------------------------------------------------------------------
+# Kinematic state shared by the terms of one evaluation
+# --------------------------------------------------------------------------------------------
+
+
+class _State:
+    """Pinocchio quantities at one q, computed once and shared by all terms."""
+
+    __slots__ = ("robot", "q", "with_jacobians", "_com", "_jcom", "_frame_jac")
+
+    def __init__(self, robot: Robot, q: Array, with_jacobians: bool) -> None:
+        self.robot = robot
+        self.q = q
+        self.with_jacobians = with_jacobians
+        self._com: Array | None = None
+        self._jcom: Array | None = None
+        self._frame_jac: dict[int, Array] = {}
+        if with_jacobians:
+            pin.computeJointJacobians(robot.model, robot.data, q)
+            pin.updateFramePlacements(robot.model, robot.data)
+        else:
+            pin.framesForwardKinematics(robot.model, robot.data, q)
+
+    def placement(self, fid: int) -> pin.SE3:
+        return self.robot.data.oMf[fid]
+
+    def frame_jacobian_local(self, fid: int) -> Array:
+        jac = self._frame_jac.get(fid)
+        if jac is None:
+            jac = pin.getFrameJacobian(self.robot.model, self.robot.data, fid, pin.LOCAL)
+            self._frame_jac[fid] = jac
+        return jac
+
+    def com(self) -> Array:
+        if self._com is None:
+            if self.with_jacobians:
+                self._jcom = pin.jacobianCenterOfMass(self.robot.model, self.robot.data, self.q, False)
+            else:
+                pin.centerOfMass(self.robot.model, self.robot.data, self.q, False)
+            self._com = np.array(self.robot.data.com[0])
+        return self._com
+
+    def com_jacobian(self) -> Array:
+        self.com()
+        assert self._jcom is not None
+        return self._jcom
+
+
+# --------------------------------------------------------------------------------------------
+# Residual terms
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Term:
+    """A residual r(q) with its Jacobian dr/dv (v: tangent space, size nv).
+
+    ``weight`` scales the term in the least-squares cost; ``tolerance`` is the largest absolute
+    component of the unweighted residual for the term to count as satisfied.
+    """
+
+    weight: float = 1.0
+    tolerance: float = 1e-3
+    name: str = ""
+
+    def label(self) -> str:
+        return self.name or type(self).__name__
+
+    def bind(self, robot: Robot) -> "_BoundTerm":
+        raise NotImplementedError
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        """The term as the native solver's description (built-in terms only)."""
+        raise NotImplementedError(
+            f"term '{self.label()}' ({type(self).__name__}) has no native form; use backend='pinocchio'"
+        )
+
+    def _native(self, kind: str, **fields: Any) -> dict[str, Any]:
+        return {"type": kind, "name": self.label(), "weight": float(self.weight), "tolerance": float(self.tolerance), **fields}
+
+
+def _native_link(robot: Robot, frame: str) -> str:
+    name = robot.frames.get(frame, frame)
+    if name not in robot.kinematics.link_names:
+        raise ValueError(f"frame '{frame}' is not a link of robot '{robot.name}': the native solver needs a URDF link")
+    return name
+
+
+class _BoundTerm:
+    """A term resolved against a robot (frame ids, index sets), ready to evaluate."""
+
+    term: Term
+
+    def residual(self, s: _State) -> Array:
+        raise NotImplementedError
+
+    def jacobian(self, s: _State) -> Array:
+        raise NotImplementedError
+
+
+def _se3(target: Any, what: str) -> pin.SE3:
+    if isinstance(target, pin.SE3):
+        return target.copy()
+    m = np.asarray(target, dtype=np.float64)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise ValueError(f"{what}: expected a pinocchio.SE3 or a finite 4x4 matrix, got shape {m.shape}")
+    return pin.SE3(m[:3, :3], m[:3, 3])
+
+
+def _vector(v: Any, n: int, what: str) -> Array:
+    a = np.asarray(v, dtype=np.float64).reshape(-1)
+    if a.shape != (n,):
+        raise ValueError(f"{what}: expected {n} numbers, got shape {np.shape(v)}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{what}: must be finite, got {a}")
+    return a
+
+
+def _rotation(m: Any, what: str) -> Array:
+    r = np.asarray(m, dtype=np.float64)
+    if r.shape != (3, 3) or not np.all(np.isfinite(r)) or np.abs(r.T @ r - np.eye(3)).max() > 1e-6:
+        raise ValueError(f"{what}: expected a 3x3 rotation matrix")
+    return r
+
+
+@dataclass(frozen=True)
+class FramePose(Term):
+    """Full pose of a frame: r = w_c * log6(T_ref^-1 T(q)) (6 components: linear, angular)."""
+
+    frame: str = ""
+    target: Any = None  # pin.SE3 or 4x4
+    components: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _FramePoseBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        return self._native("frame_pose", link=_native_link(robot, self.frame),
+                            target=_se3(self.target, f"FramePose({self.frame}).target").homogeneous.tolist(),
+                            mask=_vector(self.components, 6, "FramePose.components").tolist())
+
+
+class _FramePoseBound(_BoundTerm):
+    def __init__(self, term: FramePose, robot: Robot) -> None:
+        self.term = term
+        self.fid = robot.frame_id(term.frame)
+        self.target_inv = _se3(term.target, f"FramePose({term.frame}).target").inverse()
+        self.mask = _vector(term.components, 6, "FramePose.components")
+
+    def residual(self, s: _State) -> Array:
+        return self.mask * pin.log6(self.target_inv * s.placement(self.fid)).vector
+
+    def jacobian(self, s: _State) -> Array:
+        rel = self.target_inv * s.placement(self.fid)
+        return self.mask[:, None] * (pin.Jlog6(rel) @ s.frame_jacobian_local(self.fid))
+
+
+@dataclass(frozen=True)
+class FramePosition(Term):
+    """Position of a frame in the world: r = axes * (p(q) - p_ref)."""
+
+    frame: str = ""
+    target: Any = None  # 3 numbers
+    axes: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _FramePositionBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        return self._native("frame_position", link=_native_link(robot, self.frame),
+                            target=_vector(self.target, 3, f"FramePosition({self.frame}).target").tolist(),
+                            mask=_vector(self.axes, 3, "FramePosition.axes").tolist())
+
+
+class _FramePositionBound(_BoundTerm):
+    def __init__(self, term: FramePosition, robot: Robot) -> None:
+        self.term = term
+        self.fid = robot.frame_id(term.frame)
+        self.target = _vector(term.target, 3, f"FramePosition({term.frame}).target")
+        self.mask = _vector(term.axes, 3, "FramePosition.axes")
+
+    def residual(self, s: _State) -> Array:
+        return self.mask * (s.placement(self.fid).translation - self.target)
+
+    def jacobian(self, s: _State) -> Array:
+        rot = s.placement(self.fid).rotation
+        return self.mask[:, None] * (rot @ s.frame_jacobian_local(self.fid)[:3])
+
+
+@dataclass(frozen=True)
+class FrameOrientation(Term):
+    """Orientation of a frame: r = axes * log3(R_ref^T R(q) R_offset).
+
+    With ``axes = (1, 1, 0)`` the rotation about the target's z axis is free: the Panda's
+    "gripper horizontal, yaw free" constraint uses R_offset = Ry(-pi/2) on the hand frame.
+    """
+
+    frame: str = ""
+    target: Any = None  # 3x3 rotation; None: identity
+    axes: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    offset: Any = None  # 3x3 rotation applied in the frame; None: identity
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _FrameOrientationBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        b = _FrameOrientationBound(self, robot)
+        return self._native("frame_orientation", link=_native_link(robot, self.frame),
+                            target=b.target_t.T.tolist(), offset=b.offset.tolist(), mask=b.mask.tolist())
+
+
+class _FrameOrientationBound(_BoundTerm):
+    def __init__(self, term: FrameOrientation, robot: Robot) -> None:
+        self.term = term
+        self.fid = robot.frame_id(term.frame)
+        self.target_t = (np.eye(3) if term.target is None else _rotation(term.target, "FrameOrientation.target")).T
+        self.offset = np.eye(3) if term.offset is None else _rotation(term.offset, "FrameOrientation.offset")
+        self.mask = _vector(term.axes, 3, "FrameOrientation.axes")
+
+    def _rel(self, s: _State) -> Array:
+        return self.target_t @ s.placement(self.fid).rotation @ self.offset
+
+    def residual(self, s: _State) -> Array:
+        return self.mask * pin.log3(self._rel(s))
+
+    def jacobian(self, s: _State) -> Array:
+        # angular velocity of the offset frame, in its own axes: offset^T * omega_local
+        jw = self.offset.T @ s.frame_jacobian_local(self.fid)[3:]
+        return self.mask[:, None] * (pin.Jlog3(self._rel(s)) @ jw)
+
+
+@dataclass(frozen=True)
+class Posture(Term):
+    """r = joint_weights * (q (-) q_nom), in the tangent space (pin.difference).
+
+    ``q_nom=None``: the solver's nominal posture (by default the initial guess). ``overrides``
+    maps joint names to fixed nominal values (Talos: the left arm at its default posture).
+    """
+
+    q_nom: Any = None
+    joint_weights: Any = None  # nv numbers; None: ones
+    overrides: Mapping[str, float] = field(default_factory=dict)
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _PostureBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        b = _PostureBound(self, robot)
+        return self._native("posture", q_nom=None if b.q_nom is None else b.q_nom.tolist(),
+                            weights=b.w.tolist(), overrides=b.override_q)
+
+
+class _PostureBound(_BoundTerm):
+    def __init__(self, term: Posture, robot: Robot) -> None:
+        self.term = term
+        self.model = robot.model
+        self.q_nom: Array | None = None if term.q_nom is None else as_configurations(term.q_nom, robot.nq, "Posture.q_nom")
+        self.w = np.ones(robot.nv) if term.joint_weights is None else _vector(term.joint_weights, robot.nv, "Posture.joint_weights")
+        self.override_q: list[tuple[int, float]] = []
+        for joint, value in term.overrides.items():
+            if joint not in robot.joint_names:
+                raise ValueError(f"Posture.overrides: unknown joint '{joint}'")
+            self.override_q.append((robot.model.joints[robot.model.getJointId(joint)].idx_q, float(value)))
+        self.floating = robot.floating_base
+
+    def set_nominal(self, q_nom: Array) -> None:
+        if self.term.q_nom is None:
+            q = q_nom.copy()
+            for iq, value in self.override_q:
+                q[iq] = value
+            self.q_nom = q
+
+    def residual(self, s: _State) -> Array:
+        assert self.q_nom is not None
+        return self.w * pin.difference(self.model, self.q_nom, s.q)
+
+    def jacobian(self, s: _State) -> Array:
+        assert self.q_nom is not None
+        if not self.floating:
+            return np.diag(self.w)
+        return self.w[:, None] * pin.dDifference(self.model, self.q_nom, s.q, pin.ARG1)
+
+
+@dataclass(frozen=True)
+class JointLimits(Term):
+    """Distance outside the joint limits: r = min(q - lower, 0) + max(q - upper, 0), per bounded
+    joint. Rows within ``margin`` of a limit keep their Jacobian (so steps do not push past it)."""
+
+    margin: float = 1e-3
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _JointLimitsBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        return self._native("joint_limits", margin=float(self.margin))
+
+
+class _JointLimitsBound(_BoundTerm):
+    def __init__(self, term: JointLimits, robot: Robot) -> None:
+        self.term = term
+        iq, iv = [], []
+        for jid in range(1, robot.model.njoints):
+            j = robot.model.joints[jid]
+            if j.nq == 1 and j.nv == 1 and np.isfinite(robot.lower[j.idx_q]) and np.isfinite(robot.upper[j.idx_q]):
+                iq.append(j.idx_q)
+                iv.append(j.idx_v)
+        self.iq = np.array(iq, dtype=int)
+        self.iv = np.array(iv, dtype=int)
+        self.lo = robot.lower[self.iq]
+        self.hi = robot.upper[self.iq]
+        self.nv = robot.nv
+
+    def residual(self, s: _State) -> Array:
+        x = s.q[self.iq]
+        return np.minimum(x - self.lo, 0.0) + np.maximum(x - self.hi, 0.0)
+
+    def jacobian(self, s: _State) -> Array:
+        x = s.q[self.iq]
+        m = self.term.margin
+        near = (x - m < self.lo) | (x + m > self.hi)
+        jac = np.zeros((len(self.iq), self.nv))
+        jac[np.arange(len(self.iq))[near], self.iv[near]] = 1.0
+        return jac
+
+
+@dataclass(frozen=True)
+class ComBox(Term):
+    """Static stability: the centre of mass inside an axis-aligned box (the support rectangle of
+    the feet in x-y, a height range in z): r = min(c - lower, 0) + max(c - upper, 0)."""
+
+    lower: Any = (-0.1, -0.1, 0.6)
+    upper: Any = (0.1, 0.1, 1.1)
+    margin: float = 1e-3
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _ComBoxBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        b = _ComBoxBound(self, robot)
+        return self._native("com_box", lower=b.lo.tolist(), upper=b.hi.tolist(), margin=float(self.margin))
+
+
+class _ComBoxBound(_BoundTerm):
+    def __init__(self, term: ComBox, robot: Robot) -> None:
+        self.term = term
+        self.lo = _vector(term.lower, 3, "ComBox.lower")
+        self.hi = _vector(term.upper, 3, "ComBox.upper")
+        if np.any(self.lo > self.hi):
+            raise ValueError(f"ComBox: lower {self.lo} exceeds upper {self.hi}")
+
+    def residual(self, s: _State) -> Array:
+        c = s.com()
+        return np.minimum(c - self.lo, 0.0) + np.maximum(c - self.hi, 0.0)
+
+    def jacobian(self, s: _State) -> Array:
+        c = s.com()
+        m = self.term.margin
+        near = ((c - m < self.lo) | (c + m > self.hi)).astype(np.float64)
+        return near[:, None] * s.com_jacobian()
+
+
+# --------------------------------------------------------------------------------------------
+# Tasks and the solver
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Task:
+    """A primary list of terms (all must be satisfied) and an optional secondary list solved in
+    the primary's null space (typically a :class:`Posture`)."""
+
+    primary: Sequence[Term]
+    secondary: Sequence[Term] = ()
+    name: str = "task"
+
+    def with_targets(self, **targets: Any) -> "Task":
+        """A copy whose terms named in ``targets`` get that ``target`` (e.g. ``hand_position=p``)."""
+        names = {t.name for t in [*self.primary, *self.secondary]}
+        unknown = set(targets) - names
+        if unknown:
+            raise ValueError(f"task '{self.name}' has no term named {sorted(unknown)} (terms: {sorted(n for n in names if n)})")
+
+        def swap(terms: Sequence[Term]) -> tuple[Term, ...]:
+            return tuple(dataclasses.replace(t, target=targets[t.name]) if t.name in targets else t for t in terms)
+
+        return dataclasses.replace(self, primary=swap(self.primary), secondary=swap(self.secondary))
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Damped Gauss-Newton settings (defaults: the GAN paper and its public code)."""
+
+    max_iterations: int = 50
+    mu: float = 1e-4  # damping lambda = mu * r^T r + mu_bar
+    mu_bar: float = 1e-6
+    armijo_c1: float = 1e-4
+    backtrack: float = 0.2
+    max_backtracks: int = 20
+    clip_to_limits: bool = True
+    #: step lengths tried for the secondary task (1, backtrack, backtrack^2, ...)
+    secondary_backtracks: int = 3
+    #: the secondary step is kept while the primary cost grows by at most this much
+    secondary_slack: float = 1e-6
+
+
+@dataclass
+class ProjectionResult:
+    """Outcome of one solve."""
+
+    q: Array
+    success: bool
+    iterations: int
+    #: per primary term: largest absolute component of its unweighted residual at ``q``
+    residuals: dict[str, float]
+    time_s: float
+
+
+@dataclass
+class BatchResult:
+    """Outcome of many solves, as arrays."""
+
+    q: Array  # (n, nq)
+    success: NDArray[np.bool_]
+    iterations: NDArray[np.int64]
+    residuals: dict[str, Array]
+    time_s: Array
+
+    def __len__(self) -> int:
+        return len(self.success)
+
+
+def _damped_pinv(jac: Array, lam: float) -> Array:
+    m, n = jac.shape
+    if m <= n:
+        return jac.T @ np.linalg.solve(jac @ jac.T + lam * np.eye(m), np.eye(m))
+    return np.linalg.solve(jac.T @ jac + lam * np.eye(n), jac.T)
+
+
+BACKENDS = ("native", "pinocchio")
+
+
+class GaussNewtonProjector:
+    """Damped Gauss-Newton with a null-space posture task (the Projector the planner calls).
+
+    ``solve(q0)`` projects one configuration; ``solve_batch(q0s)`` many; ``project(qs, q_noms)``
+    is the planner's batched entry point (posture around ``q_noms``).
+
+    ``backend="native"`` (default) runs the Rust solver (built-in terms, GIL released, batches in
+    parallel); ``backend="pinocchio"`` runs the same algorithm in Python on Pinocchio's analytic
+    derivatives, and accepts user-defined :class:`Term` subclasses.
+    """
+
+    def __init__(self, robot: Robot, task: Task, settings: SolverSettings | None = None, backend: str = "native") -> None:
+        if backend not in BACKENDS:
+            raise ValueError(f"unknown backend '{backend}' (known: {', '.join(BACKENDS)})")
+        if not task.primary:
+            raise ValueError("a task needs at least one primary term")
+        self.robot = robot
+        self.task = task
+        self.backend = backend
+        self.settings = settings or SolverSettings()
+        self._primary = [t.bind(robot) for t in task.primary]
+        self._secondary = [t.bind(robot) for t in task.secondary]
+        labels = [t.label() for t in task.primary]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"primary term names must be unique, got {labels}")
+        self._labels = labels
+        self._weights = [float(t.weight) for t in task.primary]
+        self._tols = [float(t.tolerance) for t in task.primary]
+        self._bounded = np.isfinite(robot.lower) & np.isfinite(robot.upper)
+        self._eye_nv = np.eye(robot.nv)
+        self._native: _core.Projector | None = None
+        if backend == "native":
+            self._native = _core.Projector(
+                robot.kinematics,
+                [t.to_native(robot) for t in task.primary],
+                [t.to_native(robot) for t in task.secondary],
+                dataclasses.asdict(self.settings),
+            )
+
+    # -- evaluation --------------------------------------------------------------------------
+
+    def _primary_residuals(self, q: Array, with_jacobians: bool) -> tuple[_State, list[Array]]:
+        s = _State(self.robot, q, with_jacobians)
+        return s, [b.residual(s) for b in self._primary]
+
+    def _cost(self, raws: list[Array]) -> float:
+        return float(sum(w * w * float(r @ r) for w, r in zip(self._weights, raws)))
+
+    def _satisfied(self, raws: list[Array]) -> bool:
+        return all(r.size == 0 or float(np.abs(r).max()) < tol for r, tol in zip(raws, self._tols))
+
+    def _clip(self, q: Array) -> Array:
+        if self.settings.clip_to_limits:
+            b = self._bounded
+            q[b] = np.clip(q[b], self.robot.lower[b], self.robot.upper[b])
+        return q
+
+    def _step(self, q: Array, dq: Array, alpha: float) -> Array:
+        return self._clip(pin.integrate(self.robot.model, q, -alpha * dq))
+
+    # -- solving -----------------------------------------------------------------------------
+
+    def solve(self, q0: ArrayLike, q_nom: ArrayLike | None = None) -> ProjectionResult:
+        """Project ``q0`` (shape (nq,)); the posture task regularises around ``q_nom``
+        (default ``q0``). A target out of reach ends with ``success=False`` and the best q."""
+        t0 = time.perf_counter()
+        q = self.robot.check_configuration(q0, "q0")
+        if q.ndim != 1:
+            raise ValueError(f"q0: solve takes one configuration of shape ({self.robot.nq},); use solve_batch")
+        if self._native is not None:
+            nom = None if q_nom is None else self.robot.check_configuration(q_nom, "q_nom").reshape(1, -1)
+            qs, ok, it, res, ts = self._native.solve_batch(q.reshape(1, -1), nom, False)
+            return ProjectionResult(q=qs[0], success=bool(ok[0]), iterations=int(it[0]),
+                                    residuals=dict(zip(self._labels, map(float, res[0]))), time_s=float(ts[0]))
+        q = self._clip(q.copy())
+        nominal = q.copy() if q_nom is None else self.robot.check_configuration(q_nom, "q_nom")
+        for b in (*self._primary, *self._secondary):
+            if isinstance(b, _PostureBound):
+                b.set_nominal(nominal)
+        st = self.settings
+        model = self.robot.model
+        iterations = 0
+        s, raws = self._primary_residuals(q, True)
+        while not self._satisfied(raws) and iterations < st.max_iterations:
+            r1 = np.concatenate([w * r for w, r in zip(self._weights, raws)])
+            j1 = np.vstack([w * b.jacobian(s) for w, b in zip(self._weights, self._primary)])
+            c0 = float(r1 @ r1)
+            lam = st.mu * c0 + st.mu_bar
+            j1_pinv = _damped_pinv(j1, lam)
+            dq1 = j1_pinv @ r1
+            slope = 2.0 * float(r1 @ (j1 @ dq1))  # -d cost / d alpha at alpha = 0
+            alpha = 1.0
+            for _ in range(st.max_backtracks):
+                q_new = self._step(q, dq1, alpha)
+                _, raws_new = self._primary_residuals(q_new, False)
+                c = self._cost(raws_new)
+                if c <= c0 - st.armijo_c1 * alpha * slope:
+                    break
+                alpha *= st.backtrack
+            if self._secondary:
+                # eq. (3): the posture step in the primary's null space, kept only while it does
+                # not make the primary cost worse (beyond a slack).
+                r2 = np.concatenate([b.term.weight * b.residual(s) for b in self._secondary])
+                j2 = np.vstack([b.term.weight * b.jacobian(s) for b in self._secondary])
+                n1 = self._eye_nv - j1_pinv @ j1
+                dq2 = n1 @ (_damped_pinv(j2 @ n1, st.mu_bar) @ (r2 - alpha * (j2 @ dq1)))
+                alpha2 = 1.0
+                for _ in range(st.secondary_backtracks):
+                    q_try = self._step(q_new, dq2, alpha2)
+                    _, raws_try = self._primary_residuals(q_try, False)
+                    if self._cost(raws_try) <= c + st.secondary_slack:
+                        q_new = q_try
+                        break
+                    alpha2 *= st.backtrack
+            q = q_new
+            iterations += 1
+            s, raws = self._primary_residuals(q, True)
+        residuals = {lab: (float(np.abs(r).max()) if r.size else 0.0) for lab, r in zip(self._labels, raws)}
+        return ProjectionResult(
+            q=q,
+            success=self._satisfied(raws),
+            iterations=iterations,
+            residuals=residuals,
+            time_s=time.perf_counter() - t0,
+        )
+
+    def solve_batch(self, q0s: ArrayLike, q_noms: ArrayLike | None = None, *, targets: Mapping[str, ArrayLike] | None = None,
+                    progress: bool = False, parallel: bool = True) -> BatchResult:
+        """Solve from each row of ``q0s`` (shape (n, nq)); ``q_noms`` likewise or None.
+
+        ``targets`` gives one primary term per-row targets, e.g. ``{"hand_position": P}`` with P of
+        shape (n, 3) (a FramePose term takes (n, 4, 4)). The native backend runs the rows on all
+        cores when ``parallel`` (each row's ``time_s`` is its own solve time); ``parallel=False``
+        runs them one after the other."""
+        qs = self.robot.check_configuration(q0s, "q0s")
+        if qs.ndim != 2:
+            raise ValueError(f"q0s: expected shape (n, {self.robot.nq}), got {qs.shape}")
+        noms = None if q_noms is None else self.robot.check_configuration(q_noms, "q_noms")
+        if noms is not None and noms.shape != qs.shape:
+            raise ValueError(f"q_noms: expected shape {qs.shape}, got {noms.shape}")
+        term_name, target_rows = None, None
+        if targets:
+            if len(targets) != 1:
+                raise ValueError(f"targets: give per-row targets for one term, got {sorted(targets)}")
+            term_name, raw = next(iter(targets.items()))
+            target_rows = np.ascontiguousarray(raw, dtype=np.float64)
+            if target_rows.shape[0] != len(qs) or not np.all(np.isfinite(target_rows)):
+                raise ValueError(f"targets['{term_name}']: expected {len(qs)} finite rows, got shape {target_rows.shape}")
+        if self._native is not None:
+            q, ok, it, res, ts = self._native.solve_batch(
+                qs, noms, parallel, term_name, None if target_rows is None else target_rows.reshape(len(qs), -1))
+            return BatchResult(q=q, success=ok, iterations=it,
+                               residuals={lab: res[:, i] for i, lab in enumerate(self._labels)}, time_s=ts)
+        rows = range(len(qs))
+        if progress:
+            from tqdm import tqdm
+
+            rows = tqdm(rows, desc=f"{self.task.name}", unit="task", leave=False)
+        results = []
+        for i in rows:
+            solver = self
+            if term_name is not None:
+                assert target_rows is not None
+                solver = GaussNewtonProjector(self.robot, self.task.with_targets(**{term_name: target_rows[i]}),
+                                              self.settings, backend=self.backend)
+            results.append(solver.solve(qs[i], None if noms is None else noms[i]))
+        return _stack(results, self._labels, self.robot.nq)
+
+    def project(self, qs: ArrayLike, q_noms: ArrayLike | None = None) -> tuple[Array, NDArray[np.bool_]]:
+        """The planner's Projector call: project each row, posture around ``q_noms``.
+        Returns (projected configurations (n, nq), success mask (n,))."""
+        res = self.solve_batch(qs, q_noms)
+        return res.q, res.success
+
+
+def _stack(results: list[ProjectionResult], labels: list[str], nq: int) -> BatchResult:
+    return BatchResult(
+        q=np.array([r.q for r in results]).reshape(len(results), nq),
+        success=np.array([r.success for r in results], dtype=bool),
+        iterations=np.array([r.iterations for r in results], dtype=np.int64),
+        residuals={lab: np.array([r.residuals[lab] for r in results]) for lab in labels},
+        time_s=np.array([r.time_s for r in results]),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# The paper's tasks
+# --------------------------------------------------------------------------------------------
+
+#: Panda: hand frame rotated -pi/2 about y must be a pure rotation about the world z axis.
+PANDA_HAND_OFFSET = pin.utils.rotate("y", -np.pi / 2)
+#: IK targets for the Panda benchmark (hand position box, m).
+PANDA_IK_BOX = np.array([[0.4, -0.5, 0.5], [0.7, 0.5, 0.8]])
+#: IK targets for the Talos benchmark (right-hand position box, m): in front of and to the
+#: right of the robot, 96 % reachable with the feet fixed.
+TALOS_IK_BOX = np.array([[0.3, -0.5, 0.7], [0.7, 0.0, 1.2]])
+#: Talos centre-of-mass box (static stability), m.
+TALOS_COM_BOX = np.array([[-0.1, -0.1, 0.6], [0.1, 0.1, 1.1]])
+
+TASK_KINDS = ("projection", "ik")
+
+
+def panda_task(kind: str = "projection", target: ArrayLike | None = None) -> Task:
+    """Panda with the gripper horizontal (yaw free) and within its limits; ``ik`` adds the hand
+    position (weights and tolerances of the paper's public code)."""
+    _check_kind(kind)
+    if kind == "projection":
+        primary: list[Term] = [
+            FrameOrientation(name="hand_orientation", frame="hand", axes=(1, 1, 0), offset=PANDA_HAND_OFFSET, weight=20, tolerance=1e-4),
+            JointLimits(name="joint_limits", weight=20, tolerance=1e-3),
+        ]
+    else:
+        primary = [
+            FramePosition(name="hand_position", frame="hand", target=(0.55, 0.0, 0.65) if target is None else target, weight=50, tolerance=1e-3),
+            FrameOrientation(name="hand_orientation", frame="hand", axes=(1, 1, 0), offset=PANDA_HAND_OFFSET, weight=30, tolerance=1e-3),
+            JointLimits(name="joint_limits", weight=30, tolerance=1e-3),
+        ]
+    return Task(primary=primary, secondary=[Posture(name="posture")], name=f"panda_{kind}")
+
+
+def talos_task(robot: Robot, kind: str = "projection", target: ArrayLike | None = None) -> Task:
+    """Talos with both soles fixed at their half-sitting placement (full SE(3)), the centre of
+    mass in :data:`TALOS_COM_BOX`, within joint limits and the left arm held at its default
+    posture; ``ik`` adds the right-hand position. The secondary task keeps the rest of the
+    posture near the initial guess."""
+    _check_kind(kind)
+    left = robot.frame_placement(robot.q_default, "left_sole")
+    right = robot.frame_placement(robot.q_default, "right_sole")
+    left_arm_mask = np.zeros(robot.nv)
+    for j in robot.joint_names:
+        if j.startswith("arm_left"):
+            left_arm_mask[robot.model.joints[robot.model.getJointId(j)].idx_v] = 1.0
+    primary: list[Term] = [
+        FramePose(name="left_sole", frame="left_sole", target=left, weight=20, tolerance=1e-4),
+        FramePose(name="right_sole", frame="right_sole", target=right, weight=20, tolerance=1e-4),
+        ComBox(name="com", lower=TALOS_COM_BOX[0], upper=TALOS_COM_BOX[1], weight=20, tolerance=1e-3),
+        JointLimits(name="joint_limits", weight=20, tolerance=1e-3),
+        Posture(name="left_arm", q_nom=robot.q_default, joint_weights=left_arm_mask, weight=10, tolerance=1e-3),
+    ]
+    if kind == "ik":
+        default_hand = robot.frame_placement(robot.q_default, "right_hand").translation
+        primary.insert(0, FramePosition(name="right_hand_position", frame="right_hand",
+                                        target=default_hand if target is None else target, weight=50, tolerance=1e-3))
+    return Task(primary=primary, secondary=[Posture(name="posture")], name=f"talos_{kind}")
+
+
+def paper_task(robot: Robot, kind: str = "projection", target: ArrayLike | None = None) -> Task:
+    """The paper's task for ``robot`` ("panda" or "talos")."""
+    if robot.name == "panda":
+        return panda_task(kind, target)
+    if robot.name == "talos":
+        return talos_task(robot, kind, target)
+    raise ValueError(f"the paper defines tasks for panda and talos, not '{robot.name}'")
+
+
+def _check_kind(kind: str) -> None:
+    if kind not in TASK_KINDS:
+        raise ValueError(f"unknown task kind '{kind}' (known: {', '.join(TASK_KINDS)})")

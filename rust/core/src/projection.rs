@@ -1,0 +1,475 @@
+//! Constraint projection / inverse kinematics: damped Gauss-Newton with a null-space posture task
+//! (the GAN paper's Section III-B), natively.
+//!
+//! The same algorithm as `genplan.projection.GaussNewtonProjector` (Pinocchio, Python), step for
+//! step, so the two are cross-checked against each other in the tests: primary step
+//! `dq1 = J1^+ r1` with damping `lambda = mu r^T r + mu_bar` and Armijo backtracking, then a
+//! secondary (posture) step `dq2 = N1 (J2 N1)^+ (r2 - alpha J2 dq1)` kept only while it does not
+//! make the primary cost worse; clipping to the joint limits after every step. Success: every
+//! primary term's largest absolute (unweighted) residual component is below its tolerance.
+
+use std::time::Instant;
+
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3};
+
+use crate::error::{check_vector, Error, Result};
+use crate::kinematics::KinematicModel;
+use crate::lie::{jlog3, jlog6, log3, log6};
+
+/// What a residual term measures.
+#[derive(Debug, Clone)]
+pub enum TermKind {
+    /// r = mask * log6(T_ref^-1 T(q)).
+    FramePose { link: usize, target: Isometry3<f64>, mask: [f64; 6] },
+    /// r = mask * (p(q) - p_ref).
+    FramePosition { link: usize, target: Vector3<f64>, mask: [f64; 3] },
+    /// r = mask * log3(R_ref^T R(q) R_offset).
+    FrameOrientation { link: usize, target: Matrix3<f64>, offset: Matrix3<f64>, mask: [f64; 3] },
+    /// r = min(q - lower, 0) + max(q - upper, 0) over the bounded joints.
+    JointLimits { margin: f64 },
+    /// r = min(c - lower, 0) + max(c - upper, 0), c the centre of mass.
+    ComBox { lower: Vector3<f64>, upper: Vector3<f64>, margin: f64 },
+    /// r = weights * (q (-) q_nom); `q_nom` None: the solve's nominal posture, with `overrides`
+    /// (q index, value) applied.
+    Posture { q_nom: Option<Vec<f64>>, weights: Vec<f64>, overrides: Vec<(usize, f64)> },
+}
+
+/// A weighted residual term with its tolerance.
+#[derive(Debug, Clone)]
+pub struct Term {
+    pub name: String,
+    pub kind: TermKind,
+    pub weight: f64,
+    pub tolerance: f64,
+}
+
+/// Solver settings (defaults: the GAN paper and its public code).
+#[derive(Debug, Clone)]
+pub struct Settings {
+    pub max_iterations: usize,
+    pub mu: f64,
+    pub mu_bar: f64,
+    pub armijo_c1: f64,
+    pub backtrack: f64,
+    pub max_backtracks: usize,
+    pub clip_to_limits: bool,
+    pub secondary_backtracks: usize,
+    pub secondary_slack: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            max_iterations: 50,
+            mu: 1e-4,
+            mu_bar: 1e-6,
+            armijo_c1: 1e-4,
+            backtrack: 0.2,
+            max_backtracks: 20,
+            clip_to_limits: true,
+            secondary_backtracks: 3,
+            secondary_slack: 1e-6,
+        }
+    }
+}
+
+/// The outcome of one solve.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub q: Vec<f64>,
+    pub success: bool,
+    pub iterations: usize,
+    /// Per primary term: largest absolute component of the unweighted residual.
+    pub residuals: Vec<f64>,
+    pub time_s: f64,
+}
+
+/// Kinematic state at one q: link poses, and lazily the centre of mass.
+struct State {
+    q: Vec<f64>,
+    poses: Vec<Isometry3<f64>>,
+}
+
+/// A damped Gauss-Newton projector for one task on one robot.
+#[derive(Debug, Clone)]
+pub struct Projector {
+    pub model: std::sync::Arc<KinematicModel>,
+    pub primary: Vec<Term>,
+    pub secondary: Vec<Term>,
+    pub settings: Settings,
+    /// (q index, v index, lower, upper) of each bounded 1-dof joint.
+    bounded: Vec<(usize, usize, f64, f64)>,
+}
+
+impl Projector {
+    pub fn new(
+        model: std::sync::Arc<KinematicModel>,
+        primary: Vec<Term>,
+        secondary: Vec<Term>,
+        settings: Settings,
+    ) -> Result<Projector> {
+        if primary.is_empty() {
+            return Err(Error::Invalid("a task needs at least one primary term".into()));
+        }
+        for t in primary.iter().chain(&secondary) {
+            validate(&model, t)?;
+        }
+        let bounded = model
+            .joints
+            .iter()
+            .filter(|j| j.q_index != usize::MAX && !matches!(j.motion, crate::kinematics::Motion::Continuous { .. } | crate::kinematics::Motion::Fixed))
+            .filter(|j| model.lower[j.q_index].is_finite() && model.upper[j.q_index].is_finite())
+            .map(|j| (j.q_index, j.v_index, model.lower[j.q_index], model.upper[j.q_index]))
+            .collect();
+        Ok(Projector { model, primary, secondary, settings, bounded })
+    }
+
+    /// A copy whose primary term `term` aims at `target`: 3 numbers for a FramePosition, a
+    /// row-major 4x4 pose (16 numbers) for a FramePose.
+    pub fn retargeted(&self, term: usize, target: &[f64]) -> Result<Projector> {
+        let mut out = self.clone();
+        crate::error::check_finite("target", target)?;
+        let t = out.primary.get_mut(term).ok_or_else(|| Error::Invalid(format!("no primary term {term}")))?;
+        match (&mut t.kind, target.len()) {
+            (TermKind::FramePosition { target: tg, .. }, 3) => *tg = Vector3::new(target[0], target[1], target[2]),
+            (TermKind::FramePose { target: tg, .. }, 16) => {
+                let r = Matrix3::from_fn(|i, j| target[4 * i + j]);
+                *tg = Isometry3::from_parts(
+                    nalgebra::Translation3::new(target[3], target[7], target[11]),
+                    nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r)),
+                );
+            }
+            _ => {
+                return Err(Error::Invalid(format!(
+                    "term '{}' takes no target of {} numbers (FramePosition: 3, FramePose: 16)",
+                    t.name,
+                    target.len()
+                )))
+            }
+        }
+        Ok(out)
+    }
+
+    fn state(&self, q: Vec<f64>) -> State {
+        let mut poses = Vec::new();
+        self.model.forward_kinematics_unchecked(&q, &mut poses);
+        State { q, poses }
+    }
+
+    fn dim(&self, t: &Term) -> usize {
+        match &t.kind {
+            TermKind::FramePose { .. } => 6,
+            TermKind::FramePosition { .. } | TermKind::FrameOrientation { .. } | TermKind::ComBox { .. } => 3,
+            TermKind::JointLimits { .. } => self.bounded.len(),
+            TermKind::Posture { .. } => self.model.nv,
+        }
+    }
+
+    /// Unweighted residual of a term.
+    fn residual(&self, t: &Term, s: &State, q_nom: &[f64]) -> DVector<f64> {
+        match &t.kind {
+            TermKind::FramePose { link, target, mask } => {
+                let r = log6(&(target.inverse() * s.poses[*link]));
+                DVector::from_iterator(6, (0..6).map(|k| mask[k] * r[k]))
+            }
+            TermKind::FramePosition { link, target, mask } => {
+                let d = s.poses[*link].translation.vector - target;
+                DVector::from_iterator(3, (0..3).map(|k| mask[k] * d[k]))
+            }
+            TermKind::FrameOrientation { link, target, offset, mask } => {
+                let rel = target.transpose() * s.poses[*link].rotation.to_rotation_matrix().into_inner() * offset;
+                let (w, _) = log3(&rel);
+                DVector::from_iterator(3, (0..3).map(|k| mask[k] * w[k]))
+            }
+            TermKind::JointLimits { .. } => DVector::from_iterator(
+                self.bounded.len(),
+                self.bounded.iter().map(|&(iq, _, lo, hi)| (s.q[iq] - lo).min(0.0) + (s.q[iq] - hi).max(0.0)),
+            ),
+            TermKind::ComBox { lower, upper, .. } => {
+                let c = self.model.center_of_mass(&s.poses, None);
+                DVector::from_iterator(3, (0..3).map(|k| (c[k] - lower[k]).min(0.0) + (c[k] - upper[k]).max(0.0)))
+            }
+            TermKind::Posture { weights, .. } => {
+                let mut d = vec![0.0; self.model.nv];
+                self.model.difference(q_nom, &s.q, &mut d);
+                DVector::from_iterator(self.model.nv, d.iter().zip(weights).map(|(a, w)| a * w))
+            }
+        }
+    }
+
+    /// Jacobian (dim x nv) of a term's unweighted residual.
+    fn jacobian(&self, t: &Term, s: &State, q_nom: &[f64], frame_jac: &mut DMatrix<f64>) -> DMatrix<f64> {
+        let nv = self.model.nv;
+        match &t.kind {
+            TermKind::FramePose { link, target, mask } => {
+                self.model.frame_jacobian_local(&s.poses, *link, frame_jac);
+                let jl = jlog6(&(target.inverse() * s.poses[*link]));
+                let mut j = DMatrix::from_fn(6, 6, |r, c| jl[(r, c)]) * &*frame_jac;
+                for r in 0..6 {
+                    j.row_mut(r).scale_mut(mask[r]);
+                }
+                j
+            }
+            TermKind::FramePosition { link, mask, .. } => {
+                self.model.frame_jacobian_local(&s.poses, *link, frame_jac);
+                let rot = s.poses[*link].rotation.to_rotation_matrix().into_inner();
+                let rot = DMatrix::from_fn(3, 3, |r, c| rot[(r, c)] * mask[r]);
+                rot * frame_jac.rows(0, 3)
+            }
+            TermKind::FrameOrientation { link, target, offset, mask } => {
+                self.model.frame_jacobian_local(&s.poses, *link, frame_jac);
+                let rel = target.transpose() * s.poses[*link].rotation.to_rotation_matrix().into_inner() * offset;
+                let (w, theta) = log3(&rel);
+                let m = jlog3(&w, theta) * offset.transpose();
+                let m = DMatrix::from_fn(3, 3, |r, c| m[(r, c)] * mask[r]);
+                m * frame_jac.rows(3, 3)
+            }
+            TermKind::JointLimits { margin } => {
+                let mut j = DMatrix::zeros(self.bounded.len(), nv);
+                for (row, &(iq, iv, lo, hi)) in self.bounded.iter().enumerate() {
+                    if s.q[iq] - margin < lo || s.q[iq] + margin > hi {
+                        j[(row, iv)] = 1.0;
+                    }
+                }
+                j
+            }
+            TermKind::ComBox { lower, upper, margin } => {
+                let mut jc = DMatrix::zeros(3, nv);
+                let c = self.model.center_of_mass(&s.poses, Some(&mut jc));
+                for k in 0..3 {
+                    if !(c[k] - margin < lower[k] || c[k] + margin > upper[k]) {
+                        jc.row_mut(k).fill(0.0);
+                    }
+                }
+                jc
+            }
+            TermKind::Posture { weights, .. } => {
+                let mut j = self.model.difference_jacobian(q_nom, &s.q);
+                for (r, w) in weights.iter().enumerate() {
+                    j.row_mut(r).scale_mut(*w);
+                }
+                j
+            }
+        }
+    }
+
+    fn stack(&self, terms: &[Term], s: &State, noms: &[Vec<f64>], with_jac: bool) -> (Vec<DVector<f64>>, Option<DMatrix<f64>>) {
+        let raws: Vec<DVector<f64>> = terms.iter().zip(noms).map(|(t, n)| self.residual(t, s, n)).collect();
+        if !with_jac {
+            return (raws, None);
+        }
+        let rows: usize = terms.iter().map(|t| self.dim(t)).sum();
+        let mut j = DMatrix::zeros(rows, self.model.nv);
+        let mut frame_jac = DMatrix::zeros(6, self.model.nv);
+        let mut r0 = 0;
+        for (t, n) in terms.iter().zip(noms) {
+            let jt = self.jacobian(t, s, n, &mut frame_jac);
+            let d = jt.nrows();
+            j.view_mut((r0, 0), (d, self.model.nv)).copy_from(&(jt * t.weight));
+            r0 += d;
+        }
+        (raws, Some(j))
+    }
+
+    fn weighted(terms: &[Term], raws: &[DVector<f64>]) -> DVector<f64> {
+        let n: usize = raws.iter().map(|r| r.len()).sum();
+        let mut out = DVector::zeros(n);
+        let mut i = 0;
+        for (t, r) in terms.iter().zip(raws) {
+            for x in r.iter() {
+                out[i] = t.weight * x;
+                i += 1;
+            }
+        }
+        out
+    }
+
+    fn cost(&self, raws: &[DVector<f64>]) -> f64 {
+        self.primary.iter().zip(raws).map(|(t, r)| t.weight * t.weight * r.norm_squared()).sum()
+    }
+
+    fn satisfied(&self, raws: &[DVector<f64>]) -> bool {
+        self.primary.iter().zip(raws).all(|(t, r)| r.len() == 0 || r.amax() < t.tolerance)
+    }
+
+    fn step(&self, q: &[f64], dq: &DVector<f64>, alpha: f64) -> Vec<f64> {
+        let v: Vec<f64> = dq.iter().map(|x| -alpha * x).collect();
+        let mut out = vec![0.0; q.len()];
+        self.model.integrate(q, &v, &mut out);
+        if self.settings.clip_to_limits {
+            for &(iq, _, lo, hi) in &self.bounded {
+                out[iq] = out[iq].clamp(lo, hi);
+            }
+        }
+        out
+    }
+
+    /// Project `q0`; the posture task regularises around `q_nom` (default: `q0`).
+    pub fn solve(&self, q0: &[f64], q_nom: Option<&[f64]>) -> Result<Outcome> {
+        self.model.check_configuration(q0)?;
+        if let Some(n) = q_nom {
+            check_vector("q_nom", n, self.model.nq)?;
+        }
+        Ok(self.solve_unchecked(q0, q_nom))
+    }
+
+    pub fn solve_unchecked(&self, q0: &[f64], q_nom: Option<&[f64]>) -> Outcome {
+        let t0 = Instant::now();
+        let st = &self.settings;
+        let nv = self.model.nv;
+        let mut q = q0.to_vec();
+        if st.clip_to_limits {
+            for &(iq, _, lo, hi) in &self.bounded {
+                q[iq] = q[iq].clamp(lo, hi);
+            }
+        }
+        let nominal: Vec<f64> = q_nom.map(<[f64]>::to_vec).unwrap_or_else(|| q.clone());
+        let primary_nominal = nominals(&self.primary, &nominal);
+        let secondary_nominal = nominals(&self.secondary, &nominal);
+        let mut iterations = 0;
+        let mut s = self.state(q.clone());
+        let (mut raws, mut j1) = self.stack(&self.primary, &s, &primary_nominal, true);
+        while !self.satisfied(&raws) && iterations < st.max_iterations {
+            let j1_full = j1.take().expect("jacobian computed");
+            let r1_full = Self::weighted(&self.primary, &raws);
+            // Rows with a zero residual and a zero Jacobian (inactive limits, CoM inside its box)
+            // change nothing in the step: drop them to keep the linear algebra small.
+            let keep: Vec<usize> = (0..r1_full.len())
+                .filter(|&i| r1_full[i] != 0.0 || j1_full.row(i).iter().any(|&x| x != 0.0))
+                .collect();
+            let j1m = j1_full.select_rows(keep.iter());
+            let r1 = r1_full.select_rows(keep.iter());
+            let c0 = r1.norm_squared();
+            let lam = st.mu * c0 + st.mu_bar;
+            let j1_pinv = damped_pinv(&j1m, lam);
+            let dq1 = &j1_pinv * &r1;
+            let slope = 2.0 * r1.dot(&(&j1m * &dq1));
+            let mut alpha = 1.0;
+            let mut q_new = q.clone();
+            let mut c = f64::INFINITY;
+            for _ in 0..st.max_backtracks {
+                q_new = self.step(&q, &dq1, alpha);
+                let sn = self.state(q_new.clone());
+                let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false);
+                c = self.cost(&rn);
+                if c <= c0 - st.armijo_c1 * alpha * slope {
+                    break;
+                }
+                alpha *= st.backtrack;
+            }
+            if !self.secondary.is_empty() {
+                let mut r2_parts = Vec::new();
+                let mut j2 = DMatrix::zeros(0, nv);
+                let mut frame_jac = DMatrix::zeros(6, nv);
+                for (t, nom) in self.secondary.iter().zip(&secondary_nominal) {
+                    r2_parts.push(self.residual(t, &s, nom) * t.weight);
+                    let jt = self.jacobian(t, &s, nom, &mut frame_jac) * t.weight;
+                    let rows = j2.nrows();
+                    j2 = j2.insert_rows(rows, jt.nrows(), 0.0);
+                    j2.view_mut((rows, 0), (jt.nrows(), nv)).copy_from(&jt);
+                }
+                let r2 = DVector::from_iterator(
+                    r2_parts.iter().map(|r| r.len()).sum(),
+                    r2_parts.iter().flat_map(|r| r.iter().copied()),
+                );
+                let n1 = DMatrix::identity(nv, nv) - &j1_pinv * &j1m;
+                let j2n = &j2 * &n1;
+                let rhs = r2 - &j2 * (&dq1 * alpha);
+                let dq2 = &n1 * (damped_pinv(&j2n, st.mu_bar) * rhs);
+                let mut alpha2 = 1.0;
+                for _ in 0..st.secondary_backtracks {
+                    let q_try = self.step(&q_new, &dq2, alpha2);
+                    let sn = self.state(q_try.clone());
+                    let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false);
+                    if self.cost(&rn) <= c + st.secondary_slack {
+                        q_new = q_try;
+                        break;
+                    }
+                    alpha2 *= st.backtrack;
+                }
+            }
+            q = q_new;
+            iterations += 1;
+            s = self.state(q.clone());
+            let (r, j) = self.stack(&self.primary, &s, &primary_nominal, true);
+            raws = r;
+            j1 = j;
+        }
+        let residuals = raws.iter().map(|r| if r.len() == 0 { 0.0 } else { r.amax() }).collect();
+        Outcome {
+            success: self.satisfied(&raws),
+            q,
+            iterations,
+            residuals,
+            time_s: t0.elapsed().as_secs_f64(),
+        }
+    }
+}
+
+/// The nominal posture of each term: a Posture's own `q_nom`, else the solve's nominal with
+/// the term's overrides applied.
+fn nominals(terms: &[Term], nominal: &[f64]) -> Vec<Vec<f64>> {
+    terms
+        .iter()
+        .map(|t| match &t.kind {
+            TermKind::Posture { q_nom: Some(n), .. } => n.clone(),
+            TermKind::Posture { q_nom: None, overrides, .. } => {
+                let mut n = nominal.to_vec();
+                for &(iq, v) in overrides {
+                    n[iq] = v;
+                }
+                n
+            }
+            _ => nominal.to_vec(),
+        })
+        .collect()
+}
+
+/// J^+ with Tikhonov damping: J^T (J J^T + lambda I)^-1 (or the normal-equation form when J is
+/// tall).
+fn damped_pinv(j: &DMatrix<f64>, lam: f64) -> DMatrix<f64> {
+    let (m, n) = j.shape();
+    if m <= n {
+        let a = j * j.transpose() + DMatrix::identity(m, m) * lam;
+        match a.cholesky() {
+            Some(ch) => ch.solve(j).transpose(),
+            None => DMatrix::zeros(n, m),
+        }
+    } else {
+        let a = j.transpose() * j + DMatrix::identity(n, n) * lam;
+        match a.cholesky() {
+            Some(ch) => ch.solve(&j.transpose()),
+            None => DMatrix::zeros(n, m),
+        }
+    }
+}
+
+fn validate(model: &KinematicModel, t: &Term) -> Result<()> {
+    let bad = |msg: String| Err(Error::Invalid(format!("term '{}': {msg}", t.name)));
+    if !(t.weight.is_finite() && t.weight > 0.0) {
+        return bad(format!("weight must be positive, got {}", t.weight));
+    }
+    if !(t.tolerance.is_finite() && t.tolerance > 0.0) {
+        return bad(format!("tolerance must be positive, got {}", t.tolerance));
+    }
+    let link_ok = |l: usize| l < model.n_links();
+    match &t.kind {
+        TermKind::FramePose { link, .. } | TermKind::FramePosition { link, .. } | TermKind::FrameOrientation { link, .. } if !link_ok(*link) => {
+            bad(format!("link index {link} out of range"))
+        }
+        TermKind::Posture { q_nom, weights, overrides } => {
+            if weights.len() != model.nv {
+                return bad(format!("posture weights: expected {} numbers, got {}", model.nv, weights.len()));
+            }
+            if let Some(n) = q_nom {
+                check_vector("posture q_nom", n, model.nq)?;
+            }
+            if overrides.iter().any(|&(iq, v)| iq >= model.nq || !v.is_finite()) {
+                return bad("posture override out of range or not finite".into());
+            }
+            Ok(())
+        }
+        TermKind::ComBox { lower, upper, .. } if (0..3).any(|k| lower[k] > upper[k]) => bad("lower exceeds upper".into()),
+        _ => Ok(()),
+    }
+}

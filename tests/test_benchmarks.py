@@ -1,0 +1,20 @@
+"""The benchmark commands produce their tables and JSON (tiny N; the real runs are documented)."""
+
+import json
+
+from genplan.cli import main
+
+
+def test_bench_projection_json(tmp_path, capsys) -> None:
+    for solver in ("gauss-newton", "scipy"):
+        out = tmp_path / f"{solver}.json"
+        assert main(["bench", "projection", "--robot", "panda", "--tasks", "4", "--seed", "1", "--solver", solver, "--out", str(out)]) == 0
+        data = json.loads(out.read_text())
+        for kind in ("projection", "ik"):
+            for key in ("success_rate", "t_ave_ms", "t_star_ave_ms", "steps_star"):
+                assert key in data[kind]
+            assert 0.0 <= data[kind]["success_rate"] <= 100.0
+            assert data[kind]["tasks"] == 4
+        assert data["paper"]["ik"]["success_rate"] == 76.4
+    table = capsys.readouterr().out
+    assert "uniform (gauss-newton)" in table and "uniform (scipy)" in table

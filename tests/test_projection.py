@@ -1,0 +1,220 @@
+"""genplan.projection: Jacobians, the native solver against the Pinocchio one, the paper's tasks,
+bad input."""
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import genplan
+from genplan import projection as P
+from tests.conftest import random_configurations
+
+
+def _fd_jacobian(robot, bound, q, eps=1e-7):
+    """Central finite differences of a bound term's residual in the tangent space."""
+    def res(x):
+        return bound.residual(P._State(robot, pin.integrate(robot.model, q, x), False))
+
+    cols = []
+    for k in range(robot.nv):
+        e = np.zeros(robot.nv)
+        e[k] = eps
+        cols.append((res(e) - res(-e)) / (2 * eps))
+    return np.array(cols).T
+
+
+def _terms(robot):
+    q_ref = robot.random_configurations(1, 99)[0]
+    hand = "hand" if robot.name == "panda" else "right_hand"
+    target = robot.frame_placement(q_ref, hand)
+    return [
+        P.FramePose(frame=hand, target=target),
+        P.FramePosition(frame=hand, target=target.translation + 0.1),
+        P.FrameOrientation(frame=hand, target=pin.utils.rpyToMatrix(0.3, -0.2, 0.5), axes=(1, 1, 0), offset=P.PANDA_HAND_OFFSET),
+        P.Posture(q_nom=q_ref, joint_weights=np.linspace(0.5, 2.0, robot.nv)),
+        P.JointLimits(margin=10.0),  # wide margin: every row active, so every column is checked
+        P.ComBox(lower=(-0.01, -0.01, 0.3), upper=(0.01, 0.01, 0.4), margin=0.0),
+    ]
+
+
+@pytest.mark.parametrize("name", ["panda", "talos"])
+def test_pinocchio_jacobians_match_finite_differences(name: str) -> None:
+    robot = genplan.load(name)
+    for q in random_configurations(robot, 5, seed=1):
+        for term in _terms(robot):
+            bound = term.bind(robot)
+            s = P._State(robot, q, True)
+            analytic = bound.jacobian(s)
+            numeric = _fd_jacobian(robot, bound, q)
+            if isinstance(term, P.JointLimits):  # piecewise linear: compare where outside the limits
+                rows = np.abs(bound.residual(s)) > 1e-6
+                analytic, numeric = analytic[rows], numeric[rows]
+            if isinstance(term, P.ComBox):
+                rows = np.abs(bound.residual(s)) > 1e-6
+                analytic, numeric = analytic[rows], numeric[rows]
+            np.testing.assert_allclose(analytic, numeric, rtol=1e-4, atol=2e-6, err_msg=f"{name} {type(term).__name__}")
+
+
+@pytest.mark.parametrize("name", ["panda", "talos", "ur5"])
+def test_native_frame_jacobian_and_com_match_pinocchio(name: str) -> None:
+    robot = genplan.load(name)
+    native = genplan._core.Projector(robot.kinematics, [{"type": "joint_limits"}])
+    links = robot.kinematics.link_names
+    for q in random_configurations(robot, 20, seed=2):
+        pin.computeJointJacobians(robot.model, robot.data, q)
+        pin.updateFramePlacements(robot.model, robot.data)
+        for link in links[:: max(1, len(links) // 8)]:
+            fid = robot.model.getFrameId(link, pin.BODY)
+            ref = pin.getFrameJacobian(robot.model, robot.data, fid, pin.LOCAL)
+            np.testing.assert_allclose(native.frame_jacobian_local(list(q), link), ref, atol=1e-9, err_msg=link)
+        jcom = pin.jacobianCenterOfMass(robot.model, robot.data, q, False)
+        com, jac = native.center_of_mass(list(q))
+        np.testing.assert_allclose(com, robot.data.com[0], atol=1e-9)
+        np.testing.assert_allclose(jac, jcom, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["panda", "talos"])
+@pytest.mark.parametrize("kind", ["projection", "ik"])
+def test_native_solver_follows_the_pinocchio_solver(name: str, kind: str) -> None:
+    """Same algorithm in Rust and in Python/Pinocchio: same iteration counts, same answers."""
+    robot = genplan.load(name)
+    task = P.paper_task(robot, kind)
+    rng = np.random.default_rng(5)
+    q0 = robot.random_configurations(25, rng)
+    targets = None
+    if kind == "ik":
+        box = P.PANDA_IK_BOX if name == "panda" else P.TALOS_IK_BOX
+        targets = {task.primary[0].name: rng.uniform(box[0], box[1], size=(25, 3))}
+    a = P.GaussNewtonProjector(robot, task, backend="native").solve_batch(q0, targets=targets)
+    b = P.GaussNewtonProjector(robot, task, backend="pinocchio").solve_batch(q0, targets=targets)
+    np.testing.assert_array_equal(a.success, b.success)
+    assert (a.iterations == b.iterations).mean() >= 0.95
+    # rounding can flip one line-search decision on a long solve: nearly all answers are the same
+    same = a.success & (a.iterations == b.iterations)
+    agree = np.abs(a.q[same] - b.q[same]).max(axis=1) < 1e-6
+    assert agree.mean() >= 0.9, agree
+    assert a.success.mean() > 0.6
+
+
+def test_panda_projection_keeps_the_gripper_horizontal(panda: genplan.Robot) -> None:
+    res = P.GaussNewtonProjector(panda, P.panda_task("projection")).solve_batch(panda.random_configurations(200, 0))
+    assert res.success.mean() >= 0.98
+    for q in res.q[res.success]:
+        rot = panda.frame_placement(q, "hand").rotation @ P.PANDA_HAND_OFFSET
+        # a pure rotation about the world z axis: its z column is the world z axis
+        assert np.abs(rot[:, 2] - [0, 0, 1]).max() < 3e-4
+        assert np.all(q >= panda.lower - 1e-3) and np.all(q <= panda.upper + 1e-3)
+        assert res.residuals["hand_orientation"].max() < 1e-4
+
+
+def test_talos_projection_fixes_the_feet_and_keeps_static_balance(talos: genplan.Robot) -> None:
+    task = P.talos_task(talos, "projection")
+    res = P.GaussNewtonProjector(talos, task).solve_batch(talos.random_configurations(100, 0))
+    assert res.success.mean() >= 0.85
+    left0 = talos.frame_placement(talos.q_default, "left_sole")
+    for q in res.q[res.success]:
+        left = talos.frame_placement(q, "left_sole")
+        assert np.abs(pin.log6(left0.actInv(left)).vector).max() < 1e-4
+        com = pin.centerOfMass(talos.model, talos.data, q)
+        assert np.all(com >= P.TALOS_COM_BOX[0] - 1e-3) and np.all(com <= P.TALOS_COM_BOX[1] + 1e-3)
+        # the posture task holds the left arm at its default
+        left_arm = [7 + talos.joint_names.index(j) for j in talos.joint_names if j.startswith("arm_left")]
+        np.testing.assert_allclose(q[left_arm], talos.q_default[left_arm], atol=1e-3)
+
+
+def test_ik_reaches_targets_given_per_row(panda: genplan.Robot) -> None:
+    task = P.panda_task("ik")
+    rng = np.random.default_rng(1)
+    targets = rng.uniform(P.PANDA_IK_BOX[0], P.PANDA_IK_BOX[1], size=(40, 3))
+    res = P.GaussNewtonProjector(panda, task).solve_batch(panda.random_configurations(40, rng), targets={"hand_position": targets})
+    assert res.success.mean() > 0.6
+    for q, t in zip(res.q[res.success], targets[res.success]):
+        assert np.abs(panda.frame_placement(q, "hand").translation - t).max() < 1e-3
+
+
+@pytest.mark.parametrize("backend", P.BACKENDS)
+def test_unreachable_target_fails_softly_with_the_best_q(panda: genplan.Robot, backend: str) -> None:
+    task = P.panda_task("ik", target=[3.0, 0.0, 0.5])
+    res = P.GaussNewtonProjector(panda, task, backend=backend).solve(panda.q_default)
+    assert not res.success
+    assert res.iterations == 50
+    assert res.residuals["hand_position"] > 1.0
+    assert np.all(np.isfinite(res.q))
+    # the best q points the hand at the target: the hand is at the edge of the workspace
+    reach = np.linalg.norm(panda.frame_placement(res.q, "hand").translation[:2])
+    assert reach > 0.7
+
+
+def test_user_defined_task_and_python_term(panda: genplan.Robot) -> None:
+    @dataclass(frozen=True)
+    class HandHeight(P.Term):
+        """r = z_hand - height (a user term with its own Jacobian)."""
+
+        height: float = 0.5
+
+        def bind(self, robot):
+            fid = robot.frame_id("hand")
+            term = self
+
+            class Bound(P._BoundTerm):
+                def __init__(self):
+                    self.term = term
+
+                def residual(self, s):
+                    return np.array([s.placement(fid).translation[2] - term.height])
+
+                def jacobian(self, s):
+                    return (s.placement(fid).rotation @ s.frame_jacobian_local(fid)[:3])[2:3]
+
+            return Bound()
+
+    task = P.Task(primary=[HandHeight(name="height", height=0.4, weight=10, tolerance=1e-4), P.JointLimits()],
+                  secondary=[P.Posture()], name="height")
+    with pytest.raises(NotImplementedError, match="no native form; use backend='pinocchio'"):
+        P.GaussNewtonProjector(panda, task)
+    res = P.GaussNewtonProjector(panda, task, backend="pinocchio").solve(panda.q_default)
+    assert res.success
+    assert panda.frame_placement(res.q, "hand").translation[2] == pytest.approx(0.4, abs=1e-4)
+
+
+def test_bad_input(panda: genplan.Robot) -> None:
+    solver = P.GaussNewtonProjector(panda, P.panda_task("projection"))
+    with pytest.raises(ValueError, match=r"expected shape \(7,\)"):
+        solver.solve(np.zeros(6))
+    with pytest.raises(ValueError, match="not finite"):
+        solver.solve(np.full(7, np.nan))
+    with pytest.raises(ValueError, match="use solve_batch"):
+        solver.solve(np.zeros((2, 7)))
+    with pytest.raises(ValueError, match=r"q0s: expected shape \(n, 7\)"):
+        solver.solve_batch(np.zeros(7))
+    with pytest.raises(ValueError, match="no frame 'elbow'"):
+        P.GaussNewtonProjector(panda, P.Task(primary=[P.FramePosition(frame="elbow", target=[0, 0, 0])]))
+    with pytest.raises(ValueError, match="unknown backend 'gpu'"):
+        P.GaussNewtonProjector(panda, P.panda_task(), backend="gpu")
+    with pytest.raises(ValueError, match="unknown task kind 'walk'"):
+        P.panda_task("walk")
+    with pytest.raises(ValueError, match="has no term named"):
+        P.panda_task("ik").with_targets(foot=[0, 0, 0])
+    with pytest.raises(ValueError, match="expected 3 numbers"):
+        P.GaussNewtonProjector(panda, P.panda_task("ik", target=[1.0, 2.0]))
+    ik = P.GaussNewtonProjector(panda, P.panda_task("ik"))
+    with pytest.raises(ValueError, match="expected 2 finite rows"):
+        ik.solve_batch(np.zeros((2, 7)), targets={"hand_position": np.zeros((3, 3))})
+    with pytest.raises(ValueError, match="unknown target term 'foot'"):
+        ik.solve_batch(np.zeros((2, 7)), targets={"foot": np.zeros((2, 3))})
+    with pytest.raises(ValueError, match="weight must be positive"):
+        P.GaussNewtonProjector(panda, P.Task(primary=[P.JointLimits(weight=-1.0)]))
+    with pytest.raises(ValueError, match="at least one primary term"):
+        P.GaussNewtonProjector(panda, P.Task(primary=[]))
+
+
+def test_settings_and_result(panda: genplan.Robot) -> None:
+    q0 = panda.random_configurations(1, 3)[0]
+    res = P.GaussNewtonProjector(panda, P.panda_task(), P.SolverSettings(max_iterations=0)).solve(q0)
+    assert res.iterations == 0 and res.time_s >= 0.0
+    assert set(res.residuals) == {"hand_orientation", "joint_limits"}
+    solver = P.GaussNewtonProjector(panda, P.panda_task())
+    qs, ok = solver.project(panda.random_configurations(8, 4), panda.random_configurations(8, 5))
+    assert qs.shape == (8, 7) and ok.shape == (8,) and ok.dtype == bool
