@@ -18,3 +18,12 @@ def test_bench_projection_json(tmp_path, capsys) -> None:
         assert data["paper"]["ik"]["success_rate"] == 76.4
     table = capsys.readouterr().out
     assert "uniform (gauss-newton)" in table and "uniform (scipy)" in table
+
+
+def test_bench_projection_gan_init(tmp_path) -> None:
+    out = tmp_path / "gan.json"
+    assert main(["bench", "projection", "--robot", "panda", "--init", "gan", "--tasks", "6", "--seed", "2", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["init"] == "gan" and data["gan_sample_ms_per_task"] > 0
+    assert data["paper"]["projection"]["steps_star"] == 1.9
+    assert data["projection"]["success_rate"] == 100.0

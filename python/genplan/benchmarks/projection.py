@@ -36,21 +36,38 @@ PAPER_TABLE_I: dict[tuple[str, str, str], tuple[float, float, float, float]] = {
 }
 
 SOLVERS = ("gauss-newton", "scipy")
-INITS = ("uniform",)
+INITS = ("uniform", "gan")
 
 
 def ik_box(robot: genplan.Robot) -> NDArray[np.float64]:
     return P.PANDA_IK_BOX if robot.name == "panda" else P.TALOS_IK_BOX
 
 
-def make_problems(robot: genplan.Robot, n: int, seed: int) -> dict[str, Any]:
-    """Seeded tasks: initial configurations for projection and for IK, and the IK targets."""
+def make_problems(robot: genplan.Robot, n: int, seed: int, init: str = "uniform",
+                  model_path: Path | None = None) -> dict[str, Any]:
+    """Seeded tasks: initial configurations for projection and for IK, and the IK targets.
+
+    ``init="gan"``: the initial configurations come from the shipped GAN (or ``model_path``),
+    conditioned on a random target in the GAN's box for projection and on the IK target for IK;
+    the time to sample them is reported separately (``gan_sample_ms_per_task``).
+    """
     rng = np.random.default_rng(seed)
     box = ik_box(robot)
-    return {
+    problems: dict[str, Any] = {
         "projection": {"q0": robot.random_configurations(n, rng)},
         "ik": {"q0": robot.random_configurations(n, rng), "targets": rng.uniform(box[0], box[1], size=(n, 3))},
     }
+    if init == "gan":
+        from genplan.gan.model import load_model
+
+        model = load_model(robot, model_path)
+        gbox = np.asarray(model.config.target_box)
+        t0 = time.perf_counter()
+        problems["projection"]["q0"] = model.sample(rng.uniform(gbox[0], gbox[1], size=(n, 3)), rng)
+        problems["ik"]["q0"] = model.sample(problems["ik"]["targets"], rng)
+        problems["gan_sample_ms_per_task"] = (time.perf_counter() - t0) * 1e3 / (2 * n)
+        problems["gan_model"] = model.card.get("weights_sha256", "")[:12]
+    return problems
 
 
 def summarize(success: NDArray[np.bool_], times_s: NDArray[np.float64], steps: NDArray[np.int64]) -> dict[str, Any]:
@@ -149,9 +166,10 @@ def task_description(robot: genplan.Robot) -> dict[str, Any]:
     return desc
 
 
-def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend: str) -> dict[str, Any]:
+def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend: str,
+        model_path: Path | None = None) -> dict[str, Any]:
     robot = genplan.load(robot_name)
-    problems = make_problems(robot, tasks, seed)
+    problems = make_problems(robot, tasks, seed, init, model_path)
     if solver == "gauss-newton":
         results = run_gauss_newton(robot, problems, backend)
     else:
@@ -167,6 +185,7 @@ def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend:
         "units": {"success_rate": "percent", "t_*": "milliseconds per task", "steps_star": "solver iterations"
                   + (" (function evaluations for scipy)" if solver == "scipy" else "")},
         "ik_target_box": ik_box(robot).tolist(),
+        **({k: problems[k] for k in ("gan_sample_ms_per_task", "gan_model") if k in problems}),
         "settings": P.SolverSettings().__dict__,
         "task_terms": task_description(robot),
         "machine": machine(),
@@ -197,13 +216,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--solver", choices=SOLVERS, default="gauss-newton")
     p.add_argument("--backend", choices=P.BACKENDS, default="native", help="Gauss-Newton implementation")
+    p.add_argument("--model", type=Path, default=None, help="GAN model file for --init gan (default: the shipped one)")
     p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
 
 
 def main(args: argparse.Namespace) -> int:
     if args.tasks < 1:
         raise SystemExit("--tasks must be at least 1")
-    payload = run(args.robot, args.init, args.tasks, args.seed, args.solver, args.backend)
+    payload = run(args.robot, args.init, args.tasks, args.seed, args.solver, args.backend, args.model)
     print_table(payload)
     write_json(args.out, payload)
     return 0

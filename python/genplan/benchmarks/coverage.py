@@ -1,0 +1,307 @@
+"""Coverage of the learned distributions: the GAN paper's Fig. 3 and Fig. 4 claims, as numbers.
+
+    genplan bench coverage --out benches/results/coverage.json [--quick] [--figures DIR]
+
+1. The planar 2-link robot among circular obstacles (Fig. 3): an unconditional GAN of its
+   collision-free configurations with an ensemble of 1 vs 5 generators.
+2. Panda and Talos (Fig. 4): the trained conditional GAN with the discriminator, without it, and
+   with N_net = 1, each trained here with the same seed and iterations.
+
+Metrics, each against held-out valid data the GAN never saw:
+
+* ``cluster_coverage``: k-means (k = 20) clusters of the held-out data; the share of clusters
+  that receive at least half of their expected share of samples. Mode collapse shows as low
+  coverage.
+* ``mmd``: the maximum mean discrepancy (Gaussian kernel, median bandwidth) between samples and
+  held-out data, in standardised coordinates. 0 for identical distributions.
+* ``valid_rate`` (planar): share of samples that are collision-free; ``projection_success``
+  (robots): share of samples that the projector brings onto the manifold.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+
+from genplan.benchmarks.common import machine, table, write_json
+
+K_CLUSTERS = 20
+
+
+# ---------------------------------------------------------------------------------------------
+# metrics
+# ---------------------------------------------------------------------------------------------
+
+
+def kmeans(x: NDArray[np.float64], k: int, rng: np.random.Generator, iters: int = 50) -> NDArray[np.float64]:
+    """Lloyd's k-means with k-means++ initialisation; returns the centroids (k, d)."""
+    centers = [x[rng.integers(len(x))]]
+    for _ in range(1, k):
+        d2 = np.min(((x[:, None, :] - np.array(centers)[None]) ** 2).sum(-1), axis=1)
+        centers.append(x[rng.choice(len(x), p=d2 / d2.sum())])
+    c = np.array(centers)
+    for _ in range(iters):
+        labels = np.argmin(((x[:, None, :] - c[None]) ** 2).sum(-1), axis=1)
+        new = np.array([x[labels == j].mean(0) if np.any(labels == j) else c[j] for j in range(k)])
+        if np.allclose(new, c):
+            break
+        c = new
+    return c
+
+
+def cluster_coverage(held_out: NDArray[np.float64], samples: NDArray[np.float64], rng: np.random.Generator,
+                     k: int = K_CLUSTERS) -> float:
+    """Share of the held-out data's k-means clusters that the samples reach with at least half
+    of the cluster's share of the data."""
+    c = kmeans(held_out, k, rng)
+    data_share = np.bincount(np.argmin(((held_out[:, None] - c[None]) ** 2).sum(-1), 1), minlength=k) / len(held_out)
+    sample_share = np.bincount(np.argmin(((samples[:, None] - c[None]) ** 2).sum(-1), 1), minlength=k) / len(samples)
+    return float(np.mean(sample_share >= 0.5 * data_share))
+
+
+def mmd(x: NDArray[np.float64], y: NDArray[np.float64], rng: np.random.Generator, n: int = 1500) -> float:
+    """Unbiased squared MMD with a Gaussian kernel (bandwidth: median pairwise distance)."""
+    x = x[rng.choice(len(x), size=min(n, len(x)), replace=False)]
+    y = y[rng.choice(len(y), size=min(n, len(y)), replace=False)]
+    xt, yt = torch.tensor(x), torch.tensor(y)
+    z = torch.cat([xt, yt])
+    d = torch.cdist(z, z) ** 2
+    sigma2 = torch.median(d[d > 0])
+    kern = torch.exp(-d / sigma2)
+    m, k = len(x), len(y)
+    kxx = (kern[:m, :m].sum() - m) / (m * (m - 1))
+    kyy = (kern[m:, m:].sum() - k) / (k * (k - 1))
+    kxy = kern[:m, m:].mean()
+    return float(kxx + kyy - 2 * kxy)
+
+
+# ---------------------------------------------------------------------------------------------
+# planar 2-link robot (Fig. 3)
+# ---------------------------------------------------------------------------------------------
+
+#: circular obstacles (x, y, radius) around a 2-link arm with unit links at the origin
+PLANAR_OBSTACLES = np.array([[1.2, 1.0, 0.35], [-1.0, 1.3, 0.4], [-0.6, -1.4, 0.3], [1.4, -0.9, 0.35]])
+
+
+def planar_collision_free(q: NDArray[np.float64], samples_per_link: int = 20) -> NDArray[np.bool_]:
+    """True where neither link of the planar arm touches an obstacle."""
+    t = np.linspace(0.0, 1.0, samples_per_link)
+    elbow = np.stack([np.cos(q[:, 0]), np.sin(q[:, 0])], -1)
+    tip = elbow + np.stack([np.cos(q[:, 0] + q[:, 1]), np.sin(q[:, 0] + q[:, 1])], -1)
+    pts = np.concatenate([t[None, :, None] * elbow[:, None], elbow[:, None] + t[None, :, None] * (tip - elbow)[:, None]], 1)
+    d = np.linalg.norm(pts[:, :, None, :] - PLANAR_OBSTACLES[None, None, :, :2], axis=-1)
+    return np.all(d > PLANAR_OBSTACLES[None, None, :, 2], axis=(1, 2))
+
+
+def planar_data(n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    out = []
+    while sum(len(o) for o in out) < n:
+        q = rng.uniform(-np.pi, np.pi, size=(4 * n, 2))
+        out.append(q[planar_collision_free(q)])
+    return np.concatenate(out)[:n]
+
+
+def train_unconditional(data: NDArray[np.float64], n_net: int, iterations: int, seed: int,
+                        noise_dim: int = 2, progress: bool = True) -> Any:
+    """An unconditional ensemble GAN (the paper's architecture) on 2-D data; returns a sampler."""
+    from genplan.gan.model import EnsembleGenerator, _mlp
+
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    real = torch.tensor(data, dtype=torch.float32)
+    mean, std = real.mean(0), real.std(0)
+    real = (real - mean) / std
+    gen = EnsembleGenerator(n_net, noise_dim, (200, 200), 2)
+    disc = _mlp([2, 20, 20, 1])
+    opt_g = torch.optim.Adam(gen.parameters(), lr=5e-4)
+    opt_d = torch.optim.Adam(disc.parameters(), lr=1e-3)
+    bce = torch.nn.BCEWithLogitsLoss()
+    b = 100
+    it = range(iterations)
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(it, desc=f"planar GAN n_net={n_net}", unit="it", leave=False)
+    for _ in it:
+        for _ in range(5):
+            with torch.no_grad():
+                fake = gen(torch.randn(n_net, b, noise_dim)).reshape(-1, 2)[torch.from_numpy(rng.integers(0, n_net * b, b))]
+            r = real[torch.from_numpy(rng.integers(0, len(real), b))]
+            d_loss = bce(disc(r), torch.ones(b, 1)) + bce(disc(fake), torch.zeros(b, 1))
+            opt_d.zero_grad()
+            d_loss.backward()
+            opt_d.step()
+        fake = gen(torch.randn(n_net, b, noise_dim)).reshape(-1, 2)
+        g_loss = bce(disc(fake), torch.ones(len(fake), 1))
+        opt_g.zero_grad()
+        g_loss.backward()
+        opt_g.step()
+
+    @torch.no_grad()
+    def sample(n: int) -> NDArray[np.float64]:
+        out = gen(torch.randn(n_net, n, noise_dim)) * std + mean
+        pick = rng.integers(0, n_net, n)
+        return out[pick, np.arange(n)].double().numpy()
+
+    return sample
+
+
+def run_planar(iterations: int, seed: int, figures: Path | None, progress: bool) -> dict[str, Any]:
+    rng = np.random.default_rng(seed)
+    train_set, held_out = planar_data(5000, rng), planar_data(5000, rng)
+    out: dict[str, Any] = {"obstacles": PLANAR_OBSTACLES.tolist(), "train_size": 5000, "held_out_size": 5000,
+                           "iterations": iterations}
+    samples = {}
+    for n_net in (1, 5):
+        t0 = time.perf_counter()
+        sampler = train_unconditional(train_set, n_net, iterations, seed, progress=progress)
+        s = sampler(5000)
+        samples[n_net] = s
+        out[f"n_net_{n_net}"] = {
+            "cluster_coverage": cluster_coverage(held_out, s, np.random.default_rng(seed)),
+            "mmd": mmd(held_out, s, np.random.default_rng(seed)),
+            "valid_rate": float(planar_collision_free(s).mean()),
+            "train_s": time.perf_counter() - t0,
+        }
+    if figures is not None:
+        _plot_planar(held_out, samples, figures / "coverage_planar.png")
+        out["figure"] = str(figures / "coverage_planar.png")
+    return out
+
+
+def _plot_planar(held_out: NDArray[np.float64], samples: dict[int, NDArray[np.float64]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    ax = axes[0]
+    ax.set_title("2-link arm among obstacles")
+    for x, y, r in PLANAR_OBSTACLES:
+        ax.add_patch(plt.Circle((x, y), r, color="0.4"))
+    for q in held_out[:: len(held_out) // 12]:
+        e = np.array([np.cos(q[0]), np.sin(q[0])])
+        t = e + np.array([np.cos(q[0] + q[1]), np.sin(q[0] + q[1])])
+        ax.plot([0, e[0], t[0]], [0, e[1], t[1]], "-", color="tab:red", alpha=0.5)
+    ax.set_xlim(-2.2, 2.2)
+    ax.set_ylim(-2.2, 2.2)
+    ax.set_aspect("equal")
+    for ax, (n_net, s) in zip(axes[1:], samples.items()):
+        ax.scatter(held_out[:, 0], held_out[:, 1], s=2, c="tab:red", alpha=0.3, label="valid (held out)")
+        ax.scatter(s[:2000, 0], s[:2000, 1], s=4, c="tab:blue", marker="x", alpha=0.5, label="GAN samples")
+        ax.set_title(f"N_net = {n_net}")
+        ax.set_xlabel("q1 (rad)")
+        ax.set_ylabel("q2 (rad)")
+        ax.set_xlim(-np.pi, np.pi)
+        ax.set_ylim(-np.pi, np.pi)
+        ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# Panda and Talos (Fig. 4)
+# ---------------------------------------------------------------------------------------------
+
+
+def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progress: bool) -> dict[str, Any]:
+    import genplan
+    from genplan import projection as P
+    from genplan.gan.data import valid_configurations
+    from genplan.gan.model import Codec, default_config, train
+
+    robot = genplan.load(name)
+    data = valid_configurations(robot, 25_000, 0, progress=progress)
+    held_out = valid_configurations(robot, 3000, 1000 + seed, progress=progress)
+    frame = robot.frames[default_config(name).target_frame]
+    targets = robot.link_poses(held_out, [frame])[:, 0, :3, 3]
+    feats_ref = Codec.features(robot, held_out)
+    scale = np.maximum(feats_ref.std(0), 0.05)
+    ref = feats_ref / scale
+    variants = {
+        "default": {},
+        "no_discriminator": {"use_discriminator": False},
+        "n_net_1": {"n_net": 1},
+    }
+    out: dict[str, Any] = {"iterations": iterations, "held_out_size": len(held_out), "seed": seed}
+    projected = {}
+    solver = P.GaussNewtonProjector(robot, P.paper_task(robot, "projection"))
+    for label, overrides in variants.items():
+        cfg = default_config(name, iterations=iterations, seed=seed, **overrides)
+        t0 = time.perf_counter()
+        model = train(cfg, data=data, progress=progress)
+        train_s = time.perf_counter() - t0
+        rng = np.random.default_rng(seed)
+        q = model.sample(targets, rng)  # one sample per held-out target: same conditioning
+        res = solver.solve_batch(q)
+        s = Codec.features(robot, q) / scale
+        out[label] = {
+            "cluster_coverage": cluster_coverage(ref, s, np.random.default_rng(seed)),
+            "mmd": mmd(ref, s, np.random.default_rng(seed)),
+            "projection_success": float(res.success.mean()),
+            "projection_steps_mean": float(res.iterations[res.success].mean()) if res.success.any() else None,
+            "train_s": train_s,
+            "config": {k: v for k, v in dataclasses.asdict(cfg).items() if k in ("n_net", "use_discriminator", "iterations")},
+        }
+        projected[label] = s
+    if figures is not None:
+        _plot_robot(name, ref, projected, figures / f"coverage_{name}.png")
+        out["figure"] = str(figures / f"coverage_{name}.png")
+    return out
+
+
+def _plot_robot(name: str, ref: NDArray[np.float64], samples: dict[str, NDArray[np.float64]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    mean = ref.mean(0)
+    _, _, vt = np.linalg.svd(ref - mean, full_matrices=False)
+    proj = vt[:2].T
+    fig, axes = plt.subplots(1, len(samples), figsize=(4.3 * len(samples), 4.2), sharex=True, sharey=True)
+    r2 = (ref - mean) @ proj
+    for ax, (label, s) in zip(axes, samples.items()):
+        s2 = (s - mean) @ proj
+        ax.scatter(r2[:, 0], r2[:, 1], s=2, c="tab:red", alpha=0.3, label="valid (held out)")
+        ax.scatter(s2[:, 0], s2[:, 1], s=3, c="tab:blue", marker="x", alpha=0.4, label="GAN samples")
+        ax.set_title(f"{name}: {label.replace('_', ' ')}")
+        ax.set_xlabel("principal component 1")
+        ax.legend(loc="upper right", fontsize=7)
+    axes[0].set_ylabel("principal component 2")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def main(args: argparse.Namespace) -> int:
+    planar_it = 1500 if args.quick else 5000
+    robot_it = 1500 if args.quick else 10_000
+    payload: dict[str, Any] = {"benchmark": "coverage", "quick": args.quick, "machine": machine(),
+                               "k_clusters": K_CLUSTERS, "planar": run_planar(planar_it, args.seed, args.figures, True)}
+    for name in args.robots:
+        payload[name] = run_robot(name, robot_it, args.seed, args.figures, True)
+    rows = [["planar", f"N_net={k}", payload["planar"][f"n_net_{k}"]["cluster_coverage"],
+             payload["planar"][f"n_net_{k}"]["mmd"], f"valid {payload['planar'][f'n_net_{k}']['valid_rate']:.3f}"]
+            for k in (1, 5)]
+    for name in args.robots:
+        for label in ("default", "no_discriminator", "n_net_1"):
+            r = payload[name][label]
+            rows.append([name, label, r["cluster_coverage"], r["mmd"], f"projects {r['projection_success']:.3f}"])
+    print(table(["setup", "variant", "cluster coverage", "MMD", "quality"], rows))
+    write_json(args.out, payload)
+    return 0

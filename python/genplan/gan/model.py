@@ -1,0 +1,408 @@
+"""The conditional ensemble GAN of the GAN paper (Section III-A), in torch.
+
+* Generator: an ensemble of ``n_net`` MLPs (2 x 200, ReLU) mapping Gaussian noise and an
+  end-effector target to a configuration; each member is a stand-alone generator.
+* Discriminator: an MLP (2 x 20 for Panda, 2 x 40 for Talos) fed the configuration augmented with
+  its end-effector pose (and, for Talos, its centre of mass).
+* Generator loss: adversarial (BCE) + end-effector target cost + joint-limit cost + the task's
+  constraint costs (Panda: gripper horizontal; Talos: soles fixed, CoM in the support box).
+* Adam, batch 100, 5 discriminator steps per generator step.
+
+A model is saved as ``<name>.safetensors`` (weights and normalisation) plus ``<name>.json`` (the
+card: hyperparameters, data, seed, training time, evaluation). Never pickles.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import torch
+from numpy.typing import NDArray
+
+from genplan import _core
+from genplan import projection as P
+from genplan.robots import Robot, load
+from genplan.torch_kinematics import TorchKinematics
+
+FORMAT = "genplan-gan/1"
+#: smallest feature scale used for standardisation (rad or m)
+STD_FLOOR = 0.05
+
+
+@dataclass(frozen=True)
+class GanConfig:
+    """Hyperparameters (defaults: the authors' public code, see DESIGN.md)."""
+
+    robot: str
+    target_frame: str
+    #: box the sampler draws targets from when none are given (task-space region of interest)
+    target_box: tuple[tuple[float, float, float], tuple[float, float, float]]
+    noise_dim: int = 10
+    n_net: int = 10
+    gen_hidden: tuple[int, ...] = (200, 200)
+    disc_hidden: tuple[int, ...] = (20, 20)
+    lr_gen: float = 5e-4
+    lr_disc: float = 1e-3
+    batch: int = 100
+    disc_steps: int = 5
+    iterations: int = 10_000
+    use_discriminator: bool = True
+    w_target: float = 1000.0
+    w_limits: float = 1000.0
+    w_constraint: float = 1000.0
+    data_size: int = 25_000
+    data_seed: int = 0
+    seed: int = 0
+
+
+def default_config(robot: str, **overrides: Any) -> GanConfig:
+    """The paper's configuration for "panda" or "talos", with optional overrides."""
+    if robot == "panda":
+        cfg = GanConfig(robot="panda", target_frame="hand",
+                        target_box=((-0.6, -0.6, -0.1), (0.6, 0.6, 1.0)))
+    elif robot == "talos":
+        cfg = GanConfig(robot="talos", target_frame="right_hand",
+                        target_box=((0.0, -0.8, 0.4), (0.8, 0.2, 1.5)),
+                        noise_dim=30, n_net=5, disc_hidden=(40, 40), lr_gen=7e-4, lr_disc=1.4e-3)
+    else:
+        raise ValueError(f"the GAN is defined for panda and talos, not '{robot}'")
+    return dataclasses.replace(cfg, **overrides)
+
+
+class Codec:
+    """Maps configurations to the generator's feature space and back.
+
+    Panda: the 7 joint angles. Talos: base position (3), base rotation vector (3), 28 joints.
+    Features are standardised with the data's mean and standard deviation.
+    """
+
+    def __init__(self, robot: Robot, mean: NDArray[np.float64], std: NDArray[np.float64]) -> None:
+        self.robot = robot
+        self.floating = robot.floating_base
+        self.mean = torch.tensor(mean, dtype=torch.float32)
+        self.std = torch.tensor(std, dtype=torch.float32)
+        self.dim = len(mean)
+
+    @staticmethod
+    def features(robot: Robot, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        if not robot.floating_base:
+            return np.array(q, dtype=np.float64)
+        rotvec = np.array([pin.log3(pin.Quaternion(*qq[[6, 3, 4, 5]]).toRotationMatrix()) for qq in q])
+        return np.concatenate([q[:, :3], rotvec, q[:, 7:]], axis=1)
+
+    def decode(self, x: torch.Tensor) -> torch.Tensor:
+        """Standardised features (..., dim) to configurations (..., nq)."""
+        f = x * self.std + self.mean
+        if not self.floating:
+            return f
+        rv = f[..., 3:6]
+        angle = torch.sqrt((rv * rv).sum(-1, keepdim=True) + 1e-12)
+        xyz = rv * (torch.sin(angle / 2) / angle)
+        quat = torch.cat([xyz, torch.cos(angle / 2)], -1)
+        return torch.cat([f[..., :3], quat, f[..., 6:]], -1)
+
+
+class EnsembleGenerator(torch.nn.Module):
+    """``n_net`` independent MLPs evaluated together with batched matrix products."""
+
+    def __init__(self, n_net: int, in_dim: int, hidden: tuple[int, ...], out_dim: int) -> None:
+        super().__init__()
+        dims = [in_dim, *hidden, out_dim]
+        self.weights = torch.nn.ParameterList()
+        self.biases = torch.nn.ParameterList()
+        for a, b in zip(dims[:-1], dims[1:]):
+            bound = 1.0 / math.sqrt(a)
+            self.weights.append(torch.nn.Parameter(torch.empty(n_net, a, b).uniform_(-bound, bound)))
+            self.biases.append(torch.nn.Parameter(torch.empty(n_net, 1, b).uniform_(-bound, bound)))
+        self.n_net = n_net
+
+    def forward(self, inputs: torch.Tensor) -> torch.Tensor:
+        """inputs (n_net, B, in_dim) -> (n_net, B, out_dim)."""
+        h = inputs
+        for i, (w, b) in enumerate(zip(self.weights, self.biases)):
+            h = torch.baddbmm(b, h, w)
+            if i < len(self.weights) - 1:
+                h = torch.relu(h)
+        return h
+
+
+def _mlp(dims: list[int]) -> torch.nn.Sequential:
+    layers: list[torch.nn.Module] = []
+    for i, (a, b) in enumerate(zip(dims[:-1], dims[1:])):
+        layers.append(torch.nn.Linear(a, b))
+        if i < len(dims) - 2:
+            layers.append(torch.nn.ReLU())
+    return torch.nn.Sequential(*layers)
+
+
+class Constraints:
+    """Differentiable costs of a configuration batch: target, limits, the task's constraints,
+    and the discriminator's augmented features."""
+
+    def __init__(self, robot: Robot, cfg: GanConfig) -> None:
+        self.robot = robot
+        self.cfg = cfg
+        self.kin = TorchKinematics(robot, dtype=torch.float32)
+        lo, hi = robot.lower.copy(), robot.upper.copy()
+        bounded = np.isfinite(lo) & np.isfinite(hi)
+        self.bounded = torch.tensor(np.flatnonzero(bounded))
+        self.lo = torch.tensor(lo[bounded], dtype=torch.float32)
+        self.hi = torch.tensor(hi[bounded], dtype=torch.float32)
+        if robot.name == "panda":
+            self.hand_offset = torch.tensor(P.PANDA_HAND_OFFSET, dtype=torch.float32)
+        if robot.name == "talos":
+            soles = {}
+            for s in ("left_sole", "right_sole"):
+                m = robot.frame_placement(robot.q_default, s)
+                soles[s] = (torch.tensor(m.rotation, dtype=torch.float32), torch.tensor(m.translation, dtype=torch.float32))
+            self.soles = soles
+            self.com_lo = torch.tensor(P.TALOS_COM_BOX[0], dtype=torch.float32)
+            self.com_hi = torch.tensor(P.TALOS_COM_BOX[1], dtype=torch.float32)
+
+    def evaluate(self, q: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Per-sample quantities for q (B, nq): ee position/rotation, limit and constraint costs."""
+        joints = self.kin.joint_placements(q)
+        rot, pos = self.kin.frame_placement(q, self.cfg.target_frame, joints)
+        qb = q[:, self.bounded]
+        limits = (torch.relu(self.lo - qb) ** 2 + torch.relu(qb - self.hi) ** 2).sum(-1)
+        out = {"ee_pos": pos, "ee_rot": rot, "limits": limits}
+        if self.robot.name == "panda":
+            z = (rot @ self.hand_offset)[:, :, 2]
+            out["constraint"] = ((z - torch.tensor([0.0, 0.0, 1.0])) ** 2).sum(-1)
+            out["augment"] = torch.cat([pos, rot.reshape(-1, 9)], -1)
+        else:
+            com = self.kin.center_of_mass(q, joints)
+            cost = (torch.relu(self.com_lo - com) ** 2 + torch.relu(com - self.com_hi) ** 2).sum(-1)
+            for s, (r_ref, p_ref) in self.soles.items():
+                r, p = self.kin.frame_placement(q, s, joints)
+                cost = cost + ((p - p_ref) ** 2).sum(-1) + ((r - r_ref) ** 2).sum((-1, -2))
+            out["constraint"] = cost
+            out["augment"] = torch.cat([pos, rot.reshape(-1, 9), com], -1)
+        return out
+
+
+@dataclass
+class GanModel:
+    """A trained generator with its codec: samples configurations given targets."""
+
+    config: GanConfig
+    robot: Robot
+    generator: EnsembleGenerator
+    codec: Codec
+    card: dict[str, Any] = field(default_factory=dict)
+
+    @torch.no_grad()
+    def sample_members(self, targets: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.float64]:
+        """One configuration per target from every ensemble member: (n_net, n, nq)."""
+        targets = np.asarray(targets, dtype=np.float64)
+        if targets.ndim != 2 or targets.shape[1] != 3 or not np.all(np.isfinite(targets)):
+            raise ValueError(f"targets: expected finite positions of shape (n, 3), got {targets.shape}")
+        n = len(targets)
+        z = torch.tensor(rng.standard_normal((self.config.n_net, n, self.config.noise_dim)), dtype=torch.float32)
+        x = torch.tensor(targets, dtype=torch.float32).expand(self.config.n_net, n, 3)
+        q = self.codec.decode(self.generator(torch.cat([z, x], -1)))
+        return q.double().numpy()
+
+    def sample(self, targets: NDArray[np.float64], rng: np.random.Generator | int | None = None) -> NDArray[np.float64]:
+        """One configuration per target, each from a member chosen at random: (n, nq)."""
+        rng = np.random.default_rng(rng)
+        allq = self.sample_members(targets, rng)
+        pick = rng.integers(0, self.config.n_net, size=allq.shape[1])
+        return allq[pick, np.arange(allq.shape[1])]
+
+    def save(self, path: str | Path) -> tuple[Path, Path]:
+        """Write ``path`` (.safetensors) and its card (.json beside it)."""
+        from safetensors.torch import save_file
+
+        path = Path(path).with_suffix(".safetensors")
+        tensors = {f"generator.weight.{i}": w.detach().contiguous() for i, w in enumerate(self.generator.weights)}
+        tensors.update({f"generator.bias.{i}": b.detach().contiguous() for i, b in enumerate(self.generator.biases)})
+        tensors["codec.mean"] = self.codec.mean.contiguous()
+        tensors["codec.std"] = self.codec.std.contiguous()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_file(tensors, str(path), metadata={"format": FORMAT, "robot": self.config.robot})
+        card = dict(self.card)
+        card.update({"format": FORMAT, "config": dataclasses.asdict(self.config),
+                     "weights_sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
+        card_path = path.with_suffix(".json")
+        card_path.write_text(json.dumps(card, indent=2, default=_json_default) + "\n")
+        return path, card_path
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, tuple):
+        return list(o)
+    raise TypeError(f"not JSON serialisable: {type(o)}")
+
+
+def models_dir() -> Path:
+    """The shipped models: ``genplan/models`` inside the installed package."""
+    return Path(__file__).resolve().parent.parent / "models"
+
+
+def load_model(robot: str | Robot, path: str | Path | None = None) -> GanModel:
+    """Load a GAN (default: the shipped ``models/<robot>_gan.safetensors``).
+
+    A missing file raises FileNotFoundError naming the command that trains it; a corrupt file or
+    a card that does not match raises ValueError.
+    """
+    from safetensors import SafetensorError
+    from safetensors.torch import load_file
+
+    rob = robot if isinstance(robot, Robot) else load(robot)
+    path = models_dir() / f"{rob.name}_gan.safetensors" if path is None else Path(path)
+    card_path = path.with_suffix(".json")
+    for p in (path, card_path):
+        if not p.is_file():
+            raise FileNotFoundError(f"GAN model file {p} does not exist; train it with "
+                                    f"`genplan train gan --robot {rob.name} --seed 0`")
+    try:
+        card = json.loads(card_path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"GAN model card {card_path} is corrupt: {exc}") from None
+    if card.get("format") != FORMAT:
+        raise ValueError(f"{card_path}: unknown format {card.get('format')!r} (expected {FORMAT})")
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    if card.get("weights_sha256") not in (None, digest):
+        raise ValueError(f"{path} does not match its card (sha256 {digest[:12]}..., card says "
+                         f"{str(card.get('weights_sha256'))[:12]}...): the file is corrupt or was replaced")
+    try:
+        tensors = load_file(str(path))
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise ValueError(f"GAN model file {path} is corrupt: {exc}") from None
+    cfg_dict = card["config"]
+    cfg_dict["target_box"] = tuple(tuple(b) for b in cfg_dict["target_box"])
+    cfg_dict["gen_hidden"] = tuple(cfg_dict["gen_hidden"])
+    cfg_dict["disc_hidden"] = tuple(cfg_dict["disc_hidden"])
+    cfg = GanConfig(**cfg_dict)
+    if cfg.robot != rob.name:
+        raise ValueError(f"{path} is a GAN for '{cfg.robot}', not '{rob.name}'")
+    mean, std = tensors["codec.mean"].double().numpy(), tensors["codec.std"].double().numpy()
+    codec = Codec(rob, mean, std)
+    gen = EnsembleGenerator(cfg.n_net, cfg.noise_dim + 3, cfg.gen_hidden, codec.dim)
+    try:
+        for i in range(len(gen.weights)):
+            gen.weights[i].data.copy_(tensors[f"generator.weight.{i}"])
+            gen.biases[i].data.copy_(tensors[f"generator.bias.{i}"])
+    except (KeyError, RuntimeError) as exc:
+        raise ValueError(f"GAN model file {path} does not fit its card: {exc}") from None
+    gen.eval()
+    return GanModel(cfg, rob, gen, codec, card)
+
+
+def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: bool = True,
+          log_every: int = 500) -> GanModel:
+    """Train a GAN; returns the model with a card holding the loss log and training time."""
+    from genplan.gan.data import cache_path, valid_configurations
+
+    robot = load(cfg.robot)
+    # a saturated discriminator drives activations into denormal floats, which are ~4x slower
+    torch.set_flush_denormal(True)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    t_data = time.perf_counter()
+    data_source = "given"
+    if data is None:
+        data_source = "cache" if cache_path(robot, cfg.data_size, cfg.data_seed).is_file() else "generated"
+        data = valid_configurations(robot, cfg.data_size, cfg.data_seed, progress=progress)
+    t_data = time.perf_counter() - t_data
+    feats = Codec.features(robot, data)
+    # Scales are floored: a feature the constraints pin (Talos' left arm, the Panda hand's axis)
+    # has a near-zero spread, and dividing by it would turn any deviation into a huge input.
+    mean, std = feats.mean(0), np.maximum(feats.std(0), STD_FLOOR)
+    codec = Codec(robot, mean, std)
+    cons = Constraints(robot, cfg)
+    with torch.no_grad():
+        real_all = cons.evaluate(torch.tensor(data, dtype=torch.float32))
+        real_targets = real_all["ee_pos"].clone()
+        real_aug = real_all["augment"].clone()
+    real_feats = (torch.tensor(feats, dtype=torch.float32) - codec.mean) / codec.std
+    aug_mean, aug_std = real_aug.mean(0), real_aug.std(0).clamp_min(STD_FLOOR)
+    real_disc = torch.cat([real_feats, (real_aug - aug_mean) / aug_std], -1)
+
+    gen = EnsembleGenerator(cfg.n_net, cfg.noise_dim + 3, cfg.gen_hidden, codec.dim)
+    disc = _mlp([real_disc.shape[1], *cfg.disc_hidden, 1])
+    opt_g = torch.optim.Adam(gen.parameters(), lr=cfg.lr_gen)
+    opt_d = torch.optim.Adam(disc.parameters(), lr=cfg.lr_disc)
+    bce = torch.nn.BCEWithLogitsLoss()
+    n, b, k = len(data), cfg.batch, cfg.n_net
+
+    def fake_batch() -> tuple[torch.Tensor, torch.Tensor]:
+        idx = torch.from_numpy(rng.integers(0, n, size=(k, b)))
+        x = real_targets[idx]  # targets: end-effector positions of data samples
+        z = torch.randn(k, b, cfg.noise_dim)
+        return gen(torch.cat([z, x], -1)), x
+
+    def disc_input(out: torch.Tensor, aug: torch.Tensor) -> torch.Tensor:
+        return torch.cat([out.reshape(-1, codec.dim), (aug - aug_mean) / aug_std], -1)
+
+    log: list[dict[str, float]] = []
+    iterator = range(cfg.iterations)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(iterator, desc=f"train gan ({cfg.robot})", unit="it")
+        iterator = bar
+    t0 = time.perf_counter()
+    ones_b, zeros_b = torch.ones(b, 1), torch.zeros(b, 1)
+    for it in iterator:
+        d_loss = torch.tensor(0.0)
+        if cfg.use_discriminator:
+            for _ in range(cfg.disc_steps):
+                with torch.no_grad():
+                    out, _ = fake_batch()
+                    pick = torch.from_numpy(rng.integers(0, k * b, size=b))
+                    out = out.reshape(k * b, -1)[pick]
+                    q = codec.decode(out)
+                    fake_in = disc_input(out, cons.evaluate(q)["augment"])
+                real_in = real_disc[torch.from_numpy(rng.integers(0, n, size=b))]
+                d_loss = bce(disc(real_in), ones_b) + bce(disc(fake_in), zeros_b)
+                opt_d.zero_grad()
+                d_loss.backward()
+                opt_d.step()
+        out, x = fake_batch()
+        q = codec.decode(out.reshape(k * b, -1))
+        ev = cons.evaluate(q)
+        c_target = ((ev["ee_pos"] - x.reshape(k * b, 3)) ** 2).sum(-1).mean()
+        c_limits = ev["limits"].mean()
+        c_cons = ev["constraint"].mean()
+        g_loss = cfg.w_target * c_target + cfg.w_limits * c_limits + cfg.w_constraint * c_cons
+        adv = torch.tensor(0.0)
+        if cfg.use_discriminator:
+            adv = bce(disc(disc_input(out, ev["augment"])), torch.ones(k * b, 1))
+            g_loss = g_loss + adv
+        opt_g.zero_grad()
+        g_loss.backward()
+        opt_g.step()
+        if it % log_every == 0 or it == cfg.iterations - 1:
+            entry = {"iteration": it, "d_loss": float(d_loss.detach()), "adversarial": float(adv.detach()),
+                     "target_m2": float(c_target.detach()), "limits": float(c_limits.detach()), "constraint": float(c_cons.detach())}
+            log.append(entry)
+            if bar is not None:
+                bar.set_postfix(d=f"{entry['d_loss']:.3f}", tgt=f"{math.sqrt(entry['target_m2']) * 100:.1f}cm",
+                                cons=f"{entry['constraint']:.1e}")
+    train_s = time.perf_counter() - t0
+    gen.eval()
+    card = {
+        "robot": cfg.robot,
+        "genplan_version": _core.__version__,
+        "data": {"size": int(len(data)), "seed": cfg.data_seed, "seconds": t_data, "from": data_source,
+                 "source": "uniform samples in the joint limits projected with the paper's projection task"},
+        "training": {"seconds": train_s, "iterations": cfg.iterations, "seed": cfg.seed,
+                     "threads": torch.get_num_threads(), "torch": torch.__version__, "loss_log": log},
+        "command": f"genplan train gan --robot {cfg.robot} --seed {cfg.seed}",
+    }
+    return GanModel(cfg, robot, gen, codec, card)
+

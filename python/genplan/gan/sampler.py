@@ -1,0 +1,71 @@
+"""Samplers of configurations: uniform within the joint limits, GAN, and hybrid.
+
+Each has ``sample(n) -> (n, nq)``, the batched call the planner makes through its Sampler trait.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from genplan.gan.model import GanModel, load_model
+from genplan.robots import Robot
+
+
+class UniformSampler:
+    """Configurations uniform within the joint limits (a free-flyer base at its default)."""
+
+    def __init__(self, robot: Robot, seed: int | None = None) -> None:
+        self.robot = robot
+        self.rng = np.random.default_rng(seed)
+
+    def sample(self, n: int) -> NDArray[np.float64]:
+        return self.robot.random_configurations(int(n), self.rng)
+
+
+class GanSampler:
+    """Configurations from a trained GAN, conditioned on end-effector targets.
+
+    ``sample(n)`` draws targets uniformly in ``box`` (default: the model's target box);
+    ``sample_for(targets)`` conditions on given targets.
+    """
+
+    def __init__(self, robot: Robot, model: GanModel | str | Path | None = None,
+                 box: ArrayLike | None = None, seed: int | None = None) -> None:
+        self.robot = robot
+        self.model = model if isinstance(model, GanModel) else load_model(robot, model)
+        if self.model.config.robot != robot.name:
+            raise ValueError(f"the GAN is for '{self.model.config.robot}', not '{robot.name}'")
+        b = np.asarray(self.model.config.target_box if box is None else box, dtype=np.float64)
+        if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[0] > b[1]):
+            raise ValueError(f"box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got {b.tolist()}")
+        self.box = b
+        self.rng = np.random.default_rng(seed)
+
+    def sample_for(self, targets: ArrayLike) -> NDArray[np.float64]:
+        """One configuration per target position (n, 3) -> (n, nq)."""
+        return self.model.sample(np.asarray(targets, dtype=np.float64), self.rng)
+
+    def sample(self, n: int) -> NDArray[np.float64]:
+        targets = self.rng.uniform(self.box[0], self.box[1], size=(int(n), 3))
+        return self.sample_for(targets)
+
+
+class HybridSampler:
+    """GAN samples with probability ``p`` (default 0.8), uniform ones otherwise: keeps the
+    planner probabilistically complete."""
+
+    def __init__(self, gan: GanSampler, uniform: UniformSampler, p: float = 0.8, seed: int | None = None) -> None:
+        if not 0.0 <= p <= 1.0:
+            raise ValueError(f"p must be in [0, 1], got {p}")
+        self.gan, self.uniform, self.p = gan, uniform, p
+        self.rng = np.random.default_rng(seed)
+
+    def sample(self, n: int) -> NDArray[np.float64]:
+        use_gan = self.rng.random(int(n)) < self.p
+        out = self.uniform.sample(int(n))
+        if use_gan.any():
+            out[use_gan] = self.gan.sample(int(use_gan.sum()))
+        return out

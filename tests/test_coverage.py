@@ -1,0 +1,28 @@
+"""The coverage metrics and the planar robot of genplan.benchmarks.coverage."""
+
+import numpy as np
+
+from genplan.benchmarks import coverage as C
+
+
+def test_metrics_separate_full_coverage_from_mode_collapse() -> None:
+    rng = np.random.default_rng(0)
+    centers = np.array([[-3.0, 0.0], [3.0, 0.0], [0.0, 3.0], [0.0, -3.0]])
+    data = np.concatenate([c + 0.3 * rng.standard_normal((500, 2)) for c in centers])
+    same = np.concatenate([c + 0.3 * rng.standard_normal((500, 2)) for c in centers])
+    collapsed = centers[0] + 0.3 * rng.standard_normal((2000, 2))
+    assert C.cluster_coverage(data, same, np.random.default_rng(1), k=8) == 1.0
+    assert C.cluster_coverage(data, collapsed, np.random.default_rng(1), k=8) <= 0.25
+    assert abs(C.mmd(data, same, np.random.default_rng(2))) < 0.01
+    assert C.mmd(data, collapsed, np.random.default_rng(2)) > 0.1
+
+
+def test_planar_collision_check() -> None:
+    # straight arm along +x: the obstacles are elsewhere; pointing at the first obstacle: collides
+    free = np.array([[0.0, 0.0]])
+    toward = np.arctan2(C.PLANAR_OBSTACLES[0, 1], C.PLANAR_OBSTACLES[0, 0])
+    hit = np.array([[toward, 0.0]])
+    assert C.planar_collision_free(free)[0]
+    assert not C.planar_collision_free(hit)[0]
+    data = C.planar_data(500, np.random.default_rng(0))
+    assert data.shape == (500, 2) and C.planar_collision_free(data).all()
