@@ -54,24 +54,13 @@ def cmd_info(args: argparse.Namespace) -> int:
     return status
 
 
-def _lazy(module: str, attr: str):  # type: ignore[no-untyped-def]
-    """A command that imports its (torch-heavy) module only when it runs."""
-
-    def run(args: argparse.Namespace) -> int:
-        return int(getattr(importlib.import_module(module), attr)(args))
-
-    return run
-
-
-def _doc(module: str) -> str:
-    """A module's docstring without importing it (keeps `genplan --help` fast)."""
-    import ast
-    import importlib.util
-
-    spec = importlib.util.find_spec(module)
-    if spec is None or spec.origin is None:
-        return ""
-    return ast.get_docstring(ast.parse(Path(spec.origin).read_text())) or ""
+#: (group, name, module, help) of every command but ``info``. Each module keeps its top-level
+#: imports light (no torch) and defines ``add_arguments(parser)`` and ``main(args) -> int``.
+COMMANDS: list[tuple[str, str, str, str]] = [
+    ("bench", "projection", "genplan.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),
+    ("bench", "coverage", "genplan.benchmarks.coverage", "GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations"),
+    ("train", "gan", "genplan.gan.train_cli", "the conditional ensemble GAN of valid configurations"),
+]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -86,30 +75,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="run a benchmark: print its table, write JSON")
     bench_sub = bench.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
-    from genplan.benchmarks import projection as bench_projection
-
-    p = bench_sub.add_parser("projection", help="Table I: projection and IK (Gauss-Newton or scipy)",
-                             description=bench_projection.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    bench_projection.add_arguments(p)
-    p.set_defaults(func=bench_projection.main)
-
-    p = bench_sub.add_parser("coverage", help="GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations",
-                             description=_doc("genplan.benchmarks.coverage"),
-                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--quick", action="store_true", help="fewer iterations (planar 1,500, robots 1,500)")
-    p.add_argument("--robots", nargs="*", default=["panda", "talos"], choices=["panda", "talos"])
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--figures", type=Path, default=Path("benches/results"), help="folder for the PNG figures")
-    p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
-    p.set_defaults(func=_lazy("genplan.benchmarks.coverage", "main"))
-
     train = sub.add_parser("train", help="train a model (written to models/ with a JSON card)")
     train_sub = train.add_subparsers(dest="model", metavar="MODEL", required=True)
-    from genplan.gan import train_cli as gan_train
-
-    p = train_sub.add_parser("gan", help="the conditional ensemble GAN of valid configurations")
-    gan_train.add_arguments(p)
-    p.set_defaults(func=gan_train.main)
+    groups = {"bench": bench_sub, "train": train_sub, "": sub}
+    for group, name, module, help_text in COMMANDS:
+        mod = importlib.import_module(module)
+        p = groups[group].add_parser(name, help=help_text, description=mod.__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+        mod.add_arguments(p)
+        p.set_defaults(func=mod.main)
     return parser
 
 

@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from numpy.typing import NDArray
 
 from genplan.benchmarks.common import machine, table, write_json
@@ -68,6 +67,8 @@ def cluster_coverage(held_out: NDArray[np.float64], samples: NDArray[np.float64]
 
 def mmd(x: NDArray[np.float64], y: NDArray[np.float64], rng: np.random.Generator, n: int = 1500) -> float:
     """Unbiased squared MMD with a Gaussian kernel (bandwidth: median pairwise distance)."""
+    import torch
+
     x = x[rng.choice(len(x), size=min(n, len(x)), replace=False)]
     y = y[rng.choice(len(y), size=min(n, len(y)), replace=False)]
     xt, yt = torch.tensor(x), torch.tensor(y)
@@ -111,6 +112,8 @@ def planar_data(n: int, rng: np.random.Generator) -> NDArray[np.float64]:
 def train_unconditional(data: NDArray[np.float64], n_net: int, iterations: int, seed: int,
                         noise_dim: int = 2, progress: bool = True) -> Any:
     """An unconditional ensemble GAN (the paper's architecture) on 2-D data; returns a sampler."""
+    import torch
+
     from genplan.gan.model import EnsembleGenerator, _mlp
 
     torch.manual_seed(seed)
@@ -286,6 +289,14 @@ def _plot_robot(name: str, ref: NDArray[np.float64], samples: dict[str, NDArray[
 
 
 # ---------------------------------------------------------------------------------------------
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quick", action="store_true", help="fewer iterations (planar 1,500, robots 1,500)")
+    p.add_argument("--robots", nargs="*", default=["panda", "talos"], choices=["panda", "talos"])
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--figures", type=Path, default=Path("benches/results"), help="folder for the PNG figures")
+    p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
 
 
 def main(args: argparse.Namespace) -> int:

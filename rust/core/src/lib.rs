@@ -5,13 +5,19 @@
 //! * [`collision`]: parry collision world (self-collision with SRDF filtering, obstacles),
 //!   answering "in collision?" and signed minimum distance.
 //! * [`robot`]: loading a robot (URDF + SRDF + options) into both, in one call.
+//! * [`projection`]: damped Gauss-Newton projection / IK with a null-space posture task.
+//! * [`planning`]: the constrained RRT (Sampler, Projector, ValidityChecker, NearestNeighbors traits).
+//! * [`dynamics`] / [`control`]: rigid-body dynamics of a serial arm and the 1 kHz spatula controller.
 //!
 //! Nothing here depends on Python: `cargo test` and `cargo bench` run without it.
 
 pub mod collision;
+pub mod control;
+pub mod dynamics;
 pub mod error;
 pub mod kinematics;
 pub mod lie;
+pub mod planning;
 pub mod projection;
 pub mod robot;
 pub mod srdf;

@@ -23,7 +23,10 @@ use genplan_core::srdf::Srdf;
 use genplan_core::urdf::Urdf;
 use genplan_core::{Error, Scratch};
 
-fn to_py(e: Error) -> PyErr {
+mod control;
+mod planning;
+
+pub(crate) fn to_py(e: Error) -> PyErr {
     match &e {
         Error::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
             PyFileNotFoundError::new_err(e.to_string())
@@ -99,8 +102,8 @@ fn pose_from(center: [f64; 3], rotation: Option<[[f64; 3]; 3]>, what: &str) -> P
 
 /// Forward kinematics of a URDF tree (q in Pinocchio's convention).
 #[pyclass(name = "KinematicModel", module = "genplan._core", frozen)]
-struct PyKinematicModel {
-    inner: Arc<KinematicModel>,
+pub(crate) struct PyKinematicModel {
+    pub(crate) inner: Arc<KinematicModel>,
 }
 
 #[pymethods]
@@ -216,8 +219,8 @@ impl PyKinematicModel {
 
 /// The robot's collision geometry and environment obstacles (parry).
 #[pyclass(name = "CollisionWorld", module = "genplan._core")]
-struct PyCollisionWorld {
-    inner: CollisionWorld,
+pub(crate) struct PyCollisionWorld {
+    pub(crate) inner: CollisionWorld,
 }
 
 impl PyCollisionWorld {
@@ -421,8 +424,8 @@ fn term_from_dict(model: &genplan_core::KinematicModel, d: &Bound<'_, PyDict>) -
 
 /// Native damped Gauss-Newton projector (see genplan.projection for the Python front end).
 #[pyclass(name = "Projector", module = "genplan._core", frozen)]
-struct PyProjector {
-    inner: Projector,
+pub(crate) struct PyProjector {
+    pub(crate) inner: Projector,
 }
 
 #[pymethods]
@@ -615,6 +618,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(robot_spec, m)?)?;
     m.add_function(wrap_pyfunction!(load_robot, m)?)?;
     m.add_function(wrap_pyfunction!(package_dirs, m)?)?;
+    planning::register(m)?;
+    control::register(m)?;
     Ok(())
 }
 

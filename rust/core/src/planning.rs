@@ -1,0 +1,1 @@
+//! Constrained RRT (the GAN paper's Algorithm 1). Work in progress: see issue [crrt].
