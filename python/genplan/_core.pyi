@@ -102,3 +102,54 @@ class Projector:
 def robot_spec(name: str) -> dict[str, Any]: ...
 def load_robot(name: str, robots_dir: _Path) -> tuple[KinematicModel, CollisionWorld]: ...
 def package_dirs(robots_dir: _Path) -> list[str]: ...
+
+# --- constrained planning (genplan_core::planning / gan; genplan.planning) ---
+
+class UniformSampler:
+    """Uniform within the joint limits; a free-flyer base held at ``base``."""
+
+    def __init__(self, model: KinematicModel, base: list[float] | None = None, seed: int = 0) -> None: ...
+    def sample(self, n: int) -> NDArray[np.float64]: ...
+
+class GanSampler:
+    """A trained GAN generator run natively (see genplan.gan.GanModel.native_sampler)."""
+
+    def __init__(
+        self,
+        noise_dim: int,
+        weights: list[NDArray[np.float64]],
+        biases: list[NDArray[np.float64]],
+        mean: list[float],
+        std: list[float],
+        floating_base: bool,
+        lower: list[float],
+        upper: list[float],
+        seed: int = 0,
+    ) -> None: ...
+    @property
+    def nq(self) -> int: ...
+    def sample(self, n: int) -> NDArray[np.float64]: ...
+    def generate(
+        self, members: list[int], noise: NDArray[np.float64], targets: NDArray[np.float64]
+    ) -> NDArray[np.float64]: ...
+
+class MixtureSampler:
+    """``primary`` with probability ``p``, else ``secondary`` (native samplers or objects with sample(n))."""
+
+    def __init__(self, primary: Any, secondary: Any, p: float = 0.8, seed: int = 0) -> None: ...
+    @property
+    def p(self) -> float: ...
+
+class Planner:
+    """The constrained RRT (see genplan.planning.Planner for the typed front end)."""
+
+    def __init__(self, model: KinematicModel, settings: dict[str, Any] | None = None) -> None: ...
+    def plan(
+        self,
+        start: list[float],
+        goals: NDArray[np.float64],
+        sampler: Any,
+        projector: Any,
+        checker: Any,
+        parallel: bool = False,
+    ) -> dict[str, Any]: ...

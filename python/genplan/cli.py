@@ -59,6 +59,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 COMMANDS: list[tuple[str, str, str, str]] = [
     ("bench", "projection", "genplan.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),
     ("bench", "coverage", "genplan.benchmarks.coverage", "GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations"),
+    ("bench", "plan", "genplan.benchmarks.plan", "Table II: constrained RRT (uniform / GAN / hybrid) and OMPL"),
     ("train", "gan", "genplan.gan.train_cli", "the conditional ensemble GAN of valid configurations"),
 ]
 

@@ -421,6 +421,15 @@ class Task:
 
         return dataclasses.replace(self, primary=swap(self.primary), secondary=swap(self.secondary))
 
+    def with_tolerances_scaled(self, factor: float) -> "Task":
+        """A copy whose primary terms' tolerances are multiplied by ``factor`` (e.g. 0.1: project
+        ten times tighter than the constraint, so the straight chord between two nearby projected
+        states still satisfies it)."""
+        if not (np.isfinite(factor) and factor > 0):
+            raise ValueError(f"factor must be positive, got {factor}")
+        return dataclasses.replace(
+            self, primary=tuple(dataclasses.replace(t, tolerance=t.tolerance * factor) for t in self.primary))
+
 
 @dataclass(frozen=True)
 class SolverSettings:
@@ -513,6 +522,11 @@ class GaussNewtonProjector:
                 [t.to_native(robot) for t in task.secondary],
                 dataclasses.asdict(self.settings),
             )
+
+    @property
+    def native(self) -> _core.Projector | None:
+        """The native solver (``backend="native"``), which the planner calls without Python."""
+        return self._native
 
     # -- evaluation --------------------------------------------------------------------------
 

@@ -36,6 +36,9 @@ from genplan.torch_kinematics import TorchKinematics
 FORMAT = "genplan-gan/1"
 #: smallest feature scale used for standardisation (rad or m)
 STD_FLOOR = 0.05
+#: features whose spread in the data is below this (rad, m, or rotation-matrix entries) are
+#: pinned by the constraints and withheld from the discriminator
+DISC_MIN_STD = 1e-3
 
 
 @dataclass(frozen=True)
@@ -219,6 +222,25 @@ class GanModel:
         pick = rng.integers(0, self.config.n_net, size=allq.shape[1])
         return allq[pick, np.arange(allq.shape[1])]
 
+    def native_sampler(self, box: Any = None, seed: int = 0) -> _core.GanSampler:
+        """The generator run natively (Rust, no GIL): ``sample(n)`` draws targets uniformly in
+        ``box`` (default: the model's target box), a member at random and Gaussian noise, like
+        :meth:`sample`. The planner uses it without calling back into Python."""
+        b = np.asarray(self.config.target_box if box is None else box, dtype=np.float64)
+        if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[0] > b[1]):
+            raise ValueError(f"box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got {b.tolist()}")
+        return _core.GanSampler(
+            self.config.noise_dim,
+            [w.detach().double().numpy() for w in self.generator.weights],
+            [bias.detach().double().numpy() for bias in self.generator.biases],
+            self.codec.mean.double().tolist(),
+            self.codec.std.double().tolist(),
+            self.robot.floating_base,
+            b[0].tolist(),
+            b[1].tolist(),
+            int(seed),
+        )
+
     def save(self, path: str | Path) -> tuple[Path, Path]:
         """Write ``path`` (.safetensors) and its card (.json beside it)."""
         from safetensors.torch import save_file
@@ -330,6 +352,13 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
     real_feats = (torch.tensor(feats, dtype=torch.float32) - codec.mean) / codec.std
     aug_mean, aug_std = real_aug.mean(0), real_aug.std(0).clamp_min(STD_FLOOR)
     real_disc = torch.cat([real_feats, (real_aug - aug_mean) / aug_std], -1)
+    # The discriminator sees only the features that vary in the data. A feature the constraints
+    # pin (the Panda hand's vertical axis, Talos' left arm) carries no distribution information:
+    # its constraint cost already drives it; fed to the discriminator, the generator's tiny
+    # residual on it makes real and fake perfectly separable, and the adversarial gradient then
+    # only tightens the constraint instead of spreading the samples (mode collapse).
+    disc_keep = torch.cat([torch.tensor(feats.std(0) > DISC_MIN_STD), real_aug.std(0) > DISC_MIN_STD])
+    real_disc = real_disc[:, disc_keep]
 
     gen = EnsembleGenerator(cfg.n_net, cfg.noise_dim + 3, cfg.gen_hidden, codec.dim)
     disc = _mlp([real_disc.shape[1], *cfg.disc_hidden, 1])
@@ -345,7 +374,7 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
         return gen(torch.cat([z, x], -1)), x
 
     def disc_input(out: torch.Tensor, aug: torch.Tensor) -> torch.Tensor:
-        return torch.cat([out.reshape(-1, codec.dim), (aug - aug_mean) / aug_std], -1)
+        return torch.cat([out.reshape(-1, codec.dim), (aug - aug_mean) / aug_std], -1)[:, disc_keep]
 
     log: list[dict[str, float]] = []
     iterator = range(cfg.iterations)
@@ -403,6 +432,7 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
         "training": {"seconds": train_s, "iterations": cfg.iterations, "seed": cfg.seed,
                      "threads": torch.get_num_threads(), "torch": torch.__version__, "loss_log": log},
         "command": f"genplan train gan --robot {cfg.robot} --seed {cfg.seed}",
+        "discriminator_features": {"used": int(disc_keep.sum()), "withheld_pinned": int((~disc_keep).sum())},
     }
     return GanModel(cfg, robot, gen, codec, card)
 

@@ -6,6 +6,7 @@ Each has ``sample(n) -> (n, nq)``, the batched call the planner makes through it
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,6 +44,10 @@ class GanSampler:
             raise ValueError(f"box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got {b.tolist()}")
         self.box = b
         self.rng = np.random.default_rng(seed)
+
+    def native(self, seed: int | None = None) -> Any:
+        """The same sampler run natively (Rust): what the planner uses for ``sampler="gan"``."""
+        return self.model.native_sampler(self.box, int(self.rng.integers(2**63)) if seed is None else seed)
 
     def sample_for(self, targets: ArrayLike) -> NDArray[np.float64]:
         """One configuration per target position (n, 3) -> (n, nq)."""

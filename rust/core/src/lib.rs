@@ -15,6 +15,7 @@ pub mod collision;
 pub mod control;
 pub mod dynamics;
 pub mod error;
+pub mod gan;
 pub mod kinematics;
 pub mod lie;
 pub mod planning;

@@ -328,9 +328,12 @@ impl Projector {
         let secondary_nominal = nominals(&self.secondary, &nominal);
         let mut iterations = 0;
         let mut s = self.state(q.clone());
-        let (mut raws, mut j1) = self.stack(&self.primary, &s, &primary_nominal, true);
+        // Residuals first: a configuration already on the manifold (most states along a planner's
+        // edge) costs one forward kinematics, no Jacobian.
+        let (mut raws, _) = self.stack(&self.primary, &s, &primary_nominal, false);
         while !self.satisfied(&raws) && iterations < st.max_iterations {
-            let j1_full = j1.take().expect("jacobian computed");
+            let (_, j1) = self.stack(&self.primary, &s, &primary_nominal, true);
+            let j1_full = j1.expect("jacobian computed");
             let r1_full = Self::weighted(&self.primary, &raws);
             // Rows with a zero residual and a zero Jacobian (inactive limits, CoM inside its box)
             // change nothing in the step: drop them to keep the linear algebra small.
@@ -391,9 +394,7 @@ impl Projector {
             q = q_new;
             iterations += 1;
             s = self.state(q.clone());
-            let (r, j) = self.stack(&self.primary, &s, &primary_nominal, true);
-            raws = r;
-            j1 = j;
+            raws = self.stack(&self.primary, &s, &primary_nominal, false).0;
         }
         let residuals = raws.iter().map(|r| if r.len() == 0 { 0.0 } else { r.amax() }).collect();
         Outcome {

@@ -353,14 +353,14 @@ impl PyCollisionWorld {
     }
 }
 
-fn get<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, what: &str) -> PyResult<T> {
+pub(crate) fn get<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, what: &str) -> PyResult<T> {
     match d.get_item(key)? {
         Some(v) => v.extract::<T>().map_err(|e| PyValueError::new_err(format!("{what}: '{key}': {}", Into::<PyErr>::into(e)))),
         None => Err(PyValueError::new_err(format!("{what}: missing '{key}'"))),
     }
 }
 
-fn get_or<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, default: T, what: &str) -> PyResult<T> {
+pub(crate) fn get_or<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, default: T, what: &str) -> PyResult<T> {
     match d.get_item(key)? {
         Some(v) if !v.is_none() => v.extract::<T>().map_err(|e| PyValueError::new_err(format!("{what}: '{key}': {}", Into::<PyErr>::into(e)))),
         _ => Ok(default),

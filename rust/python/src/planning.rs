@@ -1,7 +1,526 @@
-//! Bindings of `genplan_core::planning` (issue [crrt]).
+//! Bindings of `genplan_core::planning`: the constrained RRT with native or Python components.
+//!
+//! A component is either native (a `UniformSampler`, a `Projector`, a `CollisionWorld`) or any
+//! Python object with the right method:
+//!
+//! * sampler: `sample(n) -> (n, nq)` array;
+//! * projector: `project(qs, q_noms) -> (q (n, nq), success (n,)[, iterations (n,)])`;
+//! * validity checker: `is_valid(qs) -> (n,)` booleans.
+//!
+//! The plan runs without the GIL; a Python component takes it back for each (batched) call. An
+//! exception raised in a component ends the plan and is re-raised to the caller as it was; Ctrl-C
+//! is checked every 50 ms.
 
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
-pub(crate) fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> {
+use genplan_core::planning::{
+    self, CollisionChecker, Components, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner,
+    Projection, Sampler, Settings, Space, ValidityChecker,
+};
+
+use genplan_core::gan;
+
+use crate::{get_or, to_py, PyCollisionWorld, PyKinematicModel, PyProjector};
+
+fn component_error(e: PyErr) -> PlanError {
+    PlanError::Component(Box::new(e))
+}
+
+/// A PlanError as the Python exception it stands for (a component's own exception unchanged).
+fn plan_error_to_py(e: PlanError) -> PyErr {
+    match e {
+        PlanError::Invalid(m) => PyValueError::new_err(m),
+        PlanError::Component(b) => match b.downcast::<PyErr>() {
+            Ok(py_err) => *py_err,
+            Err(other) => PyRuntimeError::new_err(other.to_string()),
+        },
+    }
+}
+
+/// Rows of a 2-D float64 array returned by a Python component, checked against the expected shape.
+fn rows_from(py: Python<'_>, obj: &Bound<'_, PyAny>, n: usize, nq: usize, what: &str) -> PyResult<Vec<f64>> {
+    let np = py.import("numpy")?;
+    let arr = np.call_method1("asarray", (obj, "float64"))?;
+    let arr: PyReadonlyArray2<f64> = arr.extract().map_err(|_| {
+        PyValueError::new_err(format!("{what}: expected a 2-D array of shape ({n}, {nq})"))
+    })?;
+    if arr.shape() != [n, nq] {
+        return Err(PyValueError::new_err(format!("{what}: expected shape ({n}, {nq}), got {:?}", arr.shape())));
+    }
+    Ok(arr.as_array().iter().copied().collect())
+}
+
+fn vector_from<'py, T: numpy::Element + Copy>(py: Python<'py>, obj: &Bound<'py, PyAny>, n: usize, dtype: &str, what: &str) -> PyResult<Vec<T>> {
+    let np = py.import("numpy")?;
+    let arr = np.call_method1("asarray", (obj, dtype))?;
+    let arr: PyReadonlyArray1<T> = arr
+        .extract()
+        .map_err(|_| PyValueError::new_err(format!("{what}: expected a 1-D array of {n} values")))?;
+    if arr.len() != n {
+        return Err(PyValueError::new_err(format!("{what}: expected {n} values, got {}", arr.len())));
+    }
+    Ok(arr.as_array().iter().copied().collect())
+}
+
+fn to_array<'py>(py: Python<'py>, data: &[f64], nq: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+    let n = if nq == 0 { 0 } else { data.len() / nq };
+    Ok(Array2::from_shape_vec((n, nq), data.to_vec())
+        .map_err(|e| PyValueError::new_err(e.to_string()))?
+        .into_pyarray(py))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Python components
+// ---------------------------------------------------------------------------------------------
+
+struct PySampler {
+    obj: Py<PyAny>,
+    nq: usize,
+}
+
+impl Sampler for PySampler {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        Python::attach(|py| -> PyResult<()> {
+            let r = self.obj.bind(py).call_method1("sample", (n,))?;
+            let rows = rows_from(py, &r, n, self.nq, "sampler.sample(n)")?;
+            out[..n * self.nq].copy_from_slice(&rows);
+            Ok(())
+        })
+        .map_err(component_error)
+    }
+}
+
+struct PyProjectorAdapter {
+    obj: Py<PyAny>,
+    nq: usize,
+}
+
+impl planning::Projector for PyProjectorAdapter {
+    fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        let n = reports.len();
+        let nq = self.nq;
+        Python::attach(|py| -> PyResult<()> {
+            let r = self.obj.bind(py).call_method1("project", (to_array(py, qs, nq)?, to_array(py, q_noms, nq)?))?;
+            let parts: Vec<Bound<'_, PyAny>> = r.extract().map_err(|_| {
+                PyTypeError::new_err("projector.project(qs, q_noms) must return (q, success) or (q, success, iterations)")
+            })?;
+            if !(2..=3).contains(&parts.len()) {
+                return Err(PyTypeError::new_err(format!(
+                    "projector.project(qs, q_noms) must return (q, success) or (q, success, iterations), got {} items",
+                    parts.len()
+                )));
+            }
+            let q = rows_from(py, &parts[0], n, nq, "projector.project: q")?;
+            let ok: Vec<bool> = vector_from(py, &parts[1], n, "bool", "projector.project: success")?;
+            let it: Vec<i64> = if parts.len() == 3 {
+                vector_from(py, &parts[2], n, "int64", "projector.project: iterations")?
+            } else {
+                vec![1; n]
+            };
+            out[..n * nq].copy_from_slice(&q);
+            for i in 0..n {
+                reports[i] = Projection { success: ok[i], iterations: it[i].max(0) as usize };
+            }
+            Ok(())
+        })
+        .map_err(component_error)
+    }
+}
+
+struct PyChecker {
+    obj: Py<PyAny>,
+    nq: usize,
+}
+
+impl ValidityChecker for PyChecker {
+    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+        let n = valid.len();
+        Python::attach(|py| -> PyResult<()> {
+            let r = self.obj.bind(py).call_method1("is_valid", (to_array(py, qs, self.nq)?,))?;
+            let v: Vec<bool> = vector_from(py, &r, n, "bool", "checker.is_valid(qs)")?;
+            valid.copy_from_slice(&v);
+            Ok(())
+        })
+        .map_err(component_error)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Native samplers exposed to Python
+// ---------------------------------------------------------------------------------------------
+
+/// Uniform within the joint limits; a free-flyer base held at `base` ([x, y, z, qx, qy, qz, qw]).
+#[pyclass(name = "UniformSampler", module = "genplan._core", frozen)]
+pub(crate) struct PyUniformSampler {
+    inner: Arc<Mutex<planning::UniformSampler>>,
+    nq: usize,
+}
+
+#[pymethods]
+impl PyUniformSampler {
+    #[new]
+    #[pyo3(signature = (model, base=None, seed=0))]
+    fn new(model: &PyKinematicModel, base: Option<[f64; 7]>, seed: u64) -> PyResult<Self> {
+        let s = planning::UniformSampler::new(model.inner.clone(), base, seed).map_err(plan_error_to_py)?;
+        Ok(Self { inner: Arc::new(Mutex::new(s)), nq: model.inner.nq })
+    }
+
+    /// n configurations, (n, nq).
+    fn sample<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        let mut out = vec![0.0; n * self.nq];
+        self.inner
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("uniform sampler: lock poisoned"))?
+            .sample(n, &mut out)
+            .map_err(plan_error_to_py)?;
+        to_array(py, &out, self.nq)
+    }
+}
+
+/// A sampler shared with Python, used by one plan at a time.
+struct SharedUniform(Arc<Mutex<planning::UniformSampler>>);
+
+impl Sampler for SharedUniform {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        self.0
+            .lock()
+            .map_err(|_| PlanError::Invalid("uniform sampler: lock poisoned".into()))?
+            .sample(n, out)
+    }
+}
+
+/// A trained GAN generator run natively: samples conditioned on targets uniform in a box.
+/// Built by `genplan.gan.GanModel.native_sampler()` from the torch weights.
+#[pyclass(name = "GanSampler", module = "genplan._core", frozen)]
+pub(crate) struct PyGanSampler {
+    inner: Arc<Mutex<gan::GanSampler>>,
+    generator: Arc<gan::Generator>,
+}
+
+#[pymethods]
+impl PyGanSampler {
+    /// `weights[i]`: (n_net, inputs, outputs), `biases[i]`: (n_net, 1, outputs), float64.
+    #[new]
+    #[pyo3(signature = (noise_dim, weights, biases, mean, std, floating_base, lower, upper, seed=0))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        noise_dim: usize,
+        weights: Vec<PyReadonlyArray3<'_, f64>>,
+        biases: Vec<PyReadonlyArray3<'_, f64>>,
+        mean: Vec<f64>,
+        std: Vec<f64>,
+        floating_base: bool,
+        lower: [f64; 3],
+        upper: [f64; 3],
+        seed: u64,
+    ) -> PyResult<Self> {
+        if weights.len() != biases.len() || weights.is_empty() {
+            return Err(PyValueError::new_err("GAN sampler: one bias per weight matrix, at least one layer"));
+        }
+        let n_net = weights[0].shape()[0];
+        let mut layers = Vec::new();
+        for (i, (w, b)) in weights.iter().zip(&biases).enumerate() {
+            let (ws, bs) = (w.shape(), b.shape());
+            if ws[0] != n_net || bs != [n_net, 1, ws[2]] {
+                return Err(PyValueError::new_err(format!(
+                    "GAN sampler: layer {i}: weights {ws:?} and biases {bs:?} do not fit (n_net, in, out) / (n_net, 1, out)"
+                )));
+            }
+            layers.push(gan::Layer {
+                inputs: ws[1],
+                outputs: ws[2],
+                weights: w.as_array().iter().copied().collect(),
+                biases: b.as_array().iter().copied().collect(),
+            });
+        }
+        let generator = Arc::new(gan::Generator::new(n_net, noise_dim, layers, mean, std, floating_base).map_err(to_py)?);
+        let sampler = gan::GanSampler::new(generator.clone(), lower, upper, seed).map_err(to_py)?;
+        Ok(Self { inner: Arc::new(Mutex::new(sampler)), generator })
+    }
+
+    #[getter]
+    fn nq(&self) -> usize {
+        self.generator.nq()
+    }
+
+    /// n configurations, (n, nq), targets uniform in the box.
+    fn sample<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        let nq = self.generator.nq();
+        let mut out = vec![0.0; n * nq];
+        self.inner
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("GAN sampler: lock poisoned"))?
+            .sample(n, &mut out)
+            .map_err(plan_error_to_py)?;
+        to_array(py, &out, nq)
+    }
+
+    /// The configurations the given members make of the given noise and targets (for checks).
+    fn generate<'py>(
+        &self,
+        py: Python<'py>,
+        members: Vec<usize>,
+        noise: PyReadonlyArray2<'py, f64>,
+        targets: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        let g = &self.generator;
+        let n = members.len();
+        if noise.shape() != [n, g.noise_dim] || targets.shape() != [n, 3] {
+            return Err(PyValueError::new_err(format!(
+                "generate: expected noise ({n}, {}) and targets ({n}, 3), got {:?} and {:?}",
+                g.noise_dim,
+                noise.shape(),
+                targets.shape()
+            )));
+        }
+        if let Some(&m) = members.iter().find(|&&m| m >= g.n_net) {
+            return Err(PyValueError::new_err(format!("generate: member {m} out of range (n_net = {})", g.n_net)));
+        }
+        let z: Vec<f64> = noise.as_array().iter().copied().collect();
+        let t: Vec<f64> = targets.as_array().iter().copied().collect();
+        let nq = g.nq();
+        let mut out = vec![0.0; n * nq];
+        let mut scratch = Default::default();
+        for i in 0..n {
+            let target = [t[3 * i], t[3 * i + 1], t[3 * i + 2]];
+            g.generate(members[i], &z[i * g.noise_dim..(i + 1) * g.noise_dim], &target, &mut out[i * nq..(i + 1) * nq], &mut scratch);
+        }
+        to_array(py, &out, nq)
+    }
+}
+
+/// A GAN sampler shared with Python, used by one plan at a time.
+struct SharedGan(Arc<Mutex<gan::GanSampler>>);
+
+impl Sampler for SharedGan {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        self.0
+            .lock()
+            .map_err(|_| PlanError::Invalid("GAN sampler: lock poisoned".into()))?
+            .sample(n, out)
+    }
+}
+
+/// Draws from `primary` with probability `p`, else from `secondary` (each native or Python):
+/// the paper's hybrid sampler.
+#[pyclass(name = "MixtureSampler", module = "genplan._core", frozen)]
+pub(crate) struct PyMixtureSampler {
+    primary: Py<PyAny>,
+    secondary: Py<PyAny>,
+    p: f64,
+    seed: Mutex<u64>,
+}
+
+#[pymethods]
+impl PyMixtureSampler {
+    #[new]
+    #[pyo3(signature = (primary, secondary, p=0.8, seed=0))]
+    fn new(primary: Py<PyAny>, secondary: Py<PyAny>, p: f64, seed: u64) -> PyResult<Self> {
+        if !(0.0..=1.0).contains(&p) {
+            return Err(PyValueError::new_err(format!("p must be in [0, 1], got {p}")));
+        }
+        Ok(Self { primary, secondary, p, seed: Mutex::new(seed) })
+    }
+
+    #[getter]
+    fn p(&self) -> f64 {
+        self.p
+    }
+}
+
+fn sampler_from(py: Python<'_>, obj: &Bound<'_, PyAny>, nq: usize) -> PyResult<Box<dyn Sampler>> {
+    if let Ok(u) = obj.cast::<PyUniformSampler>() {
+        let u = u.get();
+        if u.nq != nq {
+            return Err(PyValueError::new_err(format!("sampler: configurations of length {} for a model of nq = {nq}", u.nq)));
+        }
+        return Ok(Box::new(SharedUniform(u.inner.clone())));
+    }
+    if let Ok(g) = obj.cast::<PyGanSampler>() {
+        let g = g.get();
+        if g.generator.nq() != nq {
+            return Err(PyValueError::new_err(format!("sampler: GAN makes configurations of length {} for a model of nq = {nq}", g.generator.nq())));
+        }
+        return Ok(Box::new(SharedGan(g.inner.clone())));
+    }
+    if let Ok(m) = obj.cast::<PyMixtureSampler>() {
+        let m = m.get();
+        let primary = sampler_from(py, m.primary.bind(py), nq)?;
+        let secondary = sampler_from(py, m.secondary.bind(py), nq)?;
+        let seed = {
+            let mut s = m.seed.lock().map_err(|_| PyRuntimeError::new_err("mixture sampler: lock poisoned"))?;
+            *s = s.wrapping_add(1);
+            *s
+        };
+        return Ok(Box::new(MixtureSampler::new(primary, secondary, m.p, nq, seed).map_err(plan_error_to_py)?));
+    }
+    if obj.hasattr("sample")? {
+        return Ok(Box::new(PySampler { obj: obj.clone().unbind(), nq }));
+    }
+    Err(PyTypeError::new_err(format!(
+        "sampler: expected a genplan._core.UniformSampler / MixtureSampler or an object with sample(n), got {}",
+        obj.get_type().name()?
+    )))
+}
+
+// ---------------------------------------------------------------------------------------------
+// The planner
+// ---------------------------------------------------------------------------------------------
+
+fn settings_from(d: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
+    let mut st = Settings::default();
+    let Some(d) = d else { return Ok(st) };
+    let w = "planner settings";
+    let known = [
+        "step", "max_increments", "max_jump", "goal_tolerance", "max_extensions", "retries", "project_samples",
+        "sample_batch", "edge_resolution", "lazy_edges", "neighbors", "max_empty_batches",
+    ];
+    for k in d.keys() {
+        let k: String = k.extract()?;
+        if !known.contains(&k.as_str()) {
+            return Err(PyValueError::new_err(format!("{w}: unknown setting '{k}' (known: {})", known.join(", "))));
+        }
+    }
+    st.step = get_or(d, "step", st.step, w)?;
+    st.max_increments = get_or(d, "max_increments", st.max_increments, w)?;
+    st.max_jump = get_or(d, "max_jump", st.max_jump, w)?;
+    st.goal_tolerance = get_or(d, "goal_tolerance", st.goal_tolerance, w)?;
+    st.max_extensions = get_or(d, "max_extensions", st.max_extensions, w)?;
+    st.retries = get_or(d, "retries", st.retries, w)?;
+    st.project_samples = get_or(d, "project_samples", st.project_samples, w)?;
+    st.sample_batch = get_or(d, "sample_batch", st.sample_batch, w)?;
+    st.edge_resolution = get_or(d, "edge_resolution", st.edge_resolution, w)?;
+    st.lazy_edges = get_or(d, "lazy_edges", st.lazy_edges, w)?;
+    st.max_empty_batches = get_or(d, "max_empty_batches", st.max_empty_batches, w)?;
+    let nn: String = get_or(d, "neighbors", "linear".to_string(), w)?;
+    st.neighbors = match nn.as_str() {
+        "linear" => NeighborIndex::Linear,
+        "kdtree" => NeighborIndex::KdForest,
+        other => return Err(PyValueError::new_err(format!("{w}: neighbors must be 'linear' or 'kdtree', got '{other}'"))),
+    };
+    st.validate().map_err(plan_error_to_py)?;
+    Ok(st)
+}
+
+/// The constrained RRT of the GAN paper (Algorithm 1); see genplan.planning for the front end.
+#[pyclass(name = "Planner", module = "genplan._core", frozen)]
+pub(crate) struct PyPlanner {
+    inner: Planner,
+    nq: usize,
+}
+
+#[pymethods]
+impl PyPlanner {
+    #[new]
+    #[pyo3(signature = (model, settings=None))]
+    fn new(model: &PyKinematicModel, settings: Option<Bound<'_, PyDict>>) -> PyResult<Self> {
+        let st = settings_from(settings.as_ref())?;
+        let space: Arc<dyn Space> = model.inner.clone();
+        Ok(Self { inner: Planner::new(space, st).map_err(plan_error_to_py)?, nq: model.inner.nq })
+    }
+
+    /// Plan from `start` (nq,) to any row of `goals` (k, nq). Returns a dict: success, path
+    /// (m, nq), waypoints (w, nq), goal_index, and the statistics.
+    #[pyo3(signature = (start, goals, sampler, projector, checker, parallel=false))]
+    fn plan<'py>(
+        &self,
+        py: Python<'py>,
+        start: Vec<f64>,
+        goals: PyReadonlyArray2<'py, f64>,
+        sampler: &Bound<'py, PyAny>,
+        projector: &Bound<'py, PyAny>,
+        checker: &Bound<'py, PyAny>,
+        parallel: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let nq = self.nq;
+        if goals.shape().len() != 2 || goals.shape()[1] != nq || goals.shape()[0] == 0 {
+            return Err(PyValueError::new_err(format!("goals: expected shape (k, {nq}) with k >= 1, got {:?}", goals.shape())));
+        }
+        let goals: Vec<f64> = goals.as_array().iter().copied().collect();
+        let mut sampler = sampler_from(py, sampler, nq)?;
+        let mut projector: Box<dyn planning::Projector> = if let Ok(p) = projector.cast::<PyProjector>() {
+            let inner = &p.get().inner;
+            if inner.model.nq != nq {
+                return Err(PyValueError::new_err("projector: built for another model"));
+            }
+            Box::new(GaussNewtonProjector { inner: Arc::new(inner.clone()), parallel })
+        } else if projector.hasattr("project")? {
+            Box::new(PyProjectorAdapter { obj: projector.clone().unbind(), nq })
+        } else {
+            return Err(PyTypeError::new_err(format!(
+                "projector: expected a genplan._core.Projector or an object with project(qs, q_noms), got {}",
+                projector.get_type().name()?
+            )));
+        };
+        let mut checker: Box<dyn ValidityChecker> = if let Ok(w) = checker.cast::<PyCollisionWorld>() {
+            let world = &w.borrow().inner;
+            if world.model.nq != nq {
+                return Err(PyValueError::new_err("checker: collision world built for another model"));
+            }
+            Box::new(CollisionChecker::new(Arc::new(world.clone()), parallel))
+        } else if checker.hasattr("is_valid")? {
+            Box::new(PyChecker { obj: checker.clone().unbind(), nq })
+        } else {
+            return Err(PyTypeError::new_err(format!(
+                "checker: expected a genplan._core.CollisionWorld or an object with is_valid(qs), got {}",
+                checker.get_type().name()?
+            )));
+        };
+        let planner = &self.inner;
+        let solution = py
+            .detach(|| {
+                let mut last = Instant::now();
+                let mut interrupt = move || -> PlanResult<()> {
+                    if last.elapsed() < Duration::from_millis(50) {
+                        return Ok(());
+                    }
+                    last = Instant::now();
+                    Python::attach(|py| py.check_signals()).map_err(component_error)
+                };
+                let mut c = Components {
+                    sampler: &mut *sampler,
+                    projector: &mut *projector,
+                    checker: &mut *checker,
+                    interrupt: &mut interrupt,
+                };
+                planner.plan(&start, &goals, &mut c)
+            })
+            .map_err(plan_error_to_py)?;
+        let d = PyDict::new(py);
+        d.set_item("success", solution.success)?;
+        d.set_item("path", to_array(py, &solution.path, nq)?)?;
+        d.set_item("waypoints", to_array(py, &solution.waypoints, nq)?)?;
+        d.set_item("goal_index", solution.goal_index)?;
+        let s = &solution.stats;
+        d.set_item("retries", s.retries)?;
+        d.set_item("extensions", s.extensions)?;
+        d.set_item("projections", s.projections)?;
+        d.set_item("projection_calls", s.projection_calls)?;
+        d.set_item("edge_projections", s.edge_projections)?;
+        d.set_item("samples", s.samples)?;
+        d.set_item("samples_rejected", s.samples_rejected)?;
+        d.set_item("validity_checks", s.validity_checks)?;
+        d.set_item("nodes", s.nodes)?;
+        d.set_item("pruned", s.pruned)?;
+        d.set_item("time_s", s.time_s)?;
+        d.set_item("sampler_s", s.sampler_s)?;
+        d.set_item("projector_s", s.projector_s)?;
+        d.set_item("checker_s", s.checker_s)?;
+        Ok(d)
+    }
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyPlanner>()?;
+    m.add_class::<PyUniformSampler>()?;
+    m.add_class::<PyMixtureSampler>()?;
+    m.add_class::<PyGanSampler>()?;
     Ok(())
 }

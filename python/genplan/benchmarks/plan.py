@@ -1,0 +1,220 @@
+"""Table II of the GAN paper: constrained RRT with uniform, GAN and hybrid sampling, and OMPL.
+
+    genplan bench plan --env panda_shelf --sampler gan --queries 100 --seed 0 --out F.json
+    genplan bench plan --env all --sampler all --planner all --queries 100 --out F.json
+
+Every row of one run plans the same seeded queries (start + K = 10 goal configurations by IK,
+the same for every sampler and planner), on one core, with the same constraint (the paper's
+projection task) and the same collision model (parry, self-collision included). Columns as the
+paper's: success %, T_ave (s, all queries, retries included), Opt. Steps (projection iterations
+of samples and extension steps) and E (extension steps); genplan also validates every edge of
+the returned path (projected states 0.05 rad apart), counted separately.
+
+The peer (``--planner ompl``) is OMPL's ProjectedStateSpace with RRTConnect (PyPI ``ompl``),
+whose constraint and validity callbacks run in Python (genplan's Pinocchio terms and parry
+world): its time is reported in full and without the callbacks' share. Its "projections" are
+calls to OMPL's Newton projection, not iterations.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from genplan.benchmarks.common import machine, table, write_json
+
+#: Table II of the GAN paper: (success %, T_ave s, Opt. Steps, E).
+PAPER_TABLE_II: dict[tuple[str, str], tuple[float, float, float, float]] = {
+    ("panda_shelf", "uniform"): (100.0, 1.44, 2065.7, 116.5),
+    ("panda_shelf", "gan"): (99.0, 0.74, 902.5, 59.7),
+    ("panda_shelf", "hybrid"): (100.0, 0.90, 1200.3, 68.1),
+    ("talos_task1", "uniform"): (100.0, 1.20, 464.4, 16.2),
+    ("talos_task1", "gan"): (100.0, 0.28, 74.0, 10.2),
+    ("talos_task1", "hybrid"): (100.0, 0.43, 131.4, 13.5),
+    ("talos_task2", "uniform"): (100.0, 0.92, 327.8, 13.9),
+    ("talos_task2", "gan"): (100.0, 0.60, 127.0, 36.7),
+    ("talos_task2", "hybrid"): (100.0, 0.66, 182.3, 25.9),
+    ("talos_task3", "uniform"): (100.0, 3.94, 1154.0, 98.7),
+    ("talos_task3", "gan"): (100.0, 1.05, 179.0, 52.1),
+    ("talos_task3", "hybrid"): (100.0, 1.11, 228.7, 40.8),
+}
+
+ENVS = ("panda_shelf", "talos_task1", "talos_task2", "talos_task3")
+SAMPLERS = ("uniform", "gan", "hybrid")
+PLANNERS = ("genplan", "ompl")
+
+
+def _summary(times: list[float], success: list[bool], **extra: list[float]) -> dict[str, Any]:
+    t = np.asarray(times, dtype=np.float64)
+    out: dict[str, Any] = {
+        "queries": len(t),
+        "success_rate": 100.0 * float(np.mean(success)),
+        "t_ave_s": float(t.mean()),
+        "t_std_s": float(t.std()),
+        "t_median_s": float(np.median(t)),
+    }
+    for k, v in extra.items():
+        a = np.asarray(v, dtype=np.float64)
+        out[k] = float(a.mean())
+        out[f"{k}_std"] = float(a.std())
+    return out
+
+
+def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, settings: Any, progress: bool) -> dict[str, Any]:
+    import genplan
+    from genplan.planning import Planner, environment
+
+    env = environment(env_name)
+    robot = genplan.load(env.robot)
+    planner = Planner(robot, world=env.world(robot), sampler=sampler, settings=settings, seed=seed)
+    results = []
+    it = queries
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(queries, desc=f"{env_name} {sampler}", unit="query", leave=False)
+    for q in it:
+        results.append(planner.plan(q.start, q.goals))
+    row = _summary(
+        [r.time_s for r in results],
+        [r.success for r in results],
+        projections=[r.projections for r in results],
+        extensions=[r.extensions for r in results],
+        edge_projections=[r.stats["edge_projections"] for r in results],
+        retries=[r.retries for r in results],
+        nodes=[r.stats["nodes"] for r in results],
+        path_states=[len(r.path) for r in results if r.success] or [0],
+        projector_s=[r.stats["projector_s"] for r in results],
+        checker_s=[r.stats["checker_s"] for r in results],
+        sampler_s=[r.stats["sampler_s"] for r in results],
+    )
+    row.update(env=env_name, planner="genplan", sampler=sampler)
+    return row
+
+
+def run_ompl(env_name: str, queries: list[Any], seed: int, time_limit: float, progress: bool) -> dict[str, Any]:
+    import genplan
+    from genplan.planning import environment
+    from genplan.planning.ompl_peer import plan_ompl
+    from genplan.projection import paper_task
+
+    env = environment(env_name)
+    robot = genplan.load(env.robot)
+    world = env.world(robot)
+    task = paper_task(robot, "projection")
+    results = []
+    it = queries
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(queries, desc=f"{env_name} ompl", unit="query", leave=False)
+    for i, q in enumerate(it):
+        results.append(plan_ompl(robot, world, task, q.start, q.goals, time_limit=time_limit, seed=seed + i))
+    row = _summary(
+        [r.time_s for r in results],
+        [r.success for r in results],
+        projections=[r.projections for r in results],
+        callback_s=[r.callback_s for r in results],
+        setup_s=[r.setup_s for r in results],
+    )
+    row.update(env=env_name, planner="ompl", sampler="ProjectedStateSpace+RRTConnect", time_limit_s=time_limit,
+               t_ave_without_callbacks_s=float(np.mean([r.time_s - r.callback_s for r in results])),
+               extensions=None, statuses=sorted({r.status for r in results}))
+    return row
+
+
+def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed: int, ompl_time_limit: float,
+        settings: Any = None, progress: bool = True) -> dict[str, Any]:
+    import genplan
+    from genplan.planning import PlannerSettings, environment
+
+    settings = settings or PlannerSettings()
+    rows = []
+    query_s = {}
+    for env_name in envs:
+        env = environment(env_name)
+        robot = genplan.load(env.robot)
+        t0 = time.perf_counter()
+        queries = env.queries(robot, n, seed=seed, progress=progress)
+        query_s[env_name] = time.perf_counter() - t0
+        if "genplan" in planners:
+            for s in samplers:
+                rows.append(run_genplan(env_name, s, queries, seed, settings, progress))
+        if "ompl" in planners:
+            rows.append(run_ompl(env_name, queries, seed, ompl_time_limit, progress))
+    for r in rows:
+        paper = PAPER_TABLE_II.get((r["env"], r["sampler"]))
+        r["paper"] = None if paper is None else dict(zip(("success_rate", "t_ave_s", "projections", "extensions"), paper))
+    ratios = {}
+    for env_name in envs:
+        by = {(r["planner"], r["sampler"]): r for r in rows if r["env"] == env_name}
+        u, g, h = (by.get(("genplan", s)) for s in SAMPLERS)
+        o = next((r for r in rows if r["env"] == env_name and r["planner"] == "ompl"), None)
+        ratios[env_name] = {
+            "uniform_over_gan": None if not (u and g) else u["t_ave_s"] / g["t_ave_s"],
+            "uniform_over_hybrid": None if not (u and h) else u["t_ave_s"] / h["t_ave_s"],
+            "ompl_over_gan": None if not (o and g) else o["t_ave_s"] / g["t_ave_s"],
+            "ompl_over_hybrid": None if not (o and h) else o["t_ave_s"] / h["t_ave_s"],
+            "ompl_over_uniform": None if not (o and u) else o["t_ave_s"] / u["t_ave_s"],
+        }
+    return {
+        "benchmark": "plan",
+        "queries": n,
+        "seed": seed,
+        "goals_per_query": 10,
+        "settings": settings.__dict__,
+        "ompl_time_limit_s": ompl_time_limit,
+        "query_generation_s": query_s,
+        "units": {"t_*": "seconds per query (all queries, retries included)", "success_rate": "percent",
+                  "projections": "genplan: projection iterations (samples + extension steps); ompl: projection calls",
+                  "extensions": "extension steps (iterations)"},
+        "machine": machine(),
+        "rows": rows,
+        "ratios": ratios,
+    }
+
+
+def print_table(payload: dict[str, Any]) -> None:
+    out = []
+    for r in payload["rows"]:
+        p = r["paper"]
+        out.append([r["env"], r["planner"] if r["planner"] == "ompl" else r["sampler"], f"{r['success_rate']:.1f}",
+                    f"{r['t_ave_s']:.3f} ± {r['t_std_s']:.3f}", f"{r['t_median_s']:.3f}", f"{r['projections']:.1f}",
+                    "-" if r.get("extensions") is None else f"{r['extensions']:.1f}",
+                    "-" if p is None else f"{p['success_rate']} / {p['t_ave_s']} / {p['projections']} / {p['extensions']}"])
+    print(table(["env", "sampler", "success %", "T_ave s", "T_median s", "Opt. steps", "E",
+                 "paper: success / T_ave / steps / E"], out))
+    for env, rat in payload["ratios"].items():
+        parts = [f"{k} {v:.2f}x" for k, v in rat.items() if v is not None]
+        if parts:
+            print(f"{env}: " + ", ".join(parts))
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--env", default="all", choices=[*ENVS, "all"])
+    p.add_argument("--sampler", default="all", choices=[*SAMPLERS, "all"])
+    p.add_argument("--planner", default="genplan", choices=[*PLANNERS, "all"])
+    p.add_argument("--queries", type=int, default=100, help="queries per environment (the paper: 100)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--ompl-time-limit", type=float, default=30.0, help="seconds per OMPL query")
+    p.add_argument("--edge-resolution", type=float, default=None, help="genplan edge validation spacing (0: off)")
+    p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
+
+
+def main(args: argparse.Namespace) -> int:
+    from genplan.planning import PlannerSettings
+
+    if args.queries < 1:
+        raise SystemExit("--queries must be at least 1")
+    envs = list(ENVS) if args.env == "all" else [args.env]
+    samplers = list(SAMPLERS) if args.sampler == "all" else [args.sampler]
+    planners = list(PLANNERS) if args.planner == "all" else [args.planner]
+    settings = PlannerSettings() if args.edge_resolution is None else PlannerSettings(edge_resolution=args.edge_resolution)
+    payload = run(envs, samplers, planners, args.queries, args.seed, args.ompl_time_limit, settings)
+    print_table(payload)
+    write_json(args.out, payload)
+    return 0

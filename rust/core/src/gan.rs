@@ -1,0 +1,162 @@
+//! Native inference of a trained conditional ensemble GAN generator (the GAN paper's III-A).
+//!
+//! Training stays in torch (`genplan.gan`); the trained weights are handed over once, and the
+//! planner then draws GAN samples without Python or the GIL: a sample is one member of the
+//! ensemble, chosen at random, fed Gaussian noise and a target position drawn uniformly in a box.
+//! The forward pass mirrors `EnsembleGenerator.forward` and `Codec.decode` exactly (checked against
+//! torch in the tests).
+
+use std::sync::Arc;
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use crate::error::{Error, Result};
+use crate::planning::{PlanResult, Sampler};
+
+/// One dense layer of every member: weights (n_net, inputs, outputs) and biases (n_net, outputs),
+/// row-major.
+#[derive(Debug, Clone)]
+pub struct Layer {
+    pub inputs: usize,
+    pub outputs: usize,
+    pub weights: Vec<f64>,
+    pub biases: Vec<f64>,
+}
+
+/// An ensemble generator plus the codec from its output features to configurations.
+#[derive(Debug, Clone)]
+pub struct Generator {
+    pub n_net: usize,
+    pub noise_dim: usize,
+    pub layers: Vec<Layer>,
+    /// Feature standardisation: features = output * std + mean.
+    pub mean: Vec<f64>,
+    pub std: Vec<f64>,
+    /// Features start with [base position (3), base rotation vector (3)] and the configuration
+    /// with [x, y, z, qx, qy, qz, qw].
+    pub floating_base: bool,
+}
+
+impl Generator {
+    pub fn new(n_net: usize, noise_dim: usize, layers: Vec<Layer>, mean: Vec<f64>, std: Vec<f64>, floating_base: bool) -> Result<Generator> {
+        let bad = |m: String| Err(Error::Invalid(format!("GAN generator: {m}")));
+        if n_net == 0 || layers.is_empty() {
+            return bad("needs at least one member and one layer".into());
+        }
+        if layers[0].inputs != noise_dim + 3 {
+            return bad(format!("the first layer takes {} inputs, expected noise ({noise_dim}) + target (3)", layers[0].inputs));
+        }
+        for (i, l) in layers.iter().enumerate() {
+            if l.weights.len() != n_net * l.inputs * l.outputs || l.biases.len() != n_net * l.outputs {
+                return bad(format!("layer {i}: weights/biases do not have the shape ({n_net}, {}, {})", l.inputs, l.outputs));
+            }
+            if i > 0 && layers[i - 1].outputs != l.inputs {
+                return bad(format!("layer {i} takes {} inputs but layer {} gives {}", l.inputs, i - 1, layers[i - 1].outputs));
+            }
+            if l.weights.iter().chain(&l.biases).any(|x| !x.is_finite()) {
+                return bad(format!("layer {i} has non-finite weights"));
+            }
+        }
+        let dim = layers.last().map(|l| l.outputs).unwrap_or(0);
+        if mean.len() != dim || std.len() != dim {
+            return bad(format!("codec mean/std must have {dim} values"));
+        }
+        if floating_base && dim < 6 {
+            return bad("a free-flyer codec needs at least 6 features".into());
+        }
+        Ok(Generator { n_net, noise_dim, layers, mean, std, floating_base })
+    }
+
+    /// Length of a generated configuration.
+    pub fn nq(&self) -> usize {
+        self.mean.len() + usize::from(self.floating_base)
+    }
+
+    /// The configuration member `member` makes of `noise` and `target`; `scratch` is reused.
+    pub fn generate(&self, member: usize, noise: &[f64], target: &[f64; 3], out: &mut [f64], scratch: &mut (Vec<f64>, Vec<f64>)) {
+        let (h, next) = scratch;
+        h.clear();
+        h.extend_from_slice(noise);
+        h.extend_from_slice(target);
+        let last = self.layers.len() - 1;
+        for (li, l) in self.layers.iter().enumerate() {
+            next.clear();
+            next.extend_from_slice(&l.biases[member * l.outputs..(member + 1) * l.outputs]);
+            let w = &l.weights[member * l.inputs * l.outputs..(member + 1) * l.inputs * l.outputs];
+            for (i, &x) in h.iter().enumerate() {
+                if x == 0.0 {
+                    continue;
+                }
+                let row = &w[i * l.outputs..(i + 1) * l.outputs];
+                for (o, &wv) in next.iter_mut().zip(row) {
+                    *o += x * wv;
+                }
+            }
+            if li < last {
+                next.iter_mut().for_each(|v| *v = v.max(0.0));
+            }
+            std::mem::swap(h, next);
+        }
+        let f: Vec<f64> = h.iter().zip(&self.mean).zip(&self.std).map(|((x, m), s)| x * s + m).collect();
+        if !self.floating_base {
+            out.copy_from_slice(&f);
+            return;
+        }
+        let rv = [f[3], f[4], f[5]];
+        let angle = (rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2] + 1e-12).sqrt();
+        let s = (angle / 2.0).sin() / angle;
+        out[..3].copy_from_slice(&f[..3]);
+        out[3] = rv[0] * s;
+        out[4] = rv[1] * s;
+        out[5] = rv[2] * s;
+        out[6] = (angle / 2.0).cos();
+        out[7..].copy_from_slice(&f[6..]);
+    }
+}
+
+/// GAN samples conditioned on targets drawn uniformly in a box (the paper's planning sampler).
+#[derive(Debug, Clone)]
+pub struct GanSampler {
+    pub generator: Arc<Generator>,
+    pub lower: [f64; 3],
+    pub upper: [f64; 3],
+    rng: StdRng,
+    scratch: (Vec<f64>, Vec<f64>),
+}
+
+impl GanSampler {
+    pub fn new(generator: Arc<Generator>, lower: [f64; 3], upper: [f64; 3], seed: u64) -> Result<GanSampler> {
+        if (0..3).any(|k| !(lower[k].is_finite() && upper[k].is_finite() && lower[k] <= upper[k])) {
+            return Err(Error::Invalid(format!("GAN sampler: bad target box {lower:?} .. {upper:?}")));
+        }
+        Ok(GanSampler { generator, lower, upper, rng: StdRng::seed_from_u64(seed), scratch: Default::default() })
+    }
+
+    /// A standard normal number (Box-Muller).
+    fn normal(&mut self) -> f64 {
+        let u1: f64 = 1.0 - self.rng.random::<f64>(); // (0, 1]
+        let u2: f64 = self.rng.random::<f64>();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+}
+
+impl Sampler for GanSampler {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        let nq = self.generator.nq();
+        let mut noise = vec![0.0; self.generator.noise_dim];
+        for row in out.chunks_mut(nq).take(n) {
+            let member = self.rng.random_range(0..self.generator.n_net);
+            let mut target = [0.0; 3];
+            for k in 0..3 {
+                target[k] = if self.upper[k] > self.lower[k] { self.rng.random_range(self.lower[k]..self.upper[k]) } else { self.lower[k] };
+            }
+            for z in noise.iter_mut() {
+                *z = self.normal();
+            }
+            let generator = self.generator.clone();
+            generator.generate(member, &noise, &target, row, &mut self.scratch);
+        }
+        Ok(())
+    }
+}

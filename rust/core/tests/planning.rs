@@ -1,0 +1,261 @@
+//! The constrained RRT: a point on a sphere around an obstacle band (pure Rust), the Panda with
+//! its gripper kept horizontal (native projector, parry collision; needs example-robot-data),
+//! bad input, and errors from components.
+
+use std::sync::Arc;
+
+use genplan_core::planning::{
+    Components, EuclideanSpace, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner, Projection,
+    Projector, Sampler, Settings, Space, SphereProjector, UniformSampler, ValidityChecker,
+};
+use genplan_core::projection::{self, Term, TermKind};
+use genplan_core::robot::{find_robots_dir, RobotSpec};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+/// Uniform in a cube.
+struct CubeSampler {
+    dim: usize,
+    half: f64,
+    rng: StdRng,
+}
+
+impl Sampler for CubeSampler {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        for x in out.iter_mut().take(n * self.dim) {
+            *x = self.rng.random_range(-self.half..self.half);
+        }
+        Ok(())
+    }
+}
+
+/// The sphere's band |z| < 0.2 is blocked except a gap around +y (a wall with a door, as in
+/// OMPL's sphere demo).
+struct Band;
+
+impl Band {
+    fn ok(q: &[f64]) -> bool {
+        q[2].abs() >= 0.2 || q[1] > 0.8
+    }
+}
+
+impl ValidityChecker for Band {
+    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+        for (q, v) in qs.chunks(3).zip(valid.iter_mut()) {
+            *v = Band::ok(q);
+        }
+        Ok(())
+    }
+}
+
+fn no_interrupt() -> PlanResult<()> {
+    Ok(())
+}
+
+fn sphere_plan(neighbors: NeighborIndex, lazy_edges: bool, seed: u64) -> genplan_core::planning::Solution {
+    let settings = Settings { neighbors, lazy_edges, ..Settings::default() };
+    let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
+    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(seed) };
+    let mut projector = SphereProjector { radius: 1.0 };
+    let mut checker = Band;
+    let mut interrupt = no_interrupt;
+    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap()
+}
+
+#[test]
+fn sphere_through_the_door() {
+    for (neighbors, lazy) in [(NeighborIndex::Linear, true), (NeighborIndex::KdForest, true), (NeighborIndex::Linear, false)] {
+        for seed in 0..5 {
+            let sol = sphere_plan(neighbors, lazy, seed);
+            assert!(sol.success, "seed {seed}: {:?}", sol.stats);
+            let path: Vec<&[f64]> = sol.path.chunks(3).collect();
+            assert_eq!(path.first().unwrap(), &[0.0, 0.0, -1.0]);
+            assert_eq!(path.last().unwrap(), &[0.0, 0.0, 1.0]);
+            for w in path.windows(2) {
+                // dense: consecutive states at most ~edge_resolution apart (x2 for curvature)
+                assert!(EuclideanSpace(3).distance(w[0], w[1]) <= 2.0 * Settings::default().edge_resolution + 1e-9);
+                // and the straight chord between them stays valid and near the sphere
+                for k in 0..=10 {
+                    let t = k as f64 / 10.0;
+                    let p: Vec<f64> = (0..3).map(|i| w[0][i] + t * (w[1][i] - w[0][i])).collect();
+                    let r = p.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    assert!((r - 1.0).abs() < 2e-3, "off the sphere by {}", r - 1.0);
+                }
+            }
+            for q in &path {
+                assert!(Band::ok(q), "path state {q:?} in the band");
+                let r = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+                assert!((r - 1.0).abs() < 1e-12);
+            }
+            // the path passes through the door
+            assert!(path.iter().any(|q| q[2].abs() < 0.2 && q[1] > 0.8));
+            assert!(sol.stats.projections > 0 && sol.stats.extensions > 0 && sol.stats.nodes > 2);
+        }
+    }
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings::default()).unwrap();
+    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
+    let mut projector = SphereProjector { radius: 1.0 };
+    let mut checker = Band;
+    let mut interrupt = no_interrupt;
+    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let msg = |r: PlanResult<genplan_core::planning::Solution>| match r {
+        Err(PlanError::Invalid(m)) => m,
+        other => panic!("expected an Invalid error, got {:?}", other.map(|s| s.success)),
+    };
+    assert!(msg(planner.plan(&[0.0, 0.0], &[0.0, 0.0, 1.0], &mut c)).contains("start"));
+    assert!(msg(planner.plan(&[0.0, f64::NAN, -1.0], &[0.0, 0.0, 1.0], &mut c)).contains("not finite"));
+    assert!(msg(planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0, 2.0], &mut c)).contains("goals"));
+    // a start inside the band
+    assert!(msg(planner.plan(&[1.0, 0.0, 0.0], &[0.0, 0.0, 1.0], &mut c)).contains("not valid"));
+    assert!(msg(planner.plan(&[0.0, 0.0, -1.0], &[1.0, 0.0, 0.0], &mut c)).contains("none of the goal"));
+    let bad = Settings { step: -1.0, ..Settings::default() };
+    assert!(matches!(Planner::new(Arc::new(EuclideanSpace(3)), bad), Err(PlanError::Invalid(_))));
+}
+
+#[derive(Debug)]
+struct Boom;
+impl std::fmt::Display for Boom {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "boom")
+    }
+}
+impl std::error::Error for Boom {}
+
+struct FailingSampler;
+impl Sampler for FailingSampler {
+    fn sample(&mut self, _n: usize, _out: &mut [f64]) -> PlanResult<()> {
+        Err(PlanError::Component(Box::new(Boom)))
+    }
+}
+
+struct NaNProjector;
+impl Projector for NaNProjector {
+    fn project(&mut self, _qs: &[f64], _n: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        out.fill(f64::NAN);
+        reports.fill(Projection { success: true, iterations: 1 });
+        Ok(())
+    }
+}
+
+#[test]
+fn component_errors_come_back_intact() {
+    let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings::default()).unwrap();
+    let mut projector = SphereProjector { radius: 1.0 };
+    let mut checker = Band;
+    let mut interrupt = no_interrupt;
+    let mut sampler = FailingSampler;
+    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    match planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c) {
+        Err(PlanError::Component(e)) => assert!(e.downcast_ref::<Boom>().is_some()),
+        other => panic!("expected the sampler's error, got {:?}", other.map(|s| s.success)),
+    }
+    // an interrupt ends the plan with its error
+    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
+    let mut calls = 0;
+    let mut interrupt = || {
+        calls += 1;
+        if calls > 3 {
+            Err(PlanError::Component(Box::new(Boom)))
+        } else {
+            Ok(())
+        }
+    };
+    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    assert!(matches!(planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c), Err(PlanError::Component(_))));
+    // a projector that returns NaN never puts NaN in the tree: the samples are rejected
+    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
+    let mut nan = NaNProjector;
+    let mut interrupt = no_interrupt;
+    let settings = Settings { max_empty_batches: 3, ..Settings::default() };
+    let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
+    let mut c = Components { sampler: &mut sampler, projector: &mut nan, checker: &mut checker, interrupt: &mut interrupt };
+    match planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c) {
+        Err(PlanError::Invalid(m)) => assert!(m.contains("no sample could be projected"), "{m}"),
+        other => panic!("expected an error, got {:?}", other.map(|s| s.success)),
+    }
+}
+
+/// The Panda task of the paper: gripper horizontal (hand frame rotated -pi/2 about y has no
+/// tilt), within the joint limits; posture around the interpolated configuration.
+fn panda_projector(model: &Arc<genplan_core::KinematicModel>) -> projection::Projector {
+    let hand = model.link_index("panda_hand").unwrap();
+    let offset: Matrix3<f64> = Rotation3::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2).into_inner();
+    let primary = vec![
+        Term {
+            name: "hand_orientation".into(),
+            kind: TermKind::FrameOrientation { link: hand, target: Matrix3::identity(), offset, mask: [1.0, 1.0, 0.0] },
+            weight: 20.0,
+            tolerance: 1e-4,
+        },
+        Term { name: "joint_limits".into(), kind: TermKind::JointLimits { margin: 1e-3 }, weight: 20.0, tolerance: 1e-3 },
+    ];
+    let secondary = vec![Term {
+        name: "posture".into(),
+        kind: TermKind::Posture { q_nom: None, weights: vec![1.0; model.nv], overrides: vec![] },
+        weight: 1.0,
+        tolerance: 1e-3,
+    }];
+    projection::Projector::new(model.clone(), primary, secondary, projection::Settings::default()).unwrap()
+}
+
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn panda_keeps_its_gripper_horizontal_around_a_box() {
+    let root = find_robots_dir().unwrap();
+    let (model, mut world) = RobotSpec::by_name("panda").unwrap().load(&root).unwrap();
+    // a box between the two sides of the robot
+    world
+        .add_box("wall", [0.05, 0.05, 0.3], nalgebra::Isometry3::translation(0.45, 0.0, 0.35))
+        .unwrap();
+    let world = Arc::new(world);
+    let gn = Arc::new(panda_projector(&model));
+    let mut projector = GaussNewtonProjector { inner: gn.clone(), parallel: false };
+    let mut checker = genplan_core::planning::CollisionChecker::new(world.clone(), false);
+
+    // start and goal: projected random configurations, valid, on opposite sides of the wall
+    let mut sampler = UniformSampler::new(model.clone(), None, 3).unwrap();
+    let mut pick = |want_y_positive: bool| -> Vec<f64> {
+        let mut q = vec![0.0; 7];
+        loop {
+            sampler.sample(1, &mut q).unwrap();
+            let o = gn.solve_unchecked(&q, None);
+            let mut poses = Vec::new();
+            model.forward_kinematics(&o.q, &mut poses).unwrap();
+            let hand = poses[model.link_index("panda_hand").unwrap()].translation.vector;
+            let mut v = [false];
+            checker.check(&o.q, &mut v).unwrap();
+            if o.success && v[0] && (hand.y > 0.25) == want_y_positive && hand.y.abs() > 0.25 && hand.x > 0.3 {
+                return o.q;
+            }
+        }
+    };
+    let start = pick(false);
+    let goal = pick(true);
+
+    let planner = Planner::new(model.clone(), Settings::default()).unwrap();
+    let uniform = UniformSampler::new(model.clone(), None, 11).unwrap();
+    let uniform2 = UniformSampler::new(model.clone(), None, 12).unwrap();
+    let mut mixture = MixtureSampler::new(Box::new(uniform), Box::new(uniform2), 0.8, 7, 5).unwrap();
+    let mut interrupt = no_interrupt;
+    let mut c = Components { sampler: &mut mixture, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let sol = planner.plan(&start, &goal, &mut c).unwrap();
+    assert!(sol.success, "{:?}", sol.stats);
+    let path: Vec<&[f64]> = sol.path.chunks(7).collect();
+    assert_eq!(path[0], &start[..]);
+    assert_eq!(*path.last().unwrap(), &goal[..]);
+    for q in &path {
+        // every state satisfies the constraint: the projector has nothing to do
+        let o = gn.solve_unchecked(q, None);
+        assert!(o.success && o.iterations == 0, "state off the manifold: residuals {:?}", o.residuals);
+        assert!(!world.in_collision(q).unwrap());
+    }
+    for w in path.windows(2) {
+        assert!(model.as_ref().distance(w[0], w[1]) <= 2.0 * Settings::default().edge_resolution + 1e-9);
+    }
+}

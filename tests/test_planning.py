@@ -1,0 +1,244 @@
+"""The constrained RRT from Python: environments and queries, valid paths (dense check of every
+edge: constraint within tolerance, no collision, self-collision included), Python components
+called back from Rust, exceptions and Ctrl-C, bad input."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import genplan
+from genplan import _core
+from genplan import projection as P
+from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler
+
+
+@pytest.fixture(scope="module")
+def shelf(panda):
+    env = environment("panda_shelf")
+    return env, env.world(panda), env.queries(panda, n=2, seed=1)
+
+
+@pytest.fixture(scope="module")
+def task1(talos):
+    env = environment("talos_task1")
+    return env, env.world(talos), env.queries(talos, n=1, seed=1)
+
+
+def assert_path_valid(robot: genplan.Robot, world, result, query, sub: int = 8) -> None:
+    """Every state and `sub` points on every chord between consecutive states: each primary term
+    of the paper's projection task within its tolerance, not in collision."""
+    assert result.success
+    path = result.path
+    assert np.allclose(path[0], query.start)
+    assert np.allclose(path[-1], query.goals[result.goal_index])
+    task = P.paper_task(robot, "projection")
+    terms = [t.bind(robot) for t in task.primary]
+    points = [path[0]]
+    for a, b in zip(path[:-1], path[1:]):
+        points.extend(pin.interpolate(robot.model, a, b, s) for s in np.linspace(0, 1, sub + 1)[1:])
+    points = np.array(points)
+    for x in points:
+        st = P._State(robot, x, False)
+        for t, bt in zip(task.primary, terms):
+            r = np.abs(bt.residual(st))
+            assert r.size == 0 or r.max() < t.tolerance, f"{t.label()} violated by {r.max():.2e} (tolerance {t.tolerance})"
+    assert not np.any(world.in_collision(points)), "a state or chord point collides"
+    assert world.check_self
+    steps = [np.linalg.norm(pin.difference(robot.model, a, b)) for a, b in zip(path[:-1], path[1:])]
+    assert max(steps) <= 2 * PlannerSettings().edge_resolution + 1e-9
+
+
+def test_environments_are_data(panda, talos) -> None:
+    assert ENVIRONMENT_NAMES == ("panda_shelf", "talos_task1", "talos_task2", "talos_task3")
+    with pytest.raises(ValueError, match="known: panda_shelf"):
+        environment("kitchen")
+    env = environment("talos_task3")
+    assert len(env.boxes) == 8 and env.robot == "talos"
+    with pytest.raises(ValueError, match="is for talos"):
+        env.world(panda)
+    w = env.world(talos)
+    assert set(w.obstacle_names) == {b.name for b in env.boxes}
+
+
+def test_queries_are_seeded_valid_and_on_the_manifold(panda, shelf) -> None:
+    env, world, queries = shelf
+    again = env.queries(panda, n=2, seed=1)
+    for a, b in zip(queries, again):
+        assert np.array_equal(a.start, b.start) and np.array_equal(a.goals, b.goals)
+    proj = P.GaussNewtonProjector(panda, P.paper_task(panda, "projection"))
+    for q in queries:
+        assert q.goals.shape == (10, 7)
+        rows = np.vstack([q.start, q.goals])
+        assert not np.any(world.in_collision(rows))
+        res = proj.solve_batch(rows, rows, parallel=False)
+        assert res.success.all() and (res.iterations == 0).all()
+        hands = panda.link_poses(rows, ["panda_hand"])[:, 0, :3, 3]
+        assert np.linalg.norm(hands[0] - q.start_target) < 2e-3
+        assert np.all(np.linalg.norm(hands[1:] - q.goal_target, axis=1) < 2e-3)
+
+
+@pytest.mark.parametrize("sampler", ["uniform", "gan", "hybrid"])
+def test_panda_paths_are_valid(panda, shelf, sampler) -> None:
+    env, world, queries = shelf
+    planner = Planner(panda, world=world, sampler=sampler, seed=2)
+    for q in queries:
+        res = planner.plan(q.start, q.goals)
+        assert_path_valid(panda, world, res, q)
+        assert res.projections > 0 and res.extensions > 0 and res.time_s > 0
+        assert len(res.waypoints) >= 2 and res.stats["nodes"] >= len(res.waypoints)
+
+
+def test_talos_path_is_valid(talos, task1) -> None:
+    env, world, queries = task1
+    planner = Planner(talos, world=world, sampler="hybrid", seed=0)
+    res = planner.plan(queries[0].start, queries[0].goals)
+    assert_path_valid(talos, world, res, queries[0], sub=4)
+
+
+class CountingSampler:
+    def __init__(self, robot: genplan.Robot) -> None:
+        self.robot, self.calls, self.rng = robot, 0, np.random.default_rng(0)
+
+    def sample(self, n: int) -> np.ndarray:
+        self.calls += 1
+        return self.robot.random_configurations(n, self.rng)
+
+
+class PythonProjector:
+    """The planner's projector as a plain Python object (forces the callback path)."""
+
+    def __init__(self, robot: genplan.Robot) -> None:
+        self.inner = P.GaussNewtonProjector(robot, P.paper_task(robot, "projection").with_tolerances_scaled(0.1))
+        self.calls = 0
+
+    def project(self, qs: np.ndarray, q_noms: np.ndarray):
+        self.calls += 1
+        r = self.inner.solve_batch(qs, q_noms, parallel=False)
+        return r.q, r.success, r.iterations
+
+
+class PythonChecker:
+    def __init__(self, world) -> None:
+        self.world, self.calls = world, 0
+
+    def is_valid(self, qs: np.ndarray) -> np.ndarray:
+        self.calls += 1
+        return ~np.asarray(self.world.in_collision(qs), dtype=bool)
+
+
+def test_python_components_are_called_back_in_batches(panda, shelf) -> None:
+    env, world, queries = shelf
+    sampler, projector, checker = CountingSampler(panda), PythonProjector(panda), PythonChecker(world)
+    planner = Planner(panda, world=world, sampler=sampler, projector=projector, checker=checker,
+                      settings=PlannerSettings(sample_batch=8))
+    res = planner.plan(queries[0].start, queries[0].goals)
+    assert_path_valid(panda, world, res, queries[0])
+    assert sampler.calls >= 1 and projector.calls >= 1 and checker.calls >= 1
+    # batched: several samples per sampler call
+    assert res.stats["samples"] == 8 * sampler.calls
+    # the same plan with native parts gives the same answer (same samples, same projector)
+    native = Planner(panda, world=world, sampler=CountingSampler(panda), settings=PlannerSettings(sample_batch=8))
+    again = native.plan(queries[0].start, queries[0].goals)
+    assert again.extensions == res.extensions and np.allclose(again.path, res.path)
+
+
+class Boom(Exception):
+    pass
+
+
+def test_an_exception_in_a_callback_reaches_the_caller_unchanged(panda, shelf) -> None:
+    env, world, queries = shelf
+
+    class Failing:
+        def sample(self, n: int) -> np.ndarray:
+            raise Boom("sampler failed")
+
+    with pytest.raises(Boom, match="sampler failed"):
+        Planner(panda, world=world, sampler=Failing()).plan(queries[0].start, queries[0].goals)
+
+    class BadShape:
+        def sample(self, n: int) -> np.ndarray:
+            return np.zeros((n, 3))
+
+    with pytest.raises(ValueError, match=r"sampler.sample\(n\): expected shape \(16, 7\)"):
+        Planner(panda, world=world, sampler=BadShape()).plan(queries[0].start, queries[0].goals)
+
+    class NaNSampler:
+        def sample(self, n: int) -> np.ndarray:
+            return np.full((n, 7), np.nan)
+
+    with pytest.raises(ValueError, match="sampler returned a bad configuration"):
+        Planner(panda, world=world, sampler=NaNSampler()).plan(queries[0].start, queries[0].goals)
+
+    class FailingChecker:
+        def is_valid(self, qs):
+            raise Boom("checker failed")
+
+    with pytest.raises(Boom, match="checker failed"):
+        Planner(panda, world=world, checker=FailingChecker()).plan(queries[0].start, queries[0].goals)
+
+    class BadProjector:
+        def project(self, qs, q_noms):
+            return qs
+
+    with pytest.raises(TypeError, match="must return"):
+        Planner(panda, world=world, projector=BadProjector()).plan(queries[0].start, queries[0].goals)
+
+
+def test_ctrl_c_interrupts_a_long_native_plan(panda, shelf) -> None:
+    env, world, queries = shelf
+    # a constraint no sample can meet (the hand 3 m away): the planner would keep sampling
+    task = P.Task(primary=[P.FramePosition(name="far", frame="hand", target=(3.0, 0.0, 0.0), weight=1, tolerance=1e-3)])
+    planner = Planner(panda, world=world, task=task, settings=PlannerSettings(max_empty_batches=10**9))
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            planner.plan(queries[0].start, queries[0].goals)
+    finally:
+        timer.cancel()
+
+
+def test_bad_input_is_a_clear_error(panda, shelf) -> None:
+    env, world, queries = shelf
+    planner = Planner(panda, world=world)
+    q, goals = queries[0].start, queries[0].goals
+    with pytest.raises(ValueError, match="start"):
+        planner.plan(q[:6], goals)
+    with pytest.raises(ValueError, match="not finite|NaN"):
+        planner.plan(np.where(np.arange(7) == 2, np.nan, q), goals)
+    with pytest.raises(ValueError, match="goals"):
+        planner.plan(q, goals[:, :5])
+    colliding = q.copy()
+    colliding[1], colliding[3] = 1.7, -0.1  # the arm folded into the table
+    assert world.in_collision(colliding)
+    with pytest.raises(ValueError, match="start: the configuration is not valid"):
+        planner.plan(colliding, goals)
+    with pytest.raises(ValueError, match="none of the goal"):
+        planner.plan(q, colliding[None])
+    with pytest.raises(ValueError, match="unknown sampler 'sobol'"):
+        Planner(panda, world=world, sampler="sobol")
+    with pytest.raises(ValueError, match="step must be positive"):
+        Planner(panda, world=world, settings=PlannerSettings(step=0.0))
+    with pytest.raises(ValueError, match="neighbors must be"):
+        Planner(panda, world=world, settings=PlannerSettings(neighbors="octree"))
+    with pytest.raises(ValueError, match=r"p must be in \[0, 1\]"):
+        _core.MixtureSampler(make_sampler(panda), make_sampler(panda), 1.5)
+
+
+def test_native_samplers(panda, talos) -> None:
+    u = make_sampler(talos, "uniform", seed=3)
+    q = u.sample(50)
+    assert q.shape == (50, talos.nq)
+    assert np.allclose(q[:, :7], talos.q_default[:7])  # the base held at its default placement
+    inside = (q[:, 7:] >= talos.lower[7:]) & (q[:, 7:] <= talos.upper[7:])
+    assert inside.all()
+    h = make_sampler(panda, "hybrid", seed=3, hybrid_p=0.5)
+    assert h.p == 0.5
+    assert make_sampler(panda, "gan", seed=3).sample(5).shape == (5, 7)
