@@ -81,6 +81,9 @@ class PlannerSettings:
     edge_resolution: float = 0.025
     #: validate edges lazily, only on a path that reaches a goal (a failing edge prunes its subtree)
     lazy_edges: bool = True
+    #: shortcut the solution (each shortcut a projected, validated straight edge); off by default:
+    #: the paper's timings have none
+    simplify: bool = False
     #: nearest-neighbour index: "linear" (brute force) or "kdtree"
     neighbors: str = "linear"
     #: give up after this many sample batches in a row without one projectable sample
@@ -106,9 +109,10 @@ class PlanResult:
 
 
 def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, gan_model: Any = None,
-                 hybrid_p: float = 0.8) -> Any:
+                 hybrid_p: float = 0.8, gan_box: ArrayLike | None = None) -> Any:
     """A sampler the planner understands: "uniform" (native), "gan", "hybrid", or an object with
-    ``sample(n)`` (returned as is)."""
+    ``sample(n)`` (returned as is). The GAN conditions on end-effector targets drawn uniformly in
+    ``gan_box`` ([[x, y, z] min, max]; default: the model's task-space region of interest)."""
     if not isinstance(kind, str):
         if not hasattr(kind, "sample"):
             raise TypeError(f"sampler: expected one of {SAMPLERS} or an object with sample(n), got {type(kind).__name__}")
@@ -121,7 +125,7 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
         return uniform
     from genplan.gan.sampler import GanSampler
 
-    gan = GanSampler(robot, gan_model, seed=seed).native(seed)
+    gan = GanSampler(robot, gan_model, box=gan_box, seed=seed).native(seed)
     if kind == "gan":
         return gan
     return _core.MixtureSampler(gan, uniform, hybrid_p, seed)
@@ -160,16 +164,19 @@ class Planner:
         self._checker_arg = checker.native if isinstance(checker, CollisionWorld) else checker
         self._native = _core.Planner(robot.kinematics, dataclasses.asdict(self.settings))
 
-    def plan(self, start: ArrayLike, goals: ArrayLike) -> PlanResult:
+    def plan(self, start: ArrayLike, goals: ArrayLike, sampler: str | Any | None = None) -> PlanResult:
         """Plan from ``start`` (nq,) to any of ``goals`` ((k, nq), on the manifold: e.g. IK
         solutions from :meth:`Environment.queries`). Failing to find a path within the settings'
-        budget is ``success=False``, not an exception; bad input raises ValueError."""
+        budget is ``success=False``, not an exception; bad input raises ValueError. ``sampler``
+        replaces the planner's sampler for this plan (e.g. a GAN conditioned on this query's
+        region: ``make_sampler(robot, "gan", gan_box=...)``)."""
         q0 = self.robot.check_configuration(start, "start")
         if q0.ndim != 1:
             raise ValueError(f"start: expected shape ({self.robot.nq},), got {q0.shape}")
         g = self.robot.check_configuration(goals, "goals")
         g = np.ascontiguousarray(g.reshape(-1, self.robot.nq))
-        out = self._native.plan(list(map(float, q0)), g, self.sampler, self._projector_arg, self._checker_arg, self.parallel)
+        smp = self.sampler if sampler is None else make_sampler(self.robot, sampler)
+        out = self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel)
         stats = {k: v for k, v in out.items() if k not in ("path", "waypoints")}
         return PlanResult(success=bool(out["success"]), path=out["path"], waypoints=out["waypoints"],
                           goal_index=out["goal_index"], time_s=float(out["time_s"]), projections=int(out["projections"]),

@@ -47,11 +47,11 @@ def _solve(robot: Robot, ik: P.GaussNewtonProjector, proj: P.GaussNewtonProjecto
     while len(found) < want and tries < max_tries:
         q0 = robot.random_configurations(_BATCH, rng)
         tries += _BATCH
-        res = ik.solve_batch(q0, targets={term: np.repeat(target[None], _BATCH, 0)}, parallel=False)
+        res = ik.solve_batch(q0, targets={term: np.repeat(target[None], _BATCH, 0)}, parallel=True)
         q = res.q[res.success]
         if len(q) == 0:
             continue
-        pr = proj.solve_batch(q, q, parallel=False)
+        pr = proj.solve_batch(q, q, parallel=True)
         q = pr.q[pr.success]
         if len(q) == 0:
             continue

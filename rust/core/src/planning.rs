@@ -640,6 +640,9 @@ impl NearestNeighbors for KdForest {
     }
 }
 
+/// Consecutive states of a validated edge are at most this many edge resolutions apart.
+pub const MAX_SPACING: f64 = 1.25;
+
 /// Which nearest-neighbour index the planner builds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NeighborIndex {
@@ -687,6 +690,9 @@ pub struct Settings {
     /// Validate edges lazily: only those of a path that reaches a goal (a failing edge prunes its
     /// subtree and the search goes on). Otherwise every edge is validated as it is added.
     pub lazy_edges: bool,
+    /// Shortcut the solution (greedy, each shortcut a projected, validated straight edge). Off
+    /// by default: the paper's timings have none.
+    pub simplify: bool,
     /// The nearest-neighbour index.
     pub neighbors: NeighborIndex,
     /// Give up after this many consecutive sample batches without one projectable sample.
@@ -706,6 +712,7 @@ impl Default for Settings {
             sample_batch: 16,
             edge_resolution: 0.025,
             lazy_edges: true,
+            simplify: false,
             neighbors: NeighborIndex::Linear,
             max_empty_batches: 100,
         }
@@ -758,6 +765,8 @@ pub struct Stats {
     pub nodes: usize,
     /// Nodes pruned because an edge above them failed (lazy) validation.
     pub pruned: usize,
+    /// Shortcuts taken when simplifying the solution.
+    pub shortcuts: usize,
     pub time_s: f64,
     /// Time spent in the sampler, the projector (samples, steps and edges) and the validity
     /// checker (the rest is the tree, nearest neighbours and bookkeeping).
@@ -939,7 +948,12 @@ impl Planner {
             let mut tree = Tree::new(nq, space.nv(), self.settings.neighbors);
             tree.add(space, start, usize::MAX, Some(&[]));
             if let Some((node, g)) = run.attempt(&mut tree, goals, &valid_goals)? {
-                solution = Some(extract(&tree, node, g));
+                let (mut waypoints, mut edges) = extract(&tree, node);
+                if self.settings.simplify {
+                    (waypoints, edges) = run.shortcut(waypoints, edges)?;
+                }
+                let (w, path) = flatten(&waypoints, &edges);
+                solution = Some((w, path, g));
             }
             run.stats.nodes = tree.len();
             if solution.is_some() {
@@ -956,18 +970,49 @@ impl Planner {
     }
 }
 
-fn extract(tree: &Tree, goal_node: usize, goal_index: usize) -> (Vec<f64>, Vec<f64>, usize) {
+impl Planner {
+    /// One ConstrainedExtend from `from` towards `target` (on the manifold when
+    /// `target_on_manifold`: the last step lands on it unprojected), outside a plan. Returns the
+    /// states added (rows of nq, `from` excluded) and whether `target` was reached. With lazy
+    /// edges only the states are checked; otherwise each edge too.
+    pub fn extend(&self, from: &[f64], target: &[f64], target_on_manifold: bool, c: &mut Components<'_>) -> PlanResult<(Vec<f64>, bool)> {
+        let space = &*self.space;
+        space.check(from, "from")?;
+        space.check(target, "target")?;
+        let mut run = Run { space, st: &self.settings, c, stats: Stats::default(), samples: VecDeque::new() };
+        let mut tree = Tree::new(space.nq(), space.nv(), self.settings.neighbors);
+        tree.add(space, from, usize::MAX, Some(&[]));
+        let reach = run.extend(&mut tree, 0, target, target_on_manifold)?;
+        Ok((tree.q[space.nq()..].to_vec(), reach.reached))
+    }
+}
+
+/// The waypoints from the root to `goal_node` and, per waypoint after the first, the validated
+/// states of the edge that leads to it.
+fn extract(tree: &Tree, goal_node: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let nq = tree.nq;
     let chain = tree.chain(goal_node);
-    let mut waypoints = Vec::with_capacity(chain.len() * nq);
+    let waypoints = chain.iter().map(|&i| tree.node(i).to_vec()).collect();
+    let edges = chain
+        .iter()
+        .map(|&i| {
+            let (s, n) = (tree.edge_start[i], tree.edge_count[i]);
+            tree.edge_states[s * nq..(s + n) * nq].to_vec()
+        })
+        .collect();
+    (waypoints, edges)
+}
+
+/// Flatten waypoints and their edges into (waypoints, dense path).
+fn flatten(waypoints: &[Vec<f64>], edges: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
+    let mut w = Vec::new();
     let mut path = Vec::new();
-    for &i in &chain {
-        let (s, n) = (tree.edge_start[i], tree.edge_count[i]);
-        path.extend_from_slice(&tree.edge_states[s * nq..(s + n) * nq]);
-        path.extend_from_slice(tree.node(i));
-        waypoints.extend_from_slice(tree.node(i));
+    for (q, e) in waypoints.iter().zip(edges) {
+        path.extend_from_slice(e);
+        path.extend_from_slice(q);
+        w.extend_from_slice(q);
     }
-    (waypoints, path, goal_index)
+    (w, path)
 }
 
 /// Where an extension ended.
@@ -1125,6 +1170,35 @@ impl Run<'_, '_> {
         Ok(Reach { node: cur, reached: false, added })
     }
 
+    /// Shortcut a solution greedily: from each waypoint, connect to the farthest later waypoint
+    /// whose straight (projected, validated) edge holds, halving the span on failure.
+    fn shortcut(&mut self, waypoints: Vec<Vec<f64>>, edges: Vec<Vec<f64>>) -> PlanResult<(Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+        let n = waypoints.len();
+        let mut out_w = vec![waypoints[0].clone()];
+        let mut out_e = vec![Vec::new()];
+        let mut i = 0;
+        while i + 1 < n {
+            let mut j = n - 1;
+            loop {
+                if j == i + 1 {
+                    out_w.push(waypoints[j].clone());
+                    out_e.push(edges[j].clone());
+                    break;
+                }
+                (self.c.interrupt)()?;
+                if let Some(states) = self.validate_edge(&waypoints[i], &waypoints[j], false)? {
+                    self.stats.shortcuts += 1;
+                    out_w.push(waypoints[j].clone());
+                    out_e.push(states);
+                    break;
+                }
+                j = i + (j - i) / 2;
+            }
+            i = j;
+        }
+        Ok((out_w, out_e))
+    }
+
     /// Validate the edges from the root to `node` that are not yet; prune below the first that
     /// fails. True when the whole path is valid.
     fn validate_path(&mut self, tree: &mut Tree, node: usize) -> PlanResult<bool> {
@@ -1170,17 +1244,18 @@ impl Run<'_, '_> {
             if reps.iter().any(|r| !r.success) || states.iter().any(|x| !x.is_finite()) {
                 return Ok(None);
             }
-            // consecutive states must stay close: no jump to another branch of the manifold
-            let spacing = dist / (n_mid + 1) as f64;
+            // consecutive states must stay close (no jump to another branch of the manifold, and
+            // chords short enough to stay on it): at most MAX_SPACING x the edge resolution apart
+            let max_gap = MAX_SPACING * self.st.edge_resolution;
             let mut prev = a;
             for k in 0..n_mid {
                 let s = &states[k * nq..(k + 1) * nq];
-                if space.distance(prev, s) > 2.0 * spacing + 1e-9 {
+                if space.distance(prev, s) > max_gap {
                     return Ok(None);
                 }
                 prev = s;
             }
-            if space.distance(prev, b) > 2.0 * spacing + 1e-9 {
+            if space.distance(prev, b) > max_gap {
                 return Ok(None);
             }
         }

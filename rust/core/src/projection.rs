@@ -378,7 +378,7 @@ impl Projector {
                 let n1 = DMatrix::identity(nv, nv) - &j1_pinv * &j1m;
                 let j2n = &j2 * &n1;
                 let rhs = r2 - &j2 * (&dq1 * alpha);
-                let dq2 = &n1 * (damped_pinv(&j2n, st.mu_bar) * rhs);
+                let dq2 = &n1 * damped_pinv_apply(&j2n, st.mu_bar, &rhs);
                 let mut alpha2 = 1.0;
                 for _ in 0..st.secondary_backtracks {
                     let q_try = self.step(&q_new, &dq2, alpha2);
@@ -441,6 +441,25 @@ fn damped_pinv(j: &DMatrix<f64>, lam: f64) -> DMatrix<f64> {
         match a.cholesky() {
             Some(ch) => ch.solve(&j.transpose()),
             None => DMatrix::zeros(n, m),
+        }
+    }
+}
+
+/// `damped_pinv(j, lam) * v` without forming the pseudo-inverse: one Cholesky factorisation and a
+/// vector solve instead of a solve with as many right-hand sides as J has columns.
+fn damped_pinv_apply(j: &DMatrix<f64>, lam: f64, v: &DVector<f64>) -> DVector<f64> {
+    let (m, n) = j.shape();
+    if m <= n {
+        let a = j * j.transpose() + DMatrix::identity(m, m) * lam;
+        match a.cholesky() {
+            Some(ch) => j.transpose() * ch.solve(v),
+            None => DVector::zeros(n),
+        }
+    } else {
+        let a = j.transpose() * j + DMatrix::identity(n, n) * lam;
+        match a.cholesky() {
+            Some(ch) => ch.solve(&(j.transpose() * v)),
+            None => DVector::zeros(n),
         }
     }
 }

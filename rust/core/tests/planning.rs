@@ -53,8 +53,8 @@ fn no_interrupt() -> PlanResult<()> {
     Ok(())
 }
 
-fn sphere_plan(neighbors: NeighborIndex, lazy_edges: bool, seed: u64) -> genplan_core::planning::Solution {
-    let settings = Settings { neighbors, lazy_edges, ..Settings::default() };
+fn sphere_plan(neighbors: NeighborIndex, lazy_edges: bool, simplify: bool, seed: u64) -> genplan_core::planning::Solution {
+    let settings = Settings { neighbors, lazy_edges, simplify, ..Settings::default() };
     let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
     let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(seed) };
     let mut projector = SphereProjector { radius: 1.0 };
@@ -66,16 +66,18 @@ fn sphere_plan(neighbors: NeighborIndex, lazy_edges: bool, seed: u64) -> genplan
 
 #[test]
 fn sphere_through_the_door() {
-    for (neighbors, lazy) in [(NeighborIndex::Linear, true), (NeighborIndex::KdForest, true), (NeighborIndex::Linear, false)] {
+    for (neighbors, lazy, simplify) in
+        [(NeighborIndex::Linear, true, false), (NeighborIndex::KdForest, true, false), (NeighborIndex::Linear, false, false), (NeighborIndex::Linear, true, true)]
+    {
         for seed in 0..5 {
-            let sol = sphere_plan(neighbors, lazy, seed);
+            let sol = sphere_plan(neighbors, lazy, simplify, seed);
             assert!(sol.success, "seed {seed}: {:?}", sol.stats);
             let path: Vec<&[f64]> = sol.path.chunks(3).collect();
             assert_eq!(path.first().unwrap(), &[0.0, 0.0, -1.0]);
             assert_eq!(path.last().unwrap(), &[0.0, 0.0, 1.0]);
             for w in path.windows(2) {
                 // dense: consecutive states at most ~edge_resolution apart (x2 for curvature)
-                assert!(EuclideanSpace(3).distance(w[0], w[1]) <= 2.0 * Settings::default().edge_resolution + 1e-9);
+                assert!(EuclideanSpace(3).distance(w[0], w[1]) <= genplan_core::planning::MAX_SPACING * Settings::default().edge_resolution + 1e-9);
                 // and the straight chord between them stays valid and near the sphere
                 for k in 0..=10 {
                     let t = k as f64 / 10.0;
@@ -91,6 +93,13 @@ fn sphere_through_the_door() {
             }
             // the path passes through the door
             assert!(path.iter().any(|q| q[2].abs() < 0.2 && q[1] > 0.8));
+            if simplify {
+                // shortcuts shorten the path: no longer than the unsimplified one
+                let plain = sphere_plan(neighbors, lazy, false, seed);
+                let length = |p: &[f64]| p.chunks(3).collect::<Vec<_>>().windows(2).map(|w| EuclideanSpace(3).distance(w[0], w[1])).sum::<f64>();
+                assert!(length(&sol.path) <= length(&plain.path) + 1e-9);
+                assert!(sol.stats.shortcuts > 0);
+            }
             assert!(sol.stats.projections > 0 && sol.stats.extensions > 0 && sol.stats.nodes > 2);
         }
     }
@@ -256,6 +265,6 @@ fn panda_keeps_its_gripper_horizontal_around_a_box() {
         assert!(!world.in_collision(q).unwrap());
     }
     for w in path.windows(2) {
-        assert!(model.as_ref().distance(w[0], w[1]) <= 2.0 * Settings::default().edge_resolution + 1e-9);
+        assert!(model.as_ref().distance(w[0], w[1]) <= genplan_core::planning::MAX_SPACING * Settings::default().edge_resolution + 1e-9);
     }
 }

@@ -380,7 +380,7 @@ fn settings_from(d: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
     let w = "planner settings";
     let known = [
         "step", "max_increments", "max_jump", "goal_tolerance", "max_extensions", "retries", "project_samples",
-        "sample_batch", "edge_resolution", "lazy_edges", "neighbors", "max_empty_batches",
+        "sample_batch", "edge_resolution", "lazy_edges", "simplify", "neighbors", "max_empty_batches",
     ];
     for k in d.keys() {
         let k: String = k.extract()?;
@@ -398,6 +398,7 @@ fn settings_from(d: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
     st.sample_batch = get_or(d, "sample_batch", st.sample_batch, w)?;
     st.edge_resolution = get_or(d, "edge_resolution", st.edge_resolution, w)?;
     st.lazy_edges = get_or(d, "lazy_edges", st.lazy_edges, w)?;
+    st.simplify = get_or(d, "simplify", st.simplify, w)?;
     st.max_empty_batches = get_or(d, "max_empty_batches", st.max_empty_batches, w)?;
     let nn: String = get_or(d, "neighbors", "linear".to_string(), w)?;
     st.neighbors = match nn.as_str() {
@@ -509,6 +510,7 @@ impl PyPlanner {
         d.set_item("validity_checks", s.validity_checks)?;
         d.set_item("nodes", s.nodes)?;
         d.set_item("pruned", s.pruned)?;
+        d.set_item("shortcuts", s.shortcuts)?;
         d.set_item("time_s", s.time_s)?;
         d.set_item("sampler_s", s.sampler_s)?;
         d.set_item("projector_s", s.projector_s)?;

@@ -1,0 +1,252 @@
+"""The HTML path viewer: a short Panda path exported to one self-contained file (nothing it
+references is outside the file), with the robot's meshes, the obstacles and the animation inside,
+the animation's poses matching Pinocchio's; bad input raises clear errors; viser's server is
+stopped whatever happens."""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+pytest.importorskip("viser")
+zstandard = pytest.importorskip("zstandard")
+msgspec = pytest.importorskip("msgspec")
+
+from genplan import viewer  # noqa: E402
+from genplan.planning import environment  # noqa: E402
+
+N_STATES = 5
+FPS = 10.0
+
+
+def decode_scene(page: str) -> dict[str, Any]:
+    """The scene recording embedded in the page (viser's format: base64 of [u64 size][zstd of
+    [u64 msgpack length][msgpack][binary buffers]])."""
+    m = re.search(r'window\.__VISER_EMBED_DATA__="([A-Za-z0-9+/=]*)"', page)
+    assert m, "no embedded scene in the page"
+    raw = base64.b64decode(m.group(1))
+    size = int.from_bytes(raw[:8], "little")
+    inner = zstandard.ZstdDecompressor().decompress(raw[8:], max_output_size=size)
+    n = int.from_bytes(inner[:8], "little")
+    return msgspec.msgpack.decode(inner[8 : 8 + n])
+
+
+def short_path(panda) -> np.ndarray:
+    q0 = panda.q_default
+    return np.linspace(q0, q0 + np.array([0.4, -0.3, 0.2, 0.3, -0.2, 0.4, 0.1]), N_STATES)
+
+
+@pytest.fixture(scope="module")
+def exported(panda, tmp_path_factory):
+    env = environment("panda_shelf")
+    out = tmp_path_factory.mktemp("viewer") / "sub" / "plan.html"
+    threads_before = threading.active_count()
+    t0 = time.perf_counter()
+    path = short_path(panda)
+    result = viewer.export_html(panda, path, out, boxes=env.boxes, halfspaces=env.halfspaces, fps=FPS,
+                                title="panda <test>")
+    elapsed = time.perf_counter() - t0
+    page = out.read_text(encoding="utf-8")
+    return result, out, page, decode_scene(page), path, env, elapsed, threads_before
+
+
+def test_writes_one_html_file(exported):
+    result, out, page, _, _, _, elapsed, _ = exported
+    assert result == out and out.is_file()
+    assert page.lstrip().lower().startswith("<!doctype html>")
+    assert "<title>panda &lt;test&gt;</title>" in page
+    assert 'id="genplan-legend"' in page
+    assert 0.5e6 < out.stat().st_size < 8e6, out.stat().st_size
+    assert elapsed < 15.0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask  # a normal file, not mkstemp's private one
+
+
+def test_is_self_contained(exported):
+    """Nothing outside the file: no src/href but data: URIs, no http(s) URL except XML namespace
+    ids, no URL in the scene data; the client code and the scene are inline."""
+    _, _, page, scene, _, _, _, _ = exported
+    refs = re.findall(r"""\b(?:src|href)\s*=\s*["']?([^"'\s>]+)""", page, flags=re.I)
+    assert all(r.startswith("data:") or r.startswith("#") for r in refs), refs
+    urls = set(re.findall(r"https?://[^\s\"'<>)]+", page))
+    assert urls <= {"http://www.w3.org/2000/svg"}, urls
+    assert "@import" not in page
+    assert not re.search(r"url\(\s*['\"]?(?!data:|#)", page)
+    assert "http" not in json.dumps(scene["messages"])
+    assert page.count("<script") >= 2 and "</script>" in page  # the packed client and the scene data
+
+
+def test_contains_robot_obstacles_and_animation(exported, panda):
+    _, _, _, scene, path, env, _, _ = exported
+    messages = [(t, m) for t, m in scene["messages"]]
+    by_type: dict[str, list[tuple[float, dict]]] = {}
+    for t, m in messages:
+        by_type.setdefault(m["type"], []).append((t, m))
+
+    # obstacles: every box with its size and centre, the floor as a grid at z = -0.5
+    boxes = {m["name"]: m for _, m in by_type["BoxMessage"]}
+    positions0 = {m["name"]: m["position"] for t, m in by_type["SetPositionMessage"] if t == 0.0}
+    for b in env.boxes:
+        assert np.allclose(boxes[f"/environment/{b.name}"]["props"]["dimensions"], 2 * np.array(b.half_extents))
+        assert np.allclose(positions0[f"/environment/{b.name}"], b.center)
+    assert np.allclose(positions0["/environment/floor"], [0, 0, -0.5])
+
+    # robot: meshes under every link's joint, with real triangle data
+    meshes = [m["name"] for _, m in by_type["MeshMessage"]]
+    for link in ["panda_link0", *[f"panda_link{i}" for i in range(1, 8)], "panda_hand", "panda_leftfinger"]:
+        assert any(f"/{link}_0" in n for n in meshes), (link, meshes)
+    assert sum(scene["binaryBufferLengths"]) > 1e6  # vertices + triangles of ~135k-triangle meshes
+
+    # animation: N_STATES - 1 steps of 1 / FPS, each moving the joints to Pinocchio's placements
+    assert scene["durationSeconds"] == pytest.approx(N_STATES / FPS)
+    times = sorted({t for t, m in messages if t > 0})
+    assert len(times) == N_STATES - 1
+    assert times == pytest.approx([(i + 1) / FPS for i in range(N_STATES - 1)])
+    last = {m["name"]: m for t, m in messages if t == times[-1] and m["type"] == "SetPositionMessage"}
+    data = panda.model.createData()
+    pin.forwardKinematics(panda.model, data, path[-1])
+    for j in range(2, panda.model.njoints):  # joint 1 turns about its axis: its origin stays put
+        name = f"/robot/{panda.model.names[j]}"
+        if name in last:
+            assert np.allclose(last[name]["position"], data.oMi[j].translation, atol=1e-9)
+    assert f"/robot/{panda.model.names[7]}" in last
+
+    # the hand's trail, start and goal markers
+    assert by_type["LineSegmentsMessage"][0][1]["name"] == "/trail/path"
+    pin.framesForwardKinematics(panda.model, data, path[-1])
+    assert np.allclose(positions0["/trail/goal"], data.oMf[panda.frame_id("hand")].translation)
+
+
+def test_server_threads_stopped(exported):
+    *_, threads_before = exported
+    assert threading.active_count() <= threads_before
+
+
+def test_server_stopped_on_error(panda, tmp_path, monkeypatch):
+    import viser
+
+    def boom(self):  # noqa: ANN001
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(viser.ViserServer, "get_scene_serializer", boom)
+    before = threading.active_count()
+    with pytest.raises(RuntimeError, match="boom"):
+        viewer.export_html(panda, short_path(panda)[:2], tmp_path / "x.html")
+    assert threading.active_count() <= before
+    assert not (tmp_path / "x.html").exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_input(panda, tmp_path):
+    path = short_path(panda)
+    with pytest.raises(ValueError, match="expected shape"):
+        viewer.export_html(panda, path[:, :5], tmp_path / "a.html")
+    bad = path.copy()
+    bad[2, 3] = np.nan
+    with pytest.raises(ValueError, match=r"element \(2, 3\) is not finite"):
+        viewer.export_html(panda, bad, tmp_path / "a.html")
+    with pytest.raises(ValueError, match="no configuration"):
+        viewer.export_html(panda, np.zeros((0, panda.nq)), tmp_path / "a.html")
+    with pytest.raises(ValueError, match="fps"):
+        viewer.export_html(panda, path, tmp_path / "a.html", fps=0)
+    with pytest.raises(ValueError, match="max_frames"):
+        viewer.export_html(panda, path, tmp_path / "a.html", max_frames=1)
+    with pytest.raises(ValueError, match="is a directory"):
+        viewer.export_html(panda, path, tmp_path)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(OSError, match="cannot create the folder"):
+        viewer.export_html(panda, path, tmp_path / "file" / "a.html")
+    with pytest.raises(ValueError, match=r"boxes\[0\]"):
+        viewer.export_html(panda, path, tmp_path / "a.html", boxes=[object()])
+    with pytest.raises(ValueError, match=r"halfspaces\[0\]"):
+        viewer.export_html(panda, path, tmp_path / "a.html", halfspaces=[("f", (0, 0, 0), 1.0)])
+    with pytest.raises(ValueError, match="geometry"):
+        viewer.export_html(panda, path, tmp_path / "a.html", geometry="nope")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+def test_subsample_path():
+    idx = viewer.subsample_path(np.zeros((1000, 3)), 150)
+    assert len(idx) == 150 and idx[0] == 0 and idx[-1] == 999 and np.all(np.diff(idx) > 0)
+    assert list(viewer.subsample_path(np.zeros((4, 3)), 150)) == [0, 1, 2, 3]
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None, reason="chromium is not installed")
+def test_opens_offline_in_a_browser(exported, tmp_path):
+    """Headless Chromium with every outside address unreachable: the page makes no request but
+    for itself and data: URIs, throws no error, and draws a WebGL canvas."""
+    websockets_sync = pytest.importorskip("websockets.sync.client")
+    _, out, *_ = exported
+    proc = subprocess.Popen(
+        ["chromium", "--headless=new", "--no-sandbox", "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
+         "--window-size=800,600", "--remote-debugging-port=0", "--proxy-server=127.0.0.1:9",
+         f"--user-data-dir={tmp_path / 'profile'}", "about:blank"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )
+    try:
+        ws_url = None
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and ws_url is None:
+            line = proc.stderr.readline()
+            m = re.search(r"DevTools listening on (ws://\S+)", line)
+            ws_url = m.group(1) if m else None
+        assert ws_url, "chromium did not start"
+        import urllib.request
+
+        host = ws_url.split("/")[2]
+        tabs = json.load(urllib.request.urlopen(f"http://{host}/json"))
+        page_ws = next(t["webSocketDebuggerUrl"] for t in tabs if t["type"] == "page")
+        with websockets_sync.connect(page_ws, max_size=2**26) as ws:
+            events: list[dict] = []
+            ids = iter(range(1, 10**6))
+
+            def call(method: str, **params: Any) -> dict:
+                i = next(ids)
+                ws.send(json.dumps({"id": i, "method": method, "params": params}))
+                while True:
+                    msg = json.loads(ws.recv(timeout=30))
+                    if msg.get("id") == i:
+                        return msg
+                    events.append(msg)
+
+            for domain in ("Network", "Runtime", "Page"):
+                call(f"{domain}.enable")
+            call("Page.navigate", url=out.as_uri())
+            drawn_at = None
+            end = time.monotonic() + 20
+            while time.monotonic() < end and (drawn_at is None or time.monotonic() < drawn_at + 1.5):
+                canvas = call("Runtime.evaluate", expression="document.querySelectorAll('canvas').length")
+                if drawn_at is None and canvas["result"]["result"].get("value", 0) >= 1:
+                    drawn_at = time.monotonic()  # then 1.5 s more for anything loaded late
+                try:
+                    events.append(json.loads(ws.recv(timeout=0.25)))
+                except TimeoutError:
+                    pass
+        requests = [e["params"]["request"]["url"] for e in events if e.get("method") == "Network.requestWillBeSent"]
+        assert requests and all(u == out.as_uri() or u.startswith("data:") for u in requests), requests
+        failed = [e["params"] for e in events if e.get("method") == "Network.loadingFailed"]
+        assert not failed, failed
+        exceptions = [e["params"] for e in events if e.get("method") == "Runtime.exceptionThrown"]
+        assert not exceptions, exceptions
+        assert canvas["result"]["result"]["value"] >= 1
+    finally:
+        os.killpg(proc.pid, signal.SIGTERM)
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
