@@ -297,9 +297,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--figures", type=Path, default=Path("benches/results"), help="folder for the PNG figures")
     p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
+    p.add_argument("--threads", type=int, default=1, help="torch threads (default 1, see `genplan train gan --help`)")
 
 
 def main(args: argparse.Namespace) -> int:
+    import torch
+
+    torch.set_num_threads(max(1, args.threads))
     planar_it = 1500 if args.quick else 5000
     robot_it = 1500 if args.quick else 10_000
     payload: dict[str, Any] = {"benchmark": "coverage", "quick": args.quick, "machine": machine(),
