@@ -84,8 +84,9 @@ class PlannerSettings:
     #: shortcut the solution (each shortcut a projected, validated straight edge); off by default:
     #: the paper's timings have none
     simplify: bool = False
-    #: nearest-neighbour index: "linear" (brute force) or "kdtree"
-    neighbors: str = "linear"
+    #: nearest-neighbour index: "auto" (kd-forest up to 16 dimensions, brute force above: measured
+    #: faster on each side), "linear" (brute force) or "kdtree"
+    neighbors: str = "auto"
     #: give up after this many sample batches in a row without one projectable sample
     max_empty_batches: int = 100
 

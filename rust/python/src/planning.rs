@@ -400,11 +400,12 @@ fn settings_from(d: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
     st.lazy_edges = get_or(d, "lazy_edges", st.lazy_edges, w)?;
     st.simplify = get_or(d, "simplify", st.simplify, w)?;
     st.max_empty_batches = get_or(d, "max_empty_batches", st.max_empty_batches, w)?;
-    let nn: String = get_or(d, "neighbors", "linear".to_string(), w)?;
+    let nn: String = get_or(d, "neighbors", "auto".to_string(), w)?;
     st.neighbors = match nn.as_str() {
+        "auto" => NeighborIndex::Auto,
         "linear" => NeighborIndex::Linear,
         "kdtree" => NeighborIndex::KdForest,
-        other => return Err(PyValueError::new_err(format!("{w}: neighbors must be 'linear' or 'kdtree', got '{other}'"))),
+        other => return Err(PyValueError::new_err(format!("{w}: neighbors must be 'auto', 'linear' or 'kdtree', got '{other}'"))),
     };
     st.validate().map_err(plan_error_to_py)?;
     Ok(st)
