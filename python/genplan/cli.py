@@ -26,7 +26,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     print(f"genplan {_core.__version__}  (python {platform.python_version()}, {platform.machine()})")
     crates = ", ".join(f"{k} {v}" for k, v in sorted(_core.CRATE_VERSIONS.items()))
     print(f"  rust core: {crates}")
-    for dist in ("numpy", "pin", "coal", "example-robot-data", "torch", "safetensors"):
+    for dist in ("numpy", "pin", "coal", "example-robot-data", "torch", "safetensors", "ompl", "casadi", "viser"):
         print(f"  {dist:<19}{_version(dist)}")
     try:
         root = robots.robots_dir()
@@ -57,10 +57,14 @@ def cmd_info(args: argparse.Namespace) -> int:
 #: (group, name, module, help) of every command but ``info``. Each module keeps its top-level
 #: imports light (no torch) and defines ``add_arguments(parser)`` and ``main(args) -> int``.
 COMMANDS: list[tuple[str, str, str, str]] = [
+    ("", "reproduce", "genplan.reproduce", "the main job: rerun both papers' experiments with the shipped models, write a report"),
     ("bench", "projection", "genplan.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),
     ("bench", "coverage", "genplan.benchmarks.coverage", "GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations"),
     ("bench", "plan", "genplan.benchmarks.plan", "Table II: constrained RRT (uniform / GAN / hybrid) and OMPL"),
+    ("bench", "control", "genplan.benchmarks.control", "Fig. 12: the 1 kHz spatula controller (P-D + DOB) on the simulated UR5, pancake slip"),
+    ("bench", "adjust", "genplan.benchmarks.adjust", "seq2seq paper Figs. 5-9, 11: latent trajectory adjustment (J1, J2) vs direct U and CasADi + IPOPT"),
     ("train", "gan", "genplan.gan.train_cli", "the conditional ensemble GAN of valid configurations"),
+    ("train", "seq2seq", "genplan.pancake.train_cli", "the pancake seq2seq trajectory deformation model"),
 ]
 
 

@@ -250,29 +250,13 @@ class GanModel:
 
     def save(self, path: str | Path) -> tuple[Path, Path]:
         """Write ``path`` (.safetensors) and its card (.json beside it)."""
-        from safetensors.torch import save_file
+        from genplan.model_files import write_model
 
-        path = Path(path).with_suffix(".safetensors")
-        tensors = {f"generator.weight.{i}": w.detach().contiguous() for i, w in enumerate(self.generator.weights)}
-        tensors.update({f"generator.bias.{i}": b.detach().contiguous() for i, b in enumerate(self.generator.biases)})
-        tensors["codec.mean"] = self.codec.mean.contiguous()
-        tensors["codec.std"] = self.codec.std.contiguous()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        save_file(tensors, str(path), metadata={"format": FORMAT, "robot": self.config.robot})
-        card = dict(self.card)
-        card.update({"format": FORMAT, "config": dataclasses.asdict(self.config),
-                     "weights_sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
-        card_path = path.with_suffix(".json")
-        card_path.write_text(json.dumps(card, indent=2, default=_json_default) + "\n")
-        return path, card_path
-
-
-def _json_default(o: Any) -> Any:
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, tuple):
-        return list(o)
-    raise TypeError(f"not JSON serialisable: {type(o)}")
+        tensors = {f"generator.weight.{i}": w for i, w in enumerate(self.generator.weights)}
+        tensors.update({f"generator.bias.{i}": b for i, b in enumerate(self.generator.biases)})
+        tensors["codec.mean"] = self.codec.mean
+        tensors["codec.std"] = self.codec.std
+        return write_model(path, tensors, {"format": FORMAT, "robot": self.config.robot}, self.card, self.config)
 
 
 def models_dir() -> Path:

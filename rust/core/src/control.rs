@@ -1,1 +1,1201 @@
-//! The 1 kHz task-space P-D + DOB controller. Work in progress: see issue [controller].
+//! The 1 kHz spatula controller of the seq2seq paper (Kutsuzawa et al. 2019, Section 5, Fig. 10)
+//! on a simulated arm, with the pancake's stick/slip on the spatula.
+//!
+//! # Task and attitude convention
+//!
+//! A spatula pose of the paper is `p = [y, z, theta]` in the vertical y-z plane; the command is
+//! (eq. 23) `q_cmd = [0.5, y, z + 0.35, theta, pi/2, 0]`: position in metres in the robot's base
+//! frame, then an attitude `[a, b, c]` read as intrinsic X-Y'-Z'' angles,
+//! `R = Rx(a) Ry(b) Rz(c)`. With `b = pi/2` this is the only reading in which `theta` tilts the
+//! spatula in the plane of the motion (about the world x axis); the fixed-axis roll-pitch-yaw
+//! reading `Rz(c) Ry(b) Rx(a)` is at gimbal lock for `b = pi/2` and would turn `theta` into a
+//! rotation about the vertical. So `R_cmd = Rx(theta) Ry(pi/2)`: the spatula frame's z axis points
+//! along world +x (away from the robot, the handle direction), its y axis is the blade's in-plane
+//! direction `[0, cos theta, sin theta]` and its -x axis the blade normal
+//! `[0, -sin theta, cos theta]` (up for `theta = 0`). `theta` is counter-clockwise from +y, as in
+//! `genplan.pancake.trajectories`.
+//!
+//! The spatula frame is the arm's tool flange frame (UR5: `tool0`, z along the flange axis)
+//! moved by `spatula_length` along its z axis; its rotation is the flange's. So on the UR5 the
+//! tilt `theta` is (up to the arm's small corrections) a rotation of the last wrist joint, and
+//! the whole paper region `y, z in [-0.1, 0.1] m` (we check +-0.15), `theta in [-pi, pi]` is
+//! reachable away from singularities with no base offset (see the tests).
+//!
+//! # Controller (Fig. 10), every `dt` = 1 ms
+//!
+//! * task error `e = [p_cmd - p; log3(R_cmd R^T)]` (world axes), velocity error
+//!   `de = [v_cmd - v; w_cmd - w]` with the command's velocity from a backward difference
+//!   (causal; `velocity_feedforward = false` uses `-[v; w]` instead);
+//! * `xdd_ref = Kp e + Kv de` (+ the command's backward-difference acceleration when
+//!   `acceleration_feedforward`), `Kp = diag(Kpp x3, Kpr x3)`, `Kv = diag(Kvp x3, Kvr x3)`;
+//! * `qdd_ref = J^-1 (xdd_ref - dJ/dt v)`; near a singularity (`|det J| < singular_det`) damped
+//!   least squares `J^T (J J^T + lambda^2 I)^-1` with `lambda^2 = max_damping^2 (1 - |det J| /
+//!   singular_det)^2` (Nakamura and Hanafusa), counted and reported;
+//! * `tau_ref = M_n(q) qdd_ref + h_n(q, v) + tau_dis_hat` with the nominal model `M_n`, `h_n`
+//!   (URDF arm + spatula; `model_compensation = false` drops `h_n` so the DOB must absorb it);
+//! * disturbance observer: `tau_dis_hat[k] = a tau_dis_hat[k-1] + (1 - a) d[k]`,
+//!   `a = exp(-2 pi f_c dt)` (the first-order low-pass `2 pi f_c / (s + 2 pi f_c)` discretised
+//!   exactly for a piecewise-constant input), where `d[k] = tau[k-1] - h_n[k-1] -
+//!   M_n[k-1] (v[k] - v[k-1]) / dt` is the torque of the last period that the nominal model does
+//!   not explain (the pseudo-differentiation form of Ohnishi's DOB: no acceleration sensor).
+//!   The observer always runs (its estimate is logged); `dob` decides whether it is fed back.
+//!
+//! # Plant
+//!
+//! The true arm (URDF + spatula + `payload_mass` the controller does not know) with joint
+//! friction `-(coulomb tanh(v / v_s) + viscous v)` and a constant torque offset, integrated with
+//! classical RK4 (`substeps` per period) under the zero-order-held torque.
+//!
+//! # Pancake
+//!
+//! A point mass on the blade at signed distance `s` from the spatula point, in the y-z plane,
+//! with Coulomb friction (`mu_static`, `mu_kinetic`, the paper's `mu = 1`). In the spatula frame
+//! (tangent `t = [cos theta, sin theta]`, normal `n = [-sin theta, cos theta]`) with the achieved
+//! spatula acceleration `a`, tilt rate `w` and angular acceleration `dw`, per unit mass:
+//! normal force `N = (a - g).n + 2 ds w + s dw`; while stuck the needed tangential force is
+//! `F = (a - g).t - s w^2` and it stays stuck while `|F| <= mu_static N`; sliding obeys
+//! `dds = (g - a).t + s w^2 - mu_kinetic N sign(ds)`. `N <= 0` is a lift-off and `|s|` past the
+//! blade's half length a fall: the pancake has left the spatula (the intended end of a flip).
+//! At `s = 0` the stick condition is the paper's `|phi| <= arctan(mu)` (eq. 15).
+
+use std::time::{Duration, Instant};
+
+use nalgebra::{DMatrix, Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
+
+use crate::dynamics::{DynWorkspace, Dynamics, Frame};
+use crate::error::{check_finite, Error, Result};
+use crate::lie::log3;
+
+/// The paper's gains, Section 5.1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gains {
+    pub kpp: f64,
+    pub kpr: f64,
+    pub kvp: f64,
+    pub kvr: f64,
+}
+
+impl Default for Gains {
+    fn default() -> Self {
+        Gains { kpp: 450.0, kpr: 700.0, kvp: 60.0, kvr: 90.0 }
+    }
+}
+
+/// Controller settings (defaults: the paper's).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControllerConfig {
+    pub gains: Gains,
+    /// Control period (s).
+    pub dt: f64,
+    /// Feed the disturbance estimate back.
+    pub dob: bool,
+    /// Cut-off frequency of the DOB's low-pass filter (Hz).
+    pub dob_cutoff_hz: f64,
+    /// Add the nominal bias torque `h_n(q, v)` (Coriolis, centrifugal, gravity).
+    pub model_compensation: bool,
+    /// D term on `v_cmd - v` (true) or on `-v` (false).
+    pub velocity_feedforward: bool,
+    /// Add the command's acceleration to the reference.
+    pub acceleration_feedforward: bool,
+    /// `|det J|` below which the inverse is damped (m^3; det J does not depend on the point or
+    /// the axes it is expressed in).
+    pub singular_det: f64,
+    /// Largest damping `lambda` of the damped least squares.
+    pub max_damping: f64,
+    /// Symmetric torque limits per joint (None: unlimited).
+    pub torque_limit: Option<Vec<f64>>,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        ControllerConfig {
+            gains: Gains::default(),
+            dt: 1e-3,
+            dob: true,
+            dob_cutoff_hz: 2.0,
+            model_compensation: true,
+            velocity_feedforward: true,
+            acceleration_feedforward: false,
+            singular_det: 1e-3,
+            max_damping: 0.05,
+            torque_limit: None,
+        }
+    }
+}
+
+/// Unmodelled effects of the true plant (all zero by default).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Disturbances {
+    /// Coulomb friction per joint (N m), smoothed as `coulomb tanh(v / friction_velocity)`.
+    pub coulomb: Vec<f64>,
+    /// Viscous friction per joint (N m s / rad).
+    pub viscous: Vec<f64>,
+    /// Velocity scale of the smoothed Coulomb friction (rad/s).
+    pub friction_velocity: f64,
+    /// Constant torque added to the commanded one (N m).
+    pub offset: Vec<f64>,
+    /// Extra mass at the spatula the controller does not know (kg).
+    pub payload_mass: f64,
+    /// Its centre of mass in the spatula frame (m).
+    pub payload_com: [f64; 3],
+}
+
+impl Disturbances {
+    pub fn none(nv: usize) -> Self {
+        Disturbances {
+            coulomb: vec![0.0; nv],
+            viscous: vec![0.0; nv],
+            friction_velocity: 0.05,
+            offset: vec![0.0; nv],
+            payload_mass: 0.0,
+            payload_com: [0.0; 3],
+        }
+    }
+
+    /// The deviations genplan's benchmark uses for a 6-joint arm: a 0.3 kg payload error at the
+    /// spatula (a pancake and a heavier spatula than modelled), Coulomb friction
+    /// 3/3/2/0.4/0.4/0.2 N m, viscous 2/2/1/0.15/0.15/0.05 N m s/rad, and a constant torque
+    /// offset 1.5/-2/1/0.3/-0.3/0.2 N m. The wrist values are small because the URDF's wrist
+    /// links are light (0.017 kg m^2 about the last axis, no rotor inertia).
+    pub fn reference() -> Self {
+        Disturbances {
+            coulomb: vec![3.0, 3.0, 2.0, 0.4, 0.4, 0.2],
+            viscous: vec![2.0, 2.0, 1.0, 0.15, 0.15, 0.05],
+            friction_velocity: 0.05,
+            offset: vec![1.5, -2.0, 1.0, 0.3, -0.3, 0.2],
+            payload_mass: 0.3,
+            payload_com: [0.0, 0.0, 0.0],
+        }
+    }
+
+    fn check(&self, nv: usize) -> Result<()> {
+        for (what, v) in [("coulomb", &self.coulomb), ("viscous", &self.viscous), ("offset", &self.offset)] {
+            crate::error::check_vector(&format!("disturbances.{what}"), v, nv)?;
+        }
+        if self.coulomb.iter().chain(&self.viscous).any(|&x| x < 0.0) {
+            return Err(Error::Invalid("disturbances: friction coefficients must be >= 0".into()));
+        }
+        if !(self.friction_velocity.is_finite() && self.friction_velocity > 0.0) {
+            return Err(Error::Invalid(format!(
+                "disturbances.friction_velocity must be > 0, got {}",
+                self.friction_velocity
+            )));
+        }
+        if !(self.payload_mass.is_finite() && self.payload_mass >= 0.0) {
+            return Err(Error::Invalid(format!("disturbances.payload_mass must be >= 0, got {}", self.payload_mass)));
+        }
+        check_finite("disturbances.payload_com", &self.payload_com)
+    }
+}
+
+/// Where the task lives on the arm (defaults: the paper's eq. 23 on the UR5).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpatulaSetup {
+    /// The tool flange link.
+    pub tool_link: String,
+    /// Spatula point = flange frame moved this far along its z axis (m).
+    pub spatula_length: f64,
+    /// Nominal spatula (known to the controller and present in the plant): mass (kg) and centre
+    /// of mass along the flange z axis (m); inertia of a thin rod along z.
+    pub spatula_mass: f64,
+    pub spatula_com: f64,
+    /// `q_cmd[0..3] = origin + [0, y, z]` (the paper: [0.5, 0, 0.35]).
+    pub origin: [f64; 3],
+    /// `q_cmd[4], q_cmd[5]` (the paper: pi/2, 0); `q_cmd[3] = theta`.
+    pub attitude: [f64; 2],
+    /// First guess of the initial configuration (None: the preset's, then deterministic
+    /// restarts).
+    pub q_seed: Option<Vec<f64>>,
+}
+
+impl Default for SpatulaSetup {
+    fn default() -> Self {
+        SpatulaSetup {
+            tool_link: "tool0".into(),
+            spatula_length: 0.1,
+            spatula_mass: 0.2,
+            spatula_com: 0.05,
+            origin: [0.5, 0.0, 0.35],
+            attitude: [std::f64::consts::FRAC_PI_2, 0.0],
+            q_seed: None,
+        }
+    }
+}
+
+/// Longest run in ticks (10^7: 2.8 hours at 1 kHz; the log of a run takes ~600 bytes a tick).
+pub const MAX_TICKS: usize = 10_000_000;
+
+/// How often [`Simulation::run_with`] asks whether to stop.
+pub const STOP_CHECK_TICKS: usize = 250;
+
+/// A UR5 elbow-up posture with the flange pointing forward (world +x), near the paper's start pose.
+pub const UR5_SEED: [f64; 6] = [-0.35, -1.78, 1.94, -0.15, 1.22, -1.571];
+
+/// Pancake model settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PancakeConfig {
+    pub mu_static: f64,
+    pub mu_kinetic: f64,
+    /// Half the blade's length along its in-plane direction (m): past it the pancake falls.
+    pub blade_half_length: f64,
+}
+
+impl Default for PancakeConfig {
+    fn default() -> Self {
+        PancakeConfig { mu_static: 1.0, mu_kinetic: 1.0, blade_half_length: 0.06 }
+    }
+}
+
+/// Everything a run needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimConfig {
+    pub controller: ControllerConfig,
+    pub disturbances: Disturbances,
+    pub setup: SpatulaSetup,
+    pub pancake: PancakeConfig,
+    /// RK4 steps per control period.
+    pub substeps: usize,
+    /// Ticks holding the first pose before the motion (the DOB settles; the paper's robot
+    /// held still for 25 s).
+    pub settle_ticks: usize,
+}
+
+impl SimConfig {
+    pub fn new(nv: usize) -> Self {
+        SimConfig {
+            controller: ControllerConfig::default(),
+            disturbances: Disturbances::none(nv),
+            setup: SpatulaSetup::default(),
+            pancake: PancakeConfig::default(),
+            substeps: 1,
+            settle_ticks: 0,
+        }
+    }
+
+    fn check(&self, nv: usize) -> Result<()> {
+        let c = &self.controller;
+        let pos = |what: &str, x: f64| -> Result<()> {
+            if x.is_finite() && x > 0.0 {
+                Ok(())
+            } else {
+                Err(Error::Invalid(format!("{what} must be finite and > 0, got {x}")))
+            }
+        };
+        let nonneg = |what: &str, x: f64| -> Result<()> {
+            if x.is_finite() && x >= 0.0 {
+                Ok(())
+            } else {
+                Err(Error::Invalid(format!("{what} must be finite and >= 0, got {x}")))
+            }
+        };
+        pos("controller.dt", c.dt)?;
+        pos("controller.dob_cutoff_hz", c.dob_cutoff_hz)?;
+        for (w, x) in [("kpp", c.gains.kpp), ("kpr", c.gains.kpr), ("kvp", c.gains.kvp), ("kvr", c.gains.kvr)] {
+            nonneg(&format!("controller.gains.{w}"), x)?;
+        }
+        nonneg("controller.singular_det", c.singular_det)?;
+        nonneg("controller.max_damping", c.max_damping)?;
+        if let Some(l) = &c.torque_limit {
+            crate::error::check_vector("controller.torque_limit", l, nv)?;
+            if l.iter().any(|&x| x <= 0.0) {
+                return Err(Error::Invalid("controller.torque_limit must be > 0 for every joint".into()));
+            }
+        }
+        self.disturbances.check(nv)?;
+        let s = &self.setup;
+        nonneg("setup.spatula_length", s.spatula_length)?;
+        nonneg("setup.spatula_mass", s.spatula_mass)?;
+        check_finite("setup.spatula_com", &[s.spatula_com])?;
+        check_finite("setup.origin", &s.origin)?;
+        check_finite("setup.attitude", &s.attitude)?;
+        let p = &self.pancake;
+        nonneg("pancake.mu_static", p.mu_static)?;
+        nonneg("pancake.mu_kinetic", p.mu_kinetic)?;
+        pos("pancake.blade_half_length", p.blade_half_length)?;
+        if self.substeps == 0 || self.substeps > 1000 {
+            return Err(Error::Invalid(format!("substeps must be in 1..=1000, got {}", self.substeps)));
+        }
+        Ok(())
+    }
+}
+
+/// `Rx(a) Ry(b) Rz(c)`: the attitude convention of `q_cmd` (intrinsic X-Y'-Z'').
+pub fn attitude_matrix(a: f64, b: f64, c: f64) -> Matrix3<f64> {
+    let rx = nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), a);
+    let ry = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), b);
+    let rz = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), c);
+    (rx * ry * rz).into_inner()
+}
+
+/// eq. 16 with the convention of `genplan.pancake.trajectories.phi`:
+/// `wrap(atan2(-g - a_z, -a_y) + pi/2 - theta)` in (-pi, pi].
+pub fn phi(theta: f64, a_y: f64, a_z: f64, g: f64) -> f64 {
+    wrap_angle((-g - a_z).atan2(-a_y) + std::f64::consts::FRAC_PI_2 - theta)
+}
+
+/// An angle wrapped to (-pi, pi].
+pub fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::PI;
+    let w = (a + PI).rem_euclid(2.0 * PI) - PI;
+    if w <= -PI {
+        w + 2.0 * PI
+    } else {
+        w
+    }
+}
+
+/// One sample of the command: pose, velocity, acceleration (world axes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Command {
+    pub pos: Vector3<f64>,
+    pub rot: Matrix3<f64>,
+    pub vel: Vector6<f64>,
+    pub acc: Vector6<f64>,
+    /// The paper's pose `[y, z, theta]` it came from.
+    pub paper: [f64; 3],
+}
+
+/// State of the pancake.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PancakeMode {
+    Stuck,
+    Sliding,
+    /// Lifted off or slid past the blade's end: no longer on the spatula.
+    Off,
+}
+
+/// The pancake on the blade (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pancake {
+    pub config: PancakeConfig,
+    pub mode: PancakeMode,
+    /// Signed position along the blade from the spatula point (m) and its rate.
+    pub s: f64,
+    pub ds: f64,
+    /// Normal force per unit mass of the last step (m/s^2).
+    pub normal: f64,
+}
+
+/// In-plane motion of the spatula point at one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlanarMotion {
+    pub theta: f64,
+    pub w: f64,
+    pub dw: f64,
+    pub a_y: f64,
+    pub a_z: f64,
+}
+
+impl Pancake {
+    pub fn new(config: PancakeConfig) -> Self {
+        Pancake { config, mode: PancakeMode::Stuck, s: 0.0, ds: 0.0, normal: 0.0 }
+    }
+
+    /// Advance by `dt` under the spatula motion `m`, gravity `g = [g_y, g_z]`.
+    pub fn step(&mut self, m: &PlanarMotion, g: [f64; 2], dt: f64) {
+        if self.mode == PancakeMode::Off {
+            return;
+        }
+        let (st, ct) = m.theta.sin_cos();
+        let t = [ct, st];
+        let n = [-st, ct];
+        let rel = [m.a_y - g[0], m.a_z - g[1]];
+        let rel_n = rel[0] * n[0] + rel[1] * n[1];
+        let rel_t = rel[0] * t[0] + rel[1] * t[1];
+        let c = &self.config;
+        let normal = rel_n + 2.0 * self.ds * m.w + self.s * m.dw;
+        self.normal = normal;
+        if normal <= 0.0 {
+            self.mode = PancakeMode::Off;
+            return;
+        }
+        // tangential force needed to move with the spatula (at the current ds)
+        let f_req = rel_t - self.s * m.w * m.w;
+        match self.mode {
+            PancakeMode::Stuck => {
+                if f_req.abs() <= c.mu_static * normal {
+                    self.ds = 0.0;
+                } else {
+                    self.mode = PancakeMode::Sliding;
+                    // the pancake tends to move at -f_req relative to the blade; friction opposes it
+                    let dds = -f_req + c.mu_kinetic * normal * f_req.signum();
+                    self.ds += dds * dt;
+                    self.s += self.ds * dt;
+                }
+            }
+            PancakeMode::Sliding => {
+                let dir = if self.ds != 0.0 { self.ds.signum() } else { -f_req.signum() };
+                let dds = -f_req - c.mu_kinetic * normal * dir;
+                let ds_new = self.ds + dds * dt;
+                if self.ds != 0.0 && ds_new.signum() != self.ds.signum() && f_req.abs() <= c.mu_static * normal {
+                    self.ds = 0.0;
+                    self.mode = PancakeMode::Stuck;
+                } else {
+                    self.ds = ds_new;
+                    self.s += self.ds * dt;
+                }
+            }
+            PancakeMode::Off => {}
+        }
+        if self.s.abs() > c.blade_half_length {
+            self.mode = PancakeMode::Off;
+        }
+    }
+}
+
+/// What one tick produced (the state at the tick's start and the torque it applied).
+#[derive(Debug, Clone, Copy)]
+pub struct TickOutput {
+    pub pos: Vector3<f64>,
+    pub rot: Matrix3<f64>,
+    pub tau: Vector6<f64>,
+    pub tau_dis_hat: Vector6<f64>,
+    /// The torque the nominal model does not explain, `tau - M_n qdd - h_n` (what the DOB sees).
+    pub tau_dis: Vector6<f64>,
+    /// Achieved spatula acceleration (linear, angular; world axes).
+    pub acc: Vector6<f64>,
+    pub vel: Vector6<f64>,
+    pub err_pos: f64,
+    pub err_rot: f64,
+    pub phi: f64,
+    pub tilt: f64,
+    pub det_j: f64,
+    pub damped: bool,
+    pub saturated: bool,
+    pub pancake: Pancake,
+}
+
+/// The simulated arm, its controller and the pancake. The configuration is fixed at
+/// construction (the models are built from it): make a new `Simulation` to change it.
+pub struct Simulation {
+    config: SimConfig,
+    pub nominal: Dynamics,
+    pub plant: Dynamics,
+    pub frame: Frame,
+    nv: usize,
+    ws_n: DynWorkspace,
+    ws_p: DynWorkspace,
+    /// Plant state.
+    pub q: [f64; 6],
+    pub v: [f64; 6],
+    // controller memory
+    prev_tau: Vector6<f64>,
+    prev_h: Vector6<f64>,
+    prev_m: Matrix6<f64>,
+    prev_v: Vector6<f64>,
+    has_prev: bool,
+    pub tau_dis_hat: Vector6<f64>,
+    pub pancake: Pancake,
+    jac: DMatrix<f64>,
+    djac: DMatrix<f64>,
+    tilt_prev: Option<f64>,
+    pub ticks: u64,
+}
+
+/// Summary numbers of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    pub ticks: usize,
+    /// Wall time of the loop divided by the ticks (us): unpaced, this is the cost of one tick.
+    pub us_per_tick: f64,
+    /// Over the executed trajectory (after the settle phase).
+    pub max_err_pos: f64,
+    pub max_err_rot: f64,
+    pub rms_err_pos: f64,
+    pub rms_err_rot: f64,
+    /// Largest |phi| over the motion window.
+    pub max_abs_phi: f64,
+    /// The pancake slid or left the spatula during the motion window.
+    pub slipped: bool,
+    pub first_slip_time: Option<f64>,
+    pub left_time: Option<f64>,
+    pub max_abs_slide: f64,
+    pub damped_ticks: usize,
+    pub first_damped_time: Option<f64>,
+    pub min_abs_det_j: f64,
+    pub saturated_ticks: usize,
+    pub max_abs_tau: Vec<f64>,
+}
+
+/// Per-tick log of a run (row-major arrays).
+#[derive(Debug, Clone, Default)]
+pub struct Log {
+    pub n: usize,
+    pub nv: usize,
+    pub t: Vec<f64>,
+    pub paper_cmd: Vec<f64>,
+    pub paper: Vec<f64>,
+    pub pos_cmd: Vec<f64>,
+    pub pos: Vec<f64>,
+    pub rot: Vec<f64>,
+    pub err_pos: Vec<f64>,
+    pub err_rot: Vec<f64>,
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+    pub tau: Vec<f64>,
+    pub tau_dis_hat: Vec<f64>,
+    pub tau_dis: Vec<f64>,
+    pub acc: Vec<f64>,
+    pub phi: Vec<f64>,
+    pub slide: Vec<f64>,
+    pub normal: Vec<f64>,
+    /// 0 stuck, 1 sliding, 2 off the spatula.
+    pub pancake_mode: Vec<u8>,
+    pub damped: Vec<bool>,
+    pub det_j: Vec<f64>,
+    /// Paced runs: how late each tick started after its deadline (s).
+    pub lateness: Vec<f64>,
+    /// Paced runs: compute time of each tick (s).
+    pub compute: Vec<f64>,
+}
+
+/// A run: its log, its summary, where the motion window is.
+#[derive(Debug, Clone)]
+pub struct Run {
+    pub log: Log,
+    pub summary: Summary,
+    /// Tick indices: settle phase `[0, motion_start)`, motion `[motion_start, motion_end)`,
+    /// then the tail.
+    pub motion_start: usize,
+    pub motion_end: usize,
+}
+
+fn damped_solve(j: &Matrix6<f64>, b: &Vector6<f64>, singular_det: f64, max_damping: f64) -> (Vector6<f64>, f64, bool) {
+    let lu = j.lu();
+    let det = lu.determinant();
+    let w = det.abs();
+    if w >= singular_det && w > 0.0 {
+        if let Some(x) = lu.solve(b) {
+            return (x, det, false);
+        }
+    }
+    let ratio = if singular_det > 0.0 { (w / singular_det).min(1.0) } else { 0.0 };
+    let lambda2 = (max_damping * (1.0 - ratio)).powi(2).max(1e-12);
+    let a = j * j.transpose() + Matrix6::identity() * lambda2;
+    let x = match a.cholesky() {
+        Some(c) => j.transpose() * c.solve(b),
+        None => Vector6::zeros(),
+    };
+    (x, det, true)
+}
+
+impl Simulation {
+    /// Build from the arm's dynamics (used for both the nominal and the true model).
+    pub fn new(arm: &Dynamics, config: SimConfig) -> Result<Simulation> {
+        let nv = arm.nv;
+        if nv != 6 || arm.nq != 6 {
+            return Err(Error::Invalid(format!(
+                "the spatula controller needs a 6-joint arm of revolute/prismatic joints (square task Jacobian); got nq={}, nv={}",
+                arm.nq, arm.nv
+            )));
+        }
+        config.check(nv)?;
+        let s = &config.setup;
+        let flange = arm.frame(&s.tool_link, &Isometry3::identity())?;
+        if flange.body.is_none() {
+            return Err(Error::Invalid(format!("tool link '{}' does not move with any joint", s.tool_link)));
+        }
+        let frame = arm.frame(
+            &s.tool_link,
+            &Isometry3::from_parts(Translation3::new(0.0, 0.0, s.spatula_length), UnitQuaternion::identity()),
+        )?;
+        let mut nominal = arm.clone();
+        // spatula: a thin rod along the flange z axis, length 2 * spatula_com
+        let l = 2.0 * s.spatula_com.abs();
+        let i_rod = s.spatula_mass * l * l / 12.0;
+        let rod = Matrix3::from_diagonal(&Vector3::new(i_rod, i_rod, 0.0));
+        nominal.add_inertia(&flange, s.spatula_mass, Vector3::new(0.0, 0.0, s.spatula_com), rod)?;
+        let mut plant = nominal.clone();
+        let d = &config.disturbances;
+        if d.payload_mass > 0.0 {
+            plant.add_inertia(&frame, d.payload_mass, Vector3::from(d.payload_com), Matrix3::zeros())?;
+        }
+        Ok(Simulation {
+            ws_n: nominal.workspace(),
+            ws_p: plant.workspace(),
+            nominal,
+            plant,
+            frame,
+            nv,
+            q: [0.0; 6],
+            v: [0.0; 6],
+            prev_tau: Vector6::zeros(),
+            prev_h: Vector6::zeros(),
+            prev_m: Matrix6::zeros(),
+            prev_v: Vector6::zeros(),
+            has_prev: false,
+            tau_dis_hat: Vector6::zeros(),
+            pancake: Pancake::new(config.pancake),
+            jac: DMatrix::zeros(6, nv),
+            djac: DMatrix::zeros(6, nv),
+            tilt_prev: None,
+            ticks: 0,
+            config,
+        })
+    }
+
+    /// The configuration this simulation was built with.
+    pub fn config(&self) -> &SimConfig {
+        &self.config
+    }
+
+    /// The command pose of a paper pose `[y, z, theta]` (eq. 23 with this setup).
+    pub fn command_pose(&self, p: [f64; 3]) -> (Vector3<f64>, Matrix3<f64>) {
+        let s = &self.config.setup;
+        (
+            Vector3::new(s.origin[0], s.origin[1] + p[0], s.origin[2] + p[1]),
+            attitude_matrix(p[2], s.attitude[0], s.attitude[1]),
+        )
+    }
+
+    /// World pose of the spatula frame at q (checked).
+    pub fn spatula_pose(&mut self, q: &[f64]) -> Result<(Vector3<f64>, Matrix3<f64>)> {
+        self.nominal.check_state(q, None)?;
+        self.nominal.update_kinematics_unchecked(q, None, &mut self.ws_n);
+        let (r, p) = self.nominal.frame_placement(&self.frame, &self.ws_n);
+        Ok((p, r))
+    }
+
+    /// Levenberg-Marquardt IK of the spatula frame (damping `lambda^2 = |e|^2 + 1e-12`, Sugihara
+    /// 2011: quadratic convergence when reachable, no blow-up near singularities; steps capped
+    /// at 0.5 rad so that it does not jump branches). Ok((q, iterations)) once position and
+    /// attitude errors are below 1e-10, else an error with the residual.
+    pub fn inverse_kinematics(&mut self, pos: &Vector3<f64>, rot: &Matrix3<f64>, seed: &[f64], max_iterations: usize) -> Result<(Vec<f64>, usize)> {
+        self.nominal.check_state(seed, None)?;
+        let mut q = seed.to_vec();
+        let mut err = f64::INFINITY;
+        for it in 0..max_iterations {
+            self.nominal.update_kinematics_unchecked(&q, None, &mut self.ws_n);
+            let (r, p) = self.nominal.frame_placement(&self.frame, &self.ws_n);
+            let (w, _) = log3(&(rot * r.transpose()));
+            let dp = pos - p;
+            let e = Vector6::new(dp.x, dp.y, dp.z, w.x, w.y, w.z);
+            err = dp.norm() + w.norm() * 0.1;
+            if dp.norm() < 1e-10 && w.norm() < 1e-10 {
+                return Ok((q, it));
+            }
+            self.nominal.frame_jacobians_from_kinematics(&self.frame, &self.ws_n, &mut self.jac, None);
+            let j = Matrix6::from_iterator(self.jac.iter().copied());
+            let lambda2 = dp.norm_squared() + w.norm_squared() + 1e-12;
+            let a = j * j.transpose() + Matrix6::identity() * lambda2;
+            let dq = match a.cholesky() {
+                Some(c) => j.transpose() * c.solve(&e),
+                None => break,
+            };
+            // limit the step so that Newton does not jump branches
+            let scale = (0.5 / dq.amax()).min(1.0);
+            for i in 0..6 {
+                q[i] += dq[i] * scale;
+            }
+        }
+        Err(Error::Invalid(format!(
+            "inverse kinematics did not converge (residual {err:.3e} after {max_iterations} iterations)"
+        )))
+    }
+
+    fn within_limits(&self, q: &[f64]) -> Option<usize> {
+        (0..q.len()).find(|&i| q[i] < self.nominal.lower[i] - 1e-9 || q[i] > self.nominal.upper[i] + 1e-9)
+    }
+
+    /// The commands of a paper trajectory `[y, z, theta]` (rows of 3, one per `dt`): settle
+    /// ticks first. Checks shape, finiteness, and that every pose is reachable (IK along the
+    /// trajectory, warm-started, within the joint limits). Returns the commands and the initial
+    /// configuration (at rest at the first pose).
+    pub fn prepare(&mut self, trajectory: &[f64]) -> Result<(Vec<Command>, Vec<f64>)> {
+        if trajectory.len() % 3 != 0 || trajectory.len() < 6 {
+            return Err(Error::Invalid(format!(
+                "trajectory: expected rows [y, z, theta] (K >= 2 rows of 3 values), got {} values",
+                trajectory.len()
+            )));
+        }
+        if let Some(i) = trajectory.iter().position(|x| !x.is_finite()) {
+            return Err(Error::NonFinite {
+                what: format!("trajectory row {} (column {})", i / 3, i % 3),
+                index: i,
+                value: trajectory[i],
+            });
+        }
+        let dt = self.config.controller.dt;
+        let rows: Vec<[f64; 3]> = trajectory.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let user_seed = self.config.setup.q_seed.clone();
+        // initial configuration
+        let (p0, r0) = self.command_pose(rows[0]);
+        let mut seeds: Vec<Vec<f64>> = Vec::new();
+        if let Some(s) = user_seed {
+            crate::error::check_vector("setup.q_seed", &s, self.nv)?;
+            seeds.push(s);
+        }
+        seeds.push(UR5_SEED.to_vec());
+        let mut state: u64 = 0x9E3779B97F4A7C15;
+        for _ in 0..16 {
+            let q: Vec<f64> = (0..self.nv)
+                .map(|i| {
+                    state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    let u = (state >> 11) as f64 / (1u64 << 53) as f64;
+                    let (lo, hi) = (self.nominal.lower[i].max(-std::f64::consts::PI), self.nominal.upper[i].min(std::f64::consts::PI));
+                    lo + u * (hi - lo)
+                })
+                .collect();
+            seeds.push(q);
+        }
+        let mut q_init = None;
+        let mut last_err = String::new();
+        for s in &seeds {
+            match self.inverse_kinematics(&p0, &r0, s, 200) {
+                Ok((q, _)) if self.within_limits(&q).is_none() => {
+                    q_init = Some(q);
+                    break;
+                }
+                Ok((q, _)) => last_err = format!("solution outside the joint limits ({})", self.nominal.joint_names[self.within_limits(&q).unwrap_or(0)]),
+                Err(e) => last_err = e.to_string(),
+            }
+        }
+        let q_init = q_init.ok_or_else(|| {
+            Error::Invalid(format!(
+                "trajectory row 0 (y={:.4}, z={:.4}, theta={:.4}): the spatula pose {:?} is not reachable: {last_err}",
+                rows[0][0], rows[0][1], rows[0][2], p0.as_slice()
+            ))
+        })?;
+        // reachability of every sample, tracking the IK solution along the trajectory
+        self.track_ik(&rows, &q_init)?;
+        // commands with backward differences (causal)
+        let n_settle = self.config.settle_ticks;
+        let mut cmds = Vec::with_capacity(rows.len() + n_settle);
+        for _ in 0..n_settle {
+            cmds.push(Command { pos: p0, rot: r0, vel: Vector6::zeros(), acc: Vector6::zeros(), paper: rows[0] });
+        }
+        let mut prev: Option<(Vector3<f64>, Matrix3<f64>, Vector6<f64>)> = None;
+        for row in &rows {
+            let (p, r) = self.command_pose(*row);
+            let (vel, acc) = match prev {
+                None => (Vector6::zeros(), Vector6::zeros()),
+                Some((pp, rp, vp)) => {
+                    let dp = (p - pp) / dt;
+                    let (w, _) = log3(&(r * rp.transpose()));
+                    let w = w / dt;
+                    let vel = Vector6::new(dp.x, dp.y, dp.z, w.x, w.y, w.z);
+                    (vel, (vel - vp) / dt)
+                }
+            };
+            cmds.push(Command { pos: p, rot: r, vel, acc, paper: *row });
+            prev = Some((p, r, vel));
+        }
+        Ok((cmds, q_init))
+    }
+
+    /// IK solutions of every row of a paper trajectory, each warm-started from the previous
+    /// one (row 0 from `q_init`); an error names the first row that cannot be reached within
+    /// the joint limits.
+    pub fn track_ik(&mut self, rows: &[[f64; 3]], q_init: &[f64]) -> Result<Vec<Vec<f64>>> {
+        let dt = self.config.controller.dt;
+        let mut q = q_init.to_vec();
+        let mut out = Vec::with_capacity(rows.len());
+        for (k, row) in rows.iter().enumerate() {
+            let (p, r) = self.command_pose(*row);
+            match self.inverse_kinematics(&p, &r, &q, 100) {
+                Ok((qk, _)) => {
+                    if let Some(i) = self.within_limits(&qk) {
+                        return Err(Error::Invalid(format!(
+                            "trajectory row {k} (t={:.3} s, y={:.4}, z={:.4}, theta={:.4}): reaching it needs joint '{}' = {:.3} outside its limits [{:.3}, {:.3}]",
+                            k as f64 * dt, row[0], row[1], row[2], self.nominal.joint_names[i], qk[i], self.nominal.lower[i], self.nominal.upper[i]
+                        )));
+                    }
+                    q = qk;
+                    out.push(q.clone());
+                }
+                Err(e) => {
+                    return Err(Error::Invalid(format!(
+                        "trajectory row {k} (t={:.3} s, y={:.4}, z={:.4}, theta={:.4}): the spatula pose {:?} is not reachable: {e}",
+                        k as f64 * dt, row[0], row[1], row[2], p.as_slice()
+                    )))
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// |det J| of the spatula frame's task Jacobian at q (0 at a singularity; m^3).
+    pub fn jacobian_det(&mut self, q: &[f64]) -> Result<f64> {
+        self.nominal.check_state(q, None)?;
+        self.nominal.update_kinematics_unchecked(q, None, &mut self.ws_n);
+        self.nominal.frame_jacobians_from_kinematics(&self.frame, &self.ws_n, &mut self.jac, None);
+        Ok(Matrix6::from_iterator(self.jac.iter().copied()).determinant().abs())
+    }
+
+    /// Put the arm at rest at `q` and reset the controller and the pancake.
+    pub fn reset(&mut self, q: &[f64]) -> Result<()> {
+        self.nominal.check_state(q, None)?;
+        self.q.copy_from_slice(q);
+        self.v = [0.0; 6];
+        self.has_prev = false;
+        self.tau_dis_hat = Vector6::zeros();
+        self.prev_tau = Vector6::zeros();
+        self.pancake = Pancake::new(self.config.pancake);
+        self.tilt_prev = None;
+        self.ticks = 0;
+        Ok(())
+    }
+
+    /// Advance the plant alone by one period under the held torque `tau` (RK4, `substeps`);
+    /// returns the joint acceleration at the period's start. The controller is not involved.
+    pub fn integrate_plant(&mut self, tau: &Vector6<f64>) -> Result<Vector6<f64>> {
+        let substeps = self.config.substeps;
+        let h = self.config.controller.dt / substeps as f64;
+        let d = &self.config.disturbances;
+        let plant = &self.plant;
+        let ws = &mut self.ws_p;
+        let mut accel = |q: &[f64; 6], v: &[f64; 6], out: &mut [f64; 6]| -> Result<()> {
+            let mut t = [0.0; 6];
+            for i in 0..6 {
+                let fr = d.coulomb[i] * (v[i] / d.friction_velocity).tanh() + d.viscous[i] * v[i];
+                t[i] = tau[i] + d.offset[i] - fr;
+            }
+            plant.update_local_kinematics_unchecked(q, Some(v), ws);
+            plant.forward_dynamics_from_kinematics(&t, ws, out)
+        };
+        let mut q = self.q;
+        let mut v = self.v;
+        let mut qdd0 = [0.0; 6];
+        let (mut k1, mut k2, mut k3, mut k4) = ([0.0; 6], [0.0; 6], [0.0; 6], [0.0; 6]);
+        for sub in 0..substeps {
+            accel(&q, &v, &mut k1)?;
+            if sub == 0 {
+                qdd0 = k1;
+            }
+            let (mut qt, mut vt) = ([0.0; 6], [0.0; 6]);
+            for i in 0..6 {
+                qt[i] = q[i] + 0.5 * h * v[i];
+                vt[i] = v[i] + 0.5 * h * k1[i];
+            }
+            let v2 = vt;
+            accel(&qt, &vt, &mut k2)?;
+            for i in 0..6 {
+                qt[i] = q[i] + 0.5 * h * v2[i];
+                vt[i] = v[i] + 0.5 * h * k2[i];
+            }
+            let v3 = vt;
+            accel(&qt, &vt, &mut k3)?;
+            for i in 0..6 {
+                qt[i] = q[i] + h * v3[i];
+                vt[i] = v[i] + h * k3[i];
+            }
+            let v4 = vt;
+            accel(&qt, &vt, &mut k4)?;
+            for i in 0..6 {
+                q[i] += h / 6.0 * (v[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i]);
+                v[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        if !(q.iter().chain(&v).all(|x| x.is_finite())) {
+            return Err(Error::Invalid(format!("the plant diverged (non-finite state) at tick {}", self.ticks)));
+        }
+        self.q = q;
+        self.v = v;
+        Ok(Vector6::from(qdd0))
+    }
+
+    /// One control period: measure, control, let the plant run `dt` under the held torque,
+    /// step the pancake. The output describes the state at the start of the tick.
+    pub fn tick(&mut self, cmd: &Command) -> Result<TickOutput> {
+        let c = &self.config.controller;
+        let (dt, g) = (c.dt, c.gains);
+        let nv = self.nv;
+        // --- controller: nominal model at the measured state
+        self.nominal.update_kinematics_unchecked(&self.q, Some(&self.v), &mut self.ws_n);
+        self.nominal.mass_matrix_from_kinematics(&mut self.ws_n);
+        let mut h = [0.0; 6];
+        self.nominal.rnea_from_kinematics(None, true, &mut self.ws_n, &mut h);
+        self.nominal.frame_jacobians_from_kinematics(&self.frame, &self.ws_n, &mut self.jac, Some(&mut self.djac));
+        let (rot, pos) = self.nominal.frame_placement(&self.frame, &self.ws_n);
+        let m = Matrix6::from_iterator(self.ws_n.mass.iter().copied());
+        let j = Matrix6::from_iterator(self.jac.iter().copied());
+        let dj = Matrix6::from_iterator(self.djac.iter().copied());
+        let v = Vector6::from_column_slice(&self.v);
+        let h = Vector6::from(h);
+        let xd = j * v;
+        let djv = dj * v;
+
+        // disturbance observer (uses the last period)
+        if self.has_prev {
+            let alpha = (-2.0 * std::f64::consts::PI * c.dob_cutoff_hz * dt).exp();
+            let d = self.prev_tau - self.prev_h - self.prev_m * ((v - self.prev_v) / dt);
+            self.tau_dis_hat = self.tau_dis_hat * alpha + d * (1.0 - alpha);
+        }
+
+        let ep = cmd.pos - pos;
+        let (er, _) = log3(&(cmd.rot * rot.transpose()));
+        let (dv, dw) = if c.velocity_feedforward {
+            (cmd.vel.fixed_rows::<3>(0) - xd.fixed_rows::<3>(0), cmd.vel.fixed_rows::<3>(3) - xd.fixed_rows::<3>(3))
+        } else {
+            (-xd.fixed_rows::<3>(0), -xd.fixed_rows::<3>(3))
+        };
+        let mut xdd = Vector6::zeros();
+        for k in 0..3 {
+            xdd[k] = g.kpp * ep[k] + g.kvp * dv[k];
+            xdd[k + 3] = g.kpr * er[k] + g.kvr * dw[k];
+        }
+        if c.acceleration_feedforward {
+            xdd += cmd.acc;
+        }
+        let (qdd_ref, det, damped) = damped_solve(&j, &(xdd - djv), c.singular_det, c.max_damping);
+        let mut tau = m * qdd_ref;
+        if c.model_compensation {
+            tau += h;
+        }
+        if c.dob {
+            tau += self.tau_dis_hat;
+        }
+        let mut saturated = false;
+        if let Some(lim) = &c.torque_limit {
+            for i in 0..nv {
+                if tau[i].abs() > lim[i] {
+                    tau[i] = tau[i].clamp(-lim[i], lim[i]);
+                    saturated = true;
+                }
+            }
+        }
+        if !tau.iter().all(|x| x.is_finite()) {
+            return Err(Error::Invalid(format!("controller produced a non-finite torque at tick {}", self.ticks)));
+        }
+        self.prev_tau = tau;
+        self.prev_h = if c.model_compensation { h } else { Vector6::zeros() };
+        self.prev_m = m;
+        self.prev_v = v;
+        self.has_prev = true;
+
+        // --- plant: RK4 under the held torque
+        let qdd0 = self.integrate_plant(&tau)?;
+
+        // --- achieved spatula motion at the tick's start, phi, pancake
+        let acc = j * qdd0 + djv;
+        let tau_dis = tau - m * qdd0 - self.prev_h;
+        let tangent = rot.column(1);
+        let raw_tilt = tangent[2].atan2(tangent[1]);
+        let reference = self.tilt_prev.unwrap_or(cmd.paper[2]);
+        let tilt = reference + wrap_angle(raw_tilt - reference);
+        self.tilt_prev = Some(tilt);
+        let gz = -self.plant.gravity.z;
+        let phi_val = phi(tilt, acc[1], acc[2], gz);
+        let motion = PlanarMotion { theta: tilt, w: xd[3], dw: acc[3], a_y: acc[1], a_z: acc[2] };
+        self.pancake.step(&motion, [self.plant.gravity.y, self.plant.gravity.z], dt);
+        self.ticks += 1;
+        Ok(TickOutput {
+            pos,
+            rot,
+            tau,
+            tau_dis_hat: self.tau_dis_hat,
+            tau_dis,
+            acc,
+            vel: xd,
+            err_pos: ep.norm(),
+            err_rot: er.norm(),
+            phi: phi_val,
+            tilt,
+            det_j: det,
+            damped,
+            saturated,
+            pancake: self.pancake,
+        })
+    }
+
+    /// Execute a paper trajectory (see [`prepare`](Self::prepare)). `motion_len`: how many rows
+    /// are the motion proper (the rest is a tail, e.g. the paper's deceleration; None: all).
+    /// `paced`: tick on the wall clock every `dt` and record the lateness of each tick.
+    pub fn run(&mut self, trajectory: &[f64], motion_len: Option<usize>, paced: bool) -> Result<Run> {
+        self.run_with(trajectory, motion_len, paced, &mut || false)
+    }
+
+    /// As [`run`](Self::run), asking `stop` every [`STOP_CHECK_TICKS`] ticks whether to abandon
+    /// the run (e.g. on Ctrl-C); a stop is the error [`Error::Invalid`] "run interrupted".
+    pub fn run_with(&mut self, trajectory: &[f64], motion_len: Option<usize>, paced: bool, stop: &mut dyn FnMut() -> bool) -> Result<Run> {
+        let rows = trajectory.len() / 3;
+        if rows.saturating_add(self.config.settle_ticks) > MAX_TICKS {
+            return Err(Error::Invalid(format!(
+                "a run is limited to {MAX_TICKS} ticks; got {rows} trajectory rows + {} settle ticks",
+                self.config.settle_ticks
+            )));
+        }
+        let (cmds, q0) = self.prepare(trajectory)?;
+        let motion_len = motion_len.unwrap_or(rows);
+        if motion_len == 0 || motion_len > rows {
+            return Err(Error::Invalid(format!("motion_len must be in 1..={rows}, got {motion_len}")));
+        }
+        self.reset(&q0)?;
+        let n = cmds.len();
+        let nv = self.nv;
+        let dt = self.config.controller.dt;
+        let motion_start = self.config.settle_ticks;
+        let motion_end = motion_start + motion_len;
+        let mut log = Log { n, nv, ..Default::default() };
+        let reserve = |v: &mut Vec<f64>, k: usize| v.reserve_exact(n * k);
+        reserve(&mut log.t, 1);
+        for (v, k) in [
+            (&mut log.paper_cmd, 3),
+            (&mut log.paper, 3),
+            (&mut log.pos_cmd, 3),
+            (&mut log.pos, 3),
+            (&mut log.rot, 9),
+            (&mut log.q, nv),
+            (&mut log.v, nv),
+            (&mut log.tau, nv),
+            (&mut log.tau_dis_hat, nv),
+            (&mut log.tau_dis, nv),
+            (&mut log.acc, 6),
+        ] {
+            reserve(v, k);
+        }
+        let mut summary = Summary {
+            ticks: n,
+            us_per_tick: 0.0,
+            max_err_pos: 0.0,
+            max_err_rot: 0.0,
+            rms_err_pos: 0.0,
+            rms_err_rot: 0.0,
+            max_abs_phi: 0.0,
+            slipped: false,
+            first_slip_time: None,
+            left_time: None,
+            max_abs_slide: 0.0,
+            damped_ticks: 0,
+            first_damped_time: None,
+            min_abs_det_j: f64::INFINITY,
+            saturated_ticks: 0,
+            max_abs_tau: vec![0.0; nv],
+        };
+        let mut outs: Vec<TickOutput> = Vec::with_capacity(n);
+        let mut states: Vec<([f64; 6], [f64; 6])> = Vec::with_capacity(n);
+        let period = Duration::from_secs_f64(dt);
+        let start = Instant::now();
+        for (k, cmd) in cmds.iter().enumerate() {
+            if k % STOP_CHECK_TICKS == STOP_CHECK_TICKS - 1 && stop() {
+                return Err(Error::Invalid(format!("run interrupted at t = {:.3} s", k as f64 * dt)));
+            }
+            if paced {
+                let deadline = start + period.mul_f64(k as f64);
+                wait_until(deadline);
+                let now = Instant::now();
+                log.lateness.push(now.saturating_duration_since(deadline).as_secs_f64());
+            }
+            let t0 = if paced { Some(Instant::now()) } else { None };
+            states.push((self.q, self.v));
+            let out = self.tick(cmd).map_err(|e| match e {
+                Error::Invalid(msg) => Error::Invalid(format!("{msg} (t = {:.3} s)", k as f64 * dt)),
+                e => e,
+            })?;
+            if let Some(t0) = t0 {
+                log.compute.push(t0.elapsed().as_secs_f64());
+            }
+            outs.push(out);
+        }
+        let elapsed = start.elapsed().as_secs_f64();
+        summary.us_per_tick = elapsed / n as f64 * 1e6;
+        // fill the log outside the timed loop
+        let (mut se_p, mut se_r, mut cnt) = (0.0, 0.0, 0usize);
+        for (k, (out, (q, v))) in outs.iter().zip(&states).enumerate() {
+            let cmd = &cmds[k];
+            let t = k as f64 * dt;
+            log.t.push(t);
+            log.paper_cmd.extend_from_slice(&cmd.paper);
+            let s = &self.config.setup;
+            log.paper.extend_from_slice(&[out.pos.y - s.origin[1], out.pos.z - s.origin[2], out.tilt]);
+            log.pos_cmd.extend_from_slice(cmd.pos.as_slice());
+            log.pos.extend_from_slice(out.pos.as_slice());
+            for r in 0..3 {
+                for cc in 0..3 {
+                    log.rot.push(out.rot[(r, cc)]);
+                }
+            }
+            log.err_pos.push(out.err_pos);
+            log.err_rot.push(out.err_rot);
+            log.q.extend_from_slice(q);
+            log.v.extend_from_slice(v);
+            log.tau.extend_from_slice(out.tau.as_slice());
+            log.tau_dis_hat.extend_from_slice(out.tau_dis_hat.as_slice());
+            log.tau_dis.extend_from_slice(out.tau_dis.as_slice());
+            log.acc.extend_from_slice(out.acc.as_slice());
+            log.phi.push(out.phi);
+            log.slide.push(out.pancake.s);
+            log.normal.push(out.pancake.normal);
+            let mode = match out.pancake.mode {
+                PancakeMode::Stuck => 0u8,
+                PancakeMode::Sliding => 1,
+                PancakeMode::Off => 2,
+            };
+            log.pancake_mode.push(mode);
+            log.damped.push(out.damped);
+            log.det_j.push(out.det_j);
+            if out.damped {
+                summary.damped_ticks += 1;
+                summary.first_damped_time.get_or_insert(t);
+            }
+            if out.saturated {
+                summary.saturated_ticks += 1;
+            }
+            summary.min_abs_det_j = summary.min_abs_det_j.min(out.det_j.abs());
+            for i in 0..nv {
+                summary.max_abs_tau[i] = summary.max_abs_tau[i].max(out.tau[i].abs());
+            }
+            if mode != 0 {
+                summary.first_slip_time.get_or_insert(t);
+            }
+            if mode == 2 {
+                summary.left_time.get_or_insert(t);
+            }
+            if k >= motion_start {
+                summary.max_err_pos = summary.max_err_pos.max(out.err_pos);
+                summary.max_err_rot = summary.max_err_rot.max(out.err_rot);
+                se_p += out.err_pos * out.err_pos;
+                se_r += out.err_rot * out.err_rot;
+                cnt += 1;
+            }
+            if k >= motion_start && k < motion_end {
+                summary.max_abs_phi = summary.max_abs_phi.max(out.phi.abs());
+                if mode != 0 {
+                    summary.slipped = true;
+                }
+                if mode != 2 {
+                    summary.max_abs_slide = summary.max_abs_slide.max(out.pancake.s.abs());
+                }
+            }
+        }
+        if cnt > 0 {
+            summary.rms_err_pos = (se_p / cnt as f64).sqrt();
+            summary.rms_err_rot = (se_r / cnt as f64).sqrt();
+        }
+        Ok(Run { log, summary, motion_start, motion_end })
+    }
+}
+
+/// Wait for `deadline`: sleep while more than 2 ms are left, then spin. At 1 kHz this always
+/// spins: waking from a sleep costs 0.1 ms or more on a loaded machine.
+fn wait_until(deadline: Instant) {
+    const SPIN: Duration = Duration::from_millis(2);
+    loop {
+        let now = Instant::now();
+        if now >= deadline {
+            return;
+        }
+        let left = deadline - now;
+        if left > SPIN {
+            std::thread::sleep(left - SPIN);
+        } else {
+            std::hint::spin_loop();
+        }
+    }
+}
+
+/// Percentile (0..=100) of a sample by linear interpolation (NaN for an empty one).
+pub fn percentile(values: &[f64], pct: f64) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(|a, b| a.total_cmp(b));
+    let x = pct.clamp(0.0, 100.0) / 100.0 * (v.len() - 1) as f64;
+    let (i, f) = (x.floor() as usize, x - x.floor());
+    if i + 1 < v.len() {
+        v[i] * (1.0 - f) + v[i + 1] * f
+    } else {
+        v[i]
+    }
+}

@@ -1,1 +1,805 @@
-//! Rigid-body dynamics of a serial arm. Work in progress: see issue [controller].
+//! Rigid-body dynamics of a fixed-base arm (a kinematic tree) loaded from URDF.
+//!
+//! * [`Dynamics::mass_matrix`]: the joint-space inertia matrix M(q) (composite rigid body
+//!   algorithm, as Pinocchio's `crba`, both triangles filled);
+//! * [`Dynamics::rnea`] / [`Dynamics::nonlinear_effects`] / [`Dynamics::gravity_torque`]:
+//!   inverse dynamics `tau = M(q) a + C(q, v) v + g(q)` (recursive Newton-Euler, as `rnea`,
+//!   `nonLinearEffects`, `computeGeneralizedGravity`);
+//! * [`Dynamics::forward_dynamics`]: `qdd = M^-1 (tau - C v - g)` (CRBA + RNEA + Cholesky,
+//!   same result as Pinocchio's `aba`);
+//! * [`Dynamics::frame_jacobian`] / [`Dynamics::frame_jacobian_time_variation`]: Jacobian of a
+//!   frame and its time derivative, in Pinocchio's `LOCAL_WORLD_ALIGNED` convention: rows
+//!   `[v; w]` are the linear velocity of the frame origin and the angular velocity, both in world
+//!   axes, so that the classical acceleration of the frame is `J qdd + dJ/dt v`.
+//!
+//! q follows Pinocchio's convention (a continuous joint takes `[cos, sin]`); the order of the
+//! joints is the [`KinematicModel`]'s (Pinocchio's for the presets). Spatial vectors are
+//! `[linear; angular]` in body coordinates (Featherstone's algorithms, Pinocchio's layout).
+//! Links joined by fixed (or locked) joints are lumped into one rigid body, as Pinocchio does.
+//!
+//! Every public method checks its input and returns an error on bad shapes or non-finite
+//! values; the `*_unchecked` variants are for the 1 kHz loop, which checks once up front.
+
+use std::path::Path;
+
+use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
+
+use crate::error::{check_vector, unknown, Error, Result};
+use crate::kinematics::{KinematicModel, ModelOptions, Motion};
+use crate::lie::skew;
+use crate::robot::RobotSpec;
+use crate::srdf::Srdf;
+use crate::urdf::Urdf;
+
+/// Standard gravity used by Pinocchio's default model (m/s^2).
+pub const STANDARD_GRAVITY: f64 = 9.81;
+
+/// Inertia of a rigid body about a frame's origin, in that frame's axes: mass, first moment
+/// `h = m c` (c the centre of mass) and rotational inertia `i_o` about the origin.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpatialInertia {
+    pub mass: f64,
+    pub h: Vector3<f64>,
+    pub i_o: Matrix3<f64>,
+}
+
+impl SpatialInertia {
+    pub fn zero() -> Self {
+        SpatialInertia { mass: 0.0, h: Vector3::zeros(), i_o: Matrix3::zeros() }
+    }
+
+    /// From mass, centre of mass and rotational inertia about the centre of mass.
+    pub fn from_com(mass: f64, com: Vector3<f64>, i_com: Matrix3<f64>) -> Self {
+        let cx = skew(&com);
+        SpatialInertia { mass, h: com * mass, i_o: i_com - cx * cx * mass }
+    }
+
+    /// Centre of mass (the origin when the mass is zero).
+    pub fn com(&self) -> Vector3<f64> {
+        if self.mass > 0.0 {
+            self.h / self.mass
+        } else {
+            Vector3::zeros()
+        }
+    }
+
+    /// Rotational inertia about the centre of mass.
+    pub fn inertia_about_com(&self) -> Matrix3<f64> {
+        let cx = skew(&self.com());
+        self.i_o + cx * cx * self.mass
+    }
+
+    /// The same inertia seen from a parent frame in which this frame sits at (`r`, `p`)
+    /// (`x_parent = r x_this + p`).
+    #[inline]
+    pub fn transformed(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> Self {
+        // R I R^T - [h']x[p]x - [p]x[h']x - m [p]x[p]x with h' = R h, using
+        // [a]x[b]x = b a^T - (a . b) I
+        let hr = r * self.h;
+        let m = self.mass;
+        let diag = 2.0 * hr.dot(p) + m * p.norm_squared();
+        let mut i_o = r * self.i_o * r.transpose();
+        for a in 0..3 {
+            for b in 0..3 {
+                i_o[(a, b)] -= p[a] * hr[b] + hr[a] * p[b] + m * p[a] * p[b];
+            }
+            i_o[(a, a)] += diag;
+        }
+        SpatialInertia { mass: m, h: hr + p * m, i_o }
+    }
+
+    /// Spatial momentum `[f; n]` of the motion `[v; w]`.
+    #[inline]
+    pub fn apply(&self, v: &Vector3<f64>, w: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+        (v * self.mass - self.h.cross(w), self.i_o * w + self.h.cross(v))
+    }
+
+    fn add(&mut self, o: &SpatialInertia) {
+        self.mass += o.mass;
+        self.h += o.h;
+        self.i_o += o.i_o;
+    }
+}
+
+/// How a body moves relative to its parent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    Revolute,
+    /// Revolute without limits: two values `[cos, sin]` in q.
+    Continuous,
+    Prismatic,
+}
+
+/// One moving body: the child link of an active joint plus every link fixed to it.
+#[derive(Debug, Clone)]
+pub struct Body {
+    /// Name of the joint that moves it.
+    pub joint: String,
+    /// Name of the link that carries the body frame (the joint's child link).
+    pub link: String,
+    /// Parent body (None: the world).
+    pub parent: Option<usize>,
+    /// Placement of the joint frame in the parent body (or the world): rotation and origin.
+    pub r_parent: Matrix3<f64>,
+    pub p_parent: Vector3<f64>,
+    pub kind: JointKind,
+    /// Unit joint axis in the body frame.
+    pub axis: Vector3<f64>,
+    pub q_index: usize,
+    pub v_index: usize,
+    /// Inertia of the lumped links in the body frame.
+    pub inertia: SpatialInertia,
+}
+
+/// A frame rigidly attached to a body (or to the world): where Jacobians are taken.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    /// The body the frame moves with; None: fixed to the world.
+    pub body: Option<usize>,
+    pub r: Matrix3<f64>,
+    pub p: Vector3<f64>,
+}
+
+/// Rigid-body dynamics model of a fixed-base arm.
+#[derive(Debug, Clone)]
+pub struct Dynamics {
+    pub bodies: Vec<Body>,
+    pub nq: usize,
+    pub nv: usize,
+    /// Gravity in the world frame (default `[0, 0, -9.81]`, as Pinocchio).
+    pub gravity: Vector3<f64>,
+    /// Names of the active joints in v order.
+    pub joint_names: Vec<String>,
+    /// Position limits per q element.
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    /// For each body, the bodies from the root to it (inclusive), root first.
+    pub chains: Vec<Vec<usize>>,
+    /// Link names and, for each link, the body it belongs to and its placement in that body.
+    pub link_names: Vec<String>,
+    link_frames: Vec<Frame>,
+}
+
+/// Scratch space of one thread for [`Dynamics`]: preallocated, so the algorithms do not
+/// allocate.
+#[derive(Debug, Clone)]
+pub struct DynWorkspace {
+    /// Body placements relative to the parent body (rotation, origin).
+    pub r: Vec<Matrix3<f64>>,
+    pub p: Vec<Vector3<f64>>,
+    /// World placements of the bodies.
+    pub rw: Vec<Matrix3<f64>>,
+    pub pw: Vec<Vector3<f64>>,
+    /// Body spatial velocities in body coordinates.
+    pub v: Vec<Vector3<f64>>,
+    pub w: Vec<Vector3<f64>>,
+    /// World linear velocity of the body origins and world angular velocities.
+    pub vw: Vec<Vector3<f64>>,
+    pub ww: Vec<Vector3<f64>>,
+    acc_v: Vec<Vector3<f64>>,
+    acc_w: Vec<Vector3<f64>>,
+    f: Vec<Vector3<f64>>,
+    n: Vec<Vector3<f64>>,
+    ic: Vec<SpatialInertia>,
+    /// Joint velocities (nv) seen by the last kinematics update.
+    pub qd: Vec<f64>,
+    /// Mass matrix and its Cholesky factor (nv x nv).
+    pub mass: DMatrix<f64>,
+    chol: DMatrix<f64>,
+    tmp: Vec<f64>,
+}
+
+/// Rotation about the unit `axis` with cosine `c` and sine `s` (Rodrigues).
+#[inline]
+fn axis_rotation(a: &Vector3<f64>, c: f64, s: f64) -> Matrix3<f64> {
+    let t = 1.0 - c;
+    let (x, y, z) = (a.x, a.y, a.z);
+    Matrix3::new(
+        c + t * x * x,
+        t * x * y - s * z,
+        t * x * z + s * y,
+        t * x * y + s * z,
+        c + t * y * y,
+        t * y * z - s * x,
+        t * x * z - s * y,
+        t * y * z + s * x,
+        c + t * z * z,
+    )
+}
+
+impl Dynamics {
+    /// Build from a kinematic model and the URDF that holds the links' `<inertial>` elements.
+    /// Floating-base models are refused (this is a fixed-base arm model).
+    pub fn from_model(model: &KinematicModel, urdf: &Urdf) -> Result<Dynamics> {
+        if model.floating_base {
+            return Err(Error::Invalid(
+                "dynamics: floating-base models are not supported (fixed-base arms only)".into(),
+            ));
+        }
+        // poses at the neutral configuration give the constant placements between links of a body
+        let mut q0 = vec![0.0; model.nq];
+        for j in &model.joints {
+            if let Motion::Continuous { .. } = j.motion {
+                q0[j.q_index] = 1.0;
+            }
+        }
+        let mut poses = Vec::new();
+        model.forward_kinematics_unchecked(&q0, &mut poses);
+        let n_links = model.n_links();
+        // body index of each link that is the child of an active joint
+        let mut body_of_child: Vec<Option<usize>> = vec![None; n_links];
+        let mut bodies: Vec<Body> = Vec::new();
+        for j in &model.joints {
+            let (kind, axis) = match &j.motion {
+                Motion::Fixed => continue,
+                Motion::Revolute { axis } => (JointKind::Revolute, axis.into_inner()),
+                Motion::Continuous { axis } => (JointKind::Continuous, axis.into_inner()),
+                Motion::Prismatic { axis } => (JointKind::Prismatic, axis.into_inner()),
+            };
+            let parent_link_body = model.body_of_link[j.parent];
+            let parent = body_of_child[parent_link_body];
+            let parent_pose = if parent.is_some() { poses[parent_link_body] } else { Isometry3::identity() };
+            let placement = parent_pose.inverse() * poses[j.parent] * j.origin;
+            body_of_child[j.child] = Some(bodies.len());
+            bodies.push(Body {
+                joint: j.name.clone(),
+                link: model.link_names[j.child].clone(),
+                parent,
+                r_parent: placement.rotation.to_rotation_matrix().into_inner(),
+                p_parent: placement.translation.vector,
+                kind,
+                axis,
+                q_index: j.q_index,
+                v_index: j.v_index,
+                inertia: SpatialInertia::zero(),
+            });
+        }
+        let mut link_frames = Vec::with_capacity(n_links);
+        for l in 0..n_links {
+            let b = model.body_of_link[l];
+            let body = body_of_child[b];
+            let placement = match body {
+                Some(_) => poses[b].inverse() * poses[l],
+                None => poses[l],
+            };
+            link_frames.push(Frame {
+                body,
+                r: placement.rotation.to_rotation_matrix().into_inner(),
+                p: placement.translation.vector,
+            });
+        }
+        // lump the links' inertias into their bodies
+        for link in &urdf.links {
+            let Some(inertial) = link.inertial else { continue };
+            let l = model.link_index(&link.name)?;
+            let fr = link_frames[l];
+            if let Some(b) = fr.body {
+                let si = SpatialInertia::from_com(inertial.mass, inertial.com, inertial.inertia);
+                bodies[b].inertia.add(&si.transformed(&fr.r, &fr.p));
+            }
+        }
+        let chains = (0..bodies.len())
+            .map(|i| {
+                let mut c = vec![i];
+                let mut k = i;
+                while let Some(p) = bodies[k].parent {
+                    c.push(p);
+                    k = p;
+                }
+                c.reverse();
+                c
+            })
+            .collect();
+        let dynamics = Dynamics {
+            nq: model.nq,
+            nv: model.nv,
+            gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
+            joint_names: bodies.iter().map(|b| b.joint.clone()).collect(),
+            lower: model.lower.clone(),
+            upper: model.upper.clone(),
+            chains,
+            link_names: model.link_names.clone(),
+            link_frames,
+            bodies,
+        };
+        dynamics.check_bodies()?;
+        Ok(dynamics)
+    }
+
+    /// Parse a URDF and build its kinematic model and dynamics.
+    pub fn from_urdf(urdf: &Urdf, options: &ModelOptions) -> Result<Dynamics> {
+        let model = KinematicModel::from_urdf(urdf, options)?;
+        Dynamics::from_model(&model, urdf)
+    }
+
+    /// A fixed-base preset of [`RobotSpec`] (e.g. "ur5", "panda") from example-robot-data's
+    /// `robots/` folder, with its locked joints held at their reference values.
+    pub fn from_robot(name: &str, robots_dir: &Path) -> Result<Dynamics> {
+        let spec = RobotSpec::by_name(name)?;
+        if spec.floating_base {
+            return Err(Error::Invalid(format!(
+                "dynamics: robot '{name}' has a floating base; only fixed-base arms are supported"
+            )));
+        }
+        let urdf = Urdf::from_file(robots_dir.join(spec.urdf))?;
+        let locked = if spec.locked_joints.is_empty() {
+            Default::default()
+        } else {
+            spec.locked_values(&Srdf::from_file(robots_dir.join(spec.srdf))?)
+        };
+        let options = ModelOptions { floating_base: false, locked_joints: locked, joint_order: None };
+        Dynamics::from_urdf(&urdf, &options)
+    }
+
+    fn check_bodies(&self) -> Result<()> {
+        for b in &self.bodies {
+            let i = &b.inertia;
+            if !(i.mass.is_finite() && i.h.iter().all(|x| x.is_finite()) && i.i_o.iter().all(|x| x.is_finite())) {
+                return Err(Error::Invalid(format!("dynamics: body '{}' has a non-finite inertia", b.link)));
+            }
+        }
+        Ok(())
+    }
+
+    pub fn n_bodies(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// A workspace sized for this model.
+    pub fn workspace(&self) -> DynWorkspace {
+        let n = self.bodies.len();
+        let z = vec![Vector3::zeros(); n];
+        DynWorkspace {
+            r: vec![Matrix3::identity(); n],
+            p: z.clone(),
+            rw: vec![Matrix3::identity(); n],
+            pw: z.clone(),
+            v: z.clone(),
+            w: z.clone(),
+            vw: z.clone(),
+            ww: z.clone(),
+            acc_v: z.clone(),
+            acc_w: z.clone(),
+            f: z.clone(),
+            n: z,
+            ic: vec![SpatialInertia::zero(); n],
+            qd: vec![0.0; self.nv],
+            mass: DMatrix::zeros(self.nv, self.nv),
+            chol: DMatrix::zeros(self.nv, self.nv),
+            tmp: vec![0.0; self.nv],
+        }
+    }
+
+    /// The frame of a link, optionally offset by `placement` (in the link frame).
+    pub fn frame(&self, link: &str, placement: &Isometry3<f64>) -> Result<Frame> {
+        let l = self.link_names.iter().position(|n| n == link).ok_or_else(|| {
+            let known: Vec<&str> = self.link_names.iter().map(String::as_str).collect();
+            unknown("link", link, &known)
+        })?;
+        let lf = self.link_frames[l];
+        let r = placement.rotation.to_rotation_matrix().into_inner();
+        Ok(Frame { body: lf.body, r: lf.r * r, p: lf.p + lf.r * placement.translation.vector })
+    }
+
+    /// Add a rigid body (mass, centre of mass and inertia about it, both in the frame's axes)
+    /// to the body that carries `frame`, e.g. a tool or a payload.
+    pub fn add_inertia(&mut self, frame: &Frame, mass: f64, com: Vector3<f64>, inertia_com: Matrix3<f64>) -> Result<()> {
+        if !(mass.is_finite() && mass >= 0.0) {
+            return Err(Error::Invalid(format!("added mass must be finite and >= 0, got {mass}")));
+        }
+        crate::error::check_finite("added centre of mass", com.as_slice())?;
+        crate::error::check_finite("added inertia", inertia_com.as_slice())?;
+        if (inertia_com - inertia_com.transpose()).amax() > 1e-12 * (1.0 + inertia_com.amax()) {
+            return Err(Error::Invalid("added inertia must be symmetric".into()));
+        }
+        let Some(b) = frame.body else {
+            return Err(Error::Invalid("cannot add inertia to a frame fixed to the world".into()));
+        };
+        let si = SpatialInertia::from_com(mass, com, inertia_com).transformed(&frame.r, &frame.p);
+        self.bodies[b].inertia.add(&si);
+        Ok(())
+    }
+
+    /// Check a state: q of length nq and v of length nv, finite.
+    pub fn check_state(&self, q: &[f64], v: Option<&[f64]>) -> Result<()> {
+        check_vector("configuration q", q, self.nq)?;
+        if let Some(v) = v {
+            check_vector("velocity v", v, self.nv)?;
+        }
+        Ok(())
+    }
+
+    /// Placements and velocities of every body for (q, v) (v = None: at rest).
+    pub fn update_kinematics_unchecked(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace) {
+        self.kinematics_pass(q, v, ws, true);
+    }
+
+    /// As [`update_kinematics_unchecked`](Self::update_kinematics_unchecked) but without the
+    /// world placements and velocities (`rw`, `pw`, `vw`, `ww` are left stale): enough for
+    /// [`rnea_from_kinematics`](Self::rnea_from_kinematics),
+    /// [`mass_matrix_from_kinematics`](Self::mass_matrix_from_kinematics) and
+    /// [`forward_dynamics_from_kinematics`](Self::forward_dynamics_from_kinematics), not for
+    /// frames and Jacobians.
+    pub fn update_local_kinematics_unchecked(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace) {
+        self.kinematics_pass(q, v, ws, false);
+    }
+
+    #[inline]
+    fn kinematics_pass(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace, world: bool) {
+        for (i, b) in self.bodies.iter().enumerate() {
+            let qd = v.map_or(0.0, |v| v[b.v_index]);
+            ws.qd[b.v_index] = qd;
+            let (r, p) = match b.kind {
+                JointKind::Revolute => {
+                    let (s, c) = q[b.q_index].sin_cos();
+                    (b.r_parent * axis_rotation(&b.axis, c, s), b.p_parent)
+                }
+                JointKind::Continuous => {
+                    let (c, s) = (q[b.q_index], q[b.q_index + 1]);
+                    let n = c.hypot(s);
+                    let (c, s) = if n > 0.0 { (c / n, s / n) } else { (1.0, 0.0) };
+                    (b.r_parent * axis_rotation(&b.axis, c, s), b.p_parent)
+                }
+                JointKind::Prismatic => (b.r_parent, b.p_parent + b.r_parent * b.axis * q[b.q_index]),
+            };
+            let rt = r.transpose();
+            let (mut vi, mut wi) = match b.parent {
+                Some(pi) => (rt * (ws.v[pi] + ws.w[pi].cross(&p)), rt * ws.w[pi]),
+                None => (Vector3::zeros(), Vector3::zeros()),
+            };
+            match b.kind {
+                JointKind::Revolute | JointKind::Continuous => wi += b.axis * qd,
+                JointKind::Prismatic => vi += b.axis * qd,
+            }
+            ws.r[i] = r;
+            ws.p[i] = p;
+            ws.v[i] = vi;
+            ws.w[i] = wi;
+            if world {
+                let (rw, pw) = match b.parent {
+                    Some(pi) => (ws.rw[pi] * r, ws.pw[pi] + ws.rw[pi] * p),
+                    None => (r, p),
+                };
+                ws.rw[i] = rw;
+                ws.pw[i] = pw;
+                ws.vw[i] = rw * vi;
+                ws.ww[i] = rw * wi;
+            }
+        }
+    }
+
+    /// RNEA on the kinematics in `ws`: `tau = M qdd + C v + g` (qdd None: zero; with
+    /// `gravity` false the gravity term is left out). Writes `tau` (nv).
+    pub fn rnea_from_kinematics(&self, qdd: Option<&[f64]>, gravity: bool, ws: &mut DynWorkspace, tau: &mut [f64]) {
+        let g0 = if gravity { -self.gravity } else { Vector3::zeros() };
+        for (i, b) in self.bodies.iter().enumerate() {
+            let qd = ws.qd[b.v_index];
+            let qdd_i = qdd.map_or(0.0, |a| a[b.v_index]);
+            let rt = ws.r[i].transpose();
+            let (mut av, mut aw) = match b.parent {
+                Some(pi) => (rt * (ws.acc_v[pi] + ws.acc_w[pi].cross(&ws.p[i])), rt * ws.acc_w[pi]),
+                None => (rt * g0, Vector3::zeros()),
+            };
+            let (vi, wi) = (ws.v[i], ws.w[i]);
+            match b.kind {
+                JointKind::Revolute | JointKind::Continuous => {
+                    let s = b.axis * qd;
+                    av += vi.cross(&s);
+                    aw += b.axis * qdd_i + wi.cross(&s);
+                }
+                JointKind::Prismatic => {
+                    let s = b.axis * qd;
+                    av += b.axis * qdd_i + wi.cross(&s);
+                }
+            }
+            ws.acc_v[i] = av;
+            ws.acc_w[i] = aw;
+            let (f_a, n_a) = b.inertia.apply(&av, &aw);
+            let (f_v, n_v) = b.inertia.apply(&vi, &wi);
+            ws.f[i] = f_a + wi.cross(&f_v);
+            ws.n[i] = n_a + wi.cross(&n_v) + vi.cross(&f_v);
+        }
+        for i in (0..self.bodies.len()).rev() {
+            let b = &self.bodies[i];
+            tau[b.v_index] = match b.kind {
+                JointKind::Revolute | JointKind::Continuous => b.axis.dot(&ws.n[i]),
+                JointKind::Prismatic => b.axis.dot(&ws.f[i]),
+            };
+            if let Some(pi) = b.parent {
+                let fp = ws.r[i] * ws.f[i];
+                let np = ws.r[i] * ws.n[i] + ws.p[i].cross(&fp);
+                ws.f[pi] += fp;
+                ws.n[pi] += np;
+            }
+        }
+    }
+
+    /// CRBA on the placements in `ws`: fills `ws.mass` (both triangles).
+    pub fn mass_matrix_from_kinematics(&self, ws: &mut DynWorkspace) {
+        let nb = self.bodies.len();
+        // entries between bodies on different branches of a tree stay zero
+        ws.mass.fill(0.0);
+        for i in 0..nb {
+            ws.ic[i] = self.bodies[i].inertia;
+        }
+        for i in (0..nb).rev() {
+            if let Some(pi) = self.bodies[i].parent {
+                let t = ws.ic[i].transformed(&ws.r[i], &ws.p[i]);
+                ws.ic[pi].add(&t);
+            }
+        }
+        for i in 0..nb {
+            let b = &self.bodies[i];
+            let (mut f, mut n) = match b.kind {
+                JointKind::Revolute | JointKind::Continuous => ws.ic[i].apply(&Vector3::zeros(), &b.axis),
+                JointKind::Prismatic => ws.ic[i].apply(&b.axis, &Vector3::zeros()),
+            };
+            let s_dot = |bj: &Body, f: &Vector3<f64>, n: &Vector3<f64>| match bj.kind {
+                JointKind::Revolute | JointKind::Continuous => bj.axis.dot(n),
+                JointKind::Prismatic => bj.axis.dot(f),
+            };
+            ws.mass[(b.v_index, b.v_index)] = s_dot(b, &f, &n);
+            let mut j = i;
+            while let Some(pj) = self.bodies[j].parent {
+                let fp = ws.r[j] * f;
+                n = ws.r[j] * n + ws.p[j].cross(&fp);
+                f = fp;
+                j = pj;
+                let bj = &self.bodies[j];
+                let m = s_dot(bj, &f, &n);
+                ws.mass[(b.v_index, bj.v_index)] = m;
+                ws.mass[(bj.v_index, b.v_index)] = m;
+            }
+        }
+    }
+
+    /// Mass matrix M(q) (nv x nv) into `out`.
+    pub fn mass_matrix(&self, q: &[f64], ws: &mut DynWorkspace, out: &mut DMatrix<f64>) -> Result<()> {
+        self.check_state(q, None)?;
+        self.update_kinematics_unchecked(q, None, ws);
+        self.mass_matrix_from_kinematics(ws);
+        out.clone_from(&ws.mass);
+        Ok(())
+    }
+
+    /// Inverse dynamics `tau = M(q) a + C(q, v) v + g(q)`.
+    pub fn rnea(&self, q: &[f64], v: &[f64], a: &[f64], ws: &mut DynWorkspace, tau: &mut [f64]) -> Result<()> {
+        self.check_state(q, Some(v))?;
+        check_vector("acceleration a", a, self.nv)?;
+        check_len("tau (output)", tau, self.nv)?;
+        self.update_kinematics_unchecked(q, Some(v), ws);
+        self.rnea_from_kinematics(Some(a), true, ws, tau);
+        Ok(())
+    }
+
+    /// Bias forces `C(q, v) v + g(q)` (Pinocchio's `nonLinearEffects`).
+    pub fn nonlinear_effects(&self, q: &[f64], v: &[f64], ws: &mut DynWorkspace, out: &mut [f64]) -> Result<()> {
+        self.check_state(q, Some(v))?;
+        check_len("bias (output)", out, self.nv)?;
+        self.update_kinematics_unchecked(q, Some(v), ws);
+        self.rnea_from_kinematics(None, true, ws, out);
+        Ok(())
+    }
+
+    /// Generalised gravity `g(q)`.
+    pub fn gravity_torque(&self, q: &[f64], ws: &mut DynWorkspace, out: &mut [f64]) -> Result<()> {
+        self.check_state(q, None)?;
+        check_len("gravity (output)", out, self.nv)?;
+        self.update_kinematics_unchecked(q, None, ws);
+        self.rnea_from_kinematics(None, true, ws, out);
+        Ok(())
+    }
+
+    /// Forward dynamics `qdd = M(q)^-1 (tau - C(q, v) v - g(q))`.
+    pub fn forward_dynamics(&self, q: &[f64], v: &[f64], tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
+        self.check_state(q, Some(v))?;
+        check_vector("torque tau", tau, self.nv)?;
+        check_len("qdd (output)", qdd, self.nv)?;
+        self.update_kinematics_unchecked(q, Some(v), ws);
+        self.forward_dynamics_from_kinematics(tau, ws, qdd)
+    }
+
+    /// Forward dynamics on the kinematics in `ws` (set by
+    /// [`update_kinematics_unchecked`](Self::update_kinematics_unchecked) with the velocity).
+    /// Fails only if the mass matrix is not positive definite (a body without inertia).
+    pub fn forward_dynamics_from_kinematics(&self, tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
+        let mut bias = std::mem::take(&mut ws.tmp);
+        self.rnea_from_kinematics(None, true, ws, &mut bias);
+        for i in 0..self.nv {
+            qdd[i] = tau[i] - bias[i];
+        }
+        ws.tmp = bias;
+        self.mass_matrix_from_kinematics(ws);
+        cholesky_in_place(&ws.mass, &mut ws.chol).map_err(|k| {
+            Error::Invalid(format!(
+                "dynamics: the mass matrix is not positive definite (pivot {k}, joint '{}'): a moving body without inertia?",
+                self.joint_names.get(k).map_or("?", String::as_str)
+            ))
+        })?;
+        cholesky_solve(&ws.chol, qdd);
+        Ok(())
+    }
+
+    /// World placement of `frame` on the kinematics in `ws`.
+    pub fn frame_placement(&self, frame: &Frame, ws: &DynWorkspace) -> (Matrix3<f64>, Vector3<f64>) {
+        match frame.body {
+            Some(b) => (ws.rw[b] * frame.r, ws.pw[b] + ws.rw[b] * frame.p),
+            None => (frame.r, frame.p),
+        }
+    }
+
+    /// World placement of `frame` as an isometry.
+    pub fn frame_isometry(&self, frame: &Frame, ws: &DynWorkspace) -> Isometry3<f64> {
+        let (r, p) = self.frame_placement(frame, ws);
+        Isometry3::from_parts(
+            Translation3::from(p),
+            UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r)),
+        )
+    }
+
+    /// Linear velocity of the frame origin and angular velocity, world axes.
+    pub fn frame_velocity(&self, frame: &Frame, ws: &DynWorkspace) -> (Vector3<f64>, Vector3<f64>) {
+        match frame.body {
+            Some(b) => {
+                let (_, p) = self.frame_placement(frame, ws);
+                (ws.vw[b] + ws.ww[b].cross(&(p - ws.pw[b])), ws.ww[b])
+            }
+            None => (Vector3::zeros(), Vector3::zeros()),
+        }
+    }
+
+    /// Jacobian (6 x nv, `LOCAL_WORLD_ALIGNED`) of `frame` and, if `djac` is given, its time
+    /// derivative, from the kinematics (with velocity) in `ws`. Both outputs must be 6 x nv.
+    pub fn frame_jacobians_from_kinematics(&self, frame: &Frame, ws: &DynWorkspace, jac: &mut DMatrix<f64>, mut djac: Option<&mut DMatrix<f64>>) {
+        jac.fill(0.0);
+        if let Some(d) = djac.as_deref_mut() {
+            d.fill(0.0);
+        }
+        let Some(fb) = frame.body else { return };
+        let (_, pf) = self.frame_placement(frame, ws);
+        let (vf, _) = self.frame_velocity(frame, ws);
+        for &j in &self.chains[fb] {
+            let b = &self.bodies[j];
+            let a = ws.rw[j] * b.axis;
+            let c = b.v_index;
+            match b.kind {
+                JointKind::Revolute | JointKind::Continuous => {
+                    let r = pf - ws.pw[j];
+                    let lin = a.cross(&r);
+                    for k in 0..3 {
+                        jac[(k, c)] = lin[k];
+                        jac[(k + 3, c)] = a[k];
+                    }
+                    if let Some(d) = djac.as_deref_mut() {
+                        let ad = ws.ww[j].cross(&a);
+                        let lind = ad.cross(&r) + a.cross(&(vf - ws.vw[j]));
+                        for k in 0..3 {
+                            d[(k, c)] = lind[k];
+                            d[(k + 3, c)] = ad[k];
+                        }
+                    }
+                }
+                JointKind::Prismatic => {
+                    for k in 0..3 {
+                        jac[(k, c)] = a[k];
+                    }
+                    if let Some(d) = djac.as_deref_mut() {
+                        let ad = ws.ww[j].cross(&a);
+                        for k in 0..3 {
+                            d[(k, c)] = ad[k];
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Jacobian of `frame` at q (`LOCAL_WORLD_ALIGNED`, 6 x nv).
+    pub fn frame_jacobian(&self, q: &[f64], frame: &Frame, ws: &mut DynWorkspace, out: &mut DMatrix<f64>) -> Result<()> {
+        self.check_state(q, None)?;
+        self.update_kinematics_unchecked(q, None, ws);
+        out.resize_mut(6, self.nv, 0.0);
+        self.frame_jacobians_from_kinematics(frame, ws, out, None);
+        Ok(())
+    }
+
+    /// Time derivative of the `LOCAL_WORLD_ALIGNED` Jacobian of `frame` at (q, v).
+    pub fn frame_jacobian_time_variation(&self, q: &[f64], v: &[f64], frame: &Frame, ws: &mut DynWorkspace, out: &mut DMatrix<f64>) -> Result<()> {
+        self.check_state(q, Some(v))?;
+        self.update_kinematics_unchecked(q, Some(v), ws);
+        let mut jac = DMatrix::zeros(6, self.nv);
+        out.resize_mut(6, self.nv, 0.0);
+        self.frame_jacobians_from_kinematics(frame, ws, &mut jac, Some(out));
+        Ok(())
+    }
+
+    /// Kinetic energy `v^T M v / 2` from the kinematics in `ws`.
+    pub fn kinetic_energy_from_kinematics(&self, ws: &DynWorkspace) -> f64 {
+        self.bodies
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let (f, n) = b.inertia.apply(&ws.v[i], &ws.w[i]);
+                0.5 * (ws.v[i].dot(&f) + ws.w[i].dot(&n))
+            })
+            .sum()
+    }
+
+    /// Potential energy `-m g . c` (zero at the world origin) from the placements in `ws`.
+    pub fn potential_energy_from_kinematics(&self, ws: &DynWorkspace) -> f64 {
+        self.bodies
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let c = ws.pw[i] * b.inertia.mass + ws.rw[i] * b.inertia.h;
+                -self.gravity.dot(&c)
+            })
+            .sum()
+    }
+
+    /// Total mass of the moving bodies.
+    pub fn moving_mass(&self) -> f64 {
+        self.bodies.iter().map(|b| b.inertia.mass).sum()
+    }
+}
+
+fn check_len(what: &str, out: &[f64], n: usize) -> Result<()> {
+    if out.len() != n {
+        return Err(Error::Shape { what: what.to_string(), expected: n, got: out.len() });
+    }
+    Ok(())
+}
+
+/// Cholesky factor L (lower triangle of `l`) of the symmetric `a`; Err(k) when pivot k is not
+/// positive. `l` must have the shape of `a` (square).
+pub fn cholesky_in_place(a: &DMatrix<f64>, l: &mut DMatrix<f64>) -> std::result::Result<(), usize> {
+    let n = a.nrows();
+    if a.ncols() != n || l.shape() != (n, n) {
+        return Err(0);
+    }
+    // column-major flat storage: element (i, j) at i + j n
+    let a = a.as_slice();
+    let l = l.as_mut_slice();
+    for j in 0..n {
+        let mut d = a[j + j * n];
+        for k in 0..j {
+            let x = l[j + k * n];
+            d -= x * x;
+        }
+        if !(d > 0.0 && d.is_finite()) {
+            return Err(j);
+        }
+        let d = d.sqrt();
+        l[j + j * n] = d;
+        let inv = 1.0 / d;
+        for i in (j + 1)..n {
+            let mut s = a[i + j * n];
+            for k in 0..j {
+                s -= l[i + k * n] * l[j + k * n];
+            }
+            l[i + j * n] = s * inv;
+        }
+    }
+    Ok(())
+}
+
+/// Solve `L L^T x = b` in place (`l` from [`cholesky_in_place`], `b` of length n).
+pub fn cholesky_solve(l: &DMatrix<f64>, b: &mut [f64]) {
+    let n = l.nrows().min(b.len());
+    let l = l.as_slice();
+    let stride = n.max(1);
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= l[i + k * stride] * b[k];
+        }
+        b[i] = s / l[i + i * stride];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in (i + 1)..n {
+            s -= l[k + i * stride] * b[k];
+        }
+        b[i] = s / l[i + i * stride];
+    }
+}

@@ -1,12 +1,12 @@
 //! A small, strict URDF reader: links with their collision geometry, and joints.
 //!
-//! Only what kinematics and collision need is read (no inertials, no visuals).
+//! Only what kinematics, collision and dynamics need is read (no visuals).
 //! Only `<link>` and `<joint>` elements that are direct children of `<robot>` count
 //! (Talos' `<transmission>` blocks also contain `<joint>` tags).
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
 
@@ -27,12 +27,16 @@ pub struct Collision {
     pub geometry: Geometry,
 }
 
-/// Mass properties of a link (only what the centre of mass needs).
+/// Mass properties of a link.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Inertial {
     pub mass: f64,
     /// Centre of mass in the link frame.
     pub com: Vector3<f64>,
+    /// Rotational inertia about the centre of mass, in the link frame's axes (the URDF's
+    /// `<inertia>`, given in the `<inertial><origin rpy>` axes, rotated into the link's:
+    /// `R I R^T`). Zero when the URDF gives no `<inertia>`.
+    pub inertia: Matrix3<f64>,
 }
 
 #[derive(Debug, Clone)]
@@ -233,11 +237,29 @@ impl Urdf {
                                     msg: format!("link '{name}' has negative mass {mass}"),
                                 });
                             }
-                            let com = match child(i, "origin") {
-                                Some(o) => vec3_attr(o, "xyz", Vector3::zeros())?,
-                                None => Vector3::zeros(),
+                            let (com, rpy) = match child(i, "origin") {
+                                Some(o) => (
+                                    vec3_attr(o, "xyz", Vector3::zeros())?,
+                                    vec3_attr(o, "rpy", Vector3::zeros())?,
+                                ),
+                                None => (Vector3::zeros(), Vector3::zeros()),
                             };
-                            Some(Inertial { mass, com })
+                            let inertia = match child(i, "inertia") {
+                                None => Matrix3::zeros(),
+                                Some(t) => {
+                                    let get = |a: &str| -> Result<f64> {
+                                        Ok(f64_attr(t, a)?.unwrap_or(0.0))
+                                    };
+                                    let (xx, xy, xz) = (get("ixx")?, get("ixy")?, get("ixz")?);
+                                    let (yy, yz, zz) = (get("iyy")?, get("iyz")?, get("izz")?);
+                                    let local = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+                                    let r = rpy_to_rotation(rpy.x, rpy.y, rpy.z)
+                                        .to_rotation_matrix()
+                                        .into_inner();
+                                    r * local * r.transpose()
+                                }
+                            };
+                            Some(Inertial { mass, com, inertia })
                         }
                     };
                     links.push(Link {

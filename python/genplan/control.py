@@ -1,0 +1,338 @@
+"""Execute spatula trajectories with the seq2seq paper's 1 kHz controller on a simulated arm.
+
+The paper (Kutsuzawa et al. 2019, Section 5, Fig. 10) drives the spatula of a 6-joint arm with a
+task-space P-D controller and a disturbance observer (DOB) at 1 kHz. genplan runs that loop in
+Rust (:class:`genplan._core.SpatulaSimulation`): controller, true plant (RK4 on the arm's rigid-body
+dynamics with friction, an unknown payload and a torque offset) and the pancake's Coulomb
+stick/slip, with no Python call per tick.
+
+>>> import numpy as np
+>>> from genplan import control
+>>> from genplan.pancake import s_curve
+>>> log = control.execute(s_curve([0, 0, 0], [0.05, 0.02, -0.4]), settle=0.2)
+>>> log.slipped, round(log.max_tracking_error_mm, 1) < 10
+(False, True)
+
+Conventions (see ``rust/core/src/control.rs`` for the full statement):
+
+* a trajectory is ``(K, 3)`` poses ``[y, z, theta]`` every ``dt`` (1 ms): the paper's spatula
+  pose in the vertical y-z plane, ``theta`` counter-clockwise from +y (as
+  :mod:`genplan.pancake.trajectories`);
+* the command is eq. 23, ``q_cmd = [0.5, y, z + 0.35, theta, pi/2, 0]``; the attitude ``[a, b, c]``
+  is intrinsic X-Y'-Z'', ``R = Rx(a) Ry(b) Rz(c)``, so ``R_cmd = Rx(theta) Ry(pi/2)``: the spatula
+  frame's z axis (the handle, along the UR5 flange axis) points along world +x, the blade normal
+  is ``[0, -sin theta, cos theta]`` and ``theta`` tilts the blade about world x;
+* the spatula point is the UR5's ``tool0`` frame moved 0.1 m along its z axis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from genplan import _core
+
+__all__ = [
+    "Gains", "ControllerConfig", "Disturbances", "SpatulaSetup", "PancakeConfig", "ExecutionLog",
+    "SpatulaArm", "execute", "deceleration_tail", "as_trajectory", "DT",
+]
+
+#: the paper's control period (s)
+DT = 1e-3
+
+
+@dataclass
+class Gains:
+    """Task-space P-D gains (the paper's Section 5.1)."""
+
+    kpp: float = 450.0
+    kpr: float = 700.0
+    kvp: float = 60.0
+    kvr: float = 90.0
+
+
+@dataclass
+class ControllerConfig:
+    """The controller of Fig. 10. ``model_compensation`` adds the nominal Coriolis and gravity
+    torque ``h_n(q, v)``; ``velocity_feedforward`` puts the D term on ``v_cmd - v`` (else
+    ``-v``); ``acceleration_feedforward`` adds the command's acceleration (the paper does not);
+    ``singular_det``: ``|det J|`` (m^3) below which the Jacobian inverse is damped (damping up to
+    ``max_damping``); ``torque_limit``: symmetric limits per joint (N m) or None."""
+
+    gains: Gains = field(default_factory=Gains)
+    dt: float = DT
+    dob: bool = True
+    dob_cutoff_hz: float = 2.0
+    model_compensation: bool = True
+    velocity_feedforward: bool = True
+    acceleration_feedforward: bool = False
+    singular_det: float = 1e-3
+    max_damping: float = 0.05
+    torque_limit: list[float] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "gains"}
+        d.update(asdict(self.gains))
+        if d["torque_limit"] is not None:
+            d["torque_limit"] = [float(x) for x in d["torque_limit"]]
+        return d
+
+
+@dataclass
+class Disturbances:
+    """What the true plant has and the controller's model lacks (per joint, N m; zero by
+    default): Coulomb friction ``coulomb * tanh(v / friction_velocity)``, viscous friction, a
+    constant torque offset, and a payload (kg) at the spatula point (+ ``payload_com`` in the
+    spatula frame)."""
+
+    coulomb: list[float] = field(default_factory=lambda: [0.0] * 6)
+    viscous: list[float] = field(default_factory=lambda: [0.0] * 6)
+    friction_velocity: float = 0.05
+    offset: list[float] = field(default_factory=lambda: [0.0] * 6)
+    payload_mass: float = 0.0
+    payload_com: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+    @classmethod
+    def reference(cls) -> Disturbances:
+        """The deviations of ``genplan bench control`` (defined once, in the Rust core)."""
+        _, ref = _core.spatula_defaults()
+        return cls(**ref)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: (list(map(float, v)) if isinstance(v, (list, tuple, np.ndarray)) else float(v))
+                for k, v in asdict(self).items()}
+
+
+@dataclass
+class SpatulaSetup:
+    """Where the task sits on the arm: eq. 23's ``origin`` ([0.5, 0, 0.35]) and attitude
+    (``q_cmd[4:6]`` = [pi/2, 0]); the spatula point ``spatula_length`` along the flange's z axis;
+    the nominal spatula (mass, centre of mass along the handle), known to the controller."""
+
+    tool_link: str = "tool0"
+    spatula_length: float = 0.1
+    spatula_mass: float = 0.2
+    spatula_com: float = 0.05
+    origin: list[float] = field(default_factory=lambda: [0.5, 0.0, 0.35])
+    attitude: list[float] = field(default_factory=lambda: [math.pi / 2, 0.0])
+    q_seed: list[float] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["origin"] = [float(x) for x in self.origin]
+        d["attitude"] = [float(x) for x in self.attitude]
+        d["q_seed"] = None if self.q_seed is None else [float(x) for x in self.q_seed]
+        return d
+
+
+@dataclass
+class PancakeConfig:
+    """Coulomb friction of the pancake on the blade (the paper: mu = 1) and the blade's half
+    length (m) past which it falls off."""
+
+    mu_static: float = 1.0
+    mu_kinetic: float = 1.0
+    blade_half_length: float = 0.06
+
+
+@dataclass
+class ExecutionLog:
+    """One run, one row per 1 ms tick (the state at the tick's start, the torque it applied).
+
+    Poses: ``p_cmd`` / ``p`` (N, 3) commanded / achieved ``[y, z, theta]`` (achieved ``theta`` is
+    the blade's in-plane tilt, unwrapped); ``position_cmd`` / ``position`` (N, 3) world (m),
+    ``rotation`` (N, 3, 3); tracking errors ``error_position`` (m, norm) and ``error_rotation``
+    (rad, angle of ``R_cmd R^T``). Arm: ``q``, ``v``, ``tau`` (N, 6); ``tau_dis_hat`` the DOB's
+    estimate and ``tau_dis`` the torque the nominal model does not explain (what the DOB
+    estimates, unfiltered). Spatula: ``acceleration`` (N, 6) achieved [linear; angular], world.
+    Pancake: ``phi`` (rad, eq. 16 on the achieved motion), ``slide`` (m along the blade),
+    ``normal`` (normal force per unit mass), ``pancake_mode`` (0 stuck, 1 sliding, 2 left the
+    spatula), ``slip`` (mode != 0). ``damped``: ticks where the Jacobian was near-singular.
+    Ticks ``[motion_start, motion_end)`` are the motion proper (before: settle, after: tail).
+    ``summary``: the Rust summary (errors, slip, timing); ``jitter``: paced runs only (us).
+    """
+
+    t: NDArray[np.float64]
+    p_cmd: NDArray[np.float64]
+    p: NDArray[np.float64]
+    position_cmd: NDArray[np.float64]
+    position: NDArray[np.float64]
+    rotation: NDArray[np.float64]
+    error_position: NDArray[np.float64]
+    error_rotation: NDArray[np.float64]
+    q: NDArray[np.float64]
+    v: NDArray[np.float64]
+    tau: NDArray[np.float64]
+    tau_dis_hat: NDArray[np.float64]
+    tau_dis: NDArray[np.float64]
+    acceleration: NDArray[np.float64]
+    phi: NDArray[np.float64]
+    slide: NDArray[np.float64]
+    normal: NDArray[np.float64]
+    pancake_mode: NDArray[np.uint8]
+    damped: NDArray[np.bool_]
+    det_j: NDArray[np.float64]
+    motion_start: int
+    motion_end: int
+    summary: dict[str, Any]
+    jitter: dict[str, float] | None = None
+    lateness: NDArray[np.float64] | None = None
+    compute: NDArray[np.float64] | None = None
+
+    @property
+    def slip(self) -> NDArray[np.bool_]:
+        return self.pancake_mode != 0
+
+    @property
+    def slipped(self) -> bool:
+        """Did the pancake slide or leave the spatula during the motion (not the tail)?"""
+        return bool(self.summary["slipped"])
+
+    @property
+    def max_tracking_error_mm(self) -> float:
+        """Largest position error after the settle phase (mm)."""
+        return 1e3 * float(self.summary["max_error_position"])
+
+    @property
+    def max_tracking_error_deg(self) -> float:
+        """Largest attitude error after the settle phase (degrees)."""
+        return math.degrees(float(self.summary["max_error_rotation"]))
+
+    @property
+    def max_abs_phi_deg(self) -> float:
+        """Largest |phi| of the achieved motion during the motion window (degrees)."""
+        return math.degrees(float(self.summary["max_abs_phi"]))
+
+    @property
+    def us_per_tick(self) -> float:
+        """Wall time of the loop per tick (us); for a paced run, the period."""
+        return float(self.summary["us_per_tick"])
+
+
+def as_trajectory(trajectory: ArrayLike, what: str = "trajectory") -> NDArray[np.float64]:
+    """``trajectory`` as a C-contiguous float64 (K, 3) array, K >= 2, finite (else ValueError)."""
+    try:
+        arr = np.ascontiguousarray(trajectory, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what}: cannot be read as an array of floats ({exc})") from None
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 2:
+        raise ValueError(f"{what}: expected shape (K, 3) with K >= 2 rows [y, z, theta], got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        row, col = (int(i) for i in np.argwhere(~np.isfinite(arr))[0])
+        raise ValueError(f"{what}: row {row} ({['y', 'z', 'theta'][col]}) is not finite ({arr[row, col]})")
+    return arr
+
+
+def deceleration_tail(trajectory: ArrayLike, duration: float = 0.1, dt: float = DT) -> NDArray[np.float64]:
+    """``trajectory`` followed by the paper's constant-deceleration tail: from the last sample's
+    velocity (backward difference) down to rest in ``duration`` seconds (Section 5.3: 0.1 s).
+
+    Returns (K + n, 3) with ``n = round(duration / dt)``; the tail travels ``v duration / 2``.
+    """
+    x = as_trajectory(trajectory)
+    if not (math.isfinite(duration) and duration >= 0):
+        raise ValueError(f"duration must be >= 0, got {duration}")
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be > 0, got {dt}")
+    n = int(round(duration / dt))
+    if n == 0:
+        return x.copy()
+    v = (x[-1] - x[-2]) / dt
+    t = dt * np.arange(1, n + 1)
+    tail_t = np.minimum(t, duration)
+    tail = x[-1] + v[None, :] * (tail_t - tail_t ** 2 / (2.0 * duration))[:, None]
+    return np.vstack([x, tail])
+
+
+def _config(controller: ControllerConfig | None, disturbances: Disturbances | None, setup: SpatulaSetup | None,
+            pancake: PancakeConfig | None, substeps: int, settle_ticks: int) -> dict[str, Any]:
+    return {
+        "controller": (controller or ControllerConfig()).to_dict(),
+        "disturbances": (disturbances or Disturbances()).to_dict(),
+        "setup": (setup or SpatulaSetup()).to_dict(),
+        "pancake": asdict(pancake or PancakeConfig()),
+        "substeps": int(substeps),
+        "settle_ticks": int(settle_ticks),
+    }
+
+
+class SpatulaArm:
+    """A simulated arm with the spatula, its controller and the pancake (reusable for many
+    runs). ``robot``: a fixed-base 6-joint preset of :mod:`genplan.robots` ("ur5")."""
+
+    def __init__(self, *, robot: str = "ur5", controller: ControllerConfig | None = None,
+                 disturbances: Disturbances | None = None, setup: SpatulaSetup | None = None,
+                 pancake: PancakeConfig | None = None, substeps: int = 1, settle: float = 1.0) -> None:
+        from genplan.robots import robots_dir
+
+        controller = controller or ControllerConfig()
+        if not (math.isfinite(settle) and settle >= 0):
+            raise ValueError(f"settle must be >= 0 seconds, got {settle}")
+        if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)):
+            raise ValueError(f"substeps must be an integer, got {substeps!r}")
+        settle_ticks = int(round(settle / controller.dt))
+        self.config: dict[str, Any] = _config(controller, disturbances, setup, pancake, substeps, settle_ticks)
+        self._sim = _core.SpatulaSimulation(str(robots_dir()), robot, self.config)
+        self.robot = robot
+        self.dt = float(controller.dt)
+
+    @property
+    def joint_names(self) -> list[str]:
+        return self._sim.joint_names
+
+    def command_pose(self, p: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """eq. 23: world position (3,) and rotation (3, 3) commanded for a pose [y, z, theta]."""
+        a = np.asarray(p, dtype=np.float64)
+        if a.shape != (3,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"p must be a finite pose [y, z, theta], got {a.tolist()}")
+        return self._sim.command_pose([float(x) for x in a])
+
+    def spatula_pose(self, q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World position and rotation of the spatula frame at joint configuration q."""
+        return self._sim.spatula_pose(np.ascontiguousarray(q, dtype=np.float64))
+
+    def check(self, trajectory: ArrayLike) -> NDArray[np.float64]:
+        """Validate a trajectory as :meth:`execute` does (shape, NaN, reachability of every
+        pose by IK within the joint limits); return the initial joint configuration."""
+        return self._sim.check_trajectory(as_trajectory(trajectory))
+
+    def execute(self, trajectory: ArrayLike, *, tail: float = 0.0, paced: bool = False) -> ExecutionLog:
+        """Run ``trajectory`` (K, 3); ``tail`` > 0 appends :func:`deceleration_tail` of that many
+        seconds (outside the motion window). ``paced``: tick on the wall clock every dt and
+        report the jitter. Bad input raises ValueError before the loop starts."""
+        x = as_trajectory(trajectory)
+        k = x.shape[0]
+        if tail:
+            x = deceleration_tail(x, tail, self.dt)
+        out = self._sim.run(x, motion_len=k, paced=bool(paced))
+        summary = out.pop("summary")
+        jitter = summary.pop("jitter", None)
+        return ExecutionLog(summary=summary, jitter=jitter, lateness=out.pop("lateness", None),
+                            compute=out.pop("compute", None), **out)
+
+
+def execute(trajectory: ArrayLike, *, dob: bool = True, disturbances: Disturbances | None = None,
+            controller: ControllerConfig | None = None, setup: SpatulaSetup | None = None,
+            pancake: PancakeConfig | None = None, tail: float = 0.0, settle: float = 1.0,
+            paced: bool = False, substeps: int = 1, robot: str = "ur5") -> ExecutionLog:
+    """Execute a spatula trajectory (K, 3) of ``[y, z, theta]`` at 1 kHz on the simulated arm.
+
+    ``dob``: feed the disturbance observer back (overrides ``controller.dob``).
+    ``disturbances``: unmodelled plant effects (default none; :meth:`Disturbances.reference` is
+    the benchmark's set). ``settle``: seconds holding the first pose before the motion (the DOB
+    converges; the paper's robot waited 25 s). ``tail``: seconds of constant deceleration after
+    the motion (the paper: 0.1). ``paced``: tick on the wall clock and report jitter.
+    ``substeps``: RK4 steps of the plant per tick.
+
+    Returns an :class:`ExecutionLog`. A trajectory with the wrong shape, a NaN, or a pose the arm
+    cannot reach raises ValueError naming the row before the loop starts.
+    """
+    controller = controller or ControllerConfig()
+    controller = ControllerConfig(**{**{f.name: getattr(controller, f.name) for f in fields(controller)}, "dob": bool(dob)})
+    arm = SpatulaArm(robot=robot, controller=controller, disturbances=disturbances, setup=setup,
+                     pancake=pancake, substeps=substeps, settle=settle)
+    return arm.execute(trajectory, tail=tail, paced=paced)

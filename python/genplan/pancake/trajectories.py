@@ -1,0 +1,111 @@
+"""Reference trajectories of the spatula and the friction-cone angle phi (numpy only, no torch).
+
+Conventions (the seq2seq paper, Section 4.1, and DESIGN.md):
+
+* a pose is ``p = [y, z, theta]`` (metres, metres, radians) in the vertical y-z plane; samples are
+  ``dt = 1 ms`` apart and a trajectory has ``K = 500`` samples (0.5 s), sample ``k`` at ``t = k dt``;
+* ``theta`` is the spatula's inclination, counter-clockwise from the +y axis;
+* ``phi`` (eq. 16) is the angle between the spatula's inward normal ``[sin theta, -cos theta]``
+  (pointing from the pancake into the spatula) and the resultant ``g - u`` of gravity
+  ``g = [0, -9.8]`` and the inertial force per unit mass ``-u``:
+  ``phi = wrap(arg(g - u) + pi/2 - theta)``. Level spatula at rest: ``phi = 0``; spatula tilted
+  by ``theta`` at rest: ``phi = -theta``, so ``|phi| = |theta|``. The pancake stays while
+  ``|phi| < arctan(mu_max)`` (eq. 15, ``mu_max = 1``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+#: the paper's sampling interval (s) and sequence length
+DT = 1e-3
+K = 500
+#: gravity (m/s^2); g = [0, -G]
+G = 9.8
+#: static friction coefficient of the paper
+MU_MAX = 1.0
+
+__all__ = ["DT", "K", "G", "MU_MAX", "s_curve", "s_curve_profile", "linear", "phi", "wrap_angle"]
+
+
+def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
+    """Angles wrapped to (-pi, pi]."""
+    a = np.asarray(a, dtype=np.float64)
+    w = np.mod(a + np.pi, 2.0 * np.pi) - np.pi  # [-pi, pi)
+    return np.where(w <= -np.pi, w + 2.0 * np.pi, w)
+
+
+def _pose(name: str, p: ArrayLike) -> NDArray[np.float64]:
+    a = np.asarray(p, dtype=np.float64)
+    if a.shape != (3,):
+        raise ValueError(f"{name} must be a pose [y, z, theta] of shape (3,), got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite, got {a.tolist()}")
+    return a
+
+
+def s_curve_profile(K: int = K) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The normalised S-curve ``s(tau)``, ``ds/dtau``, ``d2s/dtau2`` at ``tau = k / (K - 1)``.
+
+    Cycloidal (sine-acceleration) S-curve: ``s = tau - sin(2 pi tau) / (2 pi)``. Velocity and
+    acceleration are zero at both ends (smooth start and stop, finite jerk); the acceleration is
+    one sine period (positive while speeding up, negative while slowing down).
+    """
+    if K < 2:
+        raise ValueError(f"K must be at least 2, got {K}")
+    tau = np.arange(K, dtype=np.float64) / (K - 1)
+    w = 2.0 * np.pi
+    s = tau - np.sin(w * tau) / w
+    ds = 1.0 - np.cos(w * tau)
+    d2s = w * np.sin(w * tau)
+    s[-1] = 1.0  # exact end point
+    return s, ds, d2s
+
+
+def s_curve(p_start: ArrayLike, p_end: ArrayLike, K: int = K, dt: float = DT) -> NDArray[np.float64]:
+    """Positions ``[y, z, theta]`` (shape (K, 3), float64) of an S-curve move from rest to rest.
+
+    The move takes ``(K - 1) * dt`` seconds: sample 0 is exactly ``p_start`` and sample ``K - 1``
+    exactly ``p_end``; velocity and acceleration are zero at both ends (see
+    :func:`s_curve_profile`). ``theta`` is interpolated as given (no wrapping), so
+    ``p_end[2] = pi`` means half a turn counter-clockwise from ``p_start[2] = 0``.
+    ``dt`` only sets the duration; positions do not depend on it.
+    """
+    a = _pose("p_start", p_start)
+    b = _pose("p_end", p_end)
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be positive, got {dt}")
+    s, _, _ = s_curve_profile(int(K))
+    return a[None, :] + s[:, None] * (b - a)[None, :]
+
+
+def linear(p_start: ArrayLike, p_end: ArrayLike, K: int = K) -> NDArray[np.float64]:
+    """Constant-velocity move (K, 3) from ``p_start`` (sample 0) to ``p_end`` (sample K - 1).
+
+    The paper's input for J2 (Section 5.2): "a uniform linear motion with constant velocity from
+    the initial position to the end position". It starts and stops abruptly.
+    """
+    a = _pose("p_start", p_start)
+    b = _pose("p_end", p_end)
+    if K < 2:
+        raise ValueError(f"K must be at least 2, got {K}")
+    tau = np.arange(K, dtype=np.float64) / (K - 1)
+    return a[None, :] + tau[:, None] * (b - a)[None, :]
+
+
+def phi(theta: ArrayLike, acc: ArrayLike, g: float = G) -> NDArray[np.float64]:
+    """The friction-cone angle of eq. 16 (radians, wrapped to (-pi, pi]), vectorised.
+
+    ``theta`` has shape ``S`` and ``acc`` shape ``S + (2,)`` or ``S + (3,)`` (``[a_y, a_z(,
+    a_theta)]``; ``a_theta`` is ignored), with numpy broadcasting over ``S``. Returns
+    ``wrap(atan2(-g - a_z, -a_y) + pi/2 - theta)``: 0 for a level spatula at rest, ``-theta`` for
+    a spatula tilted by ``theta`` at rest. The pancake stays while ``|phi| < arctan(mu_max)``.
+    """
+    th = np.asarray(theta, dtype=np.float64)
+    u = np.asarray(acc, dtype=np.float64)
+    if u.ndim < 1 or u.shape[-1] not in (2, 3):
+        raise ValueError(f"acc must have a last axis of 2 ([a_y, a_z]) or 3 ([a_y, a_z, a_theta]), got shape {u.shape}")
+    fy = -u[..., 0]
+    fz = -g - u[..., 1]
+    return wrap_angle(np.arctan2(fz, fy) + 0.5 * np.pi - th)

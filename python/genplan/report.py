@@ -1,0 +1,160 @@
+"""``report.md`` of ``genplan reproduce``: every table beside the papers' numbers, from the JSON the
+benchmarks wrote (nothing here measures anything)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from genplan.benchmarks.common import table
+
+
+def _f(x: Any, digits: int = 3) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, (int, float)):
+        return f"{x:.{digits}g}" if abs(x) < 1000 else f"{x:.0f}"
+    return str(x)
+
+
+def _table1(res: dict[str, Any]) -> str:
+    rows = []
+    for robot in ("panda", "talos"):
+        for kind in ("projection", "ik"):
+            for init in ("uniform", "gan"):
+                r = res.get(f"table1_{robot}_{init}.json")
+                if r is None:
+                    continue
+                m, p = r[kind], r["paper"][kind]
+                rows.append([robot, kind, init, f"{m['success_rate']:.1f}", f"{m['t_ave_ms']:.3f}", _f(m["t_star_ave_ms"]),
+                             _f(m["steps_star"], 2), f"{p['success_rate']}", f"{p['t_ave_ms']}", f"{p['steps_star']}"])
+            s = res.get(f"table1_{robot}_scipy.json")
+            g = res.get(f"table1_{robot}_uniform.json")
+            if s is not None:
+                m = s[kind]
+                ratio = f" ({m['t_ave_ms'] / g[kind]['t_ave_ms']:.0f}x genplan's T_ave)" if g else ""
+                rows.append([robot, kind, "uniform, scipy least_squares", f"{m['success_rate']:.1f}",
+                             f"{m['t_ave_ms']:.3f}{ratio}", _f(m["t_star_ave_ms"]), _f(m["steps_star"], 2), "", "", ""])
+    if not rows:
+        return "_not run_\n"
+    tasks = next((res[k]["tasks"] for k in res if k.startswith("table1_")), "?")
+    return (f"{tasks} tasks per row (scipy: see its JSON), one after the other on one core; T in ms.\n\n"
+            + table(["robot", "task", "init", "success %", "T_ave", "T*_ave", "steps*", "paper success %", "paper T_ave",
+                     "paper steps*"], rows) + "\n")
+
+
+def _table2(res: dict[str, Any]) -> str:
+    rows = []
+    lines = []
+    for name in ("table2_genplan.json", "table2_ompl.json"):
+        r = res.get(name)
+        if r is None:
+            continue
+        for row in r["rows"]:
+            p = row.get("paper") or {}
+            who = row["sampler"] if row["planner"] == "genplan" else "OMPL ProjectedStateSpace + RRTConnect"
+            extra = ""
+            if row["planner"] == "ompl":
+                extra = f" (without Python callbacks {row['t_ave_without_callbacks_s']:.3f})"
+            rows.append([row["env"], who, row["queries"], f"{row['success_rate']:.1f}", f"{row['t_ave_s']:.3f}{extra}",
+                         f"{row['t_median_s']:.3f}", f"{row['projections']:.0f}", _f(row.get("extensions"), 3),
+                         _f(p.get("success_rate")), _f(p.get("t_ave_s")), _f(p.get("projections")), _f(p.get("extensions"))])
+    if not rows:
+        return "_not run_\n"
+    g = res.get("table2_genplan.json", {}).get("rows", [])
+    o = res.get("table2_ompl.json", {}).get("rows", [])
+    for env in dict.fromkeys(r["env"] for r in g):
+        by = {r["sampler"]: r for r in g if r["env"] == env}
+        om = next((r for r in o if r["env"] == env), None)
+        parts = []
+        if "uniform" in by and "gan" in by:
+            parts.append(f"uniform / GAN {by['uniform']['t_ave_s'] / by['gan']['t_ave_s']:.2f}x")
+        if "uniform" in by and "hybrid" in by:
+            parts.append(f"uniform / hybrid {by['uniform']['t_ave_s'] / by['hybrid']['t_ave_s']:.2f}x")
+        if om is not None:
+            for s in ("uniform", "gan", "hybrid"):
+                if s in by:
+                    parts.append(f"OMPL / {s} {om['t_ave_s'] / by[s]['t_ave_s']:.0f}x")
+        lines.append(f"- {env}: " + ", ".join(parts))
+    return ("T in s per query (all queries, retries included), Opt. steps = projection iterations (OMPL: "
+            "projection calls), E = extension steps. OMPL rows plan fewer queries (the first ones of the "
+            "same seeded set) with a time limit.\n\n"
+            + table(["env", "sampler / planner", "queries", "success %", "T_ave", "T_median", "Opt. steps", "E",
+                     "paper success %", "paper T_ave", "paper steps", "paper E"], rows)
+            + "\n\nRatios of mean times, same queries:\n\n" + "\n".join(lines) + "\n")
+
+
+def _coverage(res: dict[str, Any]) -> str:
+    c = res.get("coverage.json")
+    if c is None:
+        return "_not run_\n"
+    rows = []
+    for k in ("n_net_1", "n_net_5"):
+        r = c["planar"].get(k)
+        if r:
+            rows.append(["planar 2-link", k, _f(r["cluster_coverage"]), _f(r["mmd"]), f"valid {r['valid_rate']:.3f}"])
+    for robot in ("panda", "talos"):
+        for label in ("default", "no_discriminator", "n_net_1"):
+            r = c.get(robot, {}).get(label)
+            if r:
+                rows.append([robot, label, _f(r["cluster_coverage"]), _f(r["mmd"]), f"projects {r['projection_success']:.3f}"])
+    return (f"Share of k-means clusters (k = {c.get('k_clusters')}) of held-out valid data that samples reach, and "
+            "MMD between samples and data (lower is closer); quick runs train fewer iterations.\n\n"
+            + table(["setup", "variant", "cluster coverage", "MMD", "quality"], rows) + "\n")
+
+
+def _figures(out: Path) -> str:
+    figs = sorted((out / "figures").glob("*.png"))
+    if not figs:
+        return "_no figures_\n"
+    return "\n".join(f"![{p.stem}](figures/{p.name})" for p in figs) + "\n"
+
+
+def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, str] | None = None) -> Path:
+    res = results["results"]
+    m = results["machine"]
+    from genplan.report_seq2seq import adjust_section, control_section
+
+    lines = [
+        "# genplan reproduce",
+        "",
+        f"Command: `{results['command']}` (seed {results['seed']}), {m['date']}, git {m['git']}.",
+        f"Machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}. "
+        f"Total {results['total_s'] / 60:.1f} min.",
+        "",
+        "Steps:",
+        "",
+        table(["step", "status", "seconds", "command"],
+              [[s["step"], s["status"], f"{s['seconds']:.0f}", f"`{s['command']}`"] for s in results["steps"]]),
+        "",
+        "## GAN paper, Table I: projection and IK",
+        "",
+        _table1(res),
+        "## GAN paper, Table II: constrained RRT",
+        "",
+        _table2(res),
+        "## GAN coverage (Fig. 3 and 4 as numbers)",
+        "",
+        _coverage(res),
+        "## seq2seq paper: latent trajectory adjustment",
+        "",
+        adjust_section(res),
+        "## seq2seq paper: the 1 kHz controller (Fig. 12)",
+        "",
+        control_section(res),
+        "## 3D views",
+        "",
+        "\n".join(f"- [{env}]({path}) (self-contained HTML: orbit, play, scrub)" for env, path in results.get("views", {}).items())
+        or "_not made_",
+        "",
+        "## Figures",
+        "",
+        _figures(out),
+    ]
+    for title, body in (extra_sections or {}).items():
+        lines += [f"## {title}", "", body]
+    path = out / "report.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path

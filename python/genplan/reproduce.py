@@ -1,0 +1,162 @@
+"""``genplan reproduce``: rerun both papers' experiments with the shipped models, write a report.
+
+    genplan reproduce --quick --out out/quick      # < 10 minutes on a 2-core machine
+    genplan reproduce --out out/full               # the papers' N (about an hour or more)
+
+Steps (each is a ``genplan bench ...`` command, run in-process, writing JSON and PNGs into the
+output folder; the report is assembled from those files):
+
+1. Table I (GAN paper): projection and IK, uniform vs GAN initialisation, Panda and Talos, plus the
+   scipy ``least_squares`` baseline on the same tasks;
+2. Table II: constrained RRT with uniform / GAN / hybrid sampling, and OMPL's
+   ProjectedStateSpace + RRTConnect, on the four environments;
+3. coverage of the GAN distributions (Fig. 3 and 4 made measurable);
+4. seq2seq paper: J1 adjustment (Fig. 5, 9: latent / random latent / direct U, and CasADi + IPOPT)
+   and J2 (Fig. 11);
+5. the 1 kHz controller executing the J2 trajectory (Fig. 12), with and without the DOB;
+6. 3D views (self-contained HTML) of one Panda and one Talos plan.
+
+DIR gets ``report.md`` (every table beside the papers' numbers, the machine, seeds, the command),
+the PNG figures, the HTML views and ``results.json`` (everything).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from genplan.benchmarks.common import machine
+
+SEED = 0
+
+
+@dataclass(frozen=True)
+class Sizes:
+    """How big each experiment is (quick or full)."""
+
+    table1_tasks: int
+    table1_scipy_tasks: int
+    plan_queries: int
+    ompl_queries: int
+    ompl_time_limit: float
+    coverage_quick: bool
+    adjust_j1_updates: int
+    adjust_problems: int | None
+
+
+QUICK = Sizes(table1_tasks=100, table1_scipy_tasks=50, plan_queries=10, ompl_queries=3, ompl_time_limit=10.0,
+              coverage_quick=True, adjust_j1_updates=30, adjust_problems=None)
+FULL = Sizes(table1_tasks=500, table1_scipy_tasks=500, plan_queries=100, ompl_queries=20, ompl_time_limit=30.0,
+             coverage_quick=False, adjust_j1_updates=100, adjust_problems=None)
+
+
+def _steps(out: Path, sizes: Sizes) -> list[tuple[str, list[str]]]:
+    """(title, genplan command line) of every step."""
+    fig = out / "figures"
+    steps: list[tuple[str, list[str]]] = []
+    for robot in ("panda", "talos"):
+        for init in ("uniform", "gan"):
+            steps.append((f"Table I {robot} {init}", ["bench", "projection", "--robot", robot, "--init", init, "--tasks",
+                                                      str(sizes.table1_tasks), "--seed", str(SEED),
+                                                      "--out", str(out / f"table1_{robot}_{init}.json")]))
+        steps.append((f"Table I {robot} scipy baseline", ["bench", "projection", "--robot", robot, "--init", "uniform",
+                                                           "--solver", "scipy", "--tasks", str(sizes.table1_scipy_tasks),
+                                                           "--seed", str(SEED), "--out", str(out / f"table1_{robot}_scipy.json")]))
+    steps.append(("Table II genplan", ["bench", "plan", "--env", "all", "--sampler", "all", "--planner", "genplan",
+                                       "--queries", str(sizes.plan_queries), "--seed", str(SEED),
+                                       "--out", str(out / "table2_genplan.json")]))
+    steps.append(("Table II OMPL peer", ["bench", "plan", "--env", "all", "--planner", "ompl",
+                                         "--queries", str(sizes.ompl_queries), "--seed", str(SEED),
+                                         "--ompl-time-limit", str(sizes.ompl_time_limit),
+                                         "--out", str(out / "table2_ompl.json")]))
+    steps.append(("GAN coverage", ["bench", "coverage", *(["--quick"] if sizes.coverage_quick else []), "--seed", str(SEED),
+                                   "--figures", str(fig), "--out", str(out / "coverage.json")]))
+    steps.append(("seq2seq J1", ["bench", "adjust", "--method", "all", "--objective", "j1", "--updates",
+                                 str(sizes.adjust_j1_updates), "--out-dir", str(out / "adjust"), "--figures", str(fig)]))
+    steps.append(("seq2seq J2", ["bench", "adjust", "--method", "all", "--objective", "j2",
+                                 "--out-dir", str(out / "adjust"), "--figures", str(fig)]))
+    steps.append(("controller", ["bench", "control", "--out", str(out / "control.json"),
+                                 "--png", str(fig / "control_fig12.png")]))
+    return steps
+
+
+def _views(out: Path) -> dict[str, str]:
+    from genplan.viewer import export_plan_html
+
+    views = {}
+    for env in ("panda_shelf", "talos_task1"):
+        path = export_plan_html(env, out / "views" / f"{env}.html", sampler="hybrid", seed=SEED)
+        views[env] = str(path.relative_to(out))
+    return views
+
+
+def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]:
+    from tqdm import tqdm
+
+    from genplan.cli import main as cli
+
+    sizes = QUICK if quick else FULL
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "figures").mkdir(exist_ok=True)
+    steps = _steps(out, sizes) + [("3D views", [])]
+    if only:
+        steps = [s for s in steps if any(o.lower() in s[0].lower() for o in only)]
+        if not steps:
+            raise SystemExit(f"--only {' '.join(only)}: no step matches; steps: "
+                             + ", ".join(t for t, _ in _steps(out, sizes)) + ", 3D views")
+    log: list[dict[str, Any]] = []
+    views: dict[str, str] = {}
+    t_all = time.perf_counter()
+    bar = tqdm(steps, desc="reproduce", unit="step")
+    for title, argv in bar:
+        bar.set_postfix_str(title)
+        t0 = time.perf_counter()
+        status = "ok"
+        try:
+            if argv:
+                rc = cli(argv)
+                status = "ok" if rc == 0 else f"exit {rc}"
+            else:
+                views = _views(out)
+        except Exception as exc:  # a failing step is reported, the others still run
+            status = f"failed: {type(exc).__name__}: {exc}"
+            tqdm.write(f"reproduce: step '{title}' {status}", file=sys.stderr)
+        log.append({"step": title, "command": "genplan " + " ".join(shlex.quote(a) for a in argv) if argv else
+                    "genplan.viewer.export_plan_html", "status": status, "seconds": time.perf_counter() - t0})
+    results: dict[str, Any] = {
+        "command": "genplan reproduce " + ("--quick " if quick else "") + f"--out {out}",
+        "quick": quick,
+        "sizes": sizes.__dict__,
+        "seed": SEED,
+        "machine": machine(),
+        "total_s": time.perf_counter() - t_all,
+        "steps": log,
+        "views": views,
+        "results": {p.relative_to(out).as_posix(): json.loads(p.read_text())
+                    for p in sorted(out.glob("**/*.json")) if p.name != "results.json"},
+    }
+    (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+    from genplan.report import write_report
+
+    write_report(out, results)
+    return results
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quick", action="store_true", help="smaller N: finishes in under 10 minutes on 2 cores")
+    p.add_argument("--out", type=Path, default=Path("out/reproduce"), help="output folder (report.md, results.json, figures)")
+    p.add_argument("--only", nargs="*", default=None, help="run only the steps whose title contains one of these words")
+
+
+def main(args: argparse.Namespace) -> int:
+    results = run(args.out, args.quick, args.only)
+    failed = [s for s in results["steps"] if s["status"] != "ok"]
+    print(f"wrote {args.out / 'report.md'} and {args.out / 'results.json'} in {results['total_s'] / 60:.1f} min"
+          + (f"; {len(failed)} step(s) failed: {', '.join(s['step'] for s in failed)}" if failed else ""))
+    return 1 if failed else 0

@@ -1,0 +1,47 @@
+"""The numbered scripts in examples/ run (each is what a new user copies first)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def run(script: str, *args: str) -> str:
+    proc = subprocess.run([sys.executable, str(EXAMPLES / script), *args], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+def test_every_example_is_tested() -> None:
+    tested = {"01_plan_with_gan_sampler.py", "02_ik_with_a_custom_task.py", "03_adjust_a_trajectory.py",
+              "04_execute_with_the_controller.py"}
+    assert {p.name for p in EXAMPLES.glob("*.py")} == tested
+
+
+def test_01_plan_with_gan_sampler(tmp_path) -> None:
+    pytest.importorskip("viser")
+    out = run("01_plan_with_gan_sampler.py", "--out", str(tmp_path / "plan.html"))
+    assert "success True" in out
+    assert (tmp_path / "plan.html").stat().st_size > 100_000
+
+
+def test_02_ik_with_a_custom_task() -> None:
+    out = run("02_ik_with_a_custom_task.py")
+    assert out.count("success True") == 3
+
+
+def test_03_adjust_a_trajectory() -> None:
+    out = run("03_adjust_a_trajectory.py")
+    assert "inside the friction cone: True" in out
+
+
+def test_04_execute_with_the_controller() -> None:
+    out = run("04_execute_with_the_controller.py")
+    lines = out.splitlines()
+    assert all("stayed" in line for line in lines if line.startswith("gentle"))
+    assert all("slipped" in line for line in lines if line.startswith("hasty"))
