@@ -196,6 +196,9 @@ def test_ctrl_c_interrupts_a_long_native_plan(panda, shelf) -> None:
     # a constraint no sample can meet (the hand 3 m away): the planner would keep sampling
     task = P.Task(primary=[P.FramePosition(name="far", frame="hand", target=(3.0, 0.0, 0.0), weight=1, tolerance=1e-3)])
     planner = Planner(panda, world=world, task=task, settings=PlannerSettings(max_empty_batches=10**9))
+    # Python's own Ctrl-C handler, whatever the runner inherited (a shell without job control
+    # starts background jobs with SIGINT ignored, and then the signal would never arrive)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
     timer.start()
     try:
@@ -203,6 +206,7 @@ def test_ctrl_c_interrupts_a_long_native_plan(panda, shelf) -> None:
             planner.plan(queries[0].start, queries[0].goals)
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_bad_input_is_a_clear_error(panda, shelf) -> None:
