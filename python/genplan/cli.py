@@ -57,6 +57,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 #: (group, name, module, help) of every command but ``info``. Each module keeps its top-level
 #: imports light (no torch) and defines ``add_arguments(parser)`` and ``main(args) -> int``.
 COMMANDS: list[tuple[str, str, str, str]] = [
+    ("", "report", "genplan.report", "report.md from a folder of benchmark JSON (e.g. benches/results)"),
     ("", "reproduce", "genplan.reproduce", "the main job: rerun both papers' experiments with the shipped models, write a report"),
     ("bench", "projection", "genplan.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),
     ("bench", "coverage", "genplan.benchmarks.coverage", "GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations"),

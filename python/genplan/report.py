@@ -1,8 +1,16 @@
 """``report.md`` of ``genplan reproduce``: every table beside the papers' numbers, from the JSON the
-benchmarks wrote (nothing here measures anything)."""
+benchmarks wrote (nothing here measures anything).
+
+    genplan report benches/results      # the committed benchmark JSON -> benches/results/report.md
+
+reads a folder laid out like ``genplan reproduce``'s output (``table1_*.json``,
+``table2_*.json``, ``coverage.json``, ``adjust/adjust_*.json``, ``control.json``, ``figures/``).
+"""
 
 from __future__ import annotations
 
+import argparse
+import json
 from pathlib import Path
 from typing import Any
 
@@ -106,10 +114,10 @@ def _coverage(res: dict[str, Any]) -> str:
 
 
 def _figures(out: Path) -> str:
-    figs = sorted((out / "figures").glob("*.png"))
+    figs = sorted(out.glob("**/*.png"))
     if not figs:
         return "_no figures_\n"
-    return "\n".join(f"![{p.stem}](figures/{p.name})" for p in figs) + "\n"
+    return "\n".join(f"![{p.stem}]({p.relative_to(out).as_posix()})" for p in figs) + "\n"
 
 
 def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, str] | None = None) -> Path:
@@ -117,18 +125,22 @@ def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, s
     m = results["machine"]
     from genplan.report_seq2seq import adjust_section, control_section
 
+    steps = results.get("steps") or []
     lines = [
-        "# genplan reproduce",
+        "# genplan reproduce" if steps else "# genplan benchmarks",
         "",
         f"Command: `{results['command']}` (seed {results['seed']}), {m['date']}, git {m['git']}.",
-        f"Machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}. "
-        f"Total {results['total_s'] / 60:.1f} min.",
+        f"Machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}."
+        + (f" Total {results['total_s'] / 60:.1f} min." if results.get("total_s") else ""),
         "",
-        "Steps:",
-        "",
-        table(["step", "status", "seconds", "command"],
-              [[s["step"], s["status"], f"{s['seconds']:.0f}", f"`{s['command']}`"] for s in results["steps"]]),
-        "",
+    ]
+    if steps:
+        lines += ["Steps:", "",
+                  table(["step", "status", "seconds", "command"],
+                        [[s["step"], s["status"], f"{s['seconds']:.0f}", f"`{s['command']}`"] for s in steps]), ""]
+    else:
+        lines += ["Each JSON file records the command, machine and date of its own run.", ""]
+    lines += [
         "## GAN paper, Table I: projection and IK",
         "",
         _table1(res),
@@ -147,7 +159,7 @@ def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, s
         "## 3D views",
         "",
         "\n".join(f"- [{env}]({path}) (self-contained HTML: orbit, play, scrub)" for env, path in results.get("views", {}).items())
-        or "_not made_",
+        or "_not made here (genplan reproduce makes them)_",
         "",
         "## Figures",
         "",
@@ -158,3 +170,30 @@ def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, s
     path = out / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def collect(folder: Path) -> dict[str, Any]:
+    """Every benchmark JSON below ``folder``, keyed by its relative path."""
+    return {p.relative_to(folder).as_posix(): json.loads(p.read_text())
+            for p in sorted(folder.glob("**/*.json")) if p.name not in ("results.json", "criterion.json")}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("folder", type=Path, help="folder of benchmark JSON (e.g. benches/results)")
+    p.add_argument("--out", type=Path, default=None, help="report file (default FOLDER/report.md)")
+
+
+def main(args: argparse.Namespace) -> int:
+    from genplan.benchmarks.common import machine
+
+    if not args.folder.is_dir():
+        raise SystemExit(f"{args.folder} is not a folder")
+    results = {"command": f"genplan report {args.folder}", "seed": 0, "machine": machine(),
+               "results": collect(args.folder)}
+    path = write_report(args.folder, results)
+    if args.out is not None and args.out != path:
+        args.out.write_text(path.read_text())
+        path.unlink()
+        path = args.out
+    print(f"wrote {path}")
+    return 0

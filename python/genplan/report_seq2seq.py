@@ -85,7 +85,7 @@ def control_section(res: dict[str, Any]) -> str:
     ratio = c.get("dob_tracking_error_ratio")
     ratio_txt = ""
     if isinstance(ratio, dict):
-        ratio_txt = ("\nTracking error without / with the DOB (max position, max attitude): "
+        ratio_txt = ("\n\nTracking error without / with the DOB (max position, max attitude): "
                      f"{_fmt(ratio.get('max_position'))} / {_fmt(ratio.get('max_attitude'))}.")
     crit = c.get("criterion_control_tick") or {}
     tick = f" One controller tick (criterion median): {_fmt(crit.get('median_us'))} us." if crit.get("median_us") else ""

@@ -65,9 +65,9 @@ class Seq2SeqConfig:
     # training
     seed: int = 0
     data_seed: int = 0
-    trajectories: int = 150_000
+    trajectories: int = 50_000
     validation: int = 2048
-    epochs: int = 8
+    epochs: int = 7
     batch_size: int = 128
     lr: float = 3e-3
     lr_final: float = 1e-4

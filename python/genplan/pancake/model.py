@@ -29,8 +29,8 @@ Architecture (written to the model card):
 Loss (eq. 4, 5, 18), per trajectory and divided by K:
 ``-sum_k log N(D p_in[k] | D p_out[k], D S[k] D^T) + alpha * f_dyn``, ``D = diag(1, 1, 0.1)``,
 ``S[k] = var_p[k] + var_floor``. (With a diagonal D the scaling cancels in the Mahalanobis term
-and only adds a constant ``log|D|``; it is kept as written.) What this budget (about 40 minutes on
-one CPU core instead of the paper's 1.6M trajectories) needed on top, all in the config and the
+and only adds a constant ``log|D|``; it is kept as written.) What this budget (about 11 minutes on
+one CPU core, 50,000 trajectories instead of the paper's 1.6M) needed on top, all in the config and the
 card:
 
 * beta-NLL weighting ``(S_D / 1e-4) ** beta`` of the NLL terms, beta going 1 -> 0.5 over the
