@@ -1,4 +1,4 @@
-"""Writing shipped models: safetensors weights plus a JSON card beside them (never pickles).
+"""Shipped models: safetensors weights plus a JSON card beside them (never pickles).
 
 Shared by the GAN (:mod:`genplan.gan.model`) and the seq2seq model (:mod:`genplan.pancake.model`).
 """
@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["write_model", "json_default"]
+__all__ = ["write_model", "read_model", "json_default"]
 
 
 def json_default(o: Any) -> Any:
@@ -43,3 +43,35 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
     card_path = path.with_suffix(".json")
     card_path.write_text(json.dumps(card, indent=2, default=json_default) + "\n")
     return path, card_path
+
+
+def read_model(path: Path, fmt: str, kind: str, retrain: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Read and check a model written by :func:`write_model`: ``(card, tensors)``.
+
+    ``kind`` names the model in messages ("GAN", "seq2seq"); ``retrain`` is the command a missing
+    file's error names. Missing files raise FileNotFoundError; a card that does not parse, has
+    another format or another weights sha256, and weights that do not load raise ValueError.
+    """
+    from safetensors import SafetensorError
+    from safetensors.torch import load_file
+
+    card_path = path.with_suffix(".json")
+    for p in (path, card_path):
+        if not p.is_file():
+            raise FileNotFoundError(f"{kind} model file {p} does not exist; train it with `{retrain}`")
+    try:
+        card = json.loads(card_path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{kind} model card {card_path} is corrupt: {exc}") from None
+    if not isinstance(card, dict) or card.get("format") != fmt:
+        got = card.get("format") if isinstance(card, dict) else type(card).__name__
+        raise ValueError(f"{card_path}: unknown format {got!r} (expected {fmt})")
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    if card.get("weights_sha256") not in (None, digest):
+        raise ValueError(f"{path} does not match its card (sha256 {digest[:12]}..., card says "
+                         f"{str(card.get('weights_sha256'))[:12]}...): the file is corrupt or was replaced")
+    try:
+        tensors = load_file(str(path))
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise ValueError(f"{kind} model file {path} is corrupt: {exc}") from None
+    return card, tensors

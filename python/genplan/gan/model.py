@@ -15,8 +15,6 @@ card: hyperparameters, data, seed, training time, evaluation). Never pickles.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import math
 import os
 import time
@@ -270,30 +268,11 @@ def load_model(robot: str | Robot, path: str | Path | None = None) -> GanModel:
     A missing file raises FileNotFoundError naming the command that trains it; a corrupt file or
     a card that does not match raises ValueError.
     """
-    from safetensors import SafetensorError
-    from safetensors.torch import load_file
+    from genplan.model_files import read_model
 
     rob = robot if isinstance(robot, Robot) else load(robot)
     path = models_dir() / f"{rob.name}_gan.safetensors" if path is None else Path(path)
-    card_path = path.with_suffix(".json")
-    for p in (path, card_path):
-        if not p.is_file():
-            raise FileNotFoundError(f"GAN model file {p} does not exist; train it with "
-                                    f"`genplan train gan --robot {rob.name} --seed 0`")
-    try:
-        card = json.loads(card_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"GAN model card {card_path} is corrupt: {exc}") from None
-    if card.get("format") != FORMAT:
-        raise ValueError(f"{card_path}: unknown format {card.get('format')!r} (expected {FORMAT})")
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    if card.get("weights_sha256") not in (None, digest):
-        raise ValueError(f"{path} does not match its card (sha256 {digest[:12]}..., card says "
-                         f"{str(card.get('weights_sha256'))[:12]}...): the file is corrupt or was replaced")
-    try:
-        tensors = load_file(str(path))
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise ValueError(f"GAN model file {path} is corrupt: {exc}") from None
+    card, tensors = read_model(path, FORMAT, "GAN", f"genplan train gan --robot {rob.name} --seed 0")
     cfg_dict = card["config"]
     cfg_dict["target_box"] = tuple(tuple(b) for b in cfg_dict["target_box"])
     cfg_dict["gen_hidden"] = tuple(cfg_dict["gen_hidden"])

@@ -47,8 +47,6 @@ time, loss curve, evaluation, weights sha256). Never pickles.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -265,37 +263,18 @@ def load_model(path: str | Path | None = None) -> Seq2SeqModel:
     A missing file raises FileNotFoundError naming the command that trains it; a corrupt file or
     a card that does not match raises ValueError.
     """
-    from safetensors import SafetensorError
-    from safetensors.torch import load_file
+    from genplan.model_files import read_model
 
     path = default_path() if path is None else Path(path)
-    card_path = path.with_suffix(".json")
-    for p in (path, card_path):
-        if not p.is_file():
-            cmd = RETRAIN_COMMAND + ("" if path == default_path() else f" --out {path}")
-            raise FileNotFoundError(f"seq2seq model file {p} does not exist; train it with `{cmd}`")
-    try:
-        card = json.loads(card_path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"seq2seq model card {card_path} is corrupt: {exc}") from None
-    if not isinstance(card, dict) or card.get("format") != FORMAT:
-        got = card.get("format") if isinstance(card, dict) else type(card).__name__
-        raise ValueError(f"{card_path}: unknown format {got!r} (expected {FORMAT})")
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    if card.get("weights_sha256") not in (None, digest):
-        raise ValueError(f"{path} does not match its card (sha256 {digest[:12]}..., card says "
-                         f"{str(card.get('weights_sha256'))[:12]}...): the file is corrupt or was replaced")
-    try:
-        tensors = load_file(str(path))
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise ValueError(f"seq2seq model file {path} is corrupt: {exc}") from None
+    retrain = RETRAIN_COMMAND + ("" if path == default_path() else f" --out {path}")
+    card, tensors = read_model(path, FORMAT, "seq2seq", retrain)
     try:
         cfg_dict = dict(card["config"])
         for key in ("u_scale", "in_scale"):
             cfg_dict[key] = tuple(cfg_dict[key])
         cfg = Seq2SeqConfig(**cfg_dict)
     except (KeyError, TypeError) as exc:
-        raise ValueError(f"seq2seq model card {card_path} has a bad config: {exc}") from None
+        raise ValueError(f"seq2seq model card {path.with_suffix('.json')} has a bad config: {exc}") from None
     net = Seq2SeqNet(cfg)
     try:
         net.load_state_dict(tensors, strict=True)
