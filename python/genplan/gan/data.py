@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -18,13 +17,10 @@ from numpy.typing import NDArray
 
 from genplan import _core
 from genplan import projection as P
+from genplan.cache import cache_dir, load_array, save_array
 from genplan.robots import Robot
 
 CHUNK = 2000
-
-
-def cache_dir() -> Path:
-    return Path(os.environ.get("GENPLAN_CACHE", Path.home() / ".cache" / "genplan"))
 
 
 def _key(robot: Robot, n: int, seed: int) -> str:
@@ -45,13 +41,9 @@ def valid_configurations(robot: Robot, n: int = 25_000, seed: int = 0, use_cache
     if n < 1:
         raise ValueError(f"n must be positive, got {n}")
     path = cache_path(robot, n, seed)
-    if use_cache and path.is_file():
-        try:
-            data = np.load(path, allow_pickle=False)
-            if data.shape == (n, robot.nq) and np.all(np.isfinite(data)):
-                return data
-        except (OSError, ValueError):
-            pass  # a broken cache file is regenerated
+    cached = load_array(path, (n, robot.nq)) if use_cache else None
+    if cached is not None:
+        return cached
     solver = P.GaussNewtonProjector(robot, P.paper_task(robot, "projection"))
     rng = np.random.default_rng(seed)
     kept: list[NDArray[np.float64]] = []
@@ -72,8 +64,5 @@ def valid_configurations(robot: Robot, n: int = 25_000, seed: int = 0, use_cache
         bar.close()
     data = np.concatenate(kept)[:n]
     if use_cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp.npy")
-        np.save(tmp, data)
-        tmp.replace(path)
+        save_array(path, data)
     return data

@@ -30,13 +30,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from genplan.cache import cache_dir, load_array, save_array
 from genplan.pancake.trajectories import DT, G, MU_MAX
 from genplan.pancake.trajectories import K as K_DEFAULT
 
@@ -58,10 +58,6 @@ RANGES = {
                  "retime_fraction": 0.5, "late_max": 0.6, "lift_max_m": 0.15},
 }
 FAMILIES = tuple(RANGES["families"])
-
-
-def cache_dir() -> Path:
-    return Path(os.environ.get("GENPLAN_CACHE", Path.home() / ".cache" / "genplan"))
 
 
 def _key(n: int, seed: int, k: int) -> str:
@@ -196,13 +192,9 @@ def input_trajectories(n: int, seed: int = 0, k: int = K_DEFAULT, use_cache: boo
     if k < 2:
         raise ValueError(f"k must be at least 2, got {k}")
     path = cache_path(n, seed, k)
-    if use_cache and path.is_file():
-        try:
-            data = np.load(path, allow_pickle=False)
-            if data.shape == (n, k, 3) and data.dtype == np.float32 and np.all(np.isfinite(data)):
-                return data
-        except (OSError, ValueError):
-            pass  # a broken cache file is regenerated
+    cached = load_array(path, (n, k, 3), np.float32) if use_cache else None
+    if cached is not None:
+        return cached
     rng = np.random.default_rng(seed)
     out = np.empty((n, k, 3), dtype=np.float32)
     bar = None
@@ -218,8 +210,5 @@ def input_trajectories(n: int, seed: int = 0, k: int = K_DEFAULT, use_cache: boo
     if bar is not None:
         bar.close()
     if use_cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp.npy")
-        np.save(tmp, out)
-        tmp.replace(path)
+        save_array(path, out)
     return out
