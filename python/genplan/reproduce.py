@@ -100,6 +100,7 @@ def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]
     from tqdm import tqdm
 
     from genplan.cli import main as cli
+    from genplan.report import collect, write_report
 
     sizes = QUICK if quick else FULL
     out.mkdir(parents=True, exist_ok=True)
@@ -138,11 +139,9 @@ def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]
         "total_s": time.perf_counter() - t_all,
         "steps": log,
         "views": views,
-        "results": {p.relative_to(out).as_posix(): json.loads(p.read_text())
-                    for p in sorted(out.glob("**/*.json")) if p.name != "results.json"},
+        "results": collect(out),
     }
     (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
-    from genplan.report import write_report
 
     write_report(out, results)
     return results
