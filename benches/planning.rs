@@ -15,9 +15,8 @@ use genplan_core::planning::{
     CollisionChecker, Components, EuclideanSpace, GaussNewtonProjector, KdForest, LinearNearest, NearestNeighbors, PlanResult,
     Planner, Sampler, Settings, SphereProjector, UniformSampler, ValidityChecker,
 };
-use genplan_core::projection::{self, Term, TermKind};
+use genplan_core::projection;
 use genplan_core::robot::{find_robots_dir, RobotSpec};
-use nalgebra::{Matrix3, Rotation3, Vector3};
 use rand::{rngs::StdRng, Rng, SeedableRng};
 
 fn nearest(c: &mut Criterion) {
@@ -107,23 +106,8 @@ fn panda(c: &mut Criterion) {
     world.add_box("wall", [0.05, 0.05, 0.3], nalgebra::Isometry3::translation(0.45, 0.0, 0.35)).unwrap();
     let world = Arc::new(world);
     let hand = model.link_index("panda_hand").unwrap();
-    let offset: Matrix3<f64> = Rotation3::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2).into_inner();
-    let primary = vec![
-        Term {
-            name: "hand_orientation".into(),
-            kind: TermKind::FrameOrientation { link: hand, target: Matrix3::identity(), offset, mask: [1.0, 1.0, 0.0] },
-            weight: 20.0,
-            tolerance: 1e-5,
-        },
-        Term { name: "joint_limits".into(), kind: TermKind::JointLimits { margin: 1e-3 }, weight: 20.0, tolerance: 1e-4 },
-    ];
-    let secondary = vec![Term {
-        name: "posture".into(),
-        kind: TermKind::Posture { q_nom: None, weights: vec![1.0; 7], overrides: vec![] },
-        weight: 1.0,
-        tolerance: 1e-3,
-    }];
-    let gn = Arc::new(projection::Projector::new(model.clone(), primary, secondary, projection::Settings::default()).unwrap());
+    // states ten times tighter than the constraint, as the Python planner projects them
+    let gn = Arc::new(projection::Projector::panda_horizontal_gripper(model.clone(), 1e-5).unwrap());
     // two valid configurations on either side of the wall
     let pick = |seed: u64, y_positive: bool| {
         let mut s = UniformSampler::new(model.clone(), None, seed).unwrap();

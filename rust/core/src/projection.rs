@@ -124,6 +124,34 @@ impl Projector {
         Ok(Projector { model, primary, secondary, settings, bounded })
     }
 
+    /// The GAN paper's Panda constraint on a model with a `panda_hand` link: the gripper
+    /// horizontal (the hand frame rotated -pi/2 about y keeps no tilt: orientation rows x, y,
+    /// weight 20) within the joint limits (margin 1e-3, weight 20), with a posture task around
+    /// the nominal configuration. `tolerance` applies to the orientation, 10x it to the limits.
+    /// (The Python side's `genplan.projection.paper_task(panda, "projection")` is the same task;
+    /// this one serves native tests and benches.)
+    pub fn panda_horizontal_gripper(model: std::sync::Arc<KinematicModel>, tolerance: f64) -> Result<Projector> {
+        let hand = model.link_index("panda_hand")?;
+        let offset: Matrix3<f64> =
+            nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2).into_inner();
+        let primary = vec![
+            Term {
+                name: "hand_orientation".into(),
+                kind: TermKind::FrameOrientation { link: hand, target: Matrix3::identity(), offset, mask: [1.0, 1.0, 0.0] },
+                weight: 20.0,
+                tolerance,
+            },
+            Term { name: "joint_limits".into(), kind: TermKind::JointLimits { margin: 1e-3 }, weight: 20.0, tolerance: 10.0 * tolerance },
+        ];
+        let secondary = vec![Term {
+            name: "posture".into(),
+            kind: TermKind::Posture { q_nom: None, weights: vec![1.0; model.nv], overrides: vec![] },
+            weight: 1.0,
+            tolerance: 1e-3,
+        }];
+        Projector::new(model, primary, secondary, Settings::default())
+    }
+
     /// A copy whose primary term `term` aims at `target`: 3 numbers for a FramePosition, a
     /// row-major 4x4 pose (16 numbers) for a FramePose.
     pub fn retargeted(&self, term: usize, target: &[f64]) -> Result<Projector> {

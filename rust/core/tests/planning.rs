@@ -8,9 +8,8 @@ use genplan_core::planning::{
     Components, EuclideanSpace, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner, Projection,
     Projector, Sampler, Settings, Space, SphereProjector, UniformSampler, ValidityChecker,
 };
-use genplan_core::projection::{self, Term, TermKind};
+use genplan_core::projection;
 use genplan_core::robot::{find_robots_dir, RobotSpec};
-use nalgebra::{Matrix3, Rotation3, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -190,27 +189,9 @@ fn component_errors_come_back_intact() {
     }
 }
 
-/// The Panda task of the paper: gripper horizontal (hand frame rotated -pi/2 about y has no
-/// tilt), within the joint limits; posture around the interpolated configuration.
+/// The Panda task of the paper: gripper horizontal, within the joint limits.
 fn panda_projector(model: &Arc<genplan_core::KinematicModel>) -> projection::Projector {
-    let hand = model.link_index("panda_hand").unwrap();
-    let offset: Matrix3<f64> = Rotation3::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2).into_inner();
-    let primary = vec![
-        Term {
-            name: "hand_orientation".into(),
-            kind: TermKind::FrameOrientation { link: hand, target: Matrix3::identity(), offset, mask: [1.0, 1.0, 0.0] },
-            weight: 20.0,
-            tolerance: 1e-4,
-        },
-        Term { name: "joint_limits".into(), kind: TermKind::JointLimits { margin: 1e-3 }, weight: 20.0, tolerance: 1e-3 },
-    ];
-    let secondary = vec![Term {
-        name: "posture".into(),
-        kind: TermKind::Posture { q_nom: None, weights: vec![1.0; model.nv], overrides: vec![] },
-        weight: 1.0,
-        tolerance: 1e-3,
-    }];
-    projection::Projector::new(model.clone(), primary, secondary, projection::Settings::default()).unwrap()
+    projection::Projector::panda_horizontal_gripper(model.clone(), 1e-4).unwrap()
 }
 
 #[test]
