@@ -45,3 +45,6 @@ def test_04_execute_with_the_controller() -> None:
     lines = out.splitlines()
     assert all("stayed" in line for line in lines if line.startswith("gentle"))
     assert all("slipped" in line for line in lines if line.startswith("hasty"))
+    turn = {line.split("  ")[0]: line for line in lines if line.startswith("turn-over")}
+    assert "slipped" in turn["turn-over, unadjusted"] and "slipped" in turn["turn-over, J2"]
+    assert "stayed" in turn["turn-over, J2Executable"]

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from genplan.pancake import physics as ph
-from genplan.pancake.adjustment import J1, J2, PAPER_LR, adjust, default_lr
+from genplan.pancake.adjustment import J1, J2, PAPER_LR, J2Executable, adjust, default_lr, normal_acceleration
 from genplan.pancake.model import Seq2SeqModel, load_model
 from genplan.pancake.trajectories import linear, s_curve
 
@@ -125,6 +125,30 @@ def test_j2_matches_its_definition(model) -> None:
     # J2's keywords are passed through
     res2 = adjust(x, "j2", "latent", 0, model=model, objective_kwargs={"p_lim": 0.0, "beta": 0.0})
     assert res2.objective_history[0, 0] != res.objective_history[0, 0]
+
+
+def test_j2_executable_is_j2_plus_its_margins(model) -> None:
+    x = linear(np.zeros(3), [0.0, 0.0, -0.75 * math.pi])
+    res = adjust(x, J2Executable(), "latent", 2, model=model, step="adam")
+    p, v, u, phi = res.p[0], res.v[0], res.u[0], res.phi[0]
+    # N by hand: the blade normal (-sin, cos) dotted with the acceleration the blade gives, a - g
+    n_hand = np.array([[-math.sin(t), math.cos(t)] for t in p[:, 2]])
+    normal = (n_hand * (u[:, :2] + [0.0, ph.G])).sum(-1)
+    t = lambda a: torch.as_tensor(a[None], dtype=torch.float32)
+    r = ph.Rollout(t(p), t(v), t(u), t(phi))
+    np.testing.assert_allclose(normal_acceleration(r)[0].numpy(), normal, rtol=1e-5, atol=1e-4)
+    vel = (np.maximum(np.array(ph.D_SCALE) * (np.abs(v) - [1.5, 1.5, 4.5]), 0) ** 2).sum(-1).mean()
+    d_theta = abs(p[-1, 2] + 0.75 * math.pi)
+    j2 = (max(math.hypot(p[-1, 0], p[-1, 1]) - 0.2, 0) + 0.1 * max(d_theta - 0.5, 0) + ph.f_dyn_np(phi)
+          + 0.01 * vel)
+    extra = (ph.f_dyn_np(phi, margin=math.radians(10)) + 0.1 / ph.G * np.maximum(3.0 - normal, 0).sum()
+             + 3.0 * max(d_theta - 0.48, 0) + 10.0 * vel)
+    np.testing.assert_allclose(res.objective_history[-1, 0], j2 + extra, rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(float(J2()(r)[0]), j2, rtol=1e-4, atol=1e-7)
+    with pytest.raises(ValueError, match="margin must be below"):
+        J2Executable(margin=math.radians(50))
+    with pytest.raises(ValueError, match="finite and >= 0"):
+        J2Executable(normal_floor=-1.0)
 
 
 def test_custom_objective(model, x_in) -> None:

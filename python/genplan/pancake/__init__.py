@@ -8,7 +8,8 @@ trajectory deformation model, and latent-space trajectory adjustment.
 * :mod:`genplan.pancake.model` -- the seq2seq model (encoder LSTM -> z -> decoder LSTM ->
   accelerations -> physics), training, safetensors + JSON card files.
 * :mod:`genplan.pancake.adjustment` -- :func:`adjust`: gradient descent on the latent vector
-  ("latent", "random-latent") or on the accelerations ("direct-u"), objectives J1, J2 or yours.
+  ("latent", "random-latent") or on the accelerations ("direct-u"), objectives J1, J2 (J2Executable: with
+  execution margins) or yours.
 * :mod:`genplan.pancake.casadi_baseline` -- the same problems solved by CasADi + IPOPT.
 
 Imported lazily, so that ``import genplan.pancake`` does not import torch.
@@ -31,6 +32,7 @@ _EXPORTS: dict[str, str] = {
     "AdjustResult": "genplan.pancake.adjustment",
     "J1": "genplan.pancake.adjustment",
     "J2": "genplan.pancake.adjustment",
+    "J2Executable": "genplan.pancake.adjustment",
 }
 
 __all__ = sorted(["DT", "G", "K", "MU_MAX", "linear", "phi", "s_curve", "wrap_angle", *_EXPORTS])

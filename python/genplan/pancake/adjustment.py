@@ -64,7 +64,7 @@ ADAPTIVE_RADIUS = {"latent": 0.02, "random-latent": 0.02, "direct-u": 0.5}
 #: defaults for the Adam step rule (chosen by the measurements in benches/results/adjust_*adam*.json)
 ADAM_LR = {"latent": 0.02, "random-latent": 0.02, "direct-u": 2.0}
 
-__all__ = ["adjust", "AdjustResult", "J1", "J2", "METHODS", "STEPS", "PAPER_LR", "ADAM_LR", "ADAPTIVE_RADIUS",
+__all__ = ["adjust", "AdjustResult", "J1", "J2", "J2Executable", "normal_acceleration", "METHODS", "STEPS", "PAPER_LR", "ADAM_LR", "ADAPTIVE_RADIUS",
            "default_lr"]
 
 
@@ -112,7 +112,7 @@ class J2:
     ``max(sqrt(y^2 + z^2) - p_lim, 0) + 0.1 max(|theta - theta_end| - theta_lim, 0)
     + alpha f_dyn + beta / K sum_k ||max(0, D (|p_dot[k]| - v_lim))||^2`` at the last sample;
     the distance is measured from ``center`` (the paper: the origin, where its moves start).
-    Defaults are the paper's Section 5.2 values.
+    Defaults are the paper's Section 5.2 values. :class:`J2Executable` adds execution margins.
     """
 
     name = "j2"
@@ -135,12 +135,84 @@ class J2:
     def bind(self, batch: int) -> None:
         pass
 
-    def __call__(self, r: ph.Rollout) -> Tensor:
+    def terms(self, r: ph.Rollout) -> dict[str, Tensor]:
+        """eq. 24's terms, unweighted, one value per problem: ``position`` (m beyond p_lim),
+        ``attitude`` (rad beyond theta_lim), ``cone`` (f_dyn), ``velocity`` (mean squared
+        excess over v_lim, scaled by D)."""
         end = r.p[:, -1, :]
         dist = torch.sqrt(((end[:, :2] - self.center) ** 2).sum(-1) + 1e-12)
-        pos = torch.relu(dist - self.p_lim) + 0.1 * torch.relu((end[:, 2] - self.theta_end).abs() - self.theta_lim)
-        vel = (torch.relu(self.d * (r.v.abs() - self.v_lim)) ** 2).sum(-1).mean(-1)
-        return pos + self.alpha * ph.f_dyn(r.phi, self.mu_max) + self.beta * vel
+        return {
+            "position": torch.relu(dist - self.p_lim),
+            "attitude": torch.relu((end[:, 2] - self.theta_end).abs() - self.theta_lim),
+            "cone": ph.f_dyn(r.phi, self.mu_max),
+            "velocity": (torch.relu(self.d * (r.v.abs() - self.v_lim)) ** 2).sum(-1).mean(-1),
+        }
+
+    def __call__(self, r: ph.Rollout) -> Tensor:
+        t = self.terms(r)
+        return t["position"] + 0.1 * t["attitude"] + self.alpha * t["cone"] + self.beta * t["velocity"]
+
+
+def normal_acceleration(r: ph.Rollout, g: float = ph.G) -> Tensor:
+    """``N = -a_y sin(theta) + (g + a_z) cos(theta)`` (B, K): the spatula-normal component of
+    the acceleration the spatula must give the pancake (m/s^2); ``N <= 0``: it lifts off."""
+    theta = r.p[..., 2]
+    return -r.u[..., 0] * torch.sin(theta) + (g + r.u[..., 1]) * torch.cos(theta)
+
+
+class J2Executable(J2):
+    """eq. 24 plus execution margins: plans the 1 kHz P-D + DOB can execute without losing
+    the pancake.
+
+    The paper's J2 optimum rides the cone's edge (|phi| = 45 deg) and ends in near free fall
+    (N ~ 0.1 m/s^2), so the controller's tracking lag tips the pancake off
+    (``genplan bench control``). Added to eq. 24 (defaults in brackets):
+
+    ``+ f_dyn(phi, margin)`` (10 deg: |phi| <= 35 deg)
+    ``+ normal_weight / g * sum_k max(normal_floor - N[k], 0)`` (0.1; 3 m/s^2; N:
+    :func:`normal_acceleration`)
+    ``+ attitude_weight * max(|theta - theta_end| - (theta_lim - attitude_inset), 0)`` (3;
+    0.02 rad: at J2's own weight 0.1 the floor pulls the end attitude out of the band)
+    ``+ velocity_weight * velocity term`` (10: at J2's beta 0.01 a 2x overshoot of the attitude
+    rate costs as much as 0.3 mm of end position).
+
+    Reach it with Adam (500 updates in ``genplan bench control``). The weights come from an
+    exploratory sweep (floor 2-3 m/s^2, attitude weight 1-10, velocity weight 1-30, margin 8-10
+    deg): most settings kept the pancake; these also keep the velocity excess small and the end
+    inside J2's ranges.
+    """
+
+    name = "j2-exec"
+
+    def __init__(self, *args: Any, margin: float = math.radians(10.0), normal_floor: float = 3.0,
+                 normal_weight: float = 0.1, attitude_weight: float = 3.0, attitude_inset: float = 0.02,
+                 velocity_weight: float = 10.0, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        extra = [margin, normal_floor, normal_weight, attitude_weight, attitude_inset, velocity_weight]
+        if not all(math.isfinite(float(v)) and v >= 0 for v in extra):
+            raise ValueError(f"J2Executable: margins and weights must be finite and >= 0, got {extra}")
+        if margin >= math.atan(self.mu_max) or attitude_inset >= self.theta_lim:
+            raise ValueError("J2Executable: margin must be below the cone's half-angle and attitude_inset below "
+                             "theta_lim")
+        self.margin, self.normal_floor, self.normal_weight = float(margin), float(normal_floor), float(normal_weight)
+        self.attitude_weight, self.attitude_inset = float(attitude_weight), float(attitude_inset)
+        self.velocity_weight = float(velocity_weight)
+
+    def terms(self, r: ph.Rollout) -> dict[str, Tensor]:
+        """eq. 24's terms plus ``cone_margin``, ``normal`` (sum of m/s^2 below the floor) and
+        ``attitude_inset`` (rad beyond the inset band)."""
+        t = super().terms(r)
+        end_theta = r.p[:, -1, 2]
+        t["cone_margin"] = ph.f_dyn(r.phi, self.mu_max, self.margin)
+        t["normal"] = torch.relu(self.normal_floor - normal_acceleration(r)).sum(-1)
+        t["attitude_inset"] = torch.relu((end_theta - self.theta_end).abs() - (self.theta_lim - self.attitude_inset))
+        return t
+
+    def __call__(self, r: ph.Rollout) -> Tensor:
+        t = self.terms(r)
+        paper = t["position"] + 0.1 * t["attitude"] + self.alpha * t["cone"] + self.beta * t["velocity"]
+        return (paper + t["cone_margin"] + self.normal_weight / ph.G * t["normal"]
+                + self.attitude_weight * t["attitude_inset"] + self.velocity_weight * t["velocity"])
 
 
 @dataclass
