@@ -48,7 +48,7 @@ fn bounding_volume_filters_never_change_a_collision_verdict() {
         let (model, mut world) = RobotSpec::by_name(name).unwrap().load(&root).unwrap();
         world.add_box("table", [0.25, 0.4, 0.03], Isometry3::translation(0.5, 0.0, 0.6)).unwrap();
         world.add_sphere("ball", 0.1, [0.3, -0.3, 1.0]).unwrap();
-        let (mut hits, n) = (0, 3000);
+        let (mut hits, n) = (0, 1000);
         for _ in 0..n {
             let mut q: Vec<f64> =
                 model.lower.iter().zip(&model.upper).map(|(l, u)| if l.is_finite() { rng.random_range(*l..=*u) } else { 0.0 }).collect();
