@@ -8,6 +8,7 @@ forward dynamics (aba), generalised gravity, frame placement, Jacobian and its t
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -123,37 +124,13 @@ def test_payload_matches_pinocchio(case):
 
 #: every joint kind (prismatic, continuous, revolute), off-axis origins, rotated inertias (the
 #: presets' inertial frames are all unrotated), a link lumped through a fixed joint
-MIXED = """<robot name="mixed">
-  <link name="world"/>
-  <link name="slider"><inertial><mass value="3"/><origin xyz="0.02 0.01 0.05" rpy="0.1 0.2 0.3"/>
-    <inertia ixx="0.02" ixy="0.001" ixz="0" iyy="0.03" iyz="0.002" izz="0.04"/></inertial></link>
-  <link name="wheel"><inertial><mass value="1.2"/><origin xyz="0 0.05 0.1" rpy="0.4 0 -0.2"/>
-    <inertia ixx="0.01" ixy="0" ixz="0.001" iyy="0.012" iyz="0" izz="0.008"/></inertial></link>
-  <link name="bracket"><inertial><mass value="0.4"/><origin xyz="0.1 0 0"/>
-    <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.002" iyz="0" izz="0.002"/></inertial></link>
-  <link name="arm"><inertial><mass value="0.9"/><origin xyz="0.2 0.02 -0.01" rpy="0 0.3 0"/>
-    <inertia ixx="0.004" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.021"/></inertial></link>
-  <link name="tip"/>
-  <joint name="lift" type="prismatic"><parent link="world"/><child link="slider"/>
-    <origin xyz="0.1 0 0.2" rpy="0 0.1 0"/><axis xyz="0 0.6 0.8"/>
-    <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
-  <joint name="spin" type="continuous"><parent link="slider"/><child link="wheel"/>
-    <origin xyz="0 0.1 0.3" rpy="0.3 0 0.2"/><axis xyz="1 0 0"/></joint>
-  <joint name="mount" type="fixed"><parent link="wheel"/><child link="bracket"/>
-    <origin xyz="0 0 0.15" rpy="0 0 0.5"/></joint>
-  <joint name="elbow" type="revolute"><parent link="bracket"/><child link="arm"/>
-    <origin xyz="0.2 0 0" rpy="0.2 -0.1 0"/><axis xyz="0 0 1"/>
-    <limit lower="-2" upper="2" effort="10" velocity="1"/></joint>
-  <joint name="tipj" type="fixed"><parent link="arm"/><child link="tip"/><origin xyz="0.4 0.05 0"/></joint>
-</robot>"""
+MIXED = str(Path(__file__).parent / "data" / "mixed.urdf")  # also read by rust/core/tests/dynamics.rs
 
 
-def test_every_joint_kind_and_rotated_inertias_match_pinocchio(tmp_path):
-    path = tmp_path / "mixed.urdf"
-    path.write_text(MIXED)
-    model = pin.buildModelFromUrdf(str(path))
+def test_every_joint_kind_and_rotated_inertias_match_pinocchio():
+    model = pin.buildModelFromUrdf(MIXED)
     data = model.createData()
-    dyn = _core.Dynamics.from_urdf(str(path))
+    dyn = _core.Dynamics.from_urdf(MIXED)
     assert (dyn.nq, dyn.nv) == (model.nq, model.nv) == (4, 3)
     fid = model.getFrameId("tip")
     rng = np.random.default_rng(3)
