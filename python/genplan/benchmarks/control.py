@@ -124,7 +124,8 @@ def adjusted_trajectory(updates: int | None = None, path: Path | None = None, ob
                  step=step, snapshots=(0,))
     adjust_s = time.perf_counter() - t0
     r = ph.Rollout(*(torch.as_tensor(getattr(res, k), dtype=torch.float32) for k in ("p", "v", "u", "phi")))
-    terms = {k: float(v[0]) for k, v in J2().terms(r).items()}
+    paper_j2 = J2()
+    paper_terms = paper_j2.terms(r)
     details = {
         "objective": objective,
         "adjust_s": adjust_s,
@@ -132,8 +133,8 @@ def adjusted_trajectory(updates: int | None = None, path: Path | None = None, ob
         "step": step,
         "objective_before": float(res.objective_history[0, 0]),
         "objective_after": float(res.objective_history[-1, 0]),
-        "j2_after": float(J2()(r)[0]),
-        "j2_terms_after": terms,
+        "j2_after": float(paper_j2.combine(paper_terms)[0]),
+        "j2_terms_after": {k: float(v[0]) for k, v in paper_terms.items()},
         "planned_max_abs_phi_deg": float(np.degrees(np.abs(res.phi[0]).max())),
         "planned_min_normal_acceleration": float(normal_acceleration(r)[0].min()),
         "planned_end_pose": res.p[0, -1].tolist(),

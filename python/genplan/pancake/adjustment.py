@@ -148,9 +148,12 @@ class J2:
             "velocity": (torch.relu(self.d * (r.v.abs() - self.v_lim)) ** 2).sum(-1).mean(-1),
         }
 
-    def __call__(self, r: ph.Rollout) -> Tensor:
-        t = self.terms(r)
+    def combine(self, t: dict[str, Tensor]) -> Tensor:
+        """The objective from :meth:`terms`."""
         return t["position"] + 0.1 * t["attitude"] + self.alpha * t["cone"] + self.beta * t["velocity"]
+
+    def __call__(self, r: ph.Rollout) -> Tensor:
+        return self.combine(self.terms(r))
 
 
 def normal_acceleration(r: ph.Rollout, g: float = ph.G) -> Tensor:
@@ -208,10 +211,9 @@ class J2Executable(J2):
         t["attitude_inset"] = torch.relu((end_theta - self.theta_end).abs() - (self.theta_lim - self.attitude_inset))
         return t
 
-    def __call__(self, r: ph.Rollout) -> Tensor:
-        t = self.terms(r)
-        paper = t["position"] + 0.1 * t["attitude"] + self.alpha * t["cone"] + self.beta * t["velocity"]
-        return (paper + t["cone_margin"] + self.normal_weight / ph.G * t["normal"]
+    def combine(self, t: dict[str, Tensor]) -> Tensor:
+        """eq. 24 (:meth:`J2.combine`) plus the margins' terms."""
+        return (super().combine(t) + t["cone_margin"] + self.normal_weight / ph.G * t["normal"]
                 + self.attitude_weight * t["attitude_inset"] + self.velocity_weight * t["velocity"])
 
 
