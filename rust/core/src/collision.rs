@@ -329,8 +329,9 @@ impl CollisionWorld {
         s.obbs.clear();
         for g in &self.geometries {
             let pose = s.links[g.link] * g.offset;
-            s.aabbs.push(g.local_aabb.transform_by(&pose));
-            s.obbs.push(Obb::new(&g.local_aabb, &pose));
+            let obb = Obb::new(&g.local_aabb, &pose);
+            s.aabbs.push(obb.aabb());
+            s.obbs.push(obb);
             s.poses.push(pose);
         }
     }
@@ -341,6 +342,15 @@ impl CollisionWorld {
         match t {
             Target::Robot(j) => Some(&s.aabbs[j]),
             Target::Obstacle(k) => self.obstacles[k].aabb.as_ref(),
+        }
+    }
+
+    /// Oriented bounding box of a pair's second member (None for a half-space).
+    #[inline]
+    fn target_obb<'a>(&'a self, t: Target, s: &'a Scratch) -> Option<&'a Obb> {
+        match t {
+            Target::Robot(j) => Some(&s.obbs[j]),
+            Target::Obstacle(k) => self.obstacles[k].obb.as_ref(),
         }
     }
 
@@ -424,11 +434,7 @@ impl CollisionWorld {
             }
             // The shapes' boxes in their own frames are much tighter than world-aligned boxes on
             // tilted links: a separating axis between them rules the pair out before GJK.
-            let obb_b = match t {
-                Target::Robot(j) => Some(&s.obbs[j]),
-                Target::Obstacle(k) => self.obstacles[k].obb.as_ref(),
-            };
-            if let Some(b) = obb_b {
+            if let Some(b) = self.target_obb(t, s) {
                 if s.obbs[i].separated(b) {
                     continue;
                 }
@@ -566,6 +572,12 @@ impl Obb {
         }
     }
 
+    /// The world-aligned box around it (what `Aabb::transform_by` gives for the local box).
+    fn aabb(&self) -> Aabb {
+        let e = self.axes.abs() * self.half;
+        Aabb::new((self.center - e).into(), (self.center + e).into())
+    }
+
     /// True when a separating axis exists (the boxes do not overlap): the 15-axis test of
     /// Gottschalk, Lin and Manocha (1996), with a small epsilon on the cross-product axes so
     /// that near-parallel edges never separate by round-off (the test only errs towards
@@ -647,6 +659,8 @@ mod tests {
             let (a, b) = (Cuboid::new(ha), Cuboid::new(hb));
             let oa = Obb::new(&Aabb::new((-ha).into(), ha.into()), &pa);
             let ob = Obb::new(&Aabb::new((-hb).into(), hb.into()), &pb);
+            let world = Aabb::new((-ha).into(), ha.into()).transform_by(&pa);
+            assert!((oa.aabb().mins - world.mins).norm() < 1e-12 && (oa.aabb().maxs - world.maxs).norm() < 1e-12);
             let hit = query::intersection_test(&pa, &a, &pb, &b).unwrap();
             let separated = oa.separated(&ob);
             assert_eq!(separated, ob.separated(&oa), "the test is symmetric");
