@@ -15,7 +15,7 @@ import pytest
 import genplan
 from genplan import _core
 from genplan import projection as P
-from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler
+from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler, uniform_base_box
 
 
 @pytest.fixture(scope="module")
@@ -246,6 +246,25 @@ def test_native_samplers(panda, talos) -> None:
     h = make_sampler(panda, "hybrid", seed=3, hybrid_p=0.5)
     assert h.p == 0.5
     assert make_sampler(panda, "gan", seed=3).sample(5).shape == (5, 7)
+
+
+def test_uniform_sampling_of_a_free_flyer_base(panda, talos) -> None:
+    """The authors' Talos sampler: the base position uniform in the centre-of-mass box, its
+    orientation the default's; the planner takes the box from its task."""
+    box = uniform_base_box(talos, P.paper_task(talos, "projection"))
+    np.testing.assert_array_equal(box, P.TALOS_COM_BOX)
+    assert uniform_base_box(panda, P.paper_task(panda, "projection")) is None
+    assert Planner(talos).base_box is not None and Planner(panda).base_box is None
+    q = make_sampler(talos, "uniform", seed=3, base_box=box).sample(300)
+    assert ((q[:, :3] >= box[0]) & (q[:, :3] <= box[1])).all()
+    assert np.ptp(q[:, :3], axis=0).min() > 0.9 * np.diff(box, axis=0).min()  # spread over the box
+    np.testing.assert_array_equal(q[:, 3:7], np.tile(talos.q_default[3:7], (300, 1)))
+    with pytest.raises(ValueError, match="bad base box"):
+        make_sampler(talos, "uniform", base_box=box[::-1])
+    with pytest.raises(ValueError, match="base_box: expected"):
+        make_sampler(talos, "uniform", base_box=[0.0, 1.0])
+    with pytest.raises(ValueError, match="free-flyer"):
+        make_sampler(panda, "uniform", base_box=box)
 
 
 def test_simplified_paths_are_valid_and_no_longer(panda, shelf) -> None:

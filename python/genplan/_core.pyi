@@ -106,9 +106,11 @@ def package_dirs(robots_dir: _Path) -> list[str]: ...
 # --- constrained planning (genplan_core::planning / gan; genplan.planning) ---
 
 class UniformSampler:
-    """Uniform within the joint limits; a free-flyer base held at ``base``."""
+    """Uniform within the joint limits; a free-flyer base held at ``base``, its position drawn
+    uniformly in ``base_box`` ([lower, upper]) when given."""
 
-    def __init__(self, model: KinematicModel, base: list[float] | None = None, seed: int = 0) -> None: ...
+    def __init__(self, model: KinematicModel, base: list[float] | None = None, seed: int = 0,
+                 base_box: list[list[float]] | None = None) -> None: ...
     def sample(self, n: int) -> NDArray[np.float64]: ...
 
 class GanSampler:

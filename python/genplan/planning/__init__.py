@@ -38,7 +38,7 @@ from genplan import _core
 from genplan.collision import CollisionWorld
 from genplan.planning.environments import ENVIRONMENT_NAMES, Environment, Query, environment
 from genplan.planning.queries import TOLERANCE_FACTOR
-from genplan.projection import GaussNewtonProjector, Task, paper_task
+from genplan.projection import ComBox, GaussNewtonProjector, Task, paper_task
 from genplan.robots import Robot
 
 __all__ = [
@@ -51,6 +51,7 @@ __all__ = [
     "SAMPLERS",
     "environment",
     "make_sampler",
+    "uniform_base_box",
 ]
 
 #: Sampler names accepted by :class:`Planner`.
@@ -109,11 +110,24 @@ class PlanResult:
     stats: dict[str, Any] = field(default_factory=dict)
 
 
+def uniform_base_box(robot: Robot, task: Task) -> NDArray[np.float64] | None:
+    """Where the uniform sampler draws a free-flyer base's position: the box of the task's
+    centre-of-mass term (the authors' Talos sampler), None without a free flyer or such a term."""
+    if not robot.floating_base:
+        return None
+    box = next((t for t in task.primary if isinstance(t, ComBox)), None)
+    return None if box is None else np.array([box.lower, box.upper], dtype=np.float64)
+
+
 def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, gan_model: Any = None,
-                 hybrid_p: float = 0.8, gan_box: ArrayLike | None = None) -> Any:
+                 hybrid_p: float = 0.8, gan_box: ArrayLike | None = None,
+                 base_box: ArrayLike | None = None) -> Any:
     """A sampler the planner understands: "uniform" (native), "gan", "hybrid", or an object with
     ``sample(n)`` (returned as is). The GAN conditions on end-effector targets drawn uniformly in
-    ``gan_box`` ([[x, y, z] min, max]; default: the model's task-space region of interest)."""
+    ``gan_box`` ([[x, y, z] min, max]; default: the model's task-space region of interest). Uniform
+    samples hold a free-flyer base at the robot's default placement, its position drawn uniformly
+    in ``base_box`` ([[x, y, z] min, max]) when given (the :class:`Planner` passes
+    :func:`uniform_base_box` of its task)."""
     if not isinstance(kind, str):
         if not hasattr(kind, "sample"):
             raise TypeError(f"sampler: expected one of {SAMPLERS} or an object with sample(n), got {type(kind).__name__}")
@@ -121,7 +135,13 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
     if kind not in SAMPLERS:
         raise ValueError(f"unknown sampler '{kind}' (known: {', '.join(SAMPLERS)})")
     base = list(map(float, robot.q_default[:7])) if robot.floating_base else None
-    uniform = _core.UniformSampler(robot.kinematics, base, seed)
+    box = None
+    if base_box is not None:
+        b = np.asarray(base_box, dtype=np.float64)
+        if b.shape != (2, 3):
+            raise ValueError(f"base_box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got shape {b.shape}")
+        box = b.tolist()
+    uniform = _core.UniformSampler(robot.kinematics, base, seed, box)
     if kind == "uniform":
         return uniform
     from genplan.gan.sampler import GanSampler
@@ -154,7 +174,9 @@ class Planner:
         self.task = task if task is not None else paper_task(robot, "projection")
         self.world = world if world is not None else robot.collision_world()
         self.parallel = bool(parallel)
-        self.sampler = make_sampler(robot, sampler, seed=seed, gan_model=gan_model, hybrid_p=hybrid_p)
+        self.base_box = uniform_base_box(robot, self.task)
+        self.sampler = make_sampler(robot, sampler, seed=seed, gan_model=gan_model, hybrid_p=hybrid_p,
+                                    base_box=self.base_box)
         if projector is None:
             projector = GaussNewtonProjector(robot, self.task.with_tolerances_scaled(tolerance_factor))
         self.projector = projector
@@ -176,7 +198,7 @@ class Planner:
             raise ValueError(f"start: expected shape ({self.robot.nq},), got {q0.shape}")
         g = self.robot.check_configuration(goals, "goals")
         g = np.ascontiguousarray(g.reshape(-1, self.robot.nq))
-        smp = self.sampler if sampler is None else make_sampler(self.robot, sampler)
+        smp = self.sampler if sampler is None else make_sampler(self.robot, sampler, base_box=self.base_box)
         out = self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel)
         stats = {k: v for k, v in out.items() if k not in ("path", "waypoints")}
         return PlanResult(success=bool(out["success"]), path=out["path"], waypoints=out["waypoints"],

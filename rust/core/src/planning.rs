@@ -221,11 +221,14 @@ pub trait NearestNeighbors: Send {
 // ---------------------------------------------------------------------------------------------
 
 /// Uniform within the joint limits (continuous joints: any angle); a free-flyer base is set to
-/// a fixed placement (`base`, 7 numbers), as in the paper's Talos experiments.
+/// a fixed placement (`base`, 7 numbers), or with [`UniformSampler::with_base_box`] keeps the
+/// placement's orientation and draws its position uniformly in a box (the paper's Talos sampler:
+/// the centre-of-mass support box).
 #[derive(Debug, Clone)]
 pub struct UniformSampler {
     model: Arc<KinematicModel>,
     base: [f64; 7],
+    base_box: Option<([f64; 3], [f64; 3])>,
     rng: StdRng,
 }
 
@@ -242,7 +245,20 @@ impl UniformSampler {
         if base.iter().any(|x| !x.is_finite()) {
             return invalid("uniform sampler: base placement is not finite");
         }
-        Ok(UniformSampler { model, base, rng: StdRng::seed_from_u64(seed) })
+        Ok(UniformSampler { model, base, base_box: None, rng: StdRng::seed_from_u64(seed) })
+    }
+
+    /// Draw the free-flyer base position uniformly in `lower..=upper` (orientation: the base
+    /// placement's).
+    pub fn with_base_box(mut self, lower: [f64; 3], upper: [f64; 3]) -> PlanResult<UniformSampler> {
+        if !self.model.floating_base {
+            return invalid("uniform sampler: a base box needs a free-flyer base");
+        }
+        if (0..3).any(|k| !(lower[k].is_finite() && upper[k].is_finite() && lower[k] <= upper[k])) {
+            return invalid(format!("uniform sampler: bad base box {lower:?} .. {upper:?}"));
+        }
+        self.base_box = Some((lower, upper));
+        Ok(self)
     }
 }
 
@@ -252,6 +268,11 @@ impl Sampler for UniformSampler {
         for row in out.chunks_mut(m.nq).take(n) {
             if m.floating_base {
                 row[..7].copy_from_slice(&self.base);
+                if let Some((lo, hi)) = self.base_box {
+                    for k in 0..3 {
+                        row[k] = self.rng.random_range(lo[k]..=hi[k]);
+                    }
+                }
             }
             for j in m.joints.iter().filter(|j| j.q_index != usize::MAX) {
                 let i = j.q_index;

@@ -249,3 +249,41 @@ fn panda_keeps_its_gripper_horizontal_around_a_box() {
         assert!(model.as_ref().distance(w[0], w[1]) <= genplan_core::planning::MAX_SPACING * Settings::default().edge_resolution + 1e-9);
     }
 }
+
+#[test]
+fn uniform_sampler_draws_a_free_flyer_base_in_its_box() {
+    let root = find_robots_dir().unwrap();
+    let (talos, _) = RobotSpec::by_name("talos").unwrap().load(&root).unwrap();
+    let base = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let (lo, hi) = ([-0.1, -0.1, 0.6], [0.1, 0.1, 1.1]);
+    let mut s = UniformSampler::new(talos.clone(), Some(base), 5).unwrap().with_base_box(lo, hi).unwrap();
+    let n = 400;
+    let mut q = vec![0.0; n * talos.nq];
+    s.sample(n, &mut q).unwrap();
+    let mut spread = [(f64::INFINITY, f64::NEG_INFINITY); 3];
+    for row in q.chunks(talos.nq) {
+        for k in 0..3 {
+            assert!(row[k] >= lo[k] && row[k] <= hi[k], "base position {k}: {}", row[k]);
+            spread[k] = (spread[k].0.min(row[k]), spread[k].1.max(row[k]));
+        }
+        assert_eq!(&row[3..7], &base[3..7], "orientation held");
+        for i in 7..talos.nq {
+            assert!(row[i] >= talos.lower[i] && row[i] <= talos.upper[i]);
+        }
+    }
+    // the positions fill the box (400 draws: each coordinate within 5 % of both faces)
+    for k in 0..3 {
+        let w = hi[k] - lo[k];
+        assert!(spread[k].0 < lo[k] + 0.05 * w && spread[k].1 > hi[k] - 0.05 * w, "{k}: {:?}", spread[k]);
+    }
+    // without a box the base stays put
+    let mut fixed = UniformSampler::new(talos.clone(), Some(base), 5).unwrap();
+    fixed.sample(3, &mut q[..3 * talos.nq]).unwrap();
+    assert!(q[..3 * talos.nq].chunks(talos.nq).all(|r| r[..7] == base));
+
+    let bad = UniformSampler::new(talos.clone(), None, 5).unwrap().with_base_box([0.0, 0.0, 1.0], [0.1, 0.1, 0.9]);
+    assert!(matches!(bad, Err(PlanError::Invalid(m)) if m.contains("bad base box")));
+    let (panda, _) = RobotSpec::by_name("panda").unwrap().load(&root).unwrap();
+    let fixed_base = UniformSampler::new(panda, None, 5).unwrap().with_base_box(lo, hi);
+    assert!(matches!(fixed_base, Err(PlanError::Invalid(m)) if m.contains("free-flyer")));
+}

@@ -166,9 +166,12 @@ pub(crate) struct PyUniformSampler {
 #[pymethods]
 impl PyUniformSampler {
     #[new]
-    #[pyo3(signature = (model, base=None, seed=0))]
-    fn new(model: &PyKinematicModel, base: Option<[f64; 7]>, seed: u64) -> PyResult<Self> {
-        let s = planning::UniformSampler::new(model.inner.clone(), base, seed).map_err(plan_error_to_py)?;
+    #[pyo3(signature = (model, base=None, seed=0, base_box=None))]
+    fn new(model: &PyKinematicModel, base: Option<[f64; 7]>, seed: u64, base_box: Option<[[f64; 3]; 2]>) -> PyResult<Self> {
+        let mut s = planning::UniformSampler::new(model.inner.clone(), base, seed).map_err(plan_error_to_py)?;
+        if let Some([lo, hi]) = base_box {
+            s = s.with_base_box(lo, hi).map_err(plan_error_to_py)?;
+        }
         Ok(Self { inner: Arc::new(Mutex::new(s)), nq: model.inner.nq })
     }
 
