@@ -23,3 +23,12 @@ def as_configurations(q: Any, nq: int, what: str = "q") -> NDArray[np.float64]:
         bad = np.argwhere(~np.isfinite(arr))[0]
         raise ValueError(f"{what}: element {tuple(int(i) for i in bad)} is not finite ({arr[tuple(bad)]})")
     return arr
+
+
+def as_box(value: Any, what: str = "box") -> NDArray[np.float64]:
+    """``value`` as an axis-aligned box [[xmin, ymin, zmin], [xmax, ymax, zmax]]: shape (2, 3),
+    finite, min <= max; ValueError otherwise."""
+    b = np.asarray(value, dtype=np.float64)
+    if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[0] > b[1]):
+        raise ValueError(f"{what}: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got {b.tolist()}")
+    return b

@@ -28,6 +28,7 @@ import torch
 from numpy.typing import NDArray
 
 from genplan import _core
+from genplan._arrays import as_box
 from genplan import projection as P
 from genplan.robots import Robot, load
 from genplan.torch_kinematics import TorchKinematics
@@ -240,9 +241,7 @@ class GanModel:
         """The generator run natively (Rust, no GIL): ``sample(n)`` draws targets uniformly in
         ``box`` (default: the model's target box), a member at random and Gaussian noise, like
         :meth:`sample`. The planner uses it without calling back into Python."""
-        b = np.asarray(self.config.target_box if box is None else box, dtype=np.float64)
-        if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[0] > b[1]):
-            raise ValueError(f"box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got {b.tolist()}")
+        b = as_box(self.config.target_box if box is None else box)
         return _core.GanSampler(
             self.config.noise_dim,
             [w.detach().double().numpy() for w in self.generator.weights],

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from genplan._arrays import as_box
 from genplan.gan.model import GanModel, load_model
 from genplan.robots import Robot
 
@@ -39,10 +40,7 @@ class GanSampler:
         self.model = model if isinstance(model, GanModel) else load_model(robot, model)
         if self.model.config.robot != robot.name:
             raise ValueError(f"the GAN is for '{self.model.config.robot}', not '{robot.name}'")
-        b = np.asarray(self.model.config.target_box if box is None else box, dtype=np.float64)
-        if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[0] > b[1]):
-            raise ValueError(f"box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got {b.tolist()}")
-        self.box = b
+        self.box = as_box(self.model.config.target_box if box is None else box)
         self.rng = np.random.default_rng(seed)
 
     def native(self, seed: int | None = None) -> Any:

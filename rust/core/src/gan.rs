@@ -127,7 +127,7 @@ pub struct GanSampler {
 
 impl GanSampler {
     pub fn new(generator: Arc<Generator>, lower: [f64; 3], upper: [f64; 3], seed: u64) -> Result<GanSampler> {
-        if (0..3).any(|k| !(lower[k].is_finite() && upper[k].is_finite() && lower[k] <= upper[k])) {
+        if !crate::planning::valid_box(&lower, &upper) {
             return Err(Error::Invalid(format!("GAN sampler: bad target box {lower:?} .. {upper:?}")));
         }
         Ok(GanSampler { generator, lower, upper, rng: StdRng::seed_from_u64(seed), scratch: Default::default() })

@@ -220,6 +220,12 @@ pub trait NearestNeighbors: Send {
 // Native samplers
 // ---------------------------------------------------------------------------------------------
 
+/// True when `lower..=upper` is a box: finite bounds, each lower <= upper (the samplers' target
+/// and base boxes).
+pub fn valid_box(lower: &[f64; 3], upper: &[f64; 3]) -> bool {
+    (0..3).all(|k| lower[k].is_finite() && upper[k].is_finite() && lower[k] <= upper[k])
+}
+
 /// Uniform within the joint limits (continuous joints: any angle); a free-flyer base is set to
 /// a fixed placement (`base`, 7 numbers), or with [`UniformSampler::with_base_box`] keeps the
 /// placement's orientation and draws its position uniformly in a box (the paper's Talos sampler:
@@ -254,7 +260,7 @@ impl UniformSampler {
         if !self.model.floating_base {
             return invalid("uniform sampler: a base box needs a free-flyer base");
         }
-        if (0..3).any(|k| !(lower[k].is_finite() && upper[k].is_finite() && lower[k] <= upper[k])) {
+        if !valid_box(&lower, &upper) {
             return invalid(format!("uniform sampler: bad base box {lower:?} .. {upper:?}"));
         }
         self.base_box = Some((lower, upper));
