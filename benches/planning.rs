@@ -7,15 +7,18 @@
 //!   self-collision included) between two fixed configurations around a box; needs
 //!   example-robot-data (GENPLAN_ROBOTS_DIR or the project's .venv).
 
+#[path = "../rust/core/tests/common/fixtures.rs"]
+mod fixtures;
+
 use std::hint::black_box;
 use std::sync::Arc;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use fixtures::{no_interrupt, panda_horizontal_gripper, Band, CubeSampler, SphereProjector};
 use genplan_core::planning::{
-    CollisionChecker, Components, EuclideanSpace, GaussNewtonProjector, KdForest, LinearNearest, NearestNeighbors, PlanResult,
-    Planner, Sampler, Settings, SphereProjector, UniformSampler, ValidityChecker,
+    CollisionChecker, Components, EuclideanSpace, GaussNewtonProjector, KdForest, LinearNearest, NearestNeighbors, Planner, Sampler,
+    Settings, UniformSampler,
 };
-use genplan_core::projection;
 use genplan_core::robot::{find_robots_dir, RobotSpec};
 use rand::{rngs::StdRng, Rng, SeedableRng};
 
@@ -50,37 +53,12 @@ fn nearest(c: &mut Criterion) {
     group.finish();
 }
 
-struct CubeSampler(StdRng);
-impl Sampler for CubeSampler {
-    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
-        for x in out.iter_mut().take(n * 3) {
-            *x = self.0.random_range(-1.0..1.0);
-        }
-        Ok(())
-    }
-}
-
-/// The equator band |z| < 0.2 is blocked except where y > 0.8.
-struct Band;
-impl ValidityChecker for Band {
-    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
-        for (q, v) in qs.chunks(3).zip(valid.iter_mut()) {
-            *v = q[2].abs() >= 0.2 || q[1] > 0.8;
-        }
-        Ok(())
-    }
-}
-
-fn ok() -> PlanResult<()> {
-    Ok(())
-}
-
 fn sphere(c: &mut Criterion) {
     let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings::default()).unwrap();
-    let mut sampler = CubeSampler(StdRng::seed_from_u64(3));
+    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(3) };
     let mut projector = SphereProjector { radius: 1.0 };
     let mut checker = Band;
-    let mut interrupt = ok;
+    let mut interrupt = no_interrupt;
     let from = [0.0, -1.0, 0.0];
     let mut c_ = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
     // a full extension: 10 steps of 0.3 rad along the equator's door side
@@ -91,7 +69,7 @@ fn sphere(c: &mut Criterion) {
     c.bench_function("plan/sphere", |b| {
         b.iter(|| {
             seed += 1;
-            let mut sampler = CubeSampler(StdRng::seed_from_u64(seed));
+            let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(seed) };
             let mut c_ = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
             let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c_).unwrap();
             assert!(sol.success);
@@ -107,7 +85,7 @@ fn panda(c: &mut Criterion) {
     let world = Arc::new(world);
     let hand = model.link_index("panda_hand").unwrap();
     // states ten times tighter than the constraint, as the Python planner projects them
-    let gn = Arc::new(projection::Projector::panda_horizontal_gripper(model.clone(), 1e-5).unwrap());
+    let gn = Arc::new(panda_horizontal_gripper(model.clone(), 1e-5));
     // two valid configurations on either side of the wall
     let pick = |seed: u64, y_positive: bool| {
         let mut s = UniformSampler::new(model.clone(), None, seed).unwrap();
@@ -132,7 +110,7 @@ fn panda(c: &mut Criterion) {
             let mut sampler = UniformSampler::new(model.clone(), None, seed).unwrap();
             let mut projector = GaussNewtonProjector { inner: gn.clone(), parallel: false };
             let mut checker = CollisionChecker::new(world.clone(), false);
-            let mut interrupt = ok;
+            let mut interrupt = no_interrupt;
             let mut c_ = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
             let sol = planner.plan(&start, &goal, &mut c_).unwrap();
             black_box(sol)

@@ -15,6 +15,8 @@ import pytest
 import genplan
 from genplan import _core
 from genplan import projection as P
+from genplan.errors import (CallbackError, GenplanError, InvalidGoalError, InvalidStartError, NonFiniteError, SettingsError,
+                            ShapeError, UnknownNameError)
 from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler, uniform_base_box
 
 
@@ -56,11 +58,11 @@ def assert_path_valid(robot: genplan.Robot, world, result, query, sub: int = 8) 
 
 def test_environments_are_data(panda, talos) -> None:
     assert ENVIRONMENT_NAMES == ("panda_shelf", "talos_task1", "talos_task2", "talos_task3")
-    with pytest.raises(ValueError, match="known: panda_shelf"):
+    with pytest.raises(UnknownNameError, match="known: panda_shelf"):
         environment("kitchen")
     env = environment("talos_task3")
     assert len(env.boxes) == 8 and env.robot == "talos"
-    with pytest.raises(ValueError, match="is for talos"):
+    with pytest.raises(GenplanError, match="is for talos"):
         env.world(panda)
     w = env.world(talos)
     assert set(w.obstacle_names) == {b.name for b in env.boxes}
@@ -91,7 +93,7 @@ def test_panda_paths_are_valid(panda, shelf, sampler) -> None:
         res = planner.plan(q.start, q.goals)
         assert_path_valid(panda, world, res, q)
         assert res.projections > 0 and res.extensions > 0 and res.time_s > 0
-        assert len(res.waypoints) >= 2 and res.stats["nodes"] >= len(res.waypoints)
+        assert len(res.waypoints) >= 2 and res.stats.nodes >= len(res.waypoints)
 
 
 def test_talos_path_is_valid(talos, task1) -> None:
@@ -141,7 +143,7 @@ def test_python_components_are_called_back_in_batches(panda, shelf) -> None:
     assert_path_valid(panda, world, res, queries[0])
     assert sampler.calls >= 1 and projector.calls >= 1 and checker.calls >= 1
     # batched: several samples per sampler call
-    assert res.stats["samples"] == 8 * sampler.calls
+    assert res.stats.samples == 8 * sampler.calls
     # the same plan with native parts gives the same answer (same samples, same projector)
     native = Planner(panda, world=world, sampler=CountingSampler(panda), settings=PlannerSettings(sample_batch=8))
     again = native.plan(queries[0].start, queries[0].goals)
@@ -166,14 +168,14 @@ def test_an_exception_in_a_callback_reaches_the_caller_unchanged(panda, shelf) -
         def sample(self, n: int) -> np.ndarray:
             return np.zeros((n, 3))
 
-    with pytest.raises(ValueError, match=r"sampler.sample\(n\): expected shape \(16, 7\)"):
+    with pytest.raises(CallbackError, match=r"sampler.sample\(n\): expected shape \(16, 7\)"):
         Planner(panda, world=world, sampler=BadShape()).plan(queries[0].start, queries[0].goals)
 
     class NaNSampler:
         def sample(self, n: int) -> np.ndarray:
             return np.full((n, 7), np.nan)
 
-    with pytest.raises(ValueError, match="sampler returned a bad configuration"):
+    with pytest.raises(CallbackError, match="sampler returned a bad configuration"):
         Planner(panda, world=world, sampler=NaNSampler()).plan(queries[0].start, queries[0].goals)
 
     class FailingChecker:
@@ -213,26 +215,30 @@ def test_bad_input_is_a_clear_error(panda, shelf) -> None:
     env, world, queries = shelf
     planner = Planner(panda, world=world)
     q, goals = queries[0].start, queries[0].goals
-    with pytest.raises(ValueError, match="start"):
+    with pytest.raises(ShapeError, match="start"):
         planner.plan(q[:6], goals)
-    with pytest.raises(ValueError, match="not finite|NaN"):
+    with pytest.raises(NonFiniteError, match="start"):
         planner.plan(np.where(np.arange(7) == 2, np.nan, q), goals)
-    with pytest.raises(ValueError, match="goals"):
+    with pytest.raises(ShapeError, match="goals"):
         planner.plan(q, goals[:, :5])
     colliding = q.copy()
     colliding[1], colliding[3] = 1.7, -0.1  # the arm folded into the table
     assert world.in_collision(colliding)
-    with pytest.raises(ValueError, match="start: the configuration is not valid"):
+    with pytest.raises(InvalidStartError, match="start: the configuration is not valid"):
         planner.plan(colliding, goals)
-    with pytest.raises(ValueError, match="none of the goal"):
+    with pytest.raises(InvalidGoalError, match="none of the goal"):
         planner.plan(q, colliding[None])
-    with pytest.raises(ValueError, match="unknown sampler 'sobol'"):
+    with pytest.raises(UnknownNameError, match="unknown sampler 'sobol'"):
         Planner(panda, world=world, sampler="sobol")
-    with pytest.raises(ValueError, match="step must be positive"):
-        Planner(panda, world=world, settings=PlannerSettings(step=0.0))
-    with pytest.raises(ValueError, match="neighbors must be"):
-        Planner(panda, world=world, settings=PlannerSettings(neighbors="octree"))
-    with pytest.raises(ValueError, match=r"p must be in \[0, 1\]"):
+    with pytest.raises(SettingsError, match="step must be positive"):
+        PlannerSettings(step=0.0)
+    with pytest.raises(SettingsError, match="PlannerSettings.neighbors: expected 'auto', 'linear' or 'kdtree', got 'octree'"):
+        PlannerSettings(neighbors="octree")
+    with pytest.raises(SettingsError, match="PlannerSettings.retries: expected a whole number >= 0, got -1"):
+        PlannerSettings(retries=-1)
+    with pytest.raises(SettingsError, match="unknown setting 'stepp'"):
+        PlannerSettings(stepp=0.2)
+    with pytest.raises(SettingsError, match=r"p must be in \[0, 1\]"):
         _core.MixtureSampler(make_sampler(panda), make_sampler(panda), 1.5)
 
 
@@ -259,11 +265,11 @@ def test_uniform_sampling_of_a_free_flyer_base(panda, talos) -> None:
     assert ((q[:, :3] >= box[0]) & (q[:, :3] <= box[1])).all()
     assert np.ptp(q[:, :3], axis=0).min() > 0.9 * np.diff(box, axis=0).min()  # spread over the box
     np.testing.assert_array_equal(q[:, 3:7], np.tile(talos.q_default[3:7], (300, 1)))
-    with pytest.raises(ValueError, match="bad base box"):
+    with pytest.raises(GenplanError, match="bad base box"):
         make_sampler(talos, "uniform", base_box=box[::-1])
-    with pytest.raises(ValueError, match="base_box: expected"):
+    with pytest.raises(ShapeError, match="base_box: expected"):
         make_sampler(talos, "uniform", base_box=[0.0, 1.0])
-    with pytest.raises(ValueError, match="free-flyer"):
+    with pytest.raises(GenplanError, match="free-flyer"):
         make_sampler(panda, "uniform", base_box=box)
 
 
@@ -279,4 +285,22 @@ def test_simplified_paths_are_valid_and_no_longer(panda, shelf) -> None:
                         settings=PlannerSettings(simplify=True)).plan(q.start, q.goals)
         assert_path_valid(panda, world, short, q)
         assert length(short.path) <= length(plain.path) + 1e-9
-        assert short.stats["shortcuts"] >= 1 and len(short.waypoints) <= len(plain.waypoints)
+        assert short.stats.shortcuts >= 1 and len(short.waypoints) <= len(plain.waypoints)
+
+
+def test_settings_are_typed_records() -> None:
+    s = PlannerSettings(step=0.2, neighbors="linear")
+    assert s.step == 0.2 and s.neighbors == "linear" and s.max_extensions == 500
+    assert s.replace(step=0.1).step == 0.1 and s.step == 0.2            # immutable: replace copies
+    assert s == PlannerSettings(**s.to_dict()) and s != PlannerSettings()
+    assert list(s.to_dict()) == PlannerSettings.fields
+    assert "step=0.2" in repr(s)
+    import pickle
+    assert pickle.loads(pickle.dumps(s)) == s
+    with pytest.raises(AttributeError):
+        s.step = 0.5  # type: ignore[misc]
+    assert P.SolverSettings(max_iterations=0).max_iterations == 0
+    with pytest.raises(SettingsError, match=r"backtrack must be in \(0, 1\), got 1.5"):
+        P.SolverSettings(backtrack=1.5)
+    with pytest.raises(SettingsError, match="SolverSettings.clip_to_limits: expected True or False"):
+        P.SolverSettings(clip_to_limits=1)

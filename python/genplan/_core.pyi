@@ -1,10 +1,21 @@
 """Type stub of the private native module ``genplan._core`` (Rust, PyO3)."""
 
 from os import PathLike
-from typing import Any
+from typing import Any, ClassVar, final
+
+from typing_extensions import Self
 
 import numpy as np
 from numpy.typing import NDArray
+
+from genplan import protocols
+
+__all__ = [
+    "__version__", "ROBOT_NAMES", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "Projector",
+    "SolverSettings", "robot_spec", "load_robot", "package_dirs", "Planner", "PlannerSettings", "PlanStats",
+    "PlanResult", "UniformSampler", "MixtureSampler", "GanSampler", "Dynamics", "SpatulaSimulation",
+    "spatula_defaults", "pancake_phi",
+]
 
 __version__: str
 ROBOT_NAMES: list[str]
@@ -12,6 +23,7 @@ CRATE_VERSIONS: dict[str, str]
 
 _Path = str | PathLike[str]
 
+@final
 class KinematicModel:
     @staticmethod
     def from_urdf(
@@ -40,14 +52,15 @@ class KinematicModel:
         self, q: NDArray[np.float64], links: list[str] | None = None
     ) -> NDArray[np.float64]: ...
 
+@final
 class CollisionWorld:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         model: KinematicModel,
         collision_urdf: _Path,
         package_dirs: list[_Path] = ...,
         srdf_path: _Path | None = None,
-    ) -> None: ...
+    ) -> Self: ...
     @property
     def model(self) -> KinematicModel: ...
     @property
@@ -70,20 +83,62 @@ class CollisionWorld:
     def add_halfspace(self, name: str, normal: tuple[float, float, float], offset: float) -> None: ...
     def remove_obstacle(self, name: str) -> None: ...
     def clear_obstacles(self) -> None: ...
-    def in_collision(self, q: NDArray[np.float64]) -> Any: ...
-    def min_distance(self, q: NDArray[np.float64]) -> Any: ...
+    def in_collision(self, q: NDArray[np.float64]) -> bool | NDArray[np.bool_]: ...
+    def min_distance(self, q: NDArray[np.float64]) -> float | NDArray[np.float64]: ...
     def close_pairs(self, q: list[float], margin: float = 0.0) -> list[tuple[str, str, float]]: ...
 
+@final
+class SolverSettings:
+    """Damped Gauss-Newton settings (genplan_core::projection::Settings); immutable."""
+
+    fields: ClassVar[list[str]]
+    def __new__(
+        cls,
+        *,
+        max_iterations: int = 50,
+        mu: float = 1e-4,
+        mu_bar: float = 1e-6,
+        armijo_c1: float = 1e-4,
+        backtrack: float = 0.2,
+        max_backtracks: int = 20,
+        clip_to_limits: bool = True,
+        secondary_backtracks: int = 3,
+        secondary_slack: float = 1e-6,
+    ) -> Self: ...
+    @property
+    def max_iterations(self) -> int: ...
+    @property
+    def mu(self) -> float: ...
+    @property
+    def mu_bar(self) -> float: ...
+    @property
+    def armijo_c1(self) -> float: ...
+    @property
+    def backtrack(self) -> float: ...
+    @property
+    def max_backtracks(self) -> int: ...
+    @property
+    def clip_to_limits(self) -> bool: ...
+    @property
+    def secondary_backtracks(self) -> int: ...
+    @property
+    def secondary_slack(self) -> float: ...
+    def replace(self, **changes: Any) -> SolverSettings: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    def __eq__(self, value: object, /) -> bool: ...
+    def __getnewargs_ex__(self) -> tuple[tuple[()], dict[str, Any]]: ...
+
+@final
 class Projector:
     """Native damped Gauss-Newton projector; terms are dicts (see genplan.projection)."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         model: KinematicModel,
         primary: list[dict[str, Any]],
         secondary: list[dict[str, Any]] = ...,
-        settings: dict[str, Any] | None = None,
-    ) -> None: ...
+        settings: SolverSettings | None = None,
+    ) -> Self: ...
     @property
     def term_names(self) -> list[str]: ...
     def solve_batch(
@@ -105,19 +160,21 @@ def package_dirs(robots_dir: _Path) -> list[str]: ...
 
 # --- constrained planning (genplan_core::planning / gan; genplan.planning) ---
 
+@final
 class UniformSampler:
     """Uniform within the joint limits; a free-flyer base held at ``base``, its position drawn
     uniformly in ``base_box`` ([lower, upper]) when given."""
 
-    def __init__(self, model: KinematicModel, base: list[float] | None = None, seed: int = 0,
-                 base_box: list[list[float]] | None = None) -> None: ...
+    def __new__(cls, model: KinematicModel, base: list[float] | None = None, seed: int = 0,
+                 base_box: list[list[float]] | None = None) -> Self: ...
     def sample(self, n: int) -> NDArray[np.float64]: ...
 
+@final
 class GanSampler:
     """A trained GAN generator run natively (see genplan.gan.GanModel.native_sampler)."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         noise_dim: int,
         weights: list[NDArray[np.float64]],
         biases: list[NDArray[np.float64]],
@@ -127,7 +184,7 @@ class GanSampler:
         lower: list[float],
         upper: list[float],
         seed: int = 0,
-    ) -> None: ...
+    ) -> Self: ...
     @property
     def nq(self) -> int: ...
     def sample(self, n: int) -> NDArray[np.float64]: ...
@@ -135,31 +192,158 @@ class GanSampler:
         self, members: list[int], noise: NDArray[np.float64], targets: NDArray[np.float64]
     ) -> NDArray[np.float64]: ...
 
+@final
 class MixtureSampler:
     """``primary`` with probability ``p``, else ``secondary`` (native samplers or objects with sample(n))."""
 
-    def __init__(self, primary: Any, secondary: Any, p: float = 0.8, seed: int = 0) -> None: ...
+    def __new__(
+        cls,
+        primary: UniformSampler | GanSampler | MixtureSampler | protocols.Sampler,
+        secondary: UniformSampler | GanSampler | MixtureSampler | protocols.Sampler,
+        p: float = 0.8,
+        seed: int = 0,
+    ) -> Self: ...
     @property
     def p(self) -> float: ...
 
+@final
+class PlannerSettings:
+    """Settings of the constrained RRT (genplan_core::planning::Settings); immutable."""
+
+    fields: ClassVar[list[str]]
+    def __new__(
+        cls,
+        *,
+        step: float = 0.3,
+        max_increments: int = 10,
+        max_jump: float = 3.0,
+        goal_tolerance: float = 1e-3,
+        max_extensions: int = 500,
+        retries: int = 2,
+        project_samples: bool = True,
+        sample_batch: int = 16,
+        edge_resolution: float = 0.025,
+        lazy_edges: bool = True,
+        simplify: bool = False,
+        neighbors: str = "auto",
+        max_empty_batches: int = 100,
+    ) -> Self: ...
+    @property
+    def step(self) -> float: ...
+    @property
+    def max_increments(self) -> int: ...
+    @property
+    def max_jump(self) -> float: ...
+    @property
+    def goal_tolerance(self) -> float: ...
+    @property
+    def max_extensions(self) -> int: ...
+    @property
+    def retries(self) -> int: ...
+    @property
+    def project_samples(self) -> bool: ...
+    @property
+    def sample_batch(self) -> int: ...
+    @property
+    def edge_resolution(self) -> float: ...
+    @property
+    def lazy_edges(self) -> bool: ...
+    @property
+    def simplify(self) -> bool: ...
+    @property
+    def neighbors(self) -> str: ...
+    @property
+    def max_empty_batches(self) -> int: ...
+    def replace(self, **changes: Any) -> PlannerSettings: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    def __eq__(self, value: object, /) -> bool: ...
+    def __getnewargs_ex__(self) -> tuple[tuple[()], dict[str, Any]]: ...
+
+@final
+class PlanStats:
+    """What a plan cost (genplan_core::planning::Stats); read-only."""
+
+    fields: ClassVar[list[str]]
+    @property
+    def success(self) -> bool: ...
+    @property
+    def retries(self) -> int: ...
+    @property
+    def extensions(self) -> int: ...
+    @property
+    def projections(self) -> int: ...
+    @property
+    def projection_calls(self) -> int: ...
+    @property
+    def edge_projections(self) -> int: ...
+    @property
+    def samples(self) -> int: ...
+    @property
+    def samples_rejected(self) -> int: ...
+    @property
+    def validity_checks(self) -> int: ...
+    @property
+    def nodes(self) -> int: ...
+    @property
+    def pruned(self) -> int: ...
+    @property
+    def shortcuts(self) -> int: ...
+    @property
+    def time_s(self) -> float: ...
+    @property
+    def sampler_s(self) -> float: ...
+    @property
+    def projector_s(self) -> float: ...
+    @property
+    def checker_s(self) -> float: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    def __getitem__(self, key: str, /) -> Any: ...
+
+@final
+class PlanResult:
+    """A plan's outcome (see genplan.planning)."""
+
+    @property
+    def success(self) -> bool: ...
+    @property
+    def path(self) -> NDArray[np.float64]: ...
+    @property
+    def waypoints(self) -> NDArray[np.float64]: ...
+    @property
+    def goal_index(self) -> int | None: ...
+    @property
+    def stats(self) -> PlanStats: ...
+    @property
+    def time_s(self) -> float: ...
+    @property
+    def projections(self) -> int: ...
+    @property
+    def extensions(self) -> int: ...
+    @property
+    def retries(self) -> int: ...
+
+_NativeSampler = UniformSampler | GanSampler | MixtureSampler
+
+@final
 class Planner:
     """The constrained RRT (see genplan.planning.Planner for the typed front end)."""
 
-    def __init__(self, model: KinematicModel, settings: dict[str, Any] | None = None) -> None: ...
+    def __new__(cls, model: KinematicModel, settings: PlannerSettings | None = None) -> Self: ...
     def plan(
         self,
         start: list[float],
         goals: NDArray[np.float64],
-        sampler: Any,
-        projector: Any,
-        checker: Any,
+        sampler: _NativeSampler | protocols.Sampler,
+        projector: Projector | protocols.Projector,
+        checker: CollisionWorld | protocols.ValidityChecker,
         parallel: bool = False,
-    ) -> dict[str, Any]: ...
+    ) -> PlanResult: ...
 
 # --- dynamics and the spatula controller (genplan_core::dynamics / control; genplan.control) ---
 
 _Offset = list[list[float]] | None  # a 4x4 placement in the link frame
 
+@final
 class Dynamics:
     """Rigid-body dynamics of a fixed-base arm; q in Pinocchio's convention and joint order.
     Jacobians are LOCAL_WORLD_ALIGNED (rows [v; w] of the frame origin, world axes)."""
@@ -196,10 +380,11 @@ class Dynamics:
     ) -> NDArray[np.float64]: ...
     def energy(self, q: NDArray[np.float64], v: NDArray[np.float64]) -> tuple[float, float]: ...
 
+@final
 class SpatulaSimulation:
     """The seq2seq paper's 1 kHz spatula controller + simulated arm + pancake (see genplan.control)."""
 
-    def __init__(self, robots_dir: _Path, robot: str = "ur5", config: dict[str, Any] | None = None) -> None: ...
+    def __new__(cls, robots_dir: _Path, robot: str = "ur5", config: dict[str, Any] | None = None) -> Self: ...
     @property
     def config(self) -> dict[str, Any]: ...
     @property

@@ -28,7 +28,8 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
-from genplan._arrays import as_configurations
+from genplan._arrays import as_configurations, error_class
+from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
 
 Array = NDArray[np.float64]
@@ -118,7 +119,7 @@ class Term:
 def _native_link(robot: Robot, frame: str) -> str:
     name = robot.frames.get(frame, frame)
     if name not in robot.kinematics.link_names:
-        raise ValueError(f"frame '{frame}' is not a link of robot '{robot.name}': the native solver needs a URDF link")
+        raise UnknownNameError(f"frame '{frame}' is not a link of robot '{robot.name}': the native solver needs a URDF link")
     return name
 
 
@@ -139,23 +140,23 @@ def _se3(target: Any, what: str) -> pin.SE3:
         return target.copy()
     m = np.asarray(target, dtype=np.float64)
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-        raise ValueError(f"{what}: expected a pinocchio.SE3 or a finite 4x4 matrix, got shape {m.shape}")
+        raise error_class(m, m.shape == (4, 4))(f"{what}: expected a pinocchio.SE3 or a finite 4x4 matrix, got shape {m.shape}")
     return pin.SE3(m[:3, :3], m[:3, 3])
 
 
 def _vector(v: Any, n: int, what: str) -> Array:
     a = np.asarray(v, dtype=np.float64).reshape(-1)
     if a.shape != (n,):
-        raise ValueError(f"{what}: expected {n} numbers, got shape {np.shape(v)}")
+        raise ShapeError(f"{what}: expected {n} numbers, got shape {np.shape(v)}")
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"{what}: must be finite, got {a}")
+        raise NonFiniteError(f"{what}: must be finite, got {a}")
     return a
 
 
 def _rotation(m: Any, what: str) -> Array:
     r = np.asarray(m, dtype=np.float64)
     if r.shape != (3, 3) or not np.all(np.isfinite(r)) or np.abs(r.T @ r - np.eye(3)).max() > 1e-6:
-        raise ValueError(f"{what}: expected a 3x3 rotation matrix")
+        raise error_class(r, r.shape == (3, 3))(f"{what}: expected a 3x3 rotation matrix")
     return r
 
 
@@ -295,7 +296,7 @@ class _PostureBound(_BoundTerm):
         self.override_q: list[tuple[int, float]] = []
         for joint, value in term.overrides.items():
             if joint not in robot.joint_names:
-                raise ValueError(f"Posture.overrides: unknown joint '{joint}'")
+                raise UnknownNameError(f"Posture.overrides: unknown joint '{joint}'")
             self.override_q.append((robot.model.joints[robot.model.getJointId(joint)].idx_q, float(value)))
         self.floating = robot.floating_base
 
@@ -382,7 +383,7 @@ class _ComBoxBound(_BoundTerm):
         self.lo = _vector(term.lower, 3, "ComBox.lower")
         self.hi = _vector(term.upper, 3, "ComBox.upper")
         if np.any(self.lo > self.hi):
-            raise ValueError(f"ComBox: lower {self.lo} exceeds upper {self.hi}")
+            raise GenplanError(f"ComBox: lower {self.lo} exceeds upper {self.hi}")
 
     def residual(self, s: _State) -> Array:
         c = s.com()
@@ -414,7 +415,7 @@ class Task:
         names = {t.name for t in [*self.primary, *self.secondary]}
         unknown = set(targets) - names
         if unknown:
-            raise ValueError(f"task '{self.name}' has no term named {sorted(unknown)} (terms: {sorted(n for n in names if n)})")
+            raise UnknownNameError(f"task '{self.name}' has no term named {sorted(unknown)} (terms: {sorted(n for n in names if n)})")
 
         def swap(terms: Sequence[Term]) -> tuple[Term, ...]:
             return tuple(dataclasses.replace(t, target=targets[t.name]) if t.name in targets else t for t in terms)
@@ -426,26 +427,15 @@ class Task:
         ten times tighter than the constraint, so the straight chord between two nearby projected
         states still satisfies it)."""
         if not (np.isfinite(factor) and factor > 0):
-            raise ValueError(f"factor must be positive, got {factor}")
+            raise SettingsError(f"factor must be positive, got {factor}")
         return dataclasses.replace(
             self, primary=tuple(dataclasses.replace(t, tolerance=t.tolerance * factor) for t in self.primary))
 
 
-@dataclass(frozen=True)
-class SolverSettings:
-    """Damped Gauss-Newton settings (defaults: the GAN paper and its public code)."""
-
-    max_iterations: int = 50
-    mu: float = 1e-4  # damping lambda = mu * r^T r + mu_bar
-    mu_bar: float = 1e-6
-    armijo_c1: float = 1e-4
-    backtrack: float = 0.2
-    max_backtracks: int = 20
-    clip_to_limits: bool = True
-    #: step lengths tried for the secondary task (1, backtrack, backtrack^2, ...)
-    secondary_backtracks: int = 3
-    #: the secondary step is kept while the primary cost grows by at most this much
-    secondary_slack: float = 1e-6
+#: Damped Gauss-Newton settings, defined once in the Rust core (``projection::Settings``):
+#: keyword-only, immutable (``replace(**changes)``), validated (:class:`~genplan.errors.SettingsError`).
+#: Defaults: the GAN paper and its public code (``mu``: damping lambda = mu r^T r + mu_bar).
+SolverSettings = _core.SolverSettings
 
 
 @dataclass
@@ -497,9 +487,9 @@ class GaussNewtonProjector:
 
     def __init__(self, robot: Robot, task: Task, settings: SolverSettings | None = None, backend: str = "native") -> None:
         if backend not in BACKENDS:
-            raise ValueError(f"unknown backend '{backend}' (known: {', '.join(BACKENDS)})")
+            raise UnknownNameError(f"unknown backend '{backend}' (known: {', '.join(BACKENDS)})")
         if not task.primary:
-            raise ValueError("a task needs at least one primary term")
+            raise GenplanError("a task needs at least one primary term")
         self.robot = robot
         self.task = task
         self.backend = backend
@@ -508,7 +498,7 @@ class GaussNewtonProjector:
         self._secondary = [t.bind(robot) for t in task.secondary]
         labels = [t.label() for t in task.primary]
         if len(set(labels)) != len(labels):
-            raise ValueError(f"primary term names must be unique, got {labels}")
+            raise GenplanError(f"primary term names must be unique, got {labels}")
         self._labels = labels
         self._weights = [float(t.weight) for t in task.primary]
         self._tols = [float(t.tolerance) for t in task.primary]
@@ -520,7 +510,7 @@ class GaussNewtonProjector:
                 robot.kinematics,
                 [t.to_native(robot) for t in task.primary],
                 [t.to_native(robot) for t in task.secondary],
-                dataclasses.asdict(self.settings),
+                self.settings,
             )
 
     @property
@@ -557,7 +547,7 @@ class GaussNewtonProjector:
         t0 = time.perf_counter()
         q = self.robot.check_configuration(q0, "q0")
         if q.ndim != 1:
-            raise ValueError(f"q0: solve takes one configuration of shape ({self.robot.nq},); use solve_batch")
+            raise ShapeError(f"q0: solve takes one configuration of shape ({self.robot.nq},); use solve_batch")
         if self._native is not None:
             nom = None if q_nom is None else self.robot.check_configuration(q_nom, "q_nom").reshape(1, -1)
             qs, ok, it, res, ts = self._native.solve_batch(q.reshape(1, -1), nom, False)
@@ -625,18 +615,19 @@ class GaussNewtonProjector:
         runs them one after the other."""
         qs = self.robot.check_configuration(q0s, "q0s")
         if qs.ndim != 2:
-            raise ValueError(f"q0s: expected shape (n, {self.robot.nq}), got {qs.shape}")
+            raise ShapeError(f"q0s: expected shape (n, {self.robot.nq}), got {qs.shape}")
         noms = None if q_noms is None else self.robot.check_configuration(q_noms, "q_noms")
         if noms is not None and noms.shape != qs.shape:
-            raise ValueError(f"q_noms: expected shape {qs.shape}, got {noms.shape}")
+            raise ShapeError(f"q_noms: expected shape {qs.shape}, got {noms.shape}")
         term_name, target_rows = None, None
         if targets:
             if len(targets) != 1:
-                raise ValueError(f"targets: give per-row targets for one term, got {sorted(targets)}")
+                raise GenplanError(f"targets: give per-row targets for one term, got {sorted(targets)}")
             term_name, raw = next(iter(targets.items()))
             target_rows = np.ascontiguousarray(raw, dtype=np.float64)
             if target_rows.shape[0] != len(qs) or not np.all(np.isfinite(target_rows)):
-                raise ValueError(f"targets['{term_name}']: expected {len(qs)} finite rows, got shape {target_rows.shape}")
+                raise error_class(target_rows, target_rows.shape[0] == len(qs))(
+                    f"targets['{term_name}']: expected {len(qs)} finite rows, got shape {target_rows.shape}")
         if self._native is not None:
             q, ok, it, res, ts = self._native.solve_batch(
                 qs, noms, parallel, term_name, None if target_rows is None else target_rows.reshape(len(qs), -1))
@@ -741,9 +732,9 @@ def paper_task(robot: Robot, kind: str = "projection", target: ArrayLike | None 
         return panda_task(kind, target)
     if robot.name == "talos":
         return talos_task(robot, kind, target)
-    raise ValueError(f"the paper defines tasks for panda and talos, not '{robot.name}'")
+    raise UnknownNameError(f"the paper defines tasks for panda and talos, not '{robot.name}'")
 
 
 def _check_kind(kind: str) -> None:
     if kind not in TASK_KINDS:
-        raise ValueError(f"unknown task kind '{kind}' (known: {', '.join(TASK_KINDS)})")
+        raise UnknownNameError(f"unknown task kind '{kind}' (known: {', '.join(TASK_KINDS)})")

@@ -27,8 +27,7 @@ interrupts a long plan (KeyboardInterrupt).
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
+
 from typing import Any
 
 import numpy as np
@@ -36,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
 from genplan.collision import CollisionWorld
+from genplan.errors import ShapeError, UnknownNameError
 from genplan.planning.environments import ENVIRONMENT_NAMES, Environment, Query, environment
 from genplan.planning.queries import TOLERANCE_FACTOR
 from genplan.projection import ComBox, GaussNewtonProjector, Task, paper_task
@@ -45,6 +45,7 @@ __all__ = [
     "ENVIRONMENT_NAMES",
     "Environment",
     "PlanResult",
+    "PlanStats",
     "Planner",
     "PlannerSettings",
     "Query",
@@ -58,56 +59,15 @@ __all__ = [
 SAMPLERS = ("uniform", "gan", "hybrid")
 
 
-@dataclass(frozen=True)
-class PlannerSettings:
-    """Settings of the constrained RRT (defaults: the GAN paper's public code, see DESIGN.md)."""
-
-    #: length of one extension step (tangent norm, rad)
-    step: float = 0.3
-    #: extension steps per ConstrainedExtend
-    max_increments: int = 10
-    #: an extension stops when a projected state lands more than max_jump * step away
-    max_jump: float = 3.0
-    #: a goal is reached within this distance
-    goal_tolerance: float = 1e-3
-    #: iterations (sample, extend, extend to the nearest goal) per attempt
-    max_extensions: int = 500
-    #: attempts after a failed one, each from a fresh tree
-    retries: int = 2
-    #: project each sample onto the manifold before extending towards it (the authors' code)
-    project_samples: bool = True
-    #: samples requested per sampler call
-    sample_batch: int = 16
-    #: spacing of the projected, checked states along each edge (0: check tree nodes only)
-    edge_resolution: float = 0.025
-    #: validate edges lazily, only on a path that reaches a goal (a failing edge prunes its subtree)
-    lazy_edges: bool = True
-    #: shortcut the solution (each shortcut a projected, validated straight edge); off by default:
-    #: the paper's timings have none
-    simplify: bool = False
-    #: nearest-neighbour index: "auto" (kd-forest up to 16 dimensions, brute force above: measured
-    #: faster on each side), "linear" (brute force) or "kdtree"
-    neighbors: str = "auto"
-    #: give up after this many sample batches in a row without one projectable sample
-    max_empty_batches: int = 100
-
-
-@dataclass
-class PlanResult:
-    """A plan's outcome. ``path`` is dense: every state is on the manifold and valid, consecutive
-    states at most ~``edge_resolution`` apart; ``waypoints`` are the tree nodes along it."""
-
-    success: bool
-    path: NDArray[np.float64]
-    waypoints: NDArray[np.float64]
-    goal_index: int | None
-    time_s: float
-    #: optimisation steps of the projections of samples and extension steps (Table II's "Opt. Steps")
-    projections: int
-    #: iterations of the planner (Table II's "E")
-    extensions: int
-    retries: int
-    stats: dict[str, Any] = field(default_factory=dict)
+#: Settings of the constrained RRT, defined once in the Rust core (``planning::Settings``):
+#: keyword-only, immutable (``settings.replace(step=0.2)`` makes a changed copy), validated
+#: (:class:`~genplan.errors.SettingsError` names the field). Defaults: the GAN paper's public code.
+PlannerSettings = _core.PlannerSettings
+#: A plan's outcome (``success``, dense ``path``, ``waypoints``, ``goal_index``, ``time_s``,
+#: ``projections``, ``extensions``, ``retries``) and its :class:`PlanStats`.
+PlanResult = _core.PlanResult
+#: What a plan cost (counts and times), read-only; ``to_dict()`` for JSON.
+PlanStats = _core.PlanStats
 
 
 def uniform_base_box(robot: Robot, task: Task) -> NDArray[np.float64] | None:
@@ -133,13 +93,13 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
             raise TypeError(f"sampler: expected one of {SAMPLERS} or an object with sample(n), got {type(kind).__name__}")
         return kind
     if kind not in SAMPLERS:
-        raise ValueError(f"unknown sampler '{kind}' (known: {', '.join(SAMPLERS)})")
+        raise UnknownNameError(f"unknown sampler '{kind}' (known: {', '.join(SAMPLERS)})")
     base = list(map(float, robot.q_default[:7])) if robot.floating_base else None
     box = None
     if base_box is not None:
         b = np.asarray(base_box, dtype=np.float64)
         if b.shape != (2, 3):
-            raise ValueError(f"base_box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got shape {b.shape}")
+            raise ShapeError(f"base_box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got shape {b.shape}")
         box = b.tolist()
     uniform = _core.UniformSampler(robot.kinematics, base, seed, box)
     if kind == "uniform":
@@ -185,22 +145,18 @@ class Planner:
             checker = self.world
         self.checker = checker
         self._checker_arg = checker.native if isinstance(checker, CollisionWorld) else checker
-        self._native = _core.Planner(robot.kinematics, dataclasses.asdict(self.settings))
+        self._native = _core.Planner(robot.kinematics, self.settings)
 
     def plan(self, start: ArrayLike, goals: ArrayLike, sampler: str | Any | None = None) -> PlanResult:
         """Plan from ``start`` (nq,) to any of ``goals`` ((k, nq), on the manifold: e.g. IK
         solutions from :meth:`Environment.queries`). Failing to find a path within the settings'
-        budget is ``success=False``, not an exception; bad input raises ValueError. ``sampler``
+        budget is ``success=False``, not an exception; bad input raises a :mod:`genplan.errors` class. ``sampler``
         replaces the planner's sampler for this plan (e.g. a GAN conditioned on this query's
         region: ``make_sampler(robot, "gan", gan_box=...)``)."""
         q0 = self.robot.check_configuration(start, "start")
         if q0.ndim != 1:
-            raise ValueError(f"start: expected shape ({self.robot.nq},), got {q0.shape}")
+            raise ShapeError(f"start: expected shape ({self.robot.nq},), got {q0.shape}")
         g = self.robot.check_configuration(goals, "goals")
         g = np.ascontiguousarray(g.reshape(-1, self.robot.nq))
         smp = self.sampler if sampler is None else make_sampler(self.robot, sampler, base_box=self.base_box)
-        out = self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel)
-        stats = {k: v for k, v in out.items() if k not in ("path", "waypoints")}
-        return PlanResult(success=bool(out["success"]), path=out["path"], waypoints=out["waypoints"],
-                          goal_index=out["goal_index"], time_s=float(out["time_s"]), projections=int(out["projections"]),
-                          extensions=int(out["extensions"]), retries=int(out["retries"]), stats=stats)
+        return self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel)

@@ -69,9 +69,13 @@ use crate::lie::log3;
 /// The paper's gains, Section 5.1.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gains {
+    /// Position stiffness `Kpp` (1/s^2).
     pub kpp: f64,
+    /// Rotation stiffness `Kpr` (1/s^2).
     pub kpr: f64,
+    /// Position damping `Kvp` (1/s).
     pub kvp: f64,
+    /// Rotation damping `Kvr` (1/s).
     pub kvr: f64,
 }
 
@@ -84,6 +88,7 @@ impl Default for Gains {
 /// Controller settings (defaults: the paper's).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControllerConfig {
+    /// The P-D gains.
     pub gains: Gains,
     /// Control period (s).
     pub dt: f64,
@@ -141,6 +146,7 @@ pub struct Disturbances {
 }
 
 impl Disturbances {
+    /// No disturbance on an arm of `nv` joints.
     pub fn none(nv: usize) -> Self {
         Disturbances {
             coulomb: vec![0.0; nv],
@@ -152,11 +158,14 @@ impl Disturbances {
         }
     }
 
-    /// The deviations genplan's benchmark uses for a 6-joint arm: a 0.3 kg payload error at the
-    /// spatula (a pancake and a heavier spatula than modelled), Coulomb friction
-    /// 3/3/2/0.4/0.4/0.2 N m, viscous 2/2/1/0.15/0.15/0.05 N m s/rad, and a constant torque
-    /// offset 1.5/-2/1/0.3/-0.3/0.2 N m. The wrist values are small because the URDF's wrist
-    /// links are light (0.017 kg m^2 about the last axis, no rotor inertia).
+    /// The reference plant deviations of genplan's reproduction of the seq2seq paper's
+    /// experiment (Section 5; they stand in for the unmodelled dynamics of the paper's real arm),
+    /// for a 6-joint arm: a 0.3 kg payload error at the spatula (a pancake and a heavier spatula
+    /// than modelled), Coulomb friction 3/3/2/0.4/0.4/0.2 N m, viscous 2/2/1/0.15/0.15/0.05
+    /// N m s/rad, and a constant torque offset 1.5/-2/1/0.3/-0.3/0.2 N m. The wrist values are
+    /// small because the URDF's wrist links are light (0.017 kg m^2 about the last axis, no rotor
+    /// inertia). Public API, not a test fixture: Python calls it as
+    /// `genplan.control.Disturbances.reference()` (`genplan bench control`, the README).
     pub fn reference() -> Self {
         Disturbances {
             coulomb: vec![3.0, 3.0, 2.0, 0.4, 0.4, 0.2],
@@ -198,6 +207,7 @@ pub struct SpatulaSetup {
     /// Nominal spatula (known to the controller and present in the plant): mass (kg) and centre
     /// of mass along the flange z axis (m); inertia of a thin rod along z.
     pub spatula_mass: f64,
+    /// See `spatula_mass`.
     pub spatula_com: f64,
     /// `q_cmd[0..3] = origin + [0, y, z]` (the paper: [0.5, 0, 0.35]).
     pub origin: [f64; 3],
@@ -234,7 +244,9 @@ pub const UR5_SEED: [f64; 6] = [-0.35, -1.78, 1.94, -0.15, 1.22, -1.571];
 /// Pancake model settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PancakeConfig {
+    /// Static friction coefficient (the paper's mu = 1).
     pub mu_static: f64,
+    /// Kinetic friction coefficient.
     pub mu_kinetic: f64,
     /// Half the blade's length along its in-plane direction (m): past it the pancake falls.
     pub blade_half_length: f64,
@@ -249,9 +261,13 @@ impl Default for PancakeConfig {
 /// Everything a run needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {
+    /// The controller.
     pub controller: ControllerConfig,
+    /// What the plant has that the controller's model lacks.
     pub disturbances: Disturbances,
+    /// Where the task lives on the arm.
     pub setup: SpatulaSetup,
+    /// The pancake.
     pub pancake: PancakeConfig,
     /// RK4 steps per control period.
     pub substeps: usize,
@@ -261,6 +277,7 @@ pub struct SimConfig {
 }
 
 impl SimConfig {
+    /// The defaults for an arm of `nv` joints (no disturbance, one RK4 step a tick, no settle).
     pub fn new(nv: usize) -> Self {
         SimConfig {
             controller: ControllerConfig::default(),
@@ -347,9 +364,13 @@ pub fn wrap_angle(a: f64) -> f64 {
 /// One sample of the command: pose, velocity, acceleration (world axes).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Command {
+    /// Position of the spatula point.
     pub pos: Vector3<f64>,
+    /// Attitude of the spatula frame.
     pub rot: Matrix3<f64>,
+    /// Velocity (linear, angular).
     pub vel: Vector6<f64>,
+    /// Acceleration (linear, angular).
     pub acc: Vector6<f64>,
     /// The paper's pose `[y, z, theta]` it came from.
     pub paper: [f64; 3],
@@ -358,7 +379,9 @@ pub struct Command {
 /// State of the pancake.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PancakeMode {
+    /// Moving with the blade.
     Stuck,
+    /// Sliding along the blade.
     Sliding,
     /// Lifted off or slid past the blade's end: no longer on the spatula.
     Off,
@@ -367,10 +390,13 @@ pub enum PancakeMode {
 /// The pancake on the blade (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pancake {
+    /// Its friction and the blade's length.
     pub config: PancakeConfig,
+    /// Stuck, sliding or off.
     pub mode: PancakeMode,
-    /// Signed position along the blade from the spatula point (m) and its rate.
+    /// Signed position along the blade from the spatula point (m).
     pub s: f64,
+    /// Rate of `s` (m/s).
     pub ds: f64,
     /// Normal force per unit mass of the last step (m/s^2).
     pub normal: f64,
@@ -379,14 +405,20 @@ pub struct Pancake {
 /// In-plane motion of the spatula point at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlanarMotion {
+    /// Tilt of the blade, counter-clockwise from +y (rad).
     pub theta: f64,
+    /// Tilt rate (rad/s).
     pub w: f64,
+    /// Tilt acceleration (rad/s^2).
     pub dw: f64,
+    /// Acceleration along y (m/s^2).
     pub a_y: f64,
+    /// Acceleration along z (m/s^2).
     pub a_z: f64,
 }
 
 impl Pancake {
+    /// A pancake stuck at the spatula point.
     pub fn new(config: PancakeConfig) -> Self {
         Pancake { config, mode: PancakeMode::Stuck, s: 0.0, ds: 0.0, normal: 0.0 }
     }
@@ -446,22 +478,35 @@ impl Pancake {
 /// What one tick produced (the state at the tick's start and the torque it applied).
 #[derive(Debug, Clone, Copy)]
 pub struct TickOutput {
+    /// Position of the spatula point.
     pub pos: Vector3<f64>,
+    /// Attitude of the spatula frame.
     pub rot: Matrix3<f64>,
+    /// The torque applied over the tick (after the limits).
     pub tau: Vector6<f64>,
+    /// The DOB's disturbance estimate.
     pub tau_dis_hat: Vector6<f64>,
     /// The torque the nominal model does not explain, `tau - M_n qdd - h_n` (what the DOB sees).
     pub tau_dis: Vector6<f64>,
     /// Achieved spatula acceleration (linear, angular; world axes).
     pub acc: Vector6<f64>,
+    /// Spatula velocity (linear, angular; world axes).
     pub vel: Vector6<f64>,
+    /// Norm of the position error (m).
     pub err_pos: f64,
+    /// Norm of the attitude error (rad).
     pub err_rot: f64,
+    /// The paper's phi (eq. 16) of the achieved motion.
     pub phi: f64,
+    /// The achieved tilt theta, unwrapped along the run (rad).
     pub tilt: f64,
+    /// det J of the task Jacobian (m^3).
     pub det_j: f64,
+    /// The inverse of J was damped (near a singularity).
     pub damped: bool,
+    /// A torque limit clipped the torque.
     pub saturated: bool,
+    /// The pancake after the tick.
     pub pancake: Pancake,
 }
 
@@ -469,14 +514,18 @@ pub struct TickOutput {
 /// construction (the models are built from it): make a new `Simulation` to change it.
 pub struct Simulation {
     config: SimConfig,
+    /// The controller's model: the arm and the spatula.
     pub nominal: Dynamics,
+    /// The true arm: the nominal model plus the payload.
     pub plant: Dynamics,
+    /// The spatula frame.
     pub frame: Frame,
     nv: usize,
     ws_n: DynWorkspace,
     ws_p: DynWorkspace,
-    /// Plant state.
+    /// Plant state: joint positions.
     pub q: [f64; 6],
+    /// Plant state: joint velocities.
     pub v: [f64; 6],
     // controller memory
     prev_tau: Vector6<f64>,
@@ -484,64 +533,100 @@ pub struct Simulation {
     prev_m: Matrix6<f64>,
     prev_v: Vector6<f64>,
     has_prev: bool,
+    /// The DOB's disturbance estimate.
     pub tau_dis_hat: Vector6<f64>,
+    /// The pancake.
     pub pancake: Pancake,
     jac: DMatrix<f64>,
     djac: DMatrix<f64>,
     tilt_prev: Option<f64>,
+    /// Ticks since the last reset.
     pub ticks: u64,
 }
 
 /// Summary numbers of a run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Summary {
+    /// Ticks run (settle phase included).
     pub ticks: usize,
     /// Wall time of the loop divided by the ticks (us): unpaced, this is the cost of one tick.
     pub us_per_tick: f64,
-    /// Over the executed trajectory (after the settle phase).
+    /// Largest position error (m) over the executed trajectory (after the settle phase).
     pub max_err_pos: f64,
+    /// Largest attitude error (rad), likewise.
     pub max_err_rot: f64,
+    /// RMS position error (m), likewise.
     pub rms_err_pos: f64,
+    /// RMS attitude error (rad), likewise.
     pub rms_err_rot: f64,
     /// Largest |phi| over the motion window.
     pub max_abs_phi: f64,
     /// The pancake slid or left the spatula during the motion window.
     pub slipped: bool,
+    /// Time (s) of the first tick the pancake was not stuck, over the whole run.
     pub first_slip_time: Option<f64>,
+    /// Time (s) of the first tick the pancake was off the spatula.
     pub left_time: Option<f64>,
+    /// Largest |s| (m) while on the spatula, over the motion window.
     pub max_abs_slide: f64,
+    /// Ticks with a damped inverse of J.
     pub damped_ticks: usize,
+    /// Time (s) of the first of them.
     pub first_damped_time: Option<f64>,
+    /// Smallest |det J| (m^3).
     pub min_abs_det_j: f64,
+    /// Ticks where a torque limit clipped the torque.
     pub saturated_ticks: usize,
+    /// Largest |torque| per joint (N m).
     pub max_abs_tau: Vec<f64>,
 }
 
 /// Per-tick log of a run (row-major arrays).
 #[derive(Debug, Clone, Default)]
 pub struct Log {
+    /// Ticks logged (rows).
     pub n: usize,
+    /// Joints (columns of the joint arrays).
     pub nv: usize,
+    /// Time of each tick (s).
     pub t: Vec<f64>,
+    /// The commanded paper pose `[y, z, theta]` (n x 3).
     pub paper_cmd: Vec<f64>,
+    /// The achieved paper pose `[y, z, theta]` (n x 3).
     pub paper: Vec<f64>,
+    /// Commanded position of the spatula point (n x 3).
     pub pos_cmd: Vec<f64>,
+    /// Achieved position of the spatula point (n x 3).
     pub pos: Vec<f64>,
+    /// Achieved attitude, row-major (n x 9).
     pub rot: Vec<f64>,
+    /// Norm of the position error (m).
     pub err_pos: Vec<f64>,
+    /// Norm of the attitude error (rad).
     pub err_rot: Vec<f64>,
+    /// Joint positions at the tick's start (n x nv).
     pub q: Vec<f64>,
+    /// Joint velocities at the tick's start (n x nv).
     pub v: Vec<f64>,
+    /// Applied torques (n x nv).
     pub tau: Vec<f64>,
+    /// The DOB's disturbance estimate (n x nv).
     pub tau_dis_hat: Vec<f64>,
+    /// The torque the nominal model does not explain (n x nv).
     pub tau_dis: Vec<f64>,
+    /// Achieved spatula acceleration, linear then angular (n x 6).
     pub acc: Vec<f64>,
+    /// The paper's phi of the achieved motion.
     pub phi: Vec<f64>,
+    /// The pancake's position along the blade (m).
     pub slide: Vec<f64>,
+    /// The pancake's normal force per unit mass (m/s^2).
     pub normal: Vec<f64>,
     /// 0 stuck, 1 sliding, 2 off the spatula.
     pub pancake_mode: Vec<u8>,
+    /// The inverse of J was damped.
     pub damped: Vec<bool>,
+    /// det J (m^3).
     pub det_j: Vec<f64>,
     /// Paced runs: how late each tick started after its deadline (s).
     pub lateness: Vec<f64>,
@@ -552,11 +637,14 @@ pub struct Log {
 /// A run: its log, its summary, where the motion window is.
 #[derive(Debug, Clone)]
 pub struct Run {
+    /// Every tick.
     pub log: Log,
+    /// The summary numbers.
     pub summary: Summary,
     /// Tick indices: settle phase `[0, motion_start)`, motion `[motion_start, motion_end)`,
     /// then the tail.
     pub motion_start: usize,
+    /// See `motion_start`.
     pub motion_end: usize,
 }
 

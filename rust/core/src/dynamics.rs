@@ -38,12 +38,16 @@ pub const STANDARD_GRAVITY: f64 = 9.81;
 /// `h = m c` (c the centre of mass) and rotational inertia `i_o` about the origin.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpatialInertia {
+    /// Mass.
     pub mass: f64,
+    /// First moment `m c`.
     pub h: Vector3<f64>,
+    /// Rotational inertia about the frame's origin.
     pub i_o: Matrix3<f64>,
 }
 
 impl SpatialInertia {
+    /// No mass.
     pub fn zero() -> Self {
         SpatialInertia { mass: 0.0, h: Vector3::zeros(), i_o: Matrix3::zeros() }
     }
@@ -104,9 +108,11 @@ impl SpatialInertia {
 /// How a body moves relative to its parent.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum JointKind {
+    /// Rotation about the axis: one value in q.
     Revolute,
     /// Revolute without limits: two values `[cos, sin]` in q.
     Continuous,
+    /// Translation along the axis: one value in q.
     Prismatic,
 }
 
@@ -121,11 +127,15 @@ pub struct Body {
     pub parent: Option<usize>,
     /// Placement of the joint frame in the parent body (or the world): rotation and origin.
     pub r_parent: Matrix3<f64>,
+    /// See `r_parent`.
     pub p_parent: Vector3<f64>,
+    /// How the joint moves.
     pub kind: JointKind,
     /// Unit joint axis in the body frame.
     pub axis: Vector3<f64>,
+    /// First index of the joint in q.
     pub q_index: usize,
+    /// Index of the joint in v.
     pub v_index: usize,
     /// Inertia of the lumped links in the body frame.
     pub inertia: SpatialInertia,
@@ -136,22 +146,28 @@ pub struct Body {
 pub struct Frame {
     /// The body the frame moves with; None: fixed to the world.
     pub body: Option<usize>,
+    /// Rotation of the frame in the body (or the world).
     pub r: Matrix3<f64>,
+    /// Origin of the frame in the body (or the world).
     pub p: Vector3<f64>,
 }
 
 /// Rigid-body dynamics model of a fixed-base arm.
 #[derive(Debug, Clone)]
 pub struct Dynamics {
+    /// The moving bodies, parents first.
     pub bodies: Vec<Body>,
+    /// Length of q.
     pub nq: usize,
+    /// Length of v.
     pub nv: usize,
     /// Gravity in the world frame (default `[0, 0, -9.81]`, as Pinocchio).
     pub gravity: Vector3<f64>,
     /// Names of the active joints in v order.
     pub joint_names: Vec<String>,
-    /// Position limits per q element.
+    /// Lower position limit per q element.
     pub lower: Vec<f64>,
+    /// Upper position limit per q element.
     pub upper: Vec<f64>,
     /// For each body, the bodies from the root to it (inclusive), root first.
     pub chains: Vec<Vec<usize>>,
@@ -166,15 +182,19 @@ pub struct Dynamics {
 pub struct DynWorkspace {
     /// Body placements relative to the parent body (rotation, origin).
     pub r: Vec<Matrix3<f64>>,
+    /// See `r`.
     pub p: Vec<Vector3<f64>>,
-    /// World placements of the bodies.
+    /// World placements of the bodies (rotation, origin).
     pub rw: Vec<Matrix3<f64>>,
+    /// See `rw`.
     pub pw: Vec<Vector3<f64>>,
-    /// Body spatial velocities in body coordinates.
+    /// Body spatial velocities in body coordinates: linear part.
     pub v: Vec<Vector3<f64>>,
+    /// Angular part of `v`.
     pub w: Vec<Vector3<f64>>,
-    /// World linear velocity of the body origins and world angular velocities.
+    /// World linear velocity of the body origins.
     pub vw: Vec<Vector3<f64>>,
+    /// World angular velocities of the bodies.
     pub ww: Vec<Vector3<f64>>,
     acc_v: Vec<Vector3<f64>>,
     acc_w: Vec<Vector3<f64>>,
@@ -341,6 +361,7 @@ impl Dynamics {
         Ok(())
     }
 
+    /// Number of moving bodies.
     pub fn n_bodies(&self) -> usize {
         self.bodies.len()
     }

@@ -18,20 +18,28 @@ use crate::planning::{PlanResult, Sampler};
 /// row-major.
 #[derive(Debug, Clone)]
 pub struct Layer {
+    /// Inputs per member.
     pub inputs: usize,
+    /// Outputs per member.
     pub outputs: usize,
+    /// n_net x inputs x outputs numbers, row-major.
     pub weights: Vec<f64>,
+    /// n_net x outputs numbers, row-major.
     pub biases: Vec<f64>,
 }
 
 /// An ensemble generator plus the codec from its output features to configurations.
 #[derive(Debug, Clone)]
 pub struct Generator {
+    /// Members of the ensemble.
     pub n_net: usize,
+    /// Length of a member's noise input (the target position, 3 numbers, follows it).
     pub noise_dim: usize,
+    /// The dense layers, input first.
     pub layers: Vec<Layer>,
     /// Feature standardisation: features = output * std + mean.
     pub mean: Vec<f64>,
+    /// See `mean`.
     pub std: Vec<f64>,
     /// Features start with [base position (3), base rotation vector (3)] and the configuration
     /// with [x, y, z, qx, qy, qz, qw].
@@ -39,6 +47,7 @@ pub struct Generator {
 }
 
 impl Generator {
+    /// A generator, its shapes and weights checked.
     pub fn new(n_net: usize, noise_dim: usize, layers: Vec<Layer>, mean: Vec<f64>, std: Vec<f64>, floating_base: bool) -> Result<Generator> {
         let bad = |m: String| Err(Error::Invalid(format!("GAN generator: {m}")));
         if n_net == 0 || layers.is_empty() {
@@ -118,14 +127,18 @@ impl Generator {
 /// GAN samples conditioned on targets drawn uniformly in a box (the paper's planning sampler).
 #[derive(Debug, Clone)]
 pub struct GanSampler {
+    /// The trained generator.
     pub generator: Arc<Generator>,
+    /// Lower corner of the target box.
     pub lower: [f64; 3],
+    /// Upper corner of the target box.
     pub upper: [f64; 3],
     rng: StdRng,
     scratch: (Vec<f64>, Vec<f64>),
 }
 
 impl GanSampler {
+    /// A sampler drawing targets in `lower..=upper`; `seed` seeds its random numbers.
     pub fn new(generator: Arc<Generator>, lower: [f64; 3], upper: [f64; 3], seed: u64) -> Result<GanSampler> {
         if !crate::planning::valid_box(&lower, &upper) {
             return Err(Error::Invalid(format!("GAN sampler: bad target box {lower:?} .. {upper:?}")));

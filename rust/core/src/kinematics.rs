@@ -17,20 +17,36 @@ use crate::urdf::{JointType, Urdf};
 pub enum Motion {
     /// Rigid (a fixed joint or a locked one, with its locked transform).
     Fixed,
-    Revolute { axis: Unit<Vector3<f64>> },
-    Continuous { axis: Unit<Vector3<f64>> },
-    Prismatic { axis: Unit<Vector3<f64>> },
+    /// Rotation about `axis` (one value in q).
+    Revolute {
+        /// Unit axis in the joint frame.
+        axis: Unit<Vector3<f64>>,
+    },
+    /// Unbounded rotation about `axis` (two values in q: cos, sin).
+    Continuous {
+        /// Unit axis in the joint frame.
+        axis: Unit<Vector3<f64>>,
+    },
+    /// Translation along `axis` (one value in q).
+    Prismatic {
+        /// Unit axis in the joint frame.
+        axis: Unit<Vector3<f64>>,
+    },
 }
 
 /// One edge of the tree: parent link -> child link.
 #[derive(Debug, Clone)]
 pub struct Joint {
+    /// The URDF joint's name.
     pub name: String,
+    /// Index of the parent link.
     pub parent: usize,
+    /// Index of the child link.
     pub child: usize,
     /// Fixed placement of the joint frame in the parent link (a locked joint folds its
     /// locked motion in here).
     pub origin: Isometry3<f64>,
+    /// How it moves.
     pub motion: Motion,
     /// First index of this joint in `q` (only for active joints).
     pub q_index: usize,
@@ -54,17 +70,23 @@ pub struct ModelOptions {
 /// A kinematic tree: links in topological order (parent before child).
 #[derive(Debug, Clone)]
 pub struct KinematicModel {
+    /// Link names, indexed like every per-link vector.
     pub link_names: Vec<String>,
     /// `joints[i]` moves link `joints[i].child`; ordered so that parents come first.
     pub joints: Vec<Joint>,
+    /// Index of the root link.
     pub root: usize,
+    /// A free-flyer joint sits above the root (q starts with [x, y, z, qx, qy, qz, qw]).
     pub floating_base: bool,
     /// Names of the active joints, in q order (without the free-flyer).
     pub active_joints: Vec<String>,
+    /// Length of q.
     pub nq: usize,
+    /// Dimension of the tangent space (velocities).
     pub nv: usize,
-    /// Joint limits per q element (infinite where none; the free-flyer has none).
+    /// Lower joint limit per q element (infinite where none; the free-flyer has none).
     pub lower: Vec<f64>,
+    /// Upper joint limit per q element, like `lower`.
     pub upper: Vec<f64>,
     /// For each link: the index of the link whose pose moves it rigidly (its "body"): the
     /// child link of the nearest active joint above it, or the root.
@@ -76,7 +98,9 @@ pub struct KinematicModel {
     /// Mass and centre of mass (link frame) of each link (zero mass for the links fixed to the
     /// world of a fixed-base robot, as in Pinocchio).
     pub masses: Vec<f64>,
+    /// Centre of mass of each link, in the link frame.
     pub local_coms: Vec<Vector3<f64>>,
+    /// Sum of `masses`.
     pub total_mass: f64,
     link_index: HashMap<String, usize>,
 }
@@ -87,6 +111,7 @@ fn normalized_axis(joint: &str, axis: Vector3<f64>) -> Result<Unit<Vector3<f64>>
 }
 
 impl KinematicModel {
+    /// The tree of `urdf`, with the free-flyer, locked joints and q order of `options`.
     pub fn from_urdf(urdf: &Urdf, options: &ModelOptions) -> Result<KinematicModel> {
         let link_pos: HashMap<&str, usize> = urdf
             .links
@@ -336,6 +361,7 @@ impl KinematicModel {
         })
     }
 
+    /// Number of links.
     pub fn n_links(&self) -> usize {
         self.link_names.len()
     }

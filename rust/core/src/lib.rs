@@ -2,14 +2,21 @@
 //!
 //! * [`urdf`] / [`srdf`]: strict readers for the robot description files.
 //! * [`kinematics`]: forward kinematics of every link, q in Pinocchio's convention.
+//! * [`lie`]: SO(3) / SE(3) maps (log, exp) and their Jacobians, in Pinocchio's conventions.
 //! * [`collision`]: parry collision world (self-collision with SRDF filtering, obstacles),
-//!   answering "in collision?" and signed minimum distance.
+//!   answering "in collision?" and signed minimum distance; one file each for the geometry,
+//!   the broad phase and the world.
 //! * [`robot`]: loading a robot (URDF + SRDF + options) into both, in one call.
 //! * [`projection`]: damped Gauss-Newton projection / IK with a null-space posture task.
-//! * [`planning`]: the constrained RRT (Sampler, Projector, ValidityChecker, NearestNeighbors traits).
+//! * [`gan`]: native inference of a trained GAN generator, as a planner sampler.
+//! * [`planning`]: the constrained RRT, one file per concept (errors, space, samplers,
+//!   projectors, validity checkers, nearest neighbours, the RRT itself).
 //! * [`dynamics`] / [`control`]: rigid-body dynamics of a serial arm and the 1 kHz spatula controller.
+//! * [`error`]: the crate's [`Error`] (the planner has its own, [`planning::PlanError`]).
 //!
 //! Nothing here depends on Python: `cargo test` and `cargo bench` run without it.
+
+#![warn(missing_docs)]
 
 pub mod collision;
 pub mod control;

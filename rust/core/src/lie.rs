@@ -6,7 +6,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
 
-/// The skew-symmetric matrix [v]x with [v]x u = v x u.
+/// The skew-symmetric matrix `[v]x` with `[v]x u = v x u`.
 #[inline]
 pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
@@ -117,7 +117,7 @@ pub fn exp6(nu: &Vector6<f64>) -> Isometry3<f64> {
     Isometry3::from_parts(Translation3::from(vmat * v), UnitQuaternion::from_scaled_axis(w))
 }
 
-/// The 6x6 action matrix of M on motions `[v; w]`: [[R, [p]x R], [0, R]].
+/// The 6x6 action matrix of M on motions `[v; w]`: `[[R, [p]x R], [0, R]]`.
 pub fn action(m: &Isometry3<f64>) -> Matrix6<f64> {
     let r = m.rotation.to_rotation_matrix().into_inner();
     let p = m.translation.vector;

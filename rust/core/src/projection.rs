@@ -20,40 +20,94 @@ use crate::lie::{jlog3, jlog6, log3, log6};
 #[derive(Debug, Clone)]
 pub enum TermKind {
     /// r = mask * log6(T_ref^-1 T(q)).
-    FramePose { link: usize, target: Isometry3<f64>, mask: [f64; 6] },
+    FramePose {
+        /// Index of the link.
+        link: usize,
+        /// T_ref, in the world.
+        target: Isometry3<f64>,
+        /// Per component of the residual (linear, then angular); 0 drops it.
+        mask: [f64; 6],
+    },
     /// r = mask * (p(q) - p_ref).
-    FramePosition { link: usize, target: Vector3<f64>, mask: [f64; 3] },
+    FramePosition {
+        /// Index of the link.
+        link: usize,
+        /// p_ref, in the world.
+        target: Vector3<f64>,
+        /// Per component of the residual; 0 drops it.
+        mask: [f64; 3],
+    },
     /// r = mask * log3(R_ref^T R(q) R_offset).
-    FrameOrientation { link: usize, target: Matrix3<f64>, offset: Matrix3<f64>, mask: [f64; 3] },
+    FrameOrientation {
+        /// Index of the link.
+        link: usize,
+        /// R_ref, in the world.
+        target: Matrix3<f64>,
+        /// R_offset, in the link frame.
+        offset: Matrix3<f64>,
+        /// Per component of the residual; 0 drops it.
+        mask: [f64; 3],
+    },
     /// r = min(q - lower, 0) + max(q - upper, 0) over the bounded joints.
-    JointLimits { margin: f64 },
+    JointLimits {
+        /// A joint's Jacobian row is active within this distance of a limit.
+        margin: f64,
+    },
     /// r = min(c - lower, 0) + max(c - upper, 0), c the centre of mass.
-    ComBox { lower: Vector3<f64>, upper: Vector3<f64>, margin: f64 },
+    ComBox {
+        /// Lower corner of the box, in the world.
+        lower: Vector3<f64>,
+        /// Upper corner of the box, in the world.
+        upper: Vector3<f64>,
+        /// A coordinate's Jacobian row is active within this distance of a face.
+        margin: f64,
+    },
     /// r = weights * (q (-) q_nom); `q_nom` None: the solve's nominal posture, with `overrides`
     /// (q index, value) applied.
-    Posture { q_nom: Option<Vec<f64>>, weights: Vec<f64>, overrides: Vec<(usize, f64)> },
+    Posture {
+        /// A fixed nominal posture (length nq), or None.
+        q_nom: Option<Vec<f64>>,
+        /// Per tangent component (length nv).
+        weights: Vec<f64>,
+        /// (q index, value) pairs that replace the solve's nominal posture there.
+        overrides: Vec<(usize, f64)>,
+    },
 }
 
 /// A weighted residual term with its tolerance.
 #[derive(Debug, Clone)]
 pub struct Term {
+    /// Its name, in error messages.
     pub name: String,
+    /// What it measures.
     pub kind: TermKind,
+    /// Multiplies its residual and Jacobian.
     pub weight: f64,
+    /// A primary term is satisfied when its largest absolute unweighted residual component is
+    /// below this.
     pub tolerance: f64,
 }
 
 /// Solver settings (defaults: the GAN paper and its public code).
 #[derive(Debug, Clone)]
 pub struct Settings {
+    /// Gauss-Newton iterations at most.
     pub max_iterations: usize,
+    /// Damping `lambda = mu r^T r + mu_bar` of the primary step.
     pub mu: f64,
+    /// Constant part of the damping (the secondary step's whole damping).
     pub mu_bar: f64,
+    /// Armijo's sufficient-decrease constant for the primary step.
     pub armijo_c1: f64,
+    /// Factor that shrinks a step on each backtrack.
     pub backtrack: f64,
+    /// Backtracks of the primary step at most.
     pub max_backtracks: usize,
+    /// Clip q to the joint limits at the start and after every step.
     pub clip_to_limits: bool,
+    /// Tries of the secondary step at most.
     pub secondary_backtracks: usize,
+    /// The secondary step is kept when the primary cost grows by at most this.
     pub secondary_slack: f64,
 }
 
@@ -73,14 +127,36 @@ impl Default for Settings {
     }
 }
 
+impl Settings {
+    /// Check every field's range; the error names the first bad field.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |field: &'static str, msg: String| Err(Error::Settings { field, msg });
+        for (field, v) in [("mu", self.mu), ("mu_bar", self.mu_bar), ("secondary_slack", self.secondary_slack)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(field, format!("must be >= 0 and finite, got {v}"));
+            }
+        }
+        for (field, v) in [("armijo_c1", self.armijo_c1), ("backtrack", self.backtrack)] {
+            if !(v > 0.0 && v < 1.0) {
+                return bad(field, format!("must be in (0, 1), got {v}"));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The outcome of one solve.
 #[derive(Debug, Clone)]
 pub struct Outcome {
+    /// The final configuration.
     pub q: Vec<f64>,
+    /// Every primary term is satisfied.
     pub success: bool,
+    /// Gauss-Newton iterations spent.
     pub iterations: usize,
     /// Per primary term: largest absolute component of the unweighted residual.
     pub residuals: Vec<f64>,
+    /// Wall time of the solve, in seconds.
     pub time_s: f64,
 }
 
@@ -93,15 +169,20 @@ struct State {
 /// A damped Gauss-Newton projector for one task on one robot.
 #[derive(Debug, Clone)]
 pub struct Projector {
+    /// The robot.
     pub model: std::sync::Arc<KinematicModel>,
+    /// The constraints, solved together.
     pub primary: Vec<Term>,
+    /// Tasks solved in the primary terms' null space (e.g. the posture).
     pub secondary: Vec<Term>,
+    /// Solver settings.
     pub settings: Settings,
     /// (q index, v index, lower, upper) of each bounded 1-dof joint.
     bounded: Vec<(usize, usize, f64, f64)>,
 }
 
 impl Projector {
+    /// A projector, its terms and settings checked against the model.
     pub fn new(
         model: std::sync::Arc<KinematicModel>,
         primary: Vec<Term>,
@@ -111,6 +192,7 @@ impl Projector {
         if primary.is_empty() {
             return Err(Error::Invalid("a task needs at least one primary term".into()));
         }
+        settings.validate()?;
         for t in primary.iter().chain(&secondary) {
             validate(&model, t)?;
         }
@@ -122,34 +204,6 @@ impl Projector {
             .map(|j| (j.q_index, j.v_index, model.lower[j.q_index], model.upper[j.q_index]))
             .collect();
         Ok(Projector { model, primary, secondary, settings, bounded })
-    }
-
-    /// The GAN paper's Panda constraint on a model with a `panda_hand` link: the gripper
-    /// horizontal (the hand frame rotated -pi/2 about y keeps no tilt: orientation rows x, y,
-    /// weight 20) within the joint limits (margin 1e-3, weight 20), with a posture task around
-    /// the nominal configuration. `tolerance` applies to the orientation, 10x it to the limits.
-    /// (The Python side's `genplan.projection.paper_task(panda, "projection")` is the same task;
-    /// this one serves native tests and benches.)
-    pub fn panda_horizontal_gripper(model: std::sync::Arc<KinematicModel>, tolerance: f64) -> Result<Projector> {
-        let hand = model.link_index("panda_hand")?;
-        let offset: Matrix3<f64> =
-            nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2).into_inner();
-        let primary = vec![
-            Term {
-                name: "hand_orientation".into(),
-                kind: TermKind::FrameOrientation { link: hand, target: Matrix3::identity(), offset, mask: [1.0, 1.0, 0.0] },
-                weight: 20.0,
-                tolerance,
-            },
-            Term { name: "joint_limits".into(), kind: TermKind::JointLimits { margin: 1e-3 }, weight: 20.0, tolerance: 10.0 * tolerance },
-        ];
-        let secondary = vec![Term {
-            name: "posture".into(),
-            kind: TermKind::Posture { q_nom: None, weights: vec![1.0; model.nv], overrides: vec![] },
-            weight: 1.0,
-            tolerance: 1e-3,
-        }];
-        Projector::new(model, primary, secondary, Settings::default())
     }
 
     /// A copy whose primary term `term` aims at `target`: 3 numbers for a FramePosition, a
@@ -341,6 +395,7 @@ impl Projector {
         Ok(self.solve_unchecked(q0, q_nom))
     }
 
+    /// [`solve`](Self::solve) without input checks.
     pub fn solve_unchecked(&self, q0: &[f64], q_nom: Option<&[f64]>) -> Outcome {
         let t0 = Instant::now();
         let st = &self.settings;

@@ -17,12 +17,15 @@ use crate::urdf::Urdf;
 /// A robot of example-robot-data, described relative to its `robots/` folder.
 #[derive(Debug, Clone)]
 pub struct RobotSpec {
+    /// The preset's name (one of [`ROBOT_NAMES`]).
     pub name: &'static str,
     /// URDF for kinematics (relative to the `robots/` folder).
     pub urdf: &'static str,
     /// URDF whose `<collision>` elements are the collision model (same kinematic tree).
     pub collision_urdf: &'static str,
+    /// SRDF: disabled collision pairs and the reference state (relative to the `robots/` folder).
     pub srdf: &'static str,
+    /// The root joint is a free-flyer (q starts with [x, y, z, qx, qy, qz, qw]).
     pub floating_base: bool,
     /// Movable joints removed from q, held at their value in `reference_state` (or 0).
     pub locked_joints: &'static [&'static str],
@@ -32,6 +35,7 @@ pub struct RobotSpec {
     pub frames: &'static [(&'static str, &'static str)],
 }
 
+/// The names [`RobotSpec::by_name`] knows.
 pub const ROBOT_NAMES: [&str; 3] = ["panda", "talos", "ur5"];
 
 impl RobotSpec {

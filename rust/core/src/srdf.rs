@@ -5,6 +5,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
+/// A parsed SRDF file.
 #[derive(Debug, Clone, Default)]
 pub struct Srdf {
     /// Link pairs whose collisions are never checked (`<disable_collisions>`).
@@ -14,6 +15,7 @@ pub struct Srdf {
 }
 
 impl Srdf {
+    /// Parse SRDF text.
     pub fn parse(text: &str) -> Result<Srdf> {
         let err = |msg: String| Error::Parse {
             what: "SRDF".into(),
@@ -66,6 +68,7 @@ impl Srdf {
         Ok(out)
     }
 
+    /// Read and parse an SRDF file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Srdf> {
         let path = path.as_ref();
         let text = std::fs::read_to_string(path).map_err(|source| Error::Io {

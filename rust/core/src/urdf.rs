@@ -13,23 +13,52 @@ use crate::error::{Error, Result};
 /// Collision geometry as written in the URDF.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Geometry {
-    Box { size: Vector3<f64> },
-    Cylinder { radius: f64, length: f64 },
-    Sphere { radius: f64 },
-    Capsule { radius: f64, length: f64 },
-    Mesh { filename: String, scale: Vector3<f64> },
+    /// `<box>`, centred on its origin.
+    Box {
+        /// Edge lengths along x, y, z.
+        size: Vector3<f64>,
+    },
+    /// `<cylinder>` along z, centred on its origin.
+    Cylinder {
+        /// Radius.
+        radius: f64,
+        /// Length along z.
+        length: f64,
+    },
+    /// `<sphere>`.
+    Sphere {
+        /// Radius.
+        radius: f64,
+    },
+    /// `<capsule>` along z, centred on its origin.
+    Capsule {
+        /// Radius of the cylinder and the end caps.
+        radius: f64,
+        /// Length of the cylinder part, along z.
+        length: f64,
+    },
+    /// `<mesh>`.
+    Mesh {
+        /// The file name as written (`package://`, `file://` or a path; see [`Urdf::resolve_mesh`]).
+        filename: String,
+        /// Scale along x, y, z (default 1).
+        scale: Vector3<f64>,
+    },
 }
 
 /// One `<collision>` element of a link.
 #[derive(Debug, Clone)]
 pub struct Collision {
+    /// Pose of the geometry in the link frame (`<origin>`).
     pub origin: Isometry3<f64>,
+    /// The shape.
     pub geometry: Geometry,
 }
 
 /// Mass properties of a link.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Inertial {
+    /// Mass (kg).
     pub mass: f64,
     /// Centre of mass in the link frame.
     pub com: Vector3<f64>,
@@ -39,40 +68,63 @@ pub struct Inertial {
     pub inertia: Matrix3<f64>,
 }
 
+/// One `<link>`.
 #[derive(Debug, Clone)]
 pub struct Link {
+    /// Its name.
     pub name: String,
+    /// Its `<collision>` elements, in file order.
     pub collisions: Vec<Collision>,
+    /// Its `<inertial>`, if any.
     pub inertial: Option<Inertial>,
 }
 
+/// The `type` of a `<joint>`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum JointType {
+    /// No motion.
     Fixed,
+    /// Rotation about the axis, within limits.
     Revolute,
+    /// Rotation about the axis, unbounded.
     Continuous,
+    /// Translation along the axis, within limits.
     Prismatic,
+    /// Six degrees of freedom.
     Floating,
+    /// Motion in the plane normal to the axis.
     Planar,
 }
 
+/// One `<joint>`.
 #[derive(Debug, Clone)]
 pub struct Joint {
+    /// Its name.
     pub name: String,
+    /// Its type.
     pub joint_type: JointType,
+    /// Name of the parent link.
     pub parent: String,
+    /// Name of the child link.
     pub child: String,
+    /// Pose of the joint frame in the parent link frame (`<origin>`).
     pub origin: Isometry3<f64>,
+    /// Axis in the joint frame (`<axis xyz>`, default x).
     pub axis: Vector3<f64>,
+    /// Lower limit (`<limit lower>` of a revolute or prismatic joint, default 0); -inf otherwise.
     pub lower: f64,
+    /// Upper limit (`<limit upper>` of a revolute or prismatic joint, default 0); +inf otherwise.
     pub upper: f64,
 }
 
 /// A parsed URDF file.
 #[derive(Debug, Clone)]
 pub struct Urdf {
+    /// The robot's name (`<robot name>`).
     pub name: String,
+    /// The links, in file order.
     pub links: Vec<Link>,
+    /// The joints, in file order.
     pub joints: Vec<Joint>,
     /// Folder of the file, for resolving relative mesh paths (None when parsed from a string).
     pub dir: Option<PathBuf>,

@@ -18,7 +18,7 @@ const G: f64 = 9.81;
 
 #[test]
 fn phi_sign_convention() {
-    // level at rest: 0; tilted by theta at rest: -theta (DESIGN.md); wrapped to (-pi, pi]
+    // level at rest: 0; tilted by theta at rest: -theta (as genplan.pancake.trajectories.phi); wrapped to (-pi, pi]
     assert!(phi(0.0, 0.0, 0.0, 9.8).abs() < 1e-15);
     for th in [-2.5, -0.7, 0.3, 1.2, 3.0] {
         assert!((phi(th, 0.0, 0.0, 9.8) + th).abs() < 1e-12, "{th}");

@@ -2,55 +2,19 @@
 //! its gripper kept horizontal (native projector, parry collision; needs example-robot-data),
 //! bad input, and errors from components.
 
+#[path = "common/fixtures.rs"]
+mod fixtures;
+
 use std::sync::Arc;
 
+use fixtures::{no_interrupt, panda_horizontal_gripper, Band, CubeSampler, SphereProjector};
 use genplan_core::planning::{
     Components, EuclideanSpace, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner, Projection,
-    Projector, Sampler, Settings, Space, SphereProjector, UniformSampler, ValidityChecker,
+    Projector, Sampler, Settings, Space, UniformSampler, ValidityChecker,
 };
-use genplan_core::projection;
 use genplan_core::robot::{find_robots_dir, RobotSpec};
 use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
-
-/// Uniform in a cube.
-struct CubeSampler {
-    dim: usize,
-    half: f64,
-    rng: StdRng,
-}
-
-impl Sampler for CubeSampler {
-    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
-        for x in out.iter_mut().take(n * self.dim) {
-            *x = self.rng.random_range(-self.half..self.half);
-        }
-        Ok(())
-    }
-}
-
-/// The sphere's band |z| < 0.2 is blocked except a gap around +y (a wall with a door, as in
-/// OMPL's sphere demo).
-struct Band;
-
-impl Band {
-    fn ok(q: &[f64]) -> bool {
-        q[2].abs() >= 0.2 || q[1] > 0.8
-    }
-}
-
-impl ValidityChecker for Band {
-    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
-        for (q, v) in qs.chunks(3).zip(valid.iter_mut()) {
-            *v = Band::ok(q);
-        }
-        Ok(())
-    }
-}
-
-fn no_interrupt() -> PlanResult<()> {
-    Ok(())
-}
+use rand::SeedableRng;
 
 fn sphere_plan(neighbors: NeighborIndex, lazy_edges: bool, simplify: bool, seed: u64) -> genplan_core::planning::Solution {
     let settings = Settings { neighbors, lazy_edges, simplify, ..Settings::default() };
@@ -112,18 +76,20 @@ fn bad_input_is_an_error_not_a_panic() {
     let mut checker = Band;
     let mut interrupt = no_interrupt;
     let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
-    let msg = |r: PlanResult<genplan_core::planning::Solution>| match r {
-        Err(PlanError::Invalid(m)) => m,
-        other => panic!("expected an Invalid error, got {:?}", other.map(|s| s.success)),
-    };
-    assert!(msg(planner.plan(&[0.0, 0.0], &[0.0, 0.0, 1.0], &mut c)).contains("start"));
-    assert!(msg(planner.plan(&[0.0, f64::NAN, -1.0], &[0.0, 0.0, 1.0], &mut c)).contains("not finite"));
-    assert!(msg(planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0, 2.0], &mut c)).contains("goals"));
+    let mut plan = |start: &[f64], goals: &[f64]| planner.plan(start, goals, &mut c).map(|s| s.success);
+    assert!(matches!(plan(&[0.0, 0.0], &[0.0, 0.0, 1.0]), Err(PlanError::InvalidStart(m)) if m == "start: expected length 3, got 2"));
+    assert!(matches!(plan(&[0.0, f64::NAN, -1.0], &[0.0, 0.0, 1.0]), Err(PlanError::InvalidStart(m)) if m.contains("not finite")));
+    assert!(matches!(plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0, 2.0]), Err(PlanError::InvalidGoal(m)) if m.starts_with("goals")));
     // a start inside the band
-    assert!(msg(planner.plan(&[1.0, 0.0, 0.0], &[0.0, 0.0, 1.0], &mut c)).contains("not valid"));
-    assert!(msg(planner.plan(&[0.0, 0.0, -1.0], &[1.0, 0.0, 0.0], &mut c)).contains("none of the goal"));
-    let bad = Settings { step: -1.0, ..Settings::default() };
-    assert!(matches!(Planner::new(Arc::new(EuclideanSpace(3)), bad), Err(PlanError::Invalid(_))));
+    assert!(matches!(plan(&[1.0, 0.0, 0.0], &[0.0, 0.0, 1.0]), Err(PlanError::InvalidStart(m)) if m.contains("not valid")));
+    assert!(matches!(plan(&[0.0, 0.0, -1.0], &[1.0, 0.0, 0.0]), Err(PlanError::InvalidGoal(m)) if m.contains("none of the goal")));
+    assert!(matches!(planner.extend(&[0.0], &[0.0, 0.0, 1.0], false, &mut c), Err(PlanError::Input(m)) if m.starts_with("from")));
+    let settings_error = |bad: Settings| Planner::new(Arc::new(EuclideanSpace(3)), bad).err().expect("bad settings").to_string();
+    let e = settings_error(Settings { step: -1.0, ..Settings::default() });
+    assert_eq!(e, "settings: step must be positive and finite, got -1");
+    let e = Settings { sample_batch: 0, ..Settings::default() }.validate().unwrap_err();
+    assert!(matches!(e, PlanError::Settings { field: "sample_batch", .. }));
+    assert_eq!(e.to_string(), "settings: max_increments, max_extensions, sample_batch and max_empty_batches must be >= 1");
 }
 
 #[derive(Debug)]
@@ -184,14 +150,9 @@ fn component_errors_come_back_intact() {
     let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
     let mut c = Components { sampler: &mut sampler, projector: &mut nan, checker: &mut checker, interrupt: &mut interrupt };
     match planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c) {
-        Err(PlanError::Invalid(m)) => assert!(m.contains("no sample could be projected"), "{m}"),
+        Err(PlanError::NoProjectableSample(m)) => assert!(m.contains("no sample could be projected"), "{m}"),
         other => panic!("expected an error, got {:?}", other.map(|s| s.success)),
     }
-}
-
-/// The Panda task of the paper: gripper horizontal, within the joint limits.
-fn panda_projector(model: &Arc<genplan_core::KinematicModel>) -> projection::Projector {
-    projection::Projector::panda_horizontal_gripper(model.clone(), 1e-4).unwrap()
 }
 
 #[test]
@@ -204,7 +165,7 @@ fn panda_keeps_its_gripper_horizontal_around_a_box() {
         .add_box("wall", [0.05, 0.05, 0.3], nalgebra::Isometry3::translation(0.45, 0.0, 0.35))
         .unwrap();
     let world = Arc::new(world);
-    let gn = Arc::new(panda_projector(&model));
+    let gn = Arc::new(panda_horizontal_gripper(model.clone(), 1e-4));
     let mut projector = GaussNewtonProjector { inner: gn.clone(), parallel: false };
     let mut checker = genplan_core::planning::CollisionChecker::new(world.clone(), false);
 
@@ -282,8 +243,8 @@ fn uniform_sampler_draws_a_free_flyer_base_in_its_box() {
     assert!(q[..3 * talos.nq].chunks(talos.nq).all(|r| r[..7] == base));
 
     let bad = UniformSampler::new(talos.clone(), None, 5).unwrap().with_base_box([0.0, 0.0, 1.0], [0.1, 0.1, 0.9]);
-    assert!(matches!(bad, Err(PlanError::Invalid(m)) if m.contains("bad base box")));
+    assert!(matches!(bad, Err(PlanError::Input(m)) if m.contains("bad base box")));
     let (panda, _) = RobotSpec::by_name("panda").unwrap().load(&root).unwrap();
     let fixed_base = UniformSampler::new(panda, None, 5).unwrap().with_base_box(lo, hi);
-    assert!(matches!(fixed_base, Err(PlanError::Invalid(m)) if m.contains("free-flyer")));
+    assert!(matches!(fixed_base, Err(PlanError::Input(m)) if m.contains("free-flyer")));
 }

@@ -39,7 +39,7 @@ fn dmatrix<'py>(py: Python<'py>, m: &DMatrix<f64>) -> PyResult<Bound<'py, PyArra
 /// A 1-D float64 vector of length n from a numpy array.
 fn vector(arr: &PyReadonlyArrayDyn<'_, f64>, n: usize, what: &str) -> PyResult<Vec<f64>> {
     if arr.shape() != [n] {
-        return Err(PyValueError::new_err(format!("{what}: expected shape ({n},), got {:?}", arr.shape())));
+        return Err(crate::err(crate::Kind::Shape, format!("{what}: expected shape ({n},), got {:?}", arr.shape())));
     }
     Ok(arr.as_array().iter().copied().collect())
 }
@@ -51,7 +51,7 @@ fn placement(offset: Option<[[f64; 4]; 4]>) -> PyResult<Isometry3<f64>> {
             let r = Matrix3::from_fn(|i, j| t[i][j]);
             let err = (r.transpose() * r - Matrix3::identity()).amax();
             if !err.is_finite() || err > 1e-9 || (r.determinant() - 1.0).abs() > 1e-9 {
-                return Err(PyValueError::new_err("offset: the 3x3 block is not a rotation matrix"));
+                return Err(crate::err(crate::Kind::Settings, "offset: the 3x3 block is not a rotation matrix"));
             }
             Ok(Isometry3::from_parts(
                 Translation3::new(t[0][3], t[1][3], t[2][3]),
@@ -235,9 +235,9 @@ impl PyDynamics {
 
 fn check_keys(d: &Bound<'_, PyDict>, allowed: &[&str], what: &str) -> PyResult<()> {
     for k in d.keys() {
-        let k: String = k.extract().map_err(|_| PyValueError::new_err(format!("{what}: keys must be strings")))?;
+        let k: String = k.extract().map_err(|_| crate::err(crate::Kind::Settings, format!("{what}: keys must be strings")))?;
         if !allowed.contains(&k.as_str()) {
-            return Err(PyValueError::new_err(format!("{what}: unknown key '{k}' (known: {})", allowed.join(", "))));
+            return Err(crate::err(crate::Kind::Settings, format!("{what}: unknown key '{k}' (known: {})", allowed.join(", "))));
         }
     }
     Ok(())
@@ -247,7 +247,7 @@ fn sub<'py>(d: &Bound<'py, PyDict>, key: &str) -> PyResult<Option<Bound<'py, PyD
     match d.get_item(key)? {
         None => Ok(None),
         Some(v) if v.is_none() => Ok(None),
-        Some(v) => Ok(Some(v.cast_into::<PyDict>().map_err(|_| PyValueError::new_err(format!("config: '{key}' must be a dict")))?)),
+        Some(v) => Ok(Some(v.cast_into::<PyDict>().map_err(|_| crate::err(crate::Kind::Settings, format!("config: '{key}' must be a dict")))?)),
     }
 }
 
@@ -513,7 +513,7 @@ impl PySpatulaSimulation {
 fn trajectory_rows(arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<f64>> {
     let shape = arr.shape();
     if shape.len() != 2 || shape[1] != 3 || shape[0] < 2 {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::err(crate::Kind::Shape, format!(
             "trajectory: expected shape (K, 3) with K >= 2 rows [y, z, theta], got {shape:?}"
         )));
     }
@@ -526,7 +526,7 @@ fn trajectory_rows(arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<f64>> {
 fn pancake_phi<'py>(py: Python<'py>, theta: PyReadonlyArrayDyn<'py, f64>, acc: PyReadonlyArrayDyn<'py, f64>, g: f64) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let n = theta.len();
     if acc.shape() != [n, 2] || theta.shape().len() != 1 {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::err(crate::Kind::Shape, format!(
             "pancake_phi: expected theta (n,) and acc (n, 2), got {:?} and {:?}",
             theta.shape(),
             acc.shape()

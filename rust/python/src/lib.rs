@@ -9,7 +9,7 @@ use std::sync::Arc;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use numpy::ndarray::{Array, IxDyn};
 use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 use pyo3::types::{PyAnyMethods, PyDict};
@@ -21,20 +21,26 @@ use genplan_core::kinematics::{KinematicModel, ModelOptions};
 use genplan_core::robot::{package_dirs_for, RobotSpec, ROBOT_NAMES};
 use genplan_core::srdf::Srdf;
 use genplan_core::urdf::Urdf;
-use genplan_core::{Error, Scratch};
+use genplan_core::Scratch;
+
+mod settings;
 
 mod control;
+mod errors;
 mod planning;
 
-pub(crate) fn to_py(e: Error) -> PyErr {
-    match &e {
-        Error::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
-            PyFileNotFoundError::new_err(e.to_string())
-        }
-        Error::Io { .. } => PyOSError::new_err(e.to_string()),
-        _ => PyValueError::new_err(e.to_string()),
-    }
-}
+pub(crate) use errors::{err, to_py, to_py_in, Kind};
+use settings::settings_class;
+
+settings_class!(
+    /// Damped Gauss-Newton settings (defaults: the GAN paper and its public code). Immutable:
+    /// `replace(**changes)` makes a changed copy.
+    PySolverSettings,
+    "SolverSettings",
+    Settings,
+    |s: &Settings| s.validate().map_err(to_py),
+    [max_iterations, mu, mu_bar, armijo_c1, backtrack, max_backtracks, clip_to_limits, secondary_backtracks, secondary_slack]
+);
 
 /// A batch of configurations: leading dims and the flat data, rows of `nq`.
 struct Batch<'a> {
@@ -45,13 +51,13 @@ struct Batch<'a> {
 fn batch<'a>(arr: &'a PyReadonlyArrayDyn<'_, f64>, nq: usize, what: &str) -> PyResult<Batch<'a>> {
     let shape = arr.shape();
     if shape.is_empty() || shape[shape.len() - 1] != nq || shape.len() > 2 {
-        return Err(PyValueError::new_err(format!(
+        return Err(err(Kind::Shape, format!(
             "{what}: expected shape ({nq},) or (n, {nq}), got {shape:?}"
         )));
     }
     let data = arr
         .as_slice()
-        .map_err(|_| PyValueError::new_err(format!("{what}: array must be C-contiguous")))?;
+        .map_err(|_| err(Kind::Shape, format!("{what}: array must be C-contiguous")))?;
     Ok(Batch {
         lead: shape[..shape.len() - 1].to_vec(),
         data,
@@ -62,12 +68,11 @@ fn batch<'a>(arr: &'a PyReadonlyArrayDyn<'_, f64>, nq: usize, what: &str) -> PyR
 fn check_rows(model: &KinematicModel, b: &Batch, what: &str) -> PyResult<()> {
     for (i, q) in b.data.chunks(model.nq.max(1)).enumerate() {
         model.check_configuration(q).map_err(|e| {
-            let msg = if b.lead.is_empty() {
-                format!("{what}: {e}")
+            if b.lead.is_empty() {
+                to_py_in(what, e)
             } else {
-                format!("{what}[{i}]: {e}")
-            };
-            PyValueError::new_err(msg)
+                to_py_in(&format!("{what}[{i}]"), e)
+            }
         })?;
     }
     Ok(())
@@ -88,10 +93,10 @@ fn pose_from(center: [f64; 3], rotation: Option<[[f64; 3]; 3]>, what: &str) -> P
         None => UnitQuaternion::identity(),
         Some(r) => {
             let m = Matrix3::from_fn(|i, j| r[i][j]);
-            let err = (m.transpose() * m - Matrix3::identity()).amax();
-            if !err.is_finite() || err > 1e-6 || (m.determinant() - 1.0).abs() > 1e-6 {
-                return Err(PyValueError::new_err(format!(
-                    "{what}: rotation is not a proper rotation matrix (|R^T R - I| = {err:e})"
+            let off = (m.transpose() * m - Matrix3::identity()).amax();
+            if !off.is_finite() || off > 1e-6 || (m.determinant() - 1.0).abs() > 1e-6 {
+                return Err(err(Kind::Generic, format!(
+                    "{what}: rotation is not a proper rotation matrix (|R^T R - I| = {off:e})"
                 )));
             }
             UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m))
@@ -355,14 +360,14 @@ impl PyCollisionWorld {
 
 pub(crate) fn get<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, what: &str) -> PyResult<T> {
     match d.get_item(key)? {
-        Some(v) => v.extract::<T>().map_err(|e| PyValueError::new_err(format!("{what}: '{key}': {}", Into::<PyErr>::into(e)))),
-        None => Err(PyValueError::new_err(format!("{what}: missing '{key}'"))),
+        Some(v) => v.extract::<T>().map_err(|e| err(Kind::Settings, format!("{what}: '{key}': {}", Into::<PyErr>::into(e)))),
+        None => Err(err(Kind::Settings, format!("{what}: missing '{key}'"))),
     }
 }
 
 pub(crate) fn get_or<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, default: T, what: &str) -> PyResult<T> {
     match d.get_item(key)? {
-        Some(v) if !v.is_none() => v.extract::<T>().map_err(|e| PyValueError::new_err(format!("{what}: '{key}': {}", Into::<PyErr>::into(e)))),
+        Some(v) if !v.is_none() => v.extract::<T>().map_err(|e| err(Kind::Settings, format!("{what}: '{key}': {}", Into::<PyErr>::into(e)))),
         _ => Ok(default),
     }
 }
@@ -409,7 +414,7 @@ fn term_from_dict(model: &genplan_core::KinematicModel, d: &Bound<'_, PyDict>) -
             overrides: get_or(d, "overrides", Vec::<(usize, f64)>::new(), &what)?,
         },
         other => {
-            return Err(PyValueError::new_err(format!(
+            return Err(err(Kind::UnknownName, format!(
                 "unknown term type '{other}' (known: frame_pose, frame_position, frame_orientation, joint_limits, com_box, posture)"
             )))
         }
@@ -436,24 +441,12 @@ impl PyProjector {
         model: &PyKinematicModel,
         primary: Vec<Bound<'_, PyDict>>,
         secondary: Vec<Bound<'_, PyDict>>,
-        settings: Option<Bound<'_, PyDict>>,
+        settings: Option<PyRef<'_, PySolverSettings>>,
     ) -> PyResult<Self> {
         let m = &*model.inner;
         let primary = primary.iter().map(|d| term_from_dict(m, d)).collect::<PyResult<Vec<_>>>()?;
         let secondary = secondary.iter().map(|d| term_from_dict(m, d)).collect::<PyResult<Vec<_>>>()?;
-        let mut st = Settings::default();
-        if let Some(d) = settings {
-            let w = "settings";
-            st.max_iterations = get_or(&d, "max_iterations", st.max_iterations, w)?;
-            st.mu = get_or(&d, "mu", st.mu, w)?;
-            st.mu_bar = get_or(&d, "mu_bar", st.mu_bar, w)?;
-            st.armijo_c1 = get_or(&d, "armijo_c1", st.armijo_c1, w)?;
-            st.backtrack = get_or(&d, "backtrack", st.backtrack, w)?;
-            st.max_backtracks = get_or(&d, "max_backtracks", st.max_backtracks, w)?;
-            st.clip_to_limits = get_or(&d, "clip_to_limits", st.clip_to_limits, w)?;
-            st.secondary_backtracks = get_or(&d, "secondary_backtracks", st.secondary_backtracks, w)?;
-            st.secondary_slack = get_or(&d, "secondary_slack", st.secondary_slack, w)?;
-        }
+        let st = settings.map(|s| s.inner.clone()).unwrap_or_default();
         let inner = Projector::new(model.inner.clone(), primary, secondary, st).map_err(to_py)?;
         Ok(Self { inner })
     }
@@ -490,7 +483,7 @@ impl PyProjector {
             Some(a) => {
                 let nb = batch(a, m.nq, "q_nom")?;
                 if nb.lead != b.lead {
-                    return Err(PyValueError::new_err(format!("q_nom: expected {} rows like q0, got {:?}", b.lead.first().copied().unwrap_or(1), nb.lead)));
+                    return Err(err(Kind::Shape, format!("q_nom: expected {} rows like q0, got {:?}", b.lead.first().copied().unwrap_or(1), nb.lead)));
                 }
                 genplan_core::error::check_finite("q_nom", nb.data).map_err(to_py)?;
                 Some(nb.data)
@@ -507,16 +500,16 @@ impl PyProjector {
             (None, None) => None,
             (Some(name), Some(arr)) => {
                 let ti = solver.primary.iter().position(|t| &t.name == name).ok_or_else(|| {
-                    PyValueError::new_err(format!("unknown target term '{name}' (primary terms: {:?})", solver.primary.iter().map(|t| &t.name).collect::<Vec<_>>()))
+                    err(Kind::UnknownName, format!("unknown target term '{name}' (primary terms: {:?})", solver.primary.iter().map(|t| &t.name).collect::<Vec<_>>()))
                 })?;
-                let tdata = arr.as_slice().map_err(|_| PyValueError::new_err("targets: array must be C-contiguous"))?;
+                let tdata = arr.as_slice().map_err(|_| err(Kind::Shape, "targets: array must be C-contiguous"))?;
                 if arr.shape().first().copied() != Some(n) || tdata.len() % n.max(1) != 0 {
-                    return Err(PyValueError::new_err(format!("targets: expected {n} rows, got shape {:?}", arr.shape())));
+                    return Err(err(Kind::Shape, format!("targets: expected {n} rows, got shape {:?}", arr.shape())));
                 }
                 let k = tdata.len() / n.max(1);
-                Some((0..n).map(|i| solver.retargeted(ti, &tdata[i * k..(i + 1) * k]).map_err(|e| PyValueError::new_err(format!("targets[{i}]: {e}")))).collect::<PyResult<_>>()?)
+                Some((0..n).map(|i| solver.retargeted(ti, &tdata[i * k..(i + 1) * k]).map_err(|e| to_py_in(&format!("targets[{i}]"), e))).collect::<PyResult<_>>()?)
             }
-            _ => return Err(PyValueError::new_err("give both target_term and targets, or neither")),
+            _ => return Err(err(Kind::Generic, "give both target_term and targets, or neither")),
         };
         let run = |i: usize| {
             let s = per_row.as_ref().map_or(solver, |v| &v[i]);
@@ -615,6 +608,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyKinematicModel>()?;
     m.add_class::<PyCollisionWorld>()?;
     m.add_class::<PyProjector>()?;
+    m.add_class::<PySolverSettings>()?;
     m.add_function(wrap_pyfunction!(robot_spec, m)?)?;
     m.add_function(wrap_pyfunction!(load_robot, m)?)?;
     m.add_function(wrap_pyfunction!(package_dirs, m)?)?;

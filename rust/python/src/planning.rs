@@ -18,16 +18,17 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 use genplan_core::planning::{
-    self, CollisionChecker, Components, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner,
-    Projection, Sampler, Settings, Space, ValidityChecker,
+    self, CollisionChecker, Components, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
+    Projection, Sampler, Settings, Space, Stats, ValidityChecker,
 };
 
 use genplan_core::gan;
 
-use crate::{get_or, to_py, PyCollisionWorld, PyKinematicModel, PyProjector};
+use crate::errors::{err, Kind};
+use crate::settings::{record_class, settings_class};
+use crate::{to_py, PyCollisionWorld, PyKinematicModel, PyProjector};
 
 fn component_error(e: PyErr) -> PlanError {
     PlanError::Component(Box::new(e))
@@ -35,13 +36,20 @@ fn component_error(e: PyErr) -> PlanError {
 
 /// A PlanError as the Python exception it stands for (a component's own exception unchanged).
 fn plan_error_to_py(e: PlanError) -> PyErr {
-    match e {
-        PlanError::Invalid(m) => PyValueError::new_err(m),
-        PlanError::Component(b) => match b.downcast::<PyErr>() {
-            Ok(py_err) => *py_err,
-            Err(other) => PyRuntimeError::new_err(other.to_string()),
-        },
-    }
+    let kind = match e {
+        PlanError::Component(b) => {
+            return match b.downcast::<PyErr>() {
+                Ok(py_err) => *py_err,
+                Err(other) => PyRuntimeError::new_err(other.to_string()),
+            }
+        }
+        PlanError::Settings { .. } => Kind::Settings,
+        PlanError::InvalidStart(_) => Kind::InvalidStart,
+        PlanError::InvalidGoal(_) => Kind::InvalidGoal,
+        PlanError::Sampler(_) => Kind::Callback,
+        PlanError::Input(_) | PlanError::NoProjectableSample(_) => Kind::Generic,
+    };
+    err(kind, e.to_string())
 }
 
 /// Rows of a 2-D float64 array returned by a Python component, checked against the expected shape.
@@ -49,10 +57,10 @@ fn rows_from(py: Python<'_>, obj: &Bound<'_, PyAny>, n: usize, nq: usize, what: 
     let np = py.import("numpy")?;
     let arr = np.call_method1("asarray", (obj, "float64"))?;
     let arr: PyReadonlyArray2<f64> = arr.extract().map_err(|_| {
-        PyValueError::new_err(format!("{what}: expected a 2-D array of shape ({n}, {nq})"))
+        err(Kind::Callback, format!("{what}: expected a 2-D array of shape ({n}, {nq})"))
     })?;
     if arr.shape() != [n, nq] {
-        return Err(PyValueError::new_err(format!("{what}: expected shape ({n}, {nq}), got {:?}", arr.shape())));
+        return Err(err(Kind::Callback, format!("{what}: expected shape ({n}, {nq}), got {:?}", arr.shape())));
     }
     Ok(arr.as_array().iter().copied().collect())
 }
@@ -62,9 +70,9 @@ fn vector_from<'py, T: numpy::Element + Copy>(py: Python<'py>, obj: &Bound<'py, 
     let arr = np.call_method1("asarray", (obj, dtype))?;
     let arr: PyReadonlyArray1<T> = arr
         .extract()
-        .map_err(|_| PyValueError::new_err(format!("{what}: expected a 1-D array of {n} values")))?;
+        .map_err(|_| err(Kind::Callback, format!("{what}: expected a 1-D array of {n} values")))?;
     if arr.len() != n {
-        return Err(PyValueError::new_err(format!("{what}: expected {n} values, got {}", arr.len())));
+        return Err(err(Kind::Callback, format!("{what}: expected {n} values, got {}", arr.len())));
     }
     Ok(arr.as_array().iter().copied().collect())
 }
@@ -194,7 +202,7 @@ impl Sampler for SharedUniform {
     fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
         self.0
             .lock()
-            .map_err(|_| PlanError::Invalid("uniform sampler: lock poisoned".into()))?
+            .map_err(|_| PlanError::Sampler("uniform sampler: lock poisoned".into()))?
             .sample(n, out)
     }
 }
@@ -225,14 +233,14 @@ impl PyGanSampler {
         seed: u64,
     ) -> PyResult<Self> {
         if weights.len() != biases.len() || weights.is_empty() {
-            return Err(PyValueError::new_err("GAN sampler: one bias per weight matrix, at least one layer"));
+            return Err(err(Kind::Shape, "GAN sampler: one bias per weight matrix, at least one layer"));
         }
         let n_net = weights[0].shape()[0];
         let mut layers = Vec::new();
         for (i, (w, b)) in weights.iter().zip(&biases).enumerate() {
             let (ws, bs) = (w.shape(), b.shape());
             if ws[0] != n_net || bs != [n_net, 1, ws[2]] {
-                return Err(PyValueError::new_err(format!(
+                return Err(err(Kind::Shape, format!(
                     "GAN sampler: layer {i}: weights {ws:?} and biases {bs:?} do not fit (n_net, in, out) / (n_net, 1, out)"
                 )));
             }
@@ -276,7 +284,7 @@ impl PyGanSampler {
         let g = &self.generator;
         let n = members.len();
         if noise.shape() != [n, g.noise_dim] || targets.shape() != [n, 3] {
-            return Err(PyValueError::new_err(format!(
+            return Err(err(Kind::Shape, format!(
                 "generate: expected noise ({n}, {}) and targets ({n}, 3), got {:?} and {:?}",
                 g.noise_dim,
                 noise.shape(),
@@ -284,7 +292,7 @@ impl PyGanSampler {
             )));
         }
         if let Some(&m) = members.iter().find(|&&m| m >= g.n_net) {
-            return Err(PyValueError::new_err(format!("generate: member {m} out of range (n_net = {})", g.n_net)));
+            return Err(err(Kind::Generic, format!("generate: member {m} out of range (n_net = {})", g.n_net)));
         }
         let z: Vec<f64> = noise.as_array().iter().copied().collect();
         let t: Vec<f64> = targets.as_array().iter().copied().collect();
@@ -306,7 +314,7 @@ impl Sampler for SharedGan {
     fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
         self.0
             .lock()
-            .map_err(|_| PlanError::Invalid("GAN sampler: lock poisoned".into()))?
+            .map_err(|_| PlanError::Sampler("GAN sampler: lock poisoned".into()))?
             .sample(n, out)
     }
 }
@@ -327,7 +335,7 @@ impl PyMixtureSampler {
     #[pyo3(signature = (primary, secondary, p=0.8, seed=0))]
     fn new(primary: Py<PyAny>, secondary: Py<PyAny>, p: f64, seed: u64) -> PyResult<Self> {
         if !(0.0..=1.0).contains(&p) {
-            return Err(PyValueError::new_err(format!("p must be in [0, 1], got {p}")));
+            return Err(err(Kind::Settings, format!("p must be in [0, 1], got {p}")));
         }
         Ok(Self { primary, secondary, p, seed: Mutex::new(seed) })
     }
@@ -342,14 +350,14 @@ fn sampler_from(py: Python<'_>, obj: &Bound<'_, PyAny>, nq: usize) -> PyResult<B
     if let Ok(u) = obj.cast::<PyUniformSampler>() {
         let u = u.get();
         if u.nq != nq {
-            return Err(PyValueError::new_err(format!("sampler: configurations of length {} for a model of nq = {nq}", u.nq)));
+            return Err(err(Kind::Shape, format!("sampler: configurations of length {} for a model of nq = {nq}", u.nq)));
         }
         return Ok(Box::new(SharedUniform(u.inner.clone())));
     }
     if let Ok(g) = obj.cast::<PyGanSampler>() {
         let g = g.get();
         if g.generator.nq() != nq {
-            return Err(PyValueError::new_err(format!("sampler: GAN makes configurations of length {} for a model of nq = {nq}", g.generator.nq())));
+            return Err(err(Kind::Shape, format!("sampler: GAN makes configurations of length {} for a model of nq = {nq}", g.generator.nq())));
         }
         return Ok(Box::new(SharedGan(g.inner.clone())));
     }
@@ -377,41 +385,82 @@ fn sampler_from(py: Python<'_>, obj: &Bound<'_, PyAny>, nq: usize) -> PyResult<B
 // The planner
 // ---------------------------------------------------------------------------------------------
 
-fn settings_from(d: Option<&Bound<'_, PyDict>>) -> PyResult<Settings> {
-    let mut st = Settings::default();
-    let Some(d) = d else { return Ok(st) };
-    let w = "planner settings";
-    let known = [
-        "step", "max_increments", "max_jump", "goal_tolerance", "max_extensions", "retries", "project_samples",
-        "sample_batch", "edge_resolution", "lazy_edges", "simplify", "neighbors", "max_empty_batches",
-    ];
-    for k in d.keys() {
-        let k: String = k.extract()?;
-        if !known.contains(&k.as_str()) {
-            return Err(PyValueError::new_err(format!("{w}: unknown setting '{k}' (known: {})", known.join(", "))));
-        }
+settings_class!(
+    /// Settings of the constrained RRT (defaults: the GAN paper's public code, plus edge
+    /// validation at 0.025 rad). Immutable: `replace(**changes)` makes a changed copy.
+    PyPlannerSettings,
+    "PlannerSettings",
+    Settings,
+    |s: &Settings| s.validate().map_err(plan_error_to_py),
+    [step, max_increments, max_jump, goal_tolerance, max_extensions, retries, project_samples, sample_batch,
+     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches]
+);
+
+record_class!(
+    /// What a plan cost: counts and times over all attempts (read-only).
+    PyPlanStats,
+    "PlanStats",
+    Stats,
+    [success, retries, extensions, projections, projection_calls, edge_projections, samples, samples_rejected,
+     validity_checks, nodes, pruned, shortcuts, time_s, sampler_s, projector_s, checker_s]
+);
+
+/// A plan's outcome. `path` is dense: every state is on the manifold and valid, consecutive
+/// states at most ~`edge_resolution` apart; `waypoints` are the tree nodes along it; `stats`
+/// what it cost.
+#[pyclass(name = "PlanResult", module = "genplan._core", frozen)]
+pub(crate) struct PyPlanResult {
+    #[pyo3(get)]
+    success: bool,
+    #[pyo3(get)]
+    path: Py<numpy::PyArray2<f64>>,
+    #[pyo3(get)]
+    waypoints: Py<numpy::PyArray2<f64>>,
+    #[pyo3(get)]
+    goal_index: Option<usize>,
+    #[pyo3(get)]
+    stats: Py<PyPlanStats>,
+}
+
+#[pymethods]
+impl PyPlanResult {
+    /// Wall-clock time of the plan (s).
+    #[getter]
+    fn time_s(&self) -> f64 {
+        self.stats.get().inner.time_s
     }
-    st.step = get_or(d, "step", st.step, w)?;
-    st.max_increments = get_or(d, "max_increments", st.max_increments, w)?;
-    st.max_jump = get_or(d, "max_jump", st.max_jump, w)?;
-    st.goal_tolerance = get_or(d, "goal_tolerance", st.goal_tolerance, w)?;
-    st.max_extensions = get_or(d, "max_extensions", st.max_extensions, w)?;
-    st.retries = get_or(d, "retries", st.retries, w)?;
-    st.project_samples = get_or(d, "project_samples", st.project_samples, w)?;
-    st.sample_batch = get_or(d, "sample_batch", st.sample_batch, w)?;
-    st.edge_resolution = get_or(d, "edge_resolution", st.edge_resolution, w)?;
-    st.lazy_edges = get_or(d, "lazy_edges", st.lazy_edges, w)?;
-    st.simplify = get_or(d, "simplify", st.simplify, w)?;
-    st.max_empty_batches = get_or(d, "max_empty_batches", st.max_empty_batches, w)?;
-    let nn: String = get_or(d, "neighbors", "auto".to_string(), w)?;
-    st.neighbors = match nn.as_str() {
-        "auto" => NeighborIndex::Auto,
-        "linear" => NeighborIndex::Linear,
-        "kdtree" => NeighborIndex::KdForest,
-        other => return Err(PyValueError::new_err(format!("{w}: neighbors must be 'auto', 'linear' or 'kdtree', got '{other}'"))),
-    };
-    st.validate().map_err(plan_error_to_py)?;
-    Ok(st)
+
+    /// Optimisation steps of the projections of samples and extension steps (Table II's "Opt. Steps").
+    #[getter]
+    fn projections(&self) -> usize {
+        self.stats.get().inner.projections
+    }
+
+    /// Iterations of the planner over all attempts (Table II's "E").
+    #[getter]
+    fn extensions(&self) -> usize {
+        self.stats.get().inner.extensions
+    }
+
+    /// Attempts made after the first.
+    #[getter]
+    fn retries(&self) -> usize {
+        self.stats.get().inner.retries
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> String {
+        let s = &self.stats.get().inner;
+        format!(
+            "PlanResult(success={}, goal_index={:?}, path={:?}, waypoints={}, time_s={:.4}, extensions={}, projections={})",
+            if self.success { "True" } else { "False" },
+            self.goal_index,
+            self.path.bind(py).shape(),
+            self.waypoints.bind(py).shape()[0],
+            s.time_s,
+            s.extensions,
+            s.projections
+        )
+    }
 }
 
 /// The constrained RRT of the GAN paper (Algorithm 1); see genplan.planning for the front end.
@@ -425,14 +474,13 @@ pub(crate) struct PyPlanner {
 impl PyPlanner {
     #[new]
     #[pyo3(signature = (model, settings=None))]
-    fn new(model: &PyKinematicModel, settings: Option<Bound<'_, PyDict>>) -> PyResult<Self> {
-        let st = settings_from(settings.as_ref())?;
+    fn new(model: &PyKinematicModel, settings: Option<PyRef<'_, PyPlannerSettings>>) -> PyResult<Self> {
+        let st = settings.map(|s| s.inner.clone()).unwrap_or_default();
         let space: Arc<dyn Space> = model.inner.clone();
         Ok(Self { inner: Planner::new(space, st).map_err(plan_error_to_py)?, nq: model.inner.nq })
     }
 
-    /// Plan from `start` (nq,) to any row of `goals` (k, nq). Returns a dict: success, path
-    /// (m, nq), waypoints (w, nq), goal_index, and the statistics.
+    /// Plan from `start` (nq,) to any row of `goals` (k, nq).
     #[pyo3(signature = (start, goals, sampler, projector, checker, parallel=false))]
     fn plan<'py>(
         &self,
@@ -443,17 +491,17 @@ impl PyPlanner {
         projector: &Bound<'py, PyAny>,
         checker: &Bound<'py, PyAny>,
         parallel: bool,
-    ) -> PyResult<Bound<'py, PyDict>> {
+    ) -> PyResult<PyPlanResult> {
         let nq = self.nq;
         if goals.shape().len() != 2 || goals.shape()[1] != nq || goals.shape()[0] == 0 {
-            return Err(PyValueError::new_err(format!("goals: expected shape (k, {nq}) with k >= 1, got {:?}", goals.shape())));
+            return Err(err(Kind::Shape, format!("goals: expected shape (k, {nq}) with k >= 1, got {:?}", goals.shape())));
         }
         let goals: Vec<f64> = goals.as_array().iter().copied().collect();
         let mut sampler = sampler_from(py, sampler, nq)?;
         let mut projector: Box<dyn planning::Projector> = if let Ok(p) = projector.cast::<PyProjector>() {
             let inner = &p.get().inner;
             if inner.model.nq != nq {
-                return Err(PyValueError::new_err("projector: built for another model"));
+                return Err(err(Kind::Generic, "projector: built for another model"));
             }
             Box::new(GaussNewtonProjector { inner: Arc::new(inner.clone()), parallel })
         } else if projector.hasattr("project")? {
@@ -467,7 +515,7 @@ impl PyPlanner {
         let mut checker: Box<dyn ValidityChecker> = if let Ok(w) = checker.cast::<PyCollisionWorld>() {
             let world = &w.borrow().inner;
             if world.model.nq != nq {
-                return Err(PyValueError::new_err("checker: collision world built for another model"));
+                return Err(err(Kind::Generic, "checker: collision world built for another model"));
             }
             Box::new(CollisionChecker::new(Arc::new(world.clone()), parallel))
         } else if checker.hasattr("is_valid")? {
@@ -498,33 +546,21 @@ impl PyPlanner {
                 planner.plan(&start, &goals, &mut c)
             })
             .map_err(plan_error_to_py)?;
-        let d = PyDict::new(py);
-        d.set_item("success", solution.success)?;
-        d.set_item("path", to_array(py, &solution.path, nq)?)?;
-        d.set_item("waypoints", to_array(py, &solution.waypoints, nq)?)?;
-        d.set_item("goal_index", solution.goal_index)?;
-        let s = &solution.stats;
-        d.set_item("retries", s.retries)?;
-        d.set_item("extensions", s.extensions)?;
-        d.set_item("projections", s.projections)?;
-        d.set_item("projection_calls", s.projection_calls)?;
-        d.set_item("edge_projections", s.edge_projections)?;
-        d.set_item("samples", s.samples)?;
-        d.set_item("samples_rejected", s.samples_rejected)?;
-        d.set_item("validity_checks", s.validity_checks)?;
-        d.set_item("nodes", s.nodes)?;
-        d.set_item("pruned", s.pruned)?;
-        d.set_item("shortcuts", s.shortcuts)?;
-        d.set_item("time_s", s.time_s)?;
-        d.set_item("sampler_s", s.sampler_s)?;
-        d.set_item("projector_s", s.projector_s)?;
-        d.set_item("checker_s", s.checker_s)?;
-        Ok(d)
+        Ok(PyPlanResult {
+            success: solution.success,
+            path: to_array(py, &solution.path, nq)?.unbind(),
+            waypoints: to_array(py, &solution.waypoints, nq)?.unbind(),
+            goal_index: solution.goal_index,
+            stats: Py::new(py, PyPlanStats { inner: solution.stats })?,
+        })
     }
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyPlanner>()?;
+    m.add_class::<PyPlannerSettings>()?;
+    m.add_class::<PyPlanStats>()?;
+    m.add_class::<PyPlanResult>()?;
     m.add_class::<PyUniformSampler>()?;
     m.add_class::<PyMixtureSampler>()?;
     m.add_class::<PyGanSampler>()?;

@@ -1,0 +1,74 @@
+"""The errors genplan raises for a caller's bad input, one class per kind of problem.
+
+Every class is a subclass of :class:`GenplanError`, itself a subclass of :class:`ValueError`, so
+``except ValueError`` keeps working while tests and callers can match the kind by type::
+
+    from genplan.errors import UnknownNameError
+    try:
+        robot.link_poses(q, ["no_such_link"])
+    except UnknownNameError as exc:
+        print(exc)          # unknown link 'no_such_link' (known: ...)
+
+The native core raises the same classes (``genplan._core`` looks them up here), so an error has
+one type whichever layer found it. A file that does not exist raises the standard
+:class:`FileNotFoundError`; a file that exists but cannot be used raises :class:`RobotFileError`
+or :class:`ModelFileError`. See docs/ARCHITECTURE.md ("Errors").
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "CallbackError",
+    "GenplanError",
+    "InvalidGoalError",
+    "InvalidStartError",
+    "ModelFileError",
+    "NonFiniteError",
+    "RobotFileError",
+    "SettingsError",
+    "ShapeError",
+    "UnknownNameError",
+]
+
+
+class GenplanError(ValueError):
+    """An argument genplan cannot use; the message names the argument and the problem."""
+
+
+class ShapeError(GenplanError):
+    """An array or vector of the wrong shape or length (or not readable as numbers)."""
+
+
+class NonFiniteError(GenplanError):
+    """A NaN or infinity where a finite number is needed; the message gives the first one."""
+
+
+class UnknownNameError(GenplanError):
+    """A name (robot, link, joint, frame, term, sampler, environment, ...) that is not known;
+    the message lists the known ones."""
+
+
+class SettingsError(GenplanError):
+    """A setting with a bad value, of the wrong type, or not known; the message names the field."""
+
+
+class RobotFileError(GenplanError):
+    """A robot description (URDF, SRDF, mesh) that exists but cannot be read into a model."""
+
+
+class ModelFileError(GenplanError):
+    """A trained model (safetensors weights + JSON card) that is corrupt, tampered with, made for
+    another robot, or otherwise cannot be vouched for."""
+
+
+class InvalidStartError(GenplanError):
+    """A planning start that the result's guarantee cannot rest on (e.g. in collision)."""
+
+
+class InvalidGoalError(GenplanError):
+    """Planning goals that the result's guarantee cannot rest on (e.g. none of them valid)."""
+
+
+class CallbackError(GenplanError):
+    """A Python sampler, projector or checker called back from the native core returned a value
+    of the wrong shape or type."""

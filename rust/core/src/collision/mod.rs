@@ -1,0 +1,19 @@
+//! Collision world in parry: the robot's collision geometry, self-collision pairs, obstacles.
+//!
+//! Robot geometry comes from the URDF's `<collision>` elements: boxes, spheres, cylinders and
+//! capsules become parry primitives; meshes become the convex hull of their vertices. Self-
+//! collision pairs are all pairs of geometries on different rigid bodies (links joined by fixed
+//! or locked joints form one body, as in Pinocchio's `addAllCollisionPairs`), minus the SRDF's
+//! disabled link pairs.
+//!
+//! The files, one concept each: `geometry` (URDF and mesh geometry to parry shapes),
+//! `broad_phase` (the pair lists and the bounding-volume filters that rule pairs out before the
+//! exact test), `world` ([`CollisionWorld`]: obstacles and the queries). Everything is
+//! re-exported here: the paths are `genplan_core::collision::X`.
+
+mod broad_phase;
+mod geometry;
+mod world;
+
+pub use geometry::{load_stl_vertices, RobotGeometry};
+pub use world::{CollisionWorld, Obstacle, PairDistance, Scratch};

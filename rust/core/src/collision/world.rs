@@ -1,0 +1,325 @@
+//! The collision world: the robot's geometry, its self-collision pairs and the obstacles
+//! ([`CollisionWorld`]), and the queries on it (in collision?, signed minimum distance, close
+//! pairs), with their reusable buffers ([`Scratch`]).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::query;
+use parry3d_f64::shape::{Ball, Cuboid, HalfSpace, SharedShape};
+
+use super::broad_phase::{self_pairs, Obb};
+use super::geometry::{bounding_sphere, robot_geometries};
+use super::RobotGeometry;
+use crate::error::{check_finite, check_vector, unknown, Error, Result};
+use crate::kinematics::KinematicModel;
+use crate::srdf::Srdf;
+use crate::urdf::Urdf;
+
+/// An environment obstacle, fixed in the world.
+#[derive(Clone)]
+pub struct Obstacle {
+    /// Its unique name in the world.
+    pub name: String,
+    /// Pose of the shape in the world.
+    pub pose: Isometry3<f64>,
+    /// The parry shape, in its own frame.
+    pub shape: SharedShape,
+    /// World bounding sphere (infinite radius for a half-space).
+    pub(super) center: Point3<f64>,
+    pub(super) radius: f64,
+    /// World bounding box (None for a half-space).
+    pub(super) aabb: Option<Aabb>,
+    /// World oriented bounding box: the shape's local box at its pose (None for a half-space).
+    pub(super) obb: Option<Obb>,
+}
+
+/// The answer to a distance query about one pair.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairDistance {
+    /// Name of the robot geometry.
+    pub a: String,
+    /// Name of the other member: a robot geometry or an obstacle.
+    pub b: String,
+    /// Signed distance: positive apart, negative penetration depth.
+    pub distance: f64,
+}
+
+/// The robot's collision geometry plus obstacles, answering collision and distance queries.
+#[derive(Clone)]
+pub struct CollisionWorld {
+    /// The robot's kinematics.
+    pub model: Arc<KinematicModel>,
+    /// The robot's collision geometry.
+    pub geometries: Vec<RobotGeometry>,
+    /// Self-collision pairs, as indices into `geometries`.
+    pub self_pairs: Vec<(usize, usize)>,
+    /// The obstacles, in the order they were added.
+    pub obstacles: Vec<Obstacle>,
+    /// Check self-collision (default true).
+    pub check_self: bool,
+}
+
+impl CollisionWorld {
+    /// Build from the URDF that holds the collision geometry (its links must be the model's),
+    /// and an optional SRDF whose disabled pairs are removed.
+    pub fn from_urdf(
+        model: Arc<KinematicModel>,
+        urdf: &Urdf,
+        package_dirs: &[PathBuf],
+        srdf: Option<&Srdf>,
+    ) -> Result<CollisionWorld> {
+        let geometries = robot_geometries(&model, urdf, package_dirs)?;
+        let self_pairs = self_pairs(&model, &geometries, srdf);
+        Ok(CollisionWorld {
+            model,
+            geometries,
+            self_pairs,
+            obstacles: Vec::new(),
+            check_self: true,
+        })
+    }
+
+    fn add_obstacle(&mut self, name: &str, pose: Isometry3<f64>, shape: SharedShape) -> Result<()> {
+        if self.obstacles.iter().any(|o| o.name == name) {
+            return Err(Error::Invalid(format!("an obstacle named '{name}' already exists")));
+        }
+        let (c, r, aabb, obb) = if shape.as_halfspace().is_some() {
+            (Point3::origin(), f64::INFINITY, None, None)
+        } else {
+            let (c, r) = bounding_sphere(&shape);
+            (pose * c, r, Some(shape.compute_aabb(&pose)), Some(Obb::new(&shape.compute_local_aabb(), &pose)))
+        };
+        self.obstacles.push(Obstacle {
+            name: name.to_string(),
+            pose,
+            shape,
+            center: c,
+            radius: r,
+            aabb,
+            obb,
+        });
+        Ok(())
+    }
+
+    /// Add a box with the given half extents at `pose`.
+    pub fn add_box(&mut self, name: &str, half_extents: [f64; 3], pose: Isometry3<f64>) -> Result<()> {
+        check_finite(&format!("box '{name}' half extents"), &half_extents)?;
+        if half_extents.iter().any(|&h| h <= 0.0) {
+            return Err(Error::Invalid(format!(
+                "box '{name}': half extents must be positive, got {half_extents:?}"
+            )));
+        }
+        check_isometry(name, &pose)?;
+        self.add_obstacle(name, pose, SharedShape::new(Cuboid::new(Vector3::from(half_extents))))
+    }
+
+    /// Add a sphere.
+    pub fn add_sphere(&mut self, name: &str, radius: f64, center: [f64; 3]) -> Result<()> {
+        check_vector(&format!("sphere '{name}' centre"), &center, 3)?;
+        if !(radius > 0.0 && radius.is_finite()) {
+            return Err(Error::Invalid(format!("sphere '{name}': radius must be positive, got {radius}")));
+        }
+        self.add_obstacle(
+            name,
+            Isometry3::translation(center[0], center[1], center[2]),
+            SharedShape::new(Ball::new(radius)),
+        )
+    }
+
+    /// Add the half-space {x : n.x <= offset} (everything below the plane n.x = offset).
+    pub fn add_halfspace(&mut self, name: &str, normal: [f64; 3], offset: f64) -> Result<()> {
+        check_finite(&format!("plane '{name}' normal"), &normal)?;
+        check_finite(&format!("plane '{name}' offset"), &[offset])?;
+        let n = nalgebra::Unit::try_new(Vector3::from(normal), 1e-12).ok_or_else(|| {
+            Error::Invalid(format!("plane '{name}': the normal is zero"))
+        })?;
+        let pose = Isometry3::translation(n.x * offset, n.y * offset, n.z * offset);
+        self.add_obstacle(name, pose, SharedShape::new(HalfSpace::new(n)))
+    }
+
+    /// Remove an obstacle by name.
+    pub fn remove_obstacle(&mut self, name: &str) -> Result<()> {
+        match self.obstacles.iter().position(|o| o.name == name) {
+            Some(i) => {
+                self.obstacles.remove(i);
+                Ok(())
+            }
+            None => {
+                let known: Vec<&str> = self.obstacles.iter().map(|o| o.name.as_str()).collect();
+                Err(unknown("obstacle", name, &known))
+            }
+        }
+    }
+
+    /// World poses and bounding boxes of the robot geometries for a checked q.
+    fn geometry_poses(&self, q: &[f64], s: &mut Scratch) {
+        self.model.forward_kinematics_unchecked(q, &mut s.links);
+        s.poses.clear();
+        s.aabbs.clear();
+        s.obbs.clear();
+        for g in &self.geometries {
+            let pose = s.links[g.link] * g.offset;
+            let obb = Obb::new(&g.local_aabb, &pose);
+            s.aabbs.push(obb.aabb());
+            s.obbs.push(obb);
+            s.poses.push(pose);
+        }
+    }
+
+    /// True when any checked pair intersects.
+    pub fn in_collision(&self, q: &[f64]) -> Result<bool> {
+        self.model.check_configuration(q)?;
+        let mut scratch = Scratch::default();
+        Ok(self.in_collision_unchecked(q, &mut scratch))
+    }
+
+    /// [`in_collision`](Self::in_collision) without input checks, reusing buffers.
+    pub fn in_collision_unchecked(&self, q: &[f64], s: &mut Scratch) -> bool {
+        self.geometry_poses(q, s);
+        for (i, t) in self.pair_iter() {
+            if !self.may_touch(i, t, s, 0.0) {
+                continue;
+            }
+            let g = &self.geometries[i];
+            let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
+            let ca = s.poses[i] * g.center;
+            if rb.is_finite() && (ca - cb).norm() > g.radius + rb {
+                continue;
+            }
+            // The shapes' boxes in their own frames are much tighter than world-aligned boxes on
+            // tilted links: a separating axis between them rules the pair out before GJK.
+            if let Some(b) = self.target_obb(t, s) {
+                if s.obbs[i].separated(b) {
+                    continue;
+                }
+            }
+            // Unsupported shape pairs cannot occur with the shapes built here; count them as
+            // colliding to stay on the safe side.
+            if query::intersection_test(&s.poses[i], &*g.shape, &pose_b, &**shape_b).unwrap_or(true) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// [`in_collision`](Self::in_collision) with every pair through the exact narrow phase (no
+    /// bounding-volume filters): the reference the filtered check is tested against.
+    pub fn in_collision_exhaustive(&self, q: &[f64]) -> Result<bool> {
+        self.model.check_configuration(q)?;
+        let mut s = Scratch::default();
+        self.geometry_poses(q, &mut s);
+        for (i, t) in self.pair_iter() {
+            let (pose_b, shape_b, _, _) = self.target(t, &s.poses);
+            if query::intersection_test(&s.poses[i], &*self.geometries[i].shape, &pose_b, &**shape_b).unwrap_or(true) {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
+    /// Signed distance of one pair of shapes (negative: penetration depth).
+    fn pair_distance(pa: &Isometry3<f64>, a: &SharedShape, pb: &Isometry3<f64>, b: &SharedShape) -> f64 {
+        if query::intersection_test(pa, &**a, pb, &**b).unwrap_or(true) {
+            // parry 0.25.3 returns a wrong depth for contact(support map, half-space); the
+            // half-space-first order is right (checked in tests/collision.rs).
+            let contact = if b.as_halfspace().is_some() {
+                query::contact(pb, &**b, pa, &**a, 0.0)
+            } else {
+                query::contact(pa, &**a, pb, &**b, 0.0)
+            };
+            match contact {
+                Ok(Some(c)) => c.dist.min(0.0),
+                _ => 0.0,
+            }
+        } else {
+            query::distance(pa, &**a, pb, &**b).unwrap_or(0.0)
+        }
+    }
+
+    /// Minimum signed distance over all checked pairs (+inf when there is no pair).
+    pub fn min_distance(&self, q: &[f64]) -> Result<f64> {
+        self.model.check_configuration(q)?;
+        let mut s = Scratch::default();
+        Ok(self.min_distance_unchecked(q, &mut s))
+    }
+
+    /// [`min_distance`](Self::min_distance) without input checks, reusing buffers.
+    pub fn min_distance_unchecked(&self, q: &[f64], s: &mut Scratch) -> f64 {
+        self.geometry_poses(q, s);
+        let mut best = f64::INFINITY;
+        for (i, t) in self.pair_iter() {
+            let g = &self.geometries[i];
+            let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
+            let ca = s.poses[i] * g.center;
+            // Lower bounds from the bounding spheres and boxes: skip pairs that cannot beat `best`.
+            if rb.is_finite() && (ca - cb).norm() - g.radius - rb >= best {
+                continue;
+            }
+            if self.aabb_gap(i, t, s) >= best {
+                continue;
+            }
+            let d = Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b);
+            best = best.min(d);
+        }
+        best
+    }
+
+    /// Every checked pair closer than `margin` (signed distance < margin), with its distance.
+    pub fn close_pairs(&self, q: &[f64], margin: f64) -> Result<Vec<PairDistance>> {
+        self.model.check_configuration(q)?;
+        check_finite("margin", &[margin])?;
+        let mut s = Scratch::default();
+        self.geometry_poses(q, &mut s);
+        let mut out = Vec::new();
+        for (i, t) in self.pair_iter() {
+            if !self.may_touch(i, t, &s, margin) {
+                continue;
+            }
+            let g = &self.geometries[i];
+            let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
+            let ca = s.poses[i] * g.center;
+            if rb.is_finite() && (ca - cb).norm() - g.radius - rb >= margin {
+                continue;
+            }
+            let d = Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b);
+            if d < margin {
+                out.push(PairDistance {
+                    a: g.name.clone(),
+                    b: self.target_name(t).to_string(),
+                    distance: d,
+                });
+            }
+        }
+        out.sort_by(|x, y| x.distance.total_cmp(&y.distance));
+        Ok(out)
+    }
+
+    /// Names of the self-collision pairs that are checked.
+    pub fn self_pair_names(&self) -> Vec<(String, String)> {
+        self.self_pairs
+            .iter()
+            .map(|&(i, j)| (self.geometries[i].name.clone(), self.geometries[j].name.clone()))
+            .collect()
+    }
+}
+
+/// Reusable buffers for repeated queries.
+#[derive(Default, Clone)]
+pub struct Scratch {
+    links: Vec<Isometry3<f64>>,
+    pub(super) poses: Vec<Isometry3<f64>>,
+    pub(super) aabbs: Vec<Aabb>,
+    pub(super) obbs: Vec<Obb>,
+}
+
+fn check_isometry(name: &str, pose: &Isometry3<f64>) -> Result<()> {
+    let t = pose.translation.vector;
+    let r = pose.rotation.coords;
+    check_finite(
+        &format!("obstacle '{name}' pose"),
+        &[t.x, t.y, t.z, r.x, r.y, r.z, r.w],
+    )
+}

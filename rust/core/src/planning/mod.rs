@@ -1,0 +1,44 @@
+//! Constrained RRT: the GAN paper's Algorithm 1 (Section III-C), with projected extensions.
+//!
+//! The planner grows a tree from a start configuration towards K goal configurations (found by
+//! IK beforehand). Each iteration samples a configuration, extends the tree from its nearest
+//! node towards it ([`Planner`]'s *ConstrainedExtend*: steps of `step` radians, each projected
+//! onto the constraint manifold with a posture task around the interpolated configuration), then
+//! extends greedily from the reached node towards the nearest goal. It succeeds when a goal is
+//! reached within `goal_tolerance`.
+//!
+//! Every part the planner calls is a trait object, so each can be native (Rust) or a user's
+//! (the Python bindings wrap Python objects):
+//!
+//! * [`Sampler`]: batches of configurations (uniform, a GAN, a mixture of both);
+//! * [`Projector`]: batches of configurations projected onto the manifold, each with its own
+//!   nominal posture (the native one is [`crate::projection::Projector`]);
+//! * [`ValidityChecker`]: batches of configurations, valid or not (collision, joint limits, any
+//!   inequality the projector does not enforce);
+//! * [`NearestNeighbors`]: the tree's nearest-neighbour index ([`LinearNearest`], [`KdForest`]).
+//!
+//! Beyond the paper, every tree edge is validated: the states between its ends are interpolated
+//! at `edge_resolution`, projected and checked, so the returned path is a dense sequence of
+//! states each on the manifold and valid (the paper checked the tree nodes only, 0.3 rad apart).
+//! The projected intermediate states are kept and make up the returned dense path.
+//!
+//! The files, one concept each: `error` (PlanError), `space` (configuration spaces), `sampler`,
+//! `projector`, `checker` (the components and their native implementations), `nearest` (the
+//! nearest-neighbour indices), `rrt` (settings, the tree and the planner). Everything is
+//! re-exported here: the paths are `genplan_core::planning::X`.
+
+mod checker;
+mod error;
+mod nearest;
+mod projector;
+mod rrt;
+mod sampler;
+mod space;
+
+pub use checker::{AlwaysValid, CollisionChecker, ValidityChecker};
+pub use error::{ComponentError, PlanError, PlanResult};
+pub use nearest::{KdForest, LinearNearest, NearestNeighbors, NeighborIndex, KD_MAX_DIM};
+pub use projector::{GaussNewtonProjector, Projection, Projector};
+pub use rrt::{Components, Planner, Settings, Solution, Stats, MAX_SPACING};
+pub use sampler::{valid_box, MixtureSampler, Sampler, UniformSampler};
+pub use space::{EuclideanSpace, Space};

@@ -1,0 +1,159 @@
+//! Samplers: the [`Sampler`] trait and the native ones, uniform within the joint limits
+//! ([`UniformSampler`], optionally with a free-flyer base drawn in a box) and the paper's hybrid
+//! ([`MixtureSampler`]); [`valid_box`] checks the boxes they (and the GAN sampler) draw in.
+
+use std::sync::Arc;
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use super::{PlanError, PlanResult};
+use crate::kinematics::{KinematicModel, Motion};
+
+/// `Err(PlanError::Input(msg))`: a native sampler's constructor got a bad argument.
+fn input<T>(msg: impl Into<String>) -> PlanResult<T> {
+    Err(PlanError::Input(msg.into()))
+}
+
+/// Draws configurations.
+pub trait Sampler: Send {
+    /// Fill `out` (n rows of nq, row-major) with n configurations.
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()>;
+}
+
+/// True when `lower..=upper` is a box: finite bounds, each lower <= upper (the samplers' target
+/// and base boxes).
+pub fn valid_box(lower: &[f64; 3], upper: &[f64; 3]) -> bool {
+    (0..3).all(|k| lower[k].is_finite() && upper[k].is_finite() && lower[k] <= upper[k])
+}
+
+/// Uniform within the joint limits (continuous joints: any angle); a free-flyer base is set to
+/// a fixed placement (`base`, 7 numbers), or with [`UniformSampler::with_base_box`] keeps the
+/// placement's orientation and draws its position uniformly in a box (the paper's Talos sampler:
+/// the centre-of-mass support box).
+#[derive(Debug, Clone)]
+pub struct UniformSampler {
+    model: Arc<KinematicModel>,
+    base: [f64; 7],
+    base_box: Option<([f64; 3], [f64; 3])>,
+    rng: StdRng,
+}
+
+impl UniformSampler {
+    /// A sampler for `model` (every revolute or prismatic joint needs finite limits); `base`:
+    /// the free-flyer placement [x, y, z, qx, qy, qz, qw] (default: the identity); `seed` seeds
+    /// its random numbers.
+    pub fn new(model: Arc<KinematicModel>, base: Option<[f64; 7]>, seed: u64) -> PlanResult<UniformSampler> {
+        for j in model.joints.iter().filter(|j| j.q_index != usize::MAX) {
+            if matches!(j.motion, Motion::Revolute { .. } | Motion::Prismatic { .. })
+                && !(model.lower[j.q_index].is_finite() && model.upper[j.q_index].is_finite())
+            {
+                return input(format!("uniform sampler: joint '{}' has no finite limits", j.name));
+            }
+        }
+        let base = base.unwrap_or([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+        if base.iter().any(|x| !x.is_finite()) {
+            return input("uniform sampler: base placement is not finite");
+        }
+        Ok(UniformSampler { model, base, base_box: None, rng: StdRng::seed_from_u64(seed) })
+    }
+
+    /// Draw the free-flyer base position uniformly in `lower..=upper` (orientation: the base
+    /// placement's).
+    pub fn with_base_box(mut self, lower: [f64; 3], upper: [f64; 3]) -> PlanResult<UniformSampler> {
+        if !self.model.floating_base {
+            return input("uniform sampler: a base box needs a free-flyer base");
+        }
+        if !valid_box(&lower, &upper) {
+            return input(format!("uniform sampler: bad base box {lower:?} .. {upper:?}"));
+        }
+        self.base_box = Some((lower, upper));
+        Ok(self)
+    }
+}
+
+impl Sampler for UniformSampler {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        let m = &self.model;
+        for row in out.chunks_mut(m.nq).take(n) {
+            if m.floating_base {
+                row[..7].copy_from_slice(&self.base);
+                if let Some((lo, hi)) = self.base_box {
+                    for k in 0..3 {
+                        row[k] = self.rng.random_range(lo[k]..=hi[k]);
+                    }
+                }
+            }
+            for j in m.joints.iter().filter(|j| j.q_index != usize::MAX) {
+                let i = j.q_index;
+                match j.motion {
+                    Motion::Continuous { .. } => {
+                        let a: f64 = self.rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+                        row[i] = a.cos();
+                        row[i + 1] = a.sin();
+                    }
+                    Motion::Fixed => {}
+                    _ => row[i] = self.rng.random_range(m.lower[i]..=m.upper[i]),
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Draws each configuration from `primary` with probability `p`, else from `secondary`: the
+/// paper's hybrid sampler (GAN with p = 0.8, else uniform) keeps the planner probabilistically
+/// complete. Both are asked for whole batches.
+pub struct MixtureSampler {
+    /// Drawn from with probability `p` (the paper: the GAN).
+    pub primary: Box<dyn Sampler>,
+    /// Drawn from otherwise (the paper: uniform).
+    pub secondary: Box<dyn Sampler>,
+    /// Probability of drawing from `primary`, in [0, 1].
+    pub p: f64,
+    nq: usize,
+    rng: StdRng,
+    buf: Vec<f64>,
+}
+
+impl MixtureSampler {
+    /// The mixture of two samplers of configurations of length `nq`; `seed` seeds the choice
+    /// between them.
+    pub fn new(primary: Box<dyn Sampler>, secondary: Box<dyn Sampler>, p: f64, nq: usize, seed: u64) -> PlanResult<MixtureSampler> {
+        if !(0.0..=1.0).contains(&p) {
+            return input(format!("mixture sampler: p must be in [0, 1], got {p}"));
+        }
+        Ok(MixtureSampler { primary, secondary, p, nq, rng: StdRng::seed_from_u64(seed), buf: Vec::new() })
+    }
+}
+
+impl Sampler for MixtureSampler {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        let pick: Vec<bool> = (0..n).map(|_| self.rng.random::<f64>() < self.p).collect();
+        let n1 = pick.iter().filter(|&&b| b).count();
+        let nq = self.nq;
+        let mut rows_a = Vec::new();
+        let mut rows_b = Vec::new();
+        if n1 > 0 {
+            self.buf.resize(n1 * nq, 0.0);
+            self.primary.sample(n1, &mut self.buf)?;
+            rows_a = self.buf.clone();
+        }
+        if n1 < n {
+            self.buf.resize((n - n1) * nq, 0.0);
+            self.secondary.sample(n - n1, &mut self.buf)?;
+            rows_b = self.buf.clone();
+        }
+        let (mut ia, mut ib) = (0, 0);
+        for (row, &a) in out.chunks_mut(nq).zip(&pick) {
+            if a {
+                row.copy_from_slice(&rows_a[ia * nq..(ia + 1) * nq]);
+                ia += 1;
+            } else {
+                row.copy_from_slice(&rows_b[ib * nq..(ib + 1) * nq]);
+                ib += 1;
+            }
+        }
+        Ok(())
+    }
+}

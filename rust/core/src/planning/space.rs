@@ -1,0 +1,110 @@
+//! The configuration space the planner works in: the [`Space`] trait (difference, integrate,
+//! chart coordinates, input checks), implemented for a robot's [`KinematicModel`] (Lie-group
+//! joints, free-flyer base) and for R^n ([`EuclideanSpace`]).
+
+use nalgebra::{Matrix3, UnitQuaternion};
+
+use crate::error::check_vector;
+use crate::kinematics::{KinematicModel, Motion};
+use crate::lie::log3;
+
+/// The configuration space: how configurations are differenced, moved and charted.
+pub trait Space: Send + Sync {
+    /// Length of a configuration vector.
+    fn nq(&self) -> usize;
+    /// Dimension of the tangent space (and of the chart used for nearest neighbours).
+    fn nv(&self) -> usize;
+    /// `out = q1 (-) q0` (tangent vector, length nv).
+    fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]);
+    /// `out = q (+) v`.
+    fn integrate(&self, q: &[f64], v: &[f64], out: &mut [f64]);
+    /// Coordinates of q in a chart (length nv) whose Euclidean distance approximates the tangent
+    /// distance; the nearest-neighbour index works in it.
+    fn coordinates(&self, q: &[f64], out: &mut [f64]);
+    /// Check a configuration (length, finite values, ...); the error is a message that starts
+    /// with `what` (the caller wraps it in the [`PlanError`](super::PlanError) of its input).
+    fn check(&self, q: &[f64], what: &str) -> Result<(), String>;
+
+    /// Tangent distance |q1 (-) q0|.
+    fn distance(&self, q0: &[f64], q1: &[f64]) -> f64 {
+        let mut v = vec![0.0; self.nv()];
+        self.difference(q0, q1, &mut v);
+        v.iter().map(|x| x * x).sum::<f64>().sqrt()
+    }
+
+    /// `out = q0 (+) t (q1 (-) q0)`.
+    fn interpolate(&self, q0: &[f64], q1: &[f64], t: f64, out: &mut [f64]) {
+        let mut v = vec![0.0; self.nv()];
+        self.difference(q0, q1, &mut v);
+        v.iter_mut().for_each(|x| *x *= t);
+        self.integrate(q0, &v, out);
+    }
+}
+
+impl Space for KinematicModel {
+    fn nq(&self) -> usize {
+        self.nq
+    }
+    fn nv(&self) -> usize {
+        self.nv
+    }
+    fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
+        KinematicModel::difference(self, q0, q1, out)
+    }
+    fn integrate(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        KinematicModel::integrate(self, q, v, out)
+    }
+    fn coordinates(&self, q: &[f64], out: &mut [f64]) {
+        let mut iq = 0;
+        let mut iv = 0;
+        if self.floating_base {
+            out[..3].copy_from_slice(&q[..3]);
+            let rot = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]));
+            let m: Matrix3<f64> = rot.to_rotation_matrix().into_inner();
+            let (w, _) = log3(&m);
+            out[3..6].copy_from_slice(w.as_slice());
+            iq = 7;
+            iv = 6;
+        }
+        for j in self.joints.iter().filter(|j| j.q_index != usize::MAX) {
+            debug_assert!(j.q_index >= iq && j.v_index >= iv);
+            match j.motion {
+                Motion::Continuous { .. } => out[j.v_index] = q[j.q_index + 1].atan2(q[j.q_index]),
+                Motion::Fixed => {}
+                _ => out[j.v_index] = q[j.q_index],
+            }
+        }
+    }
+    fn check(&self, q: &[f64], what: &str) -> Result<(), String> {
+        self.check_configuration(q).map_err(|e| format!("{what}: {e}"))
+    }
+}
+
+/// R^n with the Euclidean metric (tests, benches, toy problems); the field is n.
+#[derive(Debug, Clone, Copy)]
+pub struct EuclideanSpace(pub usize);
+
+impl Space for EuclideanSpace {
+    fn nq(&self) -> usize {
+        self.0
+    }
+    fn nv(&self) -> usize {
+        self.0
+    }
+    fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
+        for i in 0..self.0 {
+            out[i] = q1[i] - q0[i];
+        }
+    }
+    fn integrate(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        for i in 0..self.0 {
+            out[i] = q[i] + v[i];
+        }
+    }
+    fn coordinates(&self, q: &[f64], out: &mut [f64]) {
+        out.copy_from_slice(q);
+    }
+    fn check(&self, q: &[f64], what: &str) -> Result<(), String> {
+        check_vector(what, q, self.0).map_err(|e| e.to_string())
+    }
+}
