@@ -8,8 +8,8 @@ Public modules:
   distance queries (parry, GIL released).
 """
 
-from genplan._core import __version__
+from genplan._core import CRATE_VERSIONS, __version__
 from genplan.collision import CollisionWorld
 from genplan.robots import Robot, load
 
-__all__ = ["__version__", "CollisionWorld", "Robot", "load"]
+__all__ = ["__version__", "CRATE_VERSIONS", "CollisionWorld", "Robot", "load"]

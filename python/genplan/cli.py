@@ -21,10 +21,11 @@ def _version(dist: str) -> str:
 
 def cmd_info(args: argparse.Namespace) -> int:
     """Print versions and the robots genplan can load."""
-    from genplan import _core, robots
+    import genplan
+    from genplan import robots
 
-    print(f"genplan {_core.__version__}  (python {platform.python_version()}, {platform.machine()})")
-    crates = ", ".join(f"{k} {v}" for k, v in sorted(_core.CRATE_VERSIONS.items()))
+    print(f"genplan {genplan.__version__}  (python {platform.python_version()}, {platform.machine()})")
+    crates = ", ".join(f"{k} {v}" for k, v in sorted(genplan.CRATE_VERSIONS.items()))
     print(f"  rust core: {crates}")
     for dist in ("numpy", "pin", "coal", "example-robot-data", "torch", "safetensors", "ompl", "casadi", "viser"):
         print(f"  {dist:<19}{_version(dist)}")
@@ -57,13 +58,13 @@ def cmd_info(args: argparse.Namespace) -> int:
 #: (group, name, module, help) of every command but ``info``. Each module keeps its top-level
 #: imports light (no torch) and defines ``add_arguments(parser)`` and ``main(args) -> int``.
 COMMANDS: list[tuple[str, str, str, str]] = [
-    ("", "report", "genplan.report", "report.md from a folder of benchmark JSON (e.g. benches/results)"),
-    ("", "reproduce", "genplan.reproduce", "the main job: rerun both papers' experiments with the shipped models, write a report"),
-    ("bench", "projection", "genplan.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),
-    ("bench", "coverage", "genplan.benchmarks.coverage", "GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations"),
-    ("bench", "plan", "genplan.benchmarks.plan", "Table II: constrained RRT (uniform / GAN / hybrid) and OMPL"),
-    ("bench", "control", "genplan.benchmarks.control", "Fig. 12: the 1 kHz spatula controller (P-D + DOB) on the simulated UR5, pancake slip"),
-    ("bench", "adjust", "genplan.benchmarks.adjust", "seq2seq paper Figs. 5-9, 11: latent trajectory adjustment (J1, J2) vs direct U and CasADi + IPOPT"),
+    ("", "report", "genplan.experiments.report", "report.md from a folder of benchmark JSON (e.g. benches/results)"),
+    ("", "reproduce", "genplan.experiments.reproduce", "the main job: rerun both papers' experiments with the shipped models, write a report"),
+    ("bench", "projection", "genplan.experiments.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),
+    ("bench", "coverage", "genplan.experiments.benchmarks.coverage", "GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations"),
+    ("bench", "plan", "genplan.experiments.benchmarks.plan", "Table II: constrained RRT (uniform / GAN / hybrid) and OMPL"),
+    ("bench", "control", "genplan.experiments.benchmarks.control", "Fig. 12: the 1 kHz spatula controller (P-D + DOB) on the simulated UR5, pancake slip"),
+    ("bench", "adjust", "genplan.experiments.benchmarks.adjust", "seq2seq paper Figs. 5-9, 11: latent trajectory adjustment (J1, J2) vs direct U and CasADi + IPOPT"),
     ("train", "gan", "genplan.gan.train_cli", "the conditional ensemble GAN of valid configurations"),
     ("train", "seq2seq", "genplan.pancake.train_cli", "the pancake seq2seq trajectory deformation model"),
 ]

@@ -10,7 +10,6 @@ trajectory deformation model, and latent-space trajectory adjustment.
 * :mod:`genplan.pancake.adjustment` -- :func:`adjust`: gradient descent on the latent vector
   ("latent", "random-latent") or on the accelerations ("direct-u"), objectives J1, J2 (J2Executable: with
   execution margins) or yours.
-* :mod:`genplan.pancake.casadi_baseline` -- the same problems solved by CasADi + IPOPT.
 
 Imported lazily, so that ``import genplan.pancake`` does not import torch.
 """

@@ -25,10 +25,10 @@ if TYPE_CHECKING:
 def evaluate(model: Seq2SeqModel, updates: int = 100) -> dict[str, Any]:
     """The card's evaluation: deformation of held-out inputs and of the 27 S-curves, and J1
     latent adjustment on the 27 (plain gradient descent, the paper's eta = 200)."""
-    from genplan.benchmarks.adjust import j1_problems
     from genplan.pancake.adjustment import adjust
     from genplan.pancake.data import generate_chunk
     from genplan.pancake.model import evaluate as deform_quality
+    from genplan.pancake.trajectories import j1_problems
 
     held_out = generate_chunk(1024, np.random.default_rng([model.config.data_seed, 2]), model.config.K)
     x_in, p_end = j1_problems()

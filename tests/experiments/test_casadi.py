@@ -1,4 +1,4 @@
-"""genplan.pancake.casadi_baseline: the CasADi + IPOPT peer solves the same problem correctly."""
+"""genplan.experiments.peers.casadi: the CasADi + IPOPT peer solves the same problem correctly."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("casadi")
 
-from genplan.pancake.casadi_baseline import PancakeNLP, s_curve_accelerations, solve_batch  # noqa: E402
+from genplan.experiments.peers.casadi import PancakeNLP, s_curve_accelerations, solve_batch  # noqa: E402
 from genplan.pancake.physics import rollout_np  # noqa: E402
 from genplan.pancake.trajectories import phi, s_curve  # noqa: E402
 

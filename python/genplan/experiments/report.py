@@ -14,7 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from genplan.benchmarks.common import table
+from genplan.experiments.common import table
 
 
 def _f(x: Any, digits: int = 3) -> str:
@@ -155,7 +155,7 @@ def _figures(out: Path) -> str:
 def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, str] | None = None) -> Path:
     res = results["results"]
     m = results["machine"]
-    from genplan.report_seq2seq import adjust_section, control_section
+    from genplan.experiments.report_seq2seq import adjust_section, control_section
 
     steps = results.get("steps") or []
     lines = [
@@ -217,7 +217,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from genplan.benchmarks.common import machine
+    from genplan.experiments.common import machine
 
     if not args.folder.is_dir():
         raise SystemExit(f"{args.folder} is not a folder")

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from genplan.benchmarks.common import machine, table, write_json
+from genplan.experiments.common import machine, table, write_json
 
 K_CLUSTERS = 20
 

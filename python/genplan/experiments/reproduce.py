@@ -3,8 +3,9 @@
     genplan reproduce --quick --out out/quick      # < 10 minutes on a 2-core machine
     genplan reproduce --out out/full               # the papers' N (about an hour or more)
 
-Steps (each is a ``genplan bench ...`` command, run in-process, writing JSON and PNGs into the
-output folder; the report is assembled from those files):
+Steps (each is a ``genplan bench ...`` command, run in-process through the benchmark module's own
+parser and ``main``, writing JSON and PNGs into the output folder; the report is assembled from
+those files):
 
 1. Table I (GAN paper): projection and IK, uniform vs GAN initialisation, Panda and Talos, plus the
    scipy ``least_squares`` baseline on the same tasks;
@@ -23,6 +24,7 @@ the PNG figures, the HTML views and ``results.json`` (everything).
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import shlex
 import sys
@@ -31,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from genplan.benchmarks.common import machine
+from genplan.experiments.common import machine
 
 SEED = 0
 
@@ -86,6 +88,16 @@ def _steps(out: Path, sizes: Sizes) -> list[tuple[str, list[str]]]:
     return steps
 
 
+def _bench(argv: list[str]) -> int:
+    """Run ``["bench", NAME, *args]`` as ``genplan bench NAME args`` does: NAME's module in
+    :mod:`genplan.experiments.benchmarks` parses ``args`` with its ``add_arguments``, then ``main``."""
+    _, name, *args = argv
+    module = importlib.import_module(f"genplan.experiments.benchmarks.{name}")
+    parser = argparse.ArgumentParser(prog=f"genplan bench {name}")
+    module.add_arguments(parser)
+    return int(module.main(parser.parse_args(args)))
+
+
 def _views(out: Path) -> dict[str, str]:
     from genplan.viewer import export_plan_html
 
@@ -99,8 +111,7 @@ def _views(out: Path) -> dict[str, str]:
 def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]:
     from tqdm import tqdm
 
-    from genplan.cli import main as cli
-    from genplan.report import collect, write_report
+    from genplan.experiments.report import collect, write_report
 
     sizes = QUICK if quick else FULL
     out.mkdir(parents=True, exist_ok=True)
@@ -121,7 +132,7 @@ def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]
         status = "ok"
         try:
             if argv:
-                rc = cli(argv)
+                rc = _bench(argv)
                 status = "ok" if rc == 0 else f"exit {rc}"
             else:
                 views = _views(out)

@@ -1,8 +1,8 @@
-"""The coverage metrics and the planar robot of genplan.benchmarks.coverage."""
+"""The coverage metrics and the planar robot of genplan.experiments.benchmarks.coverage."""
 
 import numpy as np
 
-from genplan.benchmarks import coverage as C
+from genplan.experiments.benchmarks import coverage as C
 
 
 def test_metrics_separate_full_coverage_from_mode_collapse() -> None:

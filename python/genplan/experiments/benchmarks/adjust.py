@@ -14,7 +14,7 @@ v_lim [1.5, 1.5, 4.5]).
 
 Methods: ``latent`` (case 1), ``random-latent`` (case 2, z ~ N(0, I) with ``--seed``),
 ``direct-u`` (case 3), ``casadi`` (direct transcription solved by IPOPT, friction cone hard; see
-:mod:`genplan.pancake.casadi_baseline`), ``all`` (the four in one run, one JSON per method in
+:mod:`genplan.experiments.peers.casadi`), ``all`` (the four in one run, one JSON per method in
 ``--out-dir``, and the figures). Step rule ``--step adaptive`` (default: eq. 7 with the paper's
 learning rates inside a per-problem step size that halves when J rises and grows when it falls),
 ``--step gd`` (eq. 7 as written) or ``--step adam``; several can be given, each is measured;
@@ -43,7 +43,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from genplan.benchmarks.common import machine, table, write_json
+from genplan.experiments.common import machine, table, write_json
+from genplan.pancake.trajectories import j1_problems
 
 GD_METHODS = ("latent", "random-latent", "direct-u")
 ALL_METHODS = (*GD_METHODS, "casadi")
@@ -60,16 +61,6 @@ PAPER = {
 }
 J2_SETUP = {"theta_end": -0.75 * math.pi, "p_lim": 0.2, "theta_lim": 0.5, "alpha": 1.0, "beta": 0.01,
             "v_lim": (1.5, 1.5, 4.5)}
-
-
-def j1_problems() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The 27 S-curve inputs (27, K, 3) and their end poses (27, 3), grouped by theta."""
-    from genplan.pancake.trajectories import s_curve
-
-    yz = (-0.1, 0.0, 0.1)
-    p_end = np.array([[y, z, t] for t in (-math.pi, 0.0, math.pi) for y in yz for z in yz])
-    x_in = np.stack([s_curve(np.zeros(3), pe) for pe in p_end])
-    return x_in, p_end
 
 
 def j2_problem() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -175,7 +166,7 @@ def run_gd(method: str, objective: str, updates: int, lr: float | None, step: st
 
 def run_casadi(objective: str, problems: int | None = None) -> tuple[dict[str, Any], Any]:
     """CasADi + IPOPT, one solve per problem, warm-started from the S-curve to the end pose."""
-    from genplan.pancake.casadi_baseline import s_curve_accelerations, solve_batch
+    from genplan.experiments.peers.casadi import s_curve_accelerations, solve_batch
     from genplan.pancake.physics import phi_np, rollout_np
 
     x_in, p_end = j1_problems() if objective == "j1" else j2_problem()
@@ -341,7 +332,7 @@ def _print(objective: str, results: dict[tuple[str, str], dict[str, Any]]) -> No
 
 def _figures(fig_dir: Path, objective: str, results: dict[tuple[str, str], dict[str, Any]],
              raw: dict[tuple[str, str], Any], steps: list[str]) -> None:
-    from genplan.pancake import figures as F
+    from genplan.experiments import figures_seq2seq as F
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     ok = {k: r for k, r in results.items() if not r.get("diverged")}

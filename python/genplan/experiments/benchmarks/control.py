@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from genplan import control
-from genplan.benchmarks.common import machine, table, write_json
+from genplan.experiments.common import machine, table, write_json
 
 #: the paper's J2 input (Section 5.2) and horizon
 P_END = (0.0, 0.0, -0.75 * math.pi)
@@ -65,7 +65,7 @@ def casadi_j2_trajectory() -> tuple[NDArray[np.float64], float] | None:
     """The J2 problem solved by CasADi + IPOPT (the peer of the latent method), if casadi is
     installed (the ``bench`` extra) and the solve succeeds: (trajectory (K, 3), seconds)."""
     try:
-        from genplan.pancake.casadi_baseline import PancakeNLP
+        from genplan.experiments.peers.casadi import PancakeNLP
     except ImportError:
         return None
     try:
@@ -256,7 +256,7 @@ def run(updates: int | None = None, repeats: int = 7, settle: float = 1.0, tail:
         log_peer_nom = control.SpatulaArm(settle=settle).execute(x, tail=tail)
         d_with, d_no = _deviation(log_peer, log_peer_nom), _deviation(log_peer_no, log_peer_nom)
         payload["casadi_j2"] = {"source": "the same J2 problem solved by CasADi + IPOPT (hard friction cone; "
-                                          "genplan.pancake.casadi_baseline), executed the same way",
+                                          "genplan.experiments.peers.casadi), executed the same way",
                                 "solve_s": solve_s,
                                 "planned_end_pose": x[-1].tolist(), **_run_summary(log_peer),
                                 "deviation_from_undisturbed": d_with,

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from genplan.benchmarks.common import machine, table, write_json
+from genplan.experiments.common import machine, table, write_json
 
 #: Table II of the GAN paper: (success %, T_ave s, Opt. Steps, E).
 PAPER_TABLE_II: dict[tuple[str, str], tuple[float, float, float, float]] = {
@@ -85,13 +85,13 @@ def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, sett
         [r.success for r in results],
         projections=[r.projections for r in results],
         extensions=[r.extensions for r in results],
-        edge_projections=[r.stats["edge_projections"] for r in results],
+        edge_projections=[r.stats.edge_projections for r in results],
         retries=[r.retries for r in results],
-        nodes=[r.stats["nodes"] for r in results],
+        nodes=[r.stats.nodes for r in results],
         path_states=[len(r.path) for r in results if r.success] or [0],
-        projector_s=[r.stats["projector_s"] for r in results],
-        checker_s=[r.stats["checker_s"] for r in results],
-        sampler_s=[r.stats["sampler_s"] for r in results],
+        projector_s=[r.stats.projector_s for r in results],
+        checker_s=[r.stats.checker_s for r in results],
+        sampler_s=[r.stats.sampler_s for r in results],
     )
     row.update(env=env_name, planner="genplan", sampler=sampler)
     return row
@@ -100,7 +100,7 @@ def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, sett
 def run_ompl(env_name: str, queries: list[Any], seed: int, time_limit: float, progress: bool) -> dict[str, Any]:
     import genplan
     from genplan.planning import environment
-    from genplan.planning.ompl_peer import plan_ompl
+    from genplan.experiments.peers.ompl import plan_ompl
     from genplan.projection import paper_task
 
     env = environment(env_name)
@@ -167,7 +167,7 @@ def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed:
         "queries": n,
         "seed": seed,
         "goals_per_query": 10,
-        "settings": settings.__dict__,
+        "settings": settings.to_dict(),
         "ompl_time_limit_s": ompl_time_limit,
         "query_generation_s": query_s,
         "units": {"t_*": "seconds per query (all queries, retries included)", "success_rate": "percent",

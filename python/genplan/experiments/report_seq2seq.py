@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from genplan.benchmarks.common import table
+from genplan.experiments.common import table
 
 METHODS = ("latent", "random-latent", "direct-u", "casadi")
 LABELS = {"latent": "case 1: latent (encoder z)", "random-latent": "case 2: random latent", "direct-u": "case 3: direct U",

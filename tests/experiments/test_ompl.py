@@ -7,7 +7,8 @@ import pytest
 pytest.importorskip("ompl")
 
 import genplan  # noqa: E402
-from genplan.planning.ompl_peer import ManifoldChart, TaskEquality, _constraint_class, _Counters, _Guard, plan_ompl  # noqa: E402
+from genplan.errors import NonFiniteError, ShapeError  # noqa: E402
+from genplan.experiments.peers.ompl import ManifoldChart, TaskEquality, _constraint_class, _Counters, _Guard, plan_ompl  # noqa: E402
 from genplan.projection import GaussNewtonProjector, paper_task  # noqa: E402
 
 
@@ -131,9 +132,9 @@ def test_failures_and_bad_input(panda_table) -> None:
     robot, world, task, qs = panda_table
     out = plan_ompl(robot, world, task, qs[0], qs[1], time_limit=1e-6)
     assert not out.success and out.status == "TIMEOUT" and out.path.shape == (0, robot.nq) and out.goal_index == -1
-    with pytest.raises(ValueError, match="q_start"):
+    with pytest.raises(ShapeError, match="q_start"):
         plan_ompl(robot, world, task, qs[0][:6], qs[1])
-    with pytest.raises(ValueError, match="not finite"):
+    with pytest.raises(NonFiniteError, match="not finite"):
         plan_ompl(robot, world, task, qs[0], np.full(robot.nq, np.nan))
     with pytest.raises(ValueError, match="not on the constraint manifold"):
         plan_ompl(robot, world, task, robot.q_default + 0.5, qs[1])

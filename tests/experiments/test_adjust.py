@@ -6,24 +6,17 @@ import math
 import numpy as np
 import pytest
 
-from genplan.benchmarks.adjust import j1_problems, j2_problem
+from genplan.experiments.benchmarks.adjust import j2_problem
 from genplan.cli import COMMANDS, main
 
 
 def test_commands_are_registered() -> None:
     names = {(g, n): m for g, n, m, _ in COMMANDS}
-    assert names[("bench", "adjust")] == "genplan.benchmarks.adjust"
+    assert names[("bench", "adjust")] == "genplan.experiments.benchmarks.adjust"
     assert names[("train", "seq2seq")] == "genplan.pancake.train_cli"
 
 
-def test_the_papers_problems() -> None:
-    x_in, p_end = j1_problems()
-    assert x_in.shape == (27, 500, 3) and p_end.shape == (27, 3)
-    assert len({tuple(p) for p in p_end}) == 27
-    np.testing.assert_allclose(np.unique(p_end[:, 0]), [-0.1, 0, 0.1])
-    np.testing.assert_allclose(np.unique(p_end[:, 2]), [-math.pi, 0, math.pi])
-    np.testing.assert_allclose(x_in[:, 0], 0.0)
-    np.testing.assert_allclose(x_in[:, -1], p_end)
+def test_the_papers_j2_problem() -> None:
     x2, pe2 = j2_problem()
     np.testing.assert_allclose(pe2, [[0, 0, -0.75 * math.pi]])
     assert np.allclose(np.diff(x2[0, :, 2]), x2[0, 1, 2])  # constant velocity
