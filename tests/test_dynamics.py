@@ -16,6 +16,7 @@ import pytest
 
 import genplan
 from genplan import _core
+from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import robots_dir
 
 TOL = 1e-9
@@ -153,28 +154,34 @@ def test_gravity_is_settable_and_bad_input_raises():
     assert dyn.gravity == [0.0, 0.0, -9.81]
     dyn.gravity = [0.0, 0.0, 0.0]
     assert np.allclose(dyn.gravity_torque(q), 0.0)
-    with pytest.raises(ValueError, match=r"q: expected shape \(6,\)"):
+    with pytest.raises(ShapeError, match=r"q: expected shape \(6,\)"):
         dyn.mass_matrix(np.zeros(5))
-    with pytest.raises(ValueError, match="velocity v: element 2 is not finite"):
+    with pytest.raises(NonFiniteError, match="velocity v: element 2 is not finite"):
         dyn.nonlinear_effects(q, np.array([0, 0, np.nan, 0, 0, 0.0]))
-    with pytest.raises(ValueError, match="unknown link 'flange'"):
+    with pytest.raises(UnknownNameError, match="unknown link 'flange'"):
         dyn.frame_jacobian(q, "flange")
-    with pytest.raises(ValueError, match="not a rotation"):
+    with pytest.raises(SettingsError, match="not a rotation"):
         dyn.frame_jacobian(q, "tool0", (2 * np.eye(4)).tolist())
-    with pytest.raises(ValueError, match="added mass must be finite and >= 0"):
+    with pytest.raises(GenplanError, match="added mass must be finite and >= 0"):
         dyn.add_inertia("tool0", -1.0, [0, 0, 0], np.eye(3).tolist())
-    with pytest.raises(ValueError, match="floating base"):
+    with pytest.raises(GenplanError, match="floating base"):
         _core.Dynamics.from_robot("talos", str(robots_dir()))
 
 
-def test_phi_in_rust_matches_the_pancake_function():
+def test_phi_in_rust_matches_eq16():
     from genplan.pancake.trajectories import phi
 
     rng = np.random.default_rng(2)
     theta = rng.uniform(-4.0, 4.0, size=2000)
     acc = rng.normal(scale=15.0, size=(2000, 2))
     for g in (9.8, 9.81):
-        assert np.allclose(_core.pancake_phi(theta, acc, g), phi(theta, acc, g=g), rtol=0, atol=1e-12)
-    # the conventions pinned in DESIGN.md
+        # eq. 16 written out here (the oracle): the angle of g - u past the blade's inward normal
+        oracle = np.angle(np.exp(1j * (np.arctan2(-g - acc[:, 1], -acc[:, 0]) + np.pi / 2 - theta)))
+        native = _core.pancake_phi(theta, acc, g)
+        assert np.all((native > -np.pi) & (native <= np.pi))
+        assert np.allclose(np.exp(1j * native), np.exp(1j * oracle), rtol=0, atol=1e-12)
+        # the library's numpy entry point (broadcasting over any shape) is the native definition
+        assert np.array_equal(phi(theta.reshape(40, 50), acc.reshape(40, 50, 2), g=g), native.reshape(40, 50))
+    # the conventions of pancake/trajectories.py: level at rest is 0, tilted by theta at rest is -theta
     assert _core.pancake_phi(np.array([0.0]), np.zeros((1, 2)))[0] == 0.0
     assert np.isclose(_core.pancake_phi(np.array([0.4]), np.zeros((1, 2)))[0], -0.4)

@@ -6,6 +6,7 @@ import pytest
 
 import genplan
 from genplan import _core
+from genplan.errors import GenplanError, NonFiniteError, RobotFileError, ShapeError, UnknownNameError
 from tests.conftest import random_configurations
 
 
@@ -51,24 +52,24 @@ def test_single_and_selected_links(panda: genplan.Robot) -> None:
 
 
 def test_bad_configurations_raise_clear_errors(panda: genplan.Robot, talos: genplan.Robot) -> None:
-    with pytest.raises(ValueError, match=r"expected shape \(7,\) or \(n, 7\), got \(6,\)"):
+    with pytest.raises(ShapeError, match=r"expected shape \(7,\) or \(n, 7\), got \(6,\)"):
         panda.link_poses(np.zeros(6))
-    with pytest.raises(ValueError, match="not finite"):
+    with pytest.raises(NonFiniteError, match="not finite"):
         panda.link_poses([0, 0, np.nan, 0, 0, 0, 0])
-    with pytest.raises(ValueError, match="cannot be read as an array"):
+    with pytest.raises(ShapeError, match="cannot be read as an array"):
         panda.link_poses(["a"] * 7)
-    with pytest.raises(ValueError, match="unknown link 'nope'"):
+    with pytest.raises(UnknownNameError, match="unknown link 'nope'"):
         panda.link_poses(panda.q_default, ["nope"])
     q = talos.q_default.copy()
     q[3:7] = 0.0
-    with pytest.raises(ValueError, match="quaternion"):
+    with pytest.raises(GenplanError, match="quaternion"):
         talos.link_poses(q)
     # the native module checks too (and names the row of a batch)
     qs = np.zeros((3, 7))
     qs[2, 4] = np.inf
-    with pytest.raises(ValueError, match=r"q\[2\]: configuration q: element 4 is not finite"):
+    with pytest.raises(NonFiniteError, match=r"q\[2\]: configuration q: element 4 is not finite"):
         panda.kinematics.forward_kinematics(qs)
-    with pytest.raises(ValueError, match="expected shape"):
+    with pytest.raises(ShapeError, match="expected shape"):
         panda.kinematics.forward_kinematics(np.zeros((2, 3, 7)))
 
 
@@ -77,7 +78,7 @@ def test_urdf_errors(tmp_path) -> None:
         _core.KinematicModel.from_urdf(tmp_path / "does_not_exist.urdf")
     bad = tmp_path / "bad.urdf"
     bad.write_text("<robot name='x'><link name='a'></robot>")
-    with pytest.raises(ValueError, match="cannot parse URDF .*bad.urdf"):
+    with pytest.raises(RobotFileError, match="cannot parse URDF .*bad.urdf"):
         _core.KinematicModel.from_urdf(bad)
     loop = tmp_path / "twice.urdf"
     loop.write_text(
@@ -85,5 +86,5 @@ def test_urdf_errors(tmp_path) -> None:
         "<joint name='j1' type='fixed'><parent link='a'/><child link='b'/></joint>"
         "<joint name='j2' type='fixed'><parent link='a'/><child link='b'/></joint></robot>"
     )
-    with pytest.raises(ValueError, match="two parent joints"):
+    with pytest.raises(RobotFileError, match="two parent joints"):
         _core.KinematicModel.from_urdf(loop)

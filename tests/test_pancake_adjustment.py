@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from genplan.errors import CallbackError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.pancake import physics as ph
 from genplan.pancake.adjustment import J1, J2, PAPER_LR, J2Executable, adjust, default_lr, normal_acceleration
 from genplan.pancake.model import Seq2SeqModel, load_model
@@ -65,7 +66,7 @@ def test_latent_method_reduces_j1_and_reports_everything(model, x_in) -> None:
 
 def test_latent_adjustment_reaches_level_end_poses_exactly(model) -> None:
     # the paper's 9 end poses with theta_end = 0: the pancake never has to leave the cone's core
-    from genplan.benchmarks.adjust import j1_problems
+    from genplan.pancake.trajectories import j1_problems
 
     x, p_end = j1_problems()
     sel = np.isclose(p_end[:, 2], 0.0)
@@ -145,9 +146,9 @@ def test_j2_executable_is_j2_plus_its_margins(model) -> None:
              + 3.0 * max(d_theta - 0.48, 0) + 10.0 * vel)
     np.testing.assert_allclose(res.objective_history[-1, 0], j2 + extra, rtol=1e-4, atol=1e-6)
     np.testing.assert_allclose(float(J2()(r)[0]), j2, rtol=1e-4, atol=1e-7)
-    with pytest.raises(ValueError, match="margin must be below"):
+    with pytest.raises(SettingsError, match="margin must be below"):
         J2Executable(margin=math.radians(50))
-    with pytest.raises(ValueError, match="finite and >= 0"):
+    with pytest.raises(SettingsError, match="finite and >= 0"):
         J2Executable(normal_floor=-1.0)
 
 
@@ -162,11 +163,11 @@ def test_custom_objective(model, x_in) -> None:
 
 
 def test_bad_objectives_get_clear_errors(model, x_in) -> None:
-    with pytest.raises(ValueError, match=r"one value per problem, shape \(3,\), got shape \(3, 3\)"):
+    with pytest.raises(CallbackError, match=r"one value per problem, shape \(3,\), got shape \(3, 3\)"):
         adjust(x_in, lambda r: r.p[:, -1], "latent", 1, model=model)
-    with pytest.raises(ValueError, match="a scalar: for a batch return the per-problem values"):
+    with pytest.raises(CallbackError, match="a scalar: for a batch return the per-problem values"):
         adjust(x_in, lambda r: r.p.sum(), "latent", 1, model=model)
-    with pytest.raises(ValueError, match="no gradient"):
+    with pytest.raises(CallbackError, match="no gradient"):
         adjust(x_in, lambda r: torch.zeros(3), "latent", 1, model=model)
     with pytest.raises(TypeError, match="must return a torch.Tensor"):
         adjust(x_in, lambda r: 1.0, "latent", 1, model=model)
@@ -178,27 +179,27 @@ def test_bad_objectives_get_clear_errors(model, x_in) -> None:
 
 
 def test_bad_inputs_get_clear_errors(model, x_in) -> None:
-    with pytest.raises(ValueError, match=r"x_in must be poses .* got shape \(500, 2\)"):
+    with pytest.raises(ShapeError, match=r"x_in must be poses .* got shape \(500, 2\)"):
         adjust(np.zeros((500, 2)), model=model)
     bad = x_in.copy()
     bad[0, 3, 1] = np.nan
-    with pytest.raises(ValueError, match="NaN or inf"):
+    with pytest.raises(NonFiniteError, match="NaN or inf"):
         adjust(bad, model=model)
-    with pytest.raises(ValueError, match="method must be one of"):
+    with pytest.raises(UnknownNameError, match="method must be one of"):
         adjust(x_in, method="latnet", model=model)  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="step must be one of"):
+    with pytest.raises(UnknownNameError, match="step must be one of"):
         adjust(x_in, step="lbfgs", model=model)
-    with pytest.raises(ValueError, match="lr must be a positive finite number"):
+    with pytest.raises(SettingsError, match="lr must be a positive finite number"):
         adjust(x_in, lr=-1.0, model=model)
-    with pytest.raises(ValueError, match="updates must be a non-negative integer"):
+    with pytest.raises(SettingsError, match="updates must be a non-negative integer"):
         adjust(x_in, updates=-2, model=model)
-    with pytest.raises(ValueError, match=r"p_end must have shape \(3,\) or \(3, 3\)"):
+    with pytest.raises(ShapeError, match=r"p_end must have shape \(3,\) or \(3, 3\)"):
         adjust(x_in, "j1", p_end=np.zeros((2, 3)), model=model)
-    with pytest.raises(ValueError, match="p_end contains NaN"):
+    with pytest.raises(NonFiniteError, match="p_end contains NaN"):
         adjust(x_in, "j1", p_end=[0.0, np.nan, 0.0], model=model)
-    with pytest.raises(ValueError, match="objective must be 'j1', 'j2' or a callable"):
+    with pytest.raises(UnknownNameError, match="objective must be 'j1', 'j2' or a callable"):
         adjust(x_in, "j3", model=model)
-    with pytest.raises(ValueError, match="snapshots must lie in"):
+    with pytest.raises(SettingsError, match="snapshots must lie in"):
         adjust(x_in, updates=2, snapshots=(5,), model=model)
-    with pytest.raises(ValueError, match="J2 parameters must be finite"):
+    with pytest.raises(NonFiniteError, match="J2 parameters must be finite"):
         J2(p_lim=float("nan"))

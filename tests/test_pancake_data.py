@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from genplan.errors import SettingsError
 from genplan.pancake import data as D
 
 
@@ -20,7 +21,7 @@ def test_inputs_are_reproducible_cached_and_regenerated_when_corrupt(tmp_path, m
     np.testing.assert_array_equal(a, D.input_trajectories(300, seed=4, progress=False))
     b = D.input_trajectories(300, seed=5, progress=False, use_cache=False)
     assert not np.allclose(a, b)
-    with pytest.raises(ValueError, match="n must be positive"):
+    with pytest.raises(SettingsError, match="n must be positive"):
         D.input_trajectories(0)
 
 

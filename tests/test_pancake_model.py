@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from genplan.errors import ModelFileError, NonFiniteError, SettingsError, ShapeError
 from genplan.pancake import physics as ph
 from genplan.pancake.model import (
     FORMAT, Seq2SeqModel, Seq2SeqNet, check_trajectories, default_config, default_path, load_model, nll,
@@ -100,33 +101,33 @@ def test_save_load_round_trip_and_bad_files(model: Seq2SeqModel, tmp_path) -> No
     bad = tmp_path / "bad.safetensors"
     bad.write_bytes(b"not a safetensors file")
     bad.with_suffix(".json").write_text(c.read_text())
-    with pytest.raises(ValueError, match="does not match its card"):
+    with pytest.raises(ModelFileError, match="does not match its card"):
         load_model(bad)
     card = json.loads(c.read_text())
     card.pop("weights_sha256")
     bad.with_suffix(".json").write_text(json.dumps(card))
-    with pytest.raises(ValueError, match="is corrupt"):
+    with pytest.raises(ModelFileError, match="is corrupt"):
         load_model(bad)
     bad.with_suffix(".json").write_text("{broken")
-    with pytest.raises(ValueError, match="card .* is corrupt"):
+    with pytest.raises(ModelFileError, match="card .* is corrupt"):
         load_model(bad)
     # weights that do not fit the card's architecture
     card["config"]["hidden"] = 32
     w.with_suffix(".json").write_text(json.dumps(card))
-    with pytest.raises(ValueError, match="does not fit its card"):
+    with pytest.raises(ModelFileError, match="does not fit its card"):
         load_model(w)
 
 
 def test_input_checks() -> None:
-    with pytest.raises(ValueError, match=r"shape \(500, 3\) or \(batch, 500, 3\)"):
+    with pytest.raises(ShapeError, match=r"shape \(500, 3\) or \(batch, 500, 3\)"):
         check_trajectories(np.zeros((500, 2)))
-    with pytest.raises(ValueError, match=r"shape"):
+    with pytest.raises(ShapeError, match=r"shape"):
         check_trajectories(np.zeros((2, 499, 3)))
     x = np.zeros((2, 500, 3))
     x[1, 7, 2] = np.nan
-    with pytest.raises(ValueError, match=r"NaN or inf \(first at index \(1, 7, 2\)\)"):
+    with pytest.raises(NonFiniteError, match=r"NaN or inf \(first at index \(1, 7, 2\)\)"):
         check_trajectories(x)
-    with pytest.raises(ValueError, match="divisible by decoder_stride"):
+    with pytest.raises(SettingsError, match="divisible by decoder_stride"):
         Seq2SeqNet(default_config(decoder_stride=3))
 
 
@@ -146,5 +147,5 @@ def test_training_mechanics(tmp_path) -> None:
     z, out = m.forward(x)
     assert z.shape == (2, 128) and out.p.shape == (2, 500, 3)
     np.testing.assert_allclose(start_state(x)[:, :3].numpy(), data[:2, 0])
-    with pytest.raises(ValueError, match="training data must have shape"):
+    with pytest.raises(ShapeError, match="training data must have shape"):
         train(cfg, data=data[:, :100], progress=False)

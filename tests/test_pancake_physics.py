@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 
+from genplan.errors import ShapeError
 from genplan.pancake import physics as ph
 from genplan.pancake.trajectories import phi as phi_np
 
@@ -48,7 +49,8 @@ def test_variance_propagation_matches_the_covariance_recursion() -> None:
     assert got[0].max() == 0.0 and np.all(np.diff(got, axis=0) >= 0)
 
 
-def test_phi_and_f_dyn_match_the_numpy_twin() -> None:
+def test_phi_and_f_dyn_match_the_native_definition() -> None:
+    """The torch twin (differentiable) against the one definition of eq. 16, the 1 kHz loop's (Rust)."""
     u, x0 = _random(3, 200, 3)
     x = np.stack([ph.rollout_np(u[i], x0[i]) for i in range(3)])
     th = x[..., 2] * 20  # many turns: exercise the wrap
@@ -82,13 +84,13 @@ def test_gradients_are_exact() -> None:
 
 
 def test_shape_errors_are_clear() -> None:
-    with pytest.raises(ValueError, match=r"u must have shape \(batch, K, 3\)"):
+    with pytest.raises(ShapeError, match=r"u must have shape \(batch, K, 3\)"):
         ph.rollout(torch.zeros(10, 3))
-    with pytest.raises(ValueError, match="x0 must have shape"):
+    with pytest.raises(ShapeError, match="x0 must have shape"):
         ph.rollout(torch.zeros(1, 10, 3), torch.zeros(5))
-    with pytest.raises(ValueError, match="u must have shape"):
+    with pytest.raises(ShapeError, match="u must have shape"):
         ph.rollout_np(np.zeros(10))
-    with pytest.raises(ValueError, match="var_u must have shape"):
+    with pytest.raises(ShapeError, match="var_u must have shape"):
         ph.rollout_variance_np(np.zeros((10, 2)))
-    with pytest.raises(ValueError, match="last axis of 2 or 3"):
+    with pytest.raises(ShapeError, match="last axis of 2 or 3"):
         ph.phi(torch.zeros(3), torch.zeros(3, 4))

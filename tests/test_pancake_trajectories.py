@@ -1,4 +1,5 @@
-"""genplan.pancake.trajectories: S-curves, constant-velocity lines, and phi's sign convention."""
+"""genplan.pancake.trajectories: S-curves, constant-velocity lines, the J1 problems, and phi's sign
+convention."""
 
 import math
 import sys
@@ -6,7 +7,8 @@ import sys
 import numpy as np
 import pytest
 
-from genplan.pancake.trajectories import DT, G, K, linear, phi, s_curve, s_curve_profile, wrap_angle
+from genplan.errors import NonFiniteError, SettingsError, ShapeError
+from genplan.pancake.trajectories import DT, G, K, j1_problems, linear, phi, s_curve, s_curve_profile, wrap_angle
 
 
 def test_importing_the_package_does_not_import_torch() -> None:
@@ -39,15 +41,15 @@ def test_s_curve_starts_and_stops_at_rest_exactly_at_the_poses() -> None:
 
 
 def test_s_curve_and_linear_reject_bad_poses() -> None:
-    with pytest.raises(ValueError, match=r"p_end must be a pose .* shape \(3,\)"):
+    with pytest.raises(ShapeError, match=r"p_end must be a pose .* shape \(3,\)"):
         s_curve(np.zeros(3), np.zeros(2))
-    with pytest.raises(ValueError, match="p_start must be finite"):
+    with pytest.raises(NonFiniteError, match="p_start must be finite"):
         s_curve([0.0, np.nan, 0.0], np.zeros(3))
-    with pytest.raises(ValueError, match="K must be at least 2"):
+    with pytest.raises(SettingsError, match="K must be at least 2"):
         s_curve(np.zeros(3), np.ones(3), K=1)
-    with pytest.raises(ValueError, match="dt must be positive"):
+    with pytest.raises(SettingsError, match="dt must be positive"):
         s_curve(np.zeros(3), np.ones(3), dt=0.0)
-    with pytest.raises(ValueError, match="p_end"):
+    with pytest.raises(NonFiniteError, match="p_end"):
         linear(np.zeros(3), [1.0, np.inf, 0.0])
 
 
@@ -95,6 +97,16 @@ def test_phi_is_vectorised_and_wrapped() -> None:
                      for j in range(5)] for i in range(4)])
     np.testing.assert_allclose(np.cos(p), np.cos(ref), atol=1e-12)
     np.testing.assert_allclose(np.sin(p), np.sin(ref), atol=1e-12)
-    with pytest.raises(ValueError, match="last axis of 2"):
+    with pytest.raises(ShapeError, match="last axis of 2"):
         phi(0.0, np.zeros(4))
     assert wrap_angle(-math.pi) == math.pi and wrap_angle(math.pi) == math.pi
+
+
+def test_the_papers_j1_problems() -> None:
+    x_in, p_end = j1_problems()
+    assert x_in.shape == (27, 500, 3) and p_end.shape == (27, 3)
+    assert len({tuple(p) for p in p_end}) == 27
+    np.testing.assert_allclose(np.unique(p_end[:, 0]), [-0.1, 0, 0.1])
+    np.testing.assert_allclose(np.unique(p_end[:, 2]), [-math.pi, 0, math.pi])
+    np.testing.assert_allclose(x_in[:, 0], 0.0)
+    np.testing.assert_allclose(x_in[:, -1], p_end)

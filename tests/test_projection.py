@@ -9,6 +9,7 @@ import pytest
 
 import genplan
 from genplan import projection as P
+from genplan.errors import GenplanError, NonFiniteError, ShapeError, UnknownNameError
 from tests.conftest import random_configurations
 
 
@@ -181,32 +182,32 @@ def test_user_defined_task_and_python_term(panda: genplan.Robot) -> None:
 
 def test_bad_input(panda: genplan.Robot) -> None:
     solver = P.GaussNewtonProjector(panda, P.panda_task("projection"))
-    with pytest.raises(ValueError, match=r"expected shape \(7,\)"):
+    with pytest.raises(ShapeError, match=r"expected shape \(7,\)"):
         solver.solve(np.zeros(6))
-    with pytest.raises(ValueError, match="not finite"):
+    with pytest.raises(NonFiniteError, match="not finite"):
         solver.solve(np.full(7, np.nan))
-    with pytest.raises(ValueError, match="use solve_batch"):
+    with pytest.raises(ShapeError, match="use solve_batch"):
         solver.solve(np.zeros((2, 7)))
-    with pytest.raises(ValueError, match=r"q0s: expected shape \(n, 7\)"):
+    with pytest.raises(ShapeError, match=r"q0s: expected shape \(n, 7\)"):
         solver.solve_batch(np.zeros(7))
-    with pytest.raises(ValueError, match="no frame 'elbow'"):
+    with pytest.raises(UnknownNameError, match="no frame 'elbow'"):
         P.GaussNewtonProjector(panda, P.Task(primary=[P.FramePosition(frame="elbow", target=[0, 0, 0])]))
-    with pytest.raises(ValueError, match="unknown backend 'gpu'"):
+    with pytest.raises(UnknownNameError, match="unknown backend 'gpu'"):
         P.GaussNewtonProjector(panda, P.panda_task(), backend="gpu")
-    with pytest.raises(ValueError, match="unknown task kind 'walk'"):
+    with pytest.raises(UnknownNameError, match="unknown task kind 'walk'"):
         P.panda_task("walk")
-    with pytest.raises(ValueError, match="has no term named"):
+    with pytest.raises(UnknownNameError, match="has no term named"):
         P.panda_task("ik").with_targets(foot=[0, 0, 0])
-    with pytest.raises(ValueError, match="expected 3 numbers"):
+    with pytest.raises(ShapeError, match="expected 3 numbers"):
         P.GaussNewtonProjector(panda, P.panda_task("ik", target=[1.0, 2.0]))
     ik = P.GaussNewtonProjector(panda, P.panda_task("ik"))
-    with pytest.raises(ValueError, match="expected 2 finite rows"):
+    with pytest.raises(ShapeError, match="expected 2 finite rows"):
         ik.solve_batch(np.zeros((2, 7)), targets={"hand_position": np.zeros((3, 3))})
-    with pytest.raises(ValueError, match="unknown target term 'foot'"):
+    with pytest.raises(UnknownNameError, match="unknown target term 'foot'"):
         ik.solve_batch(np.zeros((2, 7)), targets={"foot": np.zeros((2, 3))})
-    with pytest.raises(ValueError, match="weight must be positive"):
+    with pytest.raises(GenplanError, match="weight must be positive"):
         P.GaussNewtonProjector(panda, P.Task(primary=[P.JointLimits(weight=-1.0)]))
-    with pytest.raises(ValueError, match="at least one primary term"):
+    with pytest.raises(GenplanError, match="at least one primary term"):
         P.GaussNewtonProjector(panda, P.Task(primary=[]))
 
 

@@ -6,12 +6,13 @@ import pytest
 
 import genplan
 from genplan import robots
+from genplan.errors import ShapeError, UnknownNameError
 
 
 def test_unknown_robot_lists_the_known_ones() -> None:
-    with pytest.raises(ValueError, match=r"unknown robot 'atlas' \(known: panda, talos, ur5\)"):
+    with pytest.raises(UnknownNameError, match=r"unknown robot 'atlas' \(known: panda, talos, ur5\)"):
         robots.load("atlas")
-    with pytest.raises(ValueError, match="unknown robot 'atlas'.*panda, talos, ur5"):
+    with pytest.raises(UnknownNameError, match="unknown robot 'atlas'.*panda, talos, ur5"):
         robots.Robot("atlas")
 
 
@@ -62,10 +63,10 @@ def test_random_configurations_are_within_limits(panda: genplan.Robot, talos: ge
 
 
 def test_frame_errors(panda: genplan.Robot) -> None:
-    with pytest.raises(ValueError, match="no frame 'foot'.*roles: hand, tcp"):
+    with pytest.raises(UnknownNameError, match="no frame 'foot'.*roles: hand, tcp"):
         panda.frame_id("foot")
     assert panda.frame_id("panda_link3") == panda.model.getFrameId("panda_link3")
-    with pytest.raises(ValueError, match="one configuration"):
+    with pytest.raises(ShapeError, match="one configuration"):
         panda.frame_placement(np.zeros((2, 7)), "hand")
 
 

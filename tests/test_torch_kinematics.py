@@ -6,6 +6,7 @@ import pytest
 import torch
 
 import genplan
+from genplan.errors import ShapeError
 from genplan.torch_kinematics import TorchKinematics
 from tests.conftest import random_configurations
 
@@ -41,5 +42,5 @@ def test_gradients_flow_and_match_pinocchio_jacobian(panda: genplan.Robot) -> No
 
 
 def test_bad_shape(panda: genplan.Robot) -> None:
-    with pytest.raises(ValueError, match="expected last dimension 7"):
+    with pytest.raises(ShapeError, match="expected last dimension 7"):
         TorchKinematics(panda).joint_placements(torch.zeros(2, 6, dtype=torch.float64))

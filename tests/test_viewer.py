@@ -26,6 +26,7 @@ zstandard = pytest.importorskip("zstandard")
 msgspec = pytest.importorskip("msgspec")
 
 from genplan import viewer  # noqa: E402
+from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError  # noqa: E402
 from genplan.planning import environment  # noqa: E402
 
 N_STATES = 5
@@ -153,28 +154,28 @@ def test_server_stopped_on_error(panda, tmp_path, monkeypatch):
 
 def test_bad_input(panda, tmp_path):
     path = short_path(panda)
-    with pytest.raises(ValueError, match="expected shape"):
+    with pytest.raises(ShapeError, match="expected shape"):
         viewer.export_html(panda, path[:, :5], tmp_path / "a.html")
     bad = path.copy()
     bad[2, 3] = np.nan
-    with pytest.raises(ValueError, match=r"element \(2, 3\) is not finite"):
+    with pytest.raises(NonFiniteError, match=r"element \(2, 3\) is not finite"):
         viewer.export_html(panda, bad, tmp_path / "a.html")
-    with pytest.raises(ValueError, match="no configuration"):
+    with pytest.raises(ShapeError, match="no configuration"):
         viewer.export_html(panda, np.zeros((0, panda.nq)), tmp_path / "a.html")
-    with pytest.raises(ValueError, match="fps"):
+    with pytest.raises(SettingsError, match="fps"):
         viewer.export_html(panda, path, tmp_path / "a.html", fps=0)
-    with pytest.raises(ValueError, match="max_frames"):
+    with pytest.raises(SettingsError, match="max_frames"):
         viewer.export_html(panda, path, tmp_path / "a.html", max_frames=1)
-    with pytest.raises(ValueError, match="is a directory"):
+    with pytest.raises(GenplanError, match="is a directory"):
         viewer.export_html(panda, path, tmp_path)
     (tmp_path / "file").write_text("x")
     with pytest.raises(OSError, match="cannot create the folder"):
         viewer.export_html(panda, path, tmp_path / "file" / "a.html")
-    with pytest.raises(ValueError, match=r"boxes\[0\]"):
+    with pytest.raises(GenplanError, match=r"boxes\[0\]"):
         viewer.export_html(panda, path, tmp_path / "a.html", boxes=[object()])
-    with pytest.raises(ValueError, match=r"halfspaces\[0\]"):
+    with pytest.raises(GenplanError, match=r"halfspaces\[0\]"):
         viewer.export_html(panda, path, tmp_path / "a.html", halfspaces=[("f", (0, 0, 0), 1.0)])
-    with pytest.raises(ValueError, match="geometry"):
+    with pytest.raises(UnknownNameError, match="geometry"):
         viewer.export_html(panda, path, tmp_path / "a.html", geometry="nope")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
 

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
 from genplan._arrays import as_configurations
+from genplan.errors import ShapeError
 
 
 class CollisionWorld:
@@ -94,7 +95,7 @@ class CollisionWorld:
         """Pairs closer than ``margin`` at one configuration, closest first."""
         qa = as_configurations(q, self._nq)
         if qa.ndim != 1:
-            raise ValueError(f"q: close_pairs takes one configuration of shape ({self._nq},), got {qa.shape}")
+            raise ShapeError(f"q: close_pairs takes one configuration of shape ({self._nq},), got {qa.shape}")
         return self._native.close_pairs(list(qa), float(margin))
 
     def __repr__(self) -> str:
@@ -104,12 +105,12 @@ class CollisionWorld:
 def _vec3(v: ArrayLike, what: str) -> tuple[float, float, float]:
     a = np.asarray(v, dtype=np.float64).reshape(-1)
     if a.shape != (3,):
-        raise ValueError(f"{what}: expected 3 numbers, got shape {np.shape(v)}")
+        raise ShapeError(f"{what}: expected 3 numbers, got shape {np.shape(v)}")
     return (float(a[0]), float(a[1]), float(a[2]))
 
 
 def _matrix3(m: ArrayLike, what: str) -> list[list[float]]:
     a = np.asarray(m, dtype=np.float64)
     if a.shape != (3, 3):
-        raise ValueError(f"{what}: expected a 3x3 matrix, got shape {a.shape}")
+        raise ShapeError(f"{what}: expected a 3x3 matrix, got shape {a.shape}")
     return a.tolist()

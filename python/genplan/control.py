@@ -35,6 +35,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
+from genplan._arrays import error_class
+from genplan.errors import NonFiniteError, SettingsError, ShapeError
 
 __all__ = [
     "Gains", "ControllerConfig", "Disturbances", "SpatulaSetup", "PancakeConfig", "ExecutionLog",
@@ -214,16 +216,17 @@ class ExecutionLog:
 
 
 def as_trajectory(trajectory: ArrayLike, what: str = "trajectory") -> NDArray[np.float64]:
-    """``trajectory`` as a C-contiguous float64 (K, 3) array, K >= 2, finite (else ValueError)."""
+    """``trajectory`` as a C-contiguous float64 (K, 3) array, K >= 2, finite (else ShapeError or
+    NonFiniteError naming ``what``)."""
     try:
         arr = np.ascontiguousarray(trajectory, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what}: cannot be read as an array of floats ({exc})") from None
+        raise ShapeError(f"{what}: cannot be read as an array of floats ({exc})") from None
     if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 2:
-        raise ValueError(f"{what}: expected shape (K, 3) with K >= 2 rows [y, z, theta], got {arr.shape}")
+        raise ShapeError(f"{what}: expected shape (K, 3) with K >= 2 rows [y, z, theta], got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         row, col = (int(i) for i in np.argwhere(~np.isfinite(arr))[0])
-        raise ValueError(f"{what}: row {row} ({['y', 'z', 'theta'][col]}) is not finite ({arr[row, col]})")
+        raise NonFiniteError(f"{what}: row {row} ({['y', 'z', 'theta'][col]}) is not finite ({arr[row, col]})")
     return arr
 
 
@@ -235,9 +238,9 @@ def deceleration_tail(trajectory: ArrayLike, duration: float = 0.1, dt: float = 
     """
     x = as_trajectory(trajectory)
     if not (math.isfinite(duration) and duration >= 0):
-        raise ValueError(f"duration must be >= 0, got {duration}")
+        raise SettingsError(f"duration must be >= 0, got {duration}")
     if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be > 0, got {dt}")
+        raise SettingsError(f"dt must be > 0, got {dt}")
     n = int(round(duration / dt))
     if n == 0:
         return x.copy()
@@ -271,9 +274,9 @@ class SpatulaArm:
 
         controller = controller or ControllerConfig()
         if not (math.isfinite(settle) and settle >= 0):
-            raise ValueError(f"settle must be >= 0 seconds, got {settle}")
+            raise SettingsError(f"settle must be >= 0 seconds, got {settle}")
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)):
-            raise ValueError(f"substeps must be an integer, got {substeps!r}")
+            raise SettingsError(f"substeps must be an integer, got {substeps!r}")
         settle_ticks = int(round(settle / controller.dt))
         self.config: dict[str, Any] = _config(controller, disturbances, setup, pancake, substeps, settle_ticks)
         self._sim = _core.SpatulaSimulation(str(robots_dir()), robot, self.config)
@@ -288,7 +291,7 @@ class SpatulaArm:
         """eq. 23: world position (3,) and rotation (3, 3) commanded for a pose [y, z, theta]."""
         a = np.asarray(p, dtype=np.float64)
         if a.shape != (3,) or not np.all(np.isfinite(a)):
-            raise ValueError(f"p must be a finite pose [y, z, theta], got {a.tolist()}")
+            raise error_class(a, a.shape == (3,))(f"p must be a finite pose [y, z, theta], got {a.tolist()}")
         return self._sim.command_pose([float(x) for x in a])
 
     def spatula_pose(self, q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -9,11 +9,15 @@ import dataclasses
 import hashlib
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, TypeVar
 
 import numpy as np
 
-__all__ = ["write_model", "read_model", "json_default"]
+from genplan.errors import ModelFileError
+
+__all__ = ["write_model", "read_model", "read_config", "json_default"]
+
+T = TypeVar("T")
 
 
 def json_default(o: Any) -> Any:
@@ -50,7 +54,8 @@ def read_model(path: Path, fmt: str, kind: str, retrain: str) -> tuple[dict[str,
 
     ``kind`` names the model in messages ("GAN", "seq2seq"); ``retrain`` is the command a missing
     file's error names. Missing files raise FileNotFoundError; a card that does not parse, has
-    another format or another weights sha256, and weights that do not load raise ValueError.
+    another format or another weights sha256, and weights that do not load raise
+    :class:`~genplan.errors.ModelFileError`.
     """
     from safetensors import SafetensorError
     from safetensors.torch import load_file
@@ -62,16 +67,25 @@ def read_model(path: Path, fmt: str, kind: str, retrain: str) -> tuple[dict[str,
     try:
         card = json.loads(card_path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{kind} model card {card_path} is corrupt: {exc}") from None
+        raise ModelFileError(f"{kind} model card {card_path} is corrupt: {exc}") from None
     if not isinstance(card, dict) or card.get("format") != fmt:
         got = card.get("format") if isinstance(card, dict) else type(card).__name__
-        raise ValueError(f"{card_path}: unknown format {got!r} (expected {fmt})")
+        raise ModelFileError(f"{card_path}: unknown format {got!r} (expected {fmt})")
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     if card.get("weights_sha256") not in (None, digest):
-        raise ValueError(f"{path} does not match its card (sha256 {digest[:12]}..., card says "
-                         f"{str(card.get('weights_sha256'))[:12]}...): the file is corrupt or was replaced")
+        raise ModelFileError(f"{path} does not match its card (sha256 {digest[:12]}..., card says "
+                             f"{str(card.get('weights_sha256'))[:12]}...): the file is corrupt or was replaced")
     try:
         tensors = load_file(str(path))
     except (SafetensorError, OSError, ValueError) as exc:
-        raise ValueError(f"{kind} model file {path} is corrupt: {exc}") from None
+        raise ModelFileError(f"{kind} model file {path} is corrupt: {exc}") from None
     return card, tensors
+
+
+def read_config(card: dict[str, Any], path: Path, kind: str, make: Callable[[dict[str, Any]], T]) -> T:
+    """``make(config)`` of a copy of the card's ``config``; a card without one, or whose config
+    ``make`` rejects (a missing or unknown field: KeyError, TypeError), raises ModelFileError."""
+    try:
+        return make(dict(card["config"]))
+    except (KeyError, TypeError) as exc:
+        raise ModelFileError(f"{kind} model card {path.with_suffix('.json')} has a bad config: {exc}") from None

@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from genplan import _core
 from genplan._arrays import as_configurations
 from genplan.collision import CollisionWorld
+from genplan.errors import RobotFileError, ShapeError, UnknownNameError
 
 #: Names accepted by :func:`load`.
 ROBOT_NAMES: tuple[str, ...] = tuple(_core.ROBOT_NAMES)
@@ -57,7 +58,7 @@ class Robot:
     """
 
     def __init__(self, name: str, root: Path | None = None) -> None:
-        spec = _core.robot_spec(name)  # raises ValueError listing the known robots
+        spec = _core.robot_spec(name)  # raises UnknownNameError listing the known robots
         root = robots_dir() if root is None else Path(root)
         self.name: str = name
         self.urdf_path: Path = root / spec["urdf"]
@@ -69,11 +70,15 @@ class Robot:
             if not p.is_file():
                 raise FileNotFoundError(f"robot '{name}': {p} does not exist (example-robot-data too old?)")
 
-        if self.floating_base:
-            full = pin.buildModelFromUrdf(str(self.urdf_path), pin.JointModelFreeFlyer())
-        else:
-            full = pin.buildModelFromUrdf(str(self.urdf_path))
-        pin.loadReferenceConfigurations(full, str(self.srdf_path), False)
+        try:
+            if self.floating_base:
+                full = pin.buildModelFromUrdf(str(self.urdf_path), pin.JointModelFreeFlyer())
+            else:
+                full = pin.buildModelFromUrdf(str(self.urdf_path))
+            pin.loadReferenceConfigurations(full, str(self.srdf_path), False)
+        except (ValueError, RuntimeError) as exc:  # Pinocchio's for a URDF, for an SRDF it cannot parse
+            bad = self.urdf_path if isinstance(exc, ValueError) else self.srdf_path
+            raise RobotFileError(f"robot '{name}': cannot read {bad}: {exc}") from None
         state = spec["reference_state"]
         if state and state in full.referenceConfigurations:
             q_ref = np.array(full.referenceConfigurations[state])
@@ -94,7 +99,7 @@ class Robot:
         self.frames: dict[str, str] = dict(spec["frames"])
         for role, frame in self.frames.items():
             if not self.model.existFrame(frame):
-                raise ValueError(f"robot '{name}': frame '{frame}' ({role}) is not in the URDF")
+                raise RobotFileError(f"robot '{name}': frame '{frame}' ({role}) is not in the URDF")
         self.joint_names: list[str] = [
             n for n in list(self.model.names)[1:] if not (self.floating_base and n == "root_joint")
         ]
@@ -122,13 +127,6 @@ class Robot:
         return int(self.model.nv)
 
     @functools.cached_property
-    def srdf_disabled_pairs(self) -> list[tuple[str, str]]:
-        import xml.etree.ElementTree as ET
-
-        root = ET.parse(self.srdf_path).getroot()
-        return [(e.attrib["link1"], e.attrib["link2"]) for e in root.iter("disable_collisions")]
-
-    @functools.cached_property
     def collision_model(self) -> pin.GeometryModel:
         """Pinocchio/coal collision model of the same geometry, with the same pair selection:
         all pairs on different joints, minus the SRDF's disabled pairs."""
@@ -146,14 +144,15 @@ class Robot:
         """Pinocchio frame id of a role ("hand", "right_hand", ...) or of a frame name."""
         name = self.frames.get(frame, frame)
         if not self.model.existFrame(name):
-            raise ValueError(
+            raise UnknownNameError(
                 f"robot '{self.name}' has no frame '{frame}' "
                 f"(roles: {', '.join(self.frames)}; or any URDF link name)"
             )
         return int(self.model.getFrameId(name))
 
     def check_configuration(self, q: Any, what: str = "q") -> NDArray[np.float64]:
-        """q as a float64 array of shape (nq,) or (n, nq); ValueError on wrong shape or NaN."""
+        """q as a float64 array of shape (nq,) or (n, nq); ShapeError on a wrong shape,
+        NonFiniteError on NaN or inf (:mod:`genplan.errors`)."""
         return as_configurations(q, self.nq, what)
 
     def link_poses(self, q: Any, links: list[str] | None = None) -> NDArray[np.float64]:
@@ -165,7 +164,7 @@ class Robot:
         fid = self.frame_id(frame)
         qa = self.check_configuration(q)
         if qa.ndim != 1:
-            raise ValueError(f"q: expected one configuration of shape ({self.nq},), got {qa.shape}")
+            raise ShapeError(f"q: expected one configuration of shape ({self.nq},), got {qa.shape}")
         pin.framesForwardKinematics(self.model, self.data, qa)
         return self.data.oMf[fid].copy()
 
@@ -197,7 +196,7 @@ class Robot:
 @functools.lru_cache(maxsize=None)
 def load(name: str) -> Robot:
     """Load a robot by name ("panda", "talos", "ur5"). Cached: the same object is returned for
-    the same name; an unknown name raises ValueError listing the known ones."""
+    the same name; an unknown name raises UnknownNameError listing the known ones."""
     if name not in ROBOT_NAMES:
-        raise ValueError(f"unknown robot '{name}' (known: {', '.join(ROBOT_NAMES)})")
+        raise UnknownNameError(f"unknown robot '{name}' (known: {', '.join(ROBOT_NAMES)})")
     return Robot(name)

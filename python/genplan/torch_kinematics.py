@@ -15,6 +15,7 @@ import numpy as np
 import pinocchio as pin
 import torch
 
+from genplan.errors import RobotFileError, ShapeError
 from genplan.robots import Robot
 
 _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
@@ -33,7 +34,7 @@ def _joint_kind(joint: pin.JointModel) -> tuple[str, tuple[float, float, float] 
             if suffix.endswith("Unaligned") or suffix in ("evoluteUnaligned", "rismaticUnaligned"):
                 axis = np.asarray(joint.extract().axis, dtype=float)
                 return kind, tuple(float(a) for a in axis)
-    raise ValueError(f"joint type {name} is not supported by TorchKinematics")
+    raise RobotFileError(f"joint type {name} is not supported by TorchKinematics")
 
 
 def _skew(v: torch.Tensor) -> torch.Tensor:
@@ -88,7 +89,7 @@ class TorchKinematics(torch.nn.Module):
     def joint_placements(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """World placements of every joint (Pinocchio's oMi for i >= 1): (B, J, 3, 3), (B, J, 3)."""
         if q.shape[-1] != self.nq:
-            raise ValueError(f"q: expected last dimension {self.nq}, got {tuple(q.shape)}")
+            raise ShapeError(f"q: expected last dimension {self.nq}, got {tuple(q.shape)}")
         batch = q.shape[0]
         eye = torch.eye(3, dtype=q.dtype, device=q.device)
         rots: list[torch.Tensor] = []

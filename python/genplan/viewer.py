@@ -44,6 +44,8 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from genplan._arrays import error_class
+from genplan.errors import GenplanError, RobotFileError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
 
 __all__ = ["DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "export_html", "export_plan_html", "subsample_path"]
@@ -76,7 +78,7 @@ def subsample_path(path: NDArray[np.float64], max_frames: int) -> NDArray[np.int
     """Indices of at most ``max_frames`` states spread evenly along the path (by index, which
     for the planner's dense paths is by distance), always the first and the last."""
     if max_frames < 2:
-        raise ValueError(f"max_frames must be >= 2, got {max_frames}")
+        raise SettingsError(f"max_frames must be >= 2, got {max_frames}")
     m = len(path)
     if m <= max_frames:
         return np.arange(m)
@@ -184,7 +186,7 @@ def _visual_parts(robot: Robot, geometry: str) -> tuple[_Part, ...]:
     elif geometry == "collision":
         geom = robot.collision_model
     else:
-        raise ValueError(f"geometry must be 'visual' or 'collision', got {geometry!r}")
+        raise UnknownNameError(f"geometry must be 'visual' or 'collision', got {geometry!r}")
     parts: list[_Part] = []
     skipped: list[str] = []
     for go in geom.geometryObjects:
@@ -203,7 +205,7 @@ def _visual_parts(robot: Robot, geometry: str) -> tuple[_Part, ...]:
     if skipped:
         warnings.warn(f"viewer: {robot.name}: shapes not drawn: {', '.join(skipped)}", stacklevel=3)
     if not parts:
-        raise ValueError(f"robot '{robot.name}' has no {geometry} geometry to draw")
+        raise RobotFileError(f"robot '{robot.name}' has no {geometry} geometry to draw")
     return tuple(parts)
 
 
@@ -270,13 +272,14 @@ def _check_boxes(boxes: Sequence[Any]) -> list[_Obstacle]:
             h = np.asarray(b.half_extents, dtype=np.float64)
             c = np.asarray(b.center, dtype=np.float64)
         except (AttributeError, TypeError, ValueError) as exc:
-            raise ValueError(f"boxes[{i}]: expected an object with name, half_extents and center "
-                             f"(such as planning.Box): {exc}") from None
+            raise GenplanError(f"boxes[{i}]: expected an object with name, half_extents and center "
+                               f"(such as planning.Box): {exc}") from None
         if h.shape != (3,) or c.shape != (3,) or not (np.all(np.isfinite(h)) and np.all(np.isfinite(c))):
-            raise ValueError(f"boxes[{i}] ({name}): half_extents and center must be 3 finite numbers, "
-                             f"got {b.half_extents!r} and {b.center!r}")
+            raise error_class([h, c], h.shape == c.shape == (3,))(
+                f"boxes[{i}] ({name}): half_extents and center must be 3 finite numbers, "
+                f"got {b.half_extents!r} and {b.center!r}")
         if np.any(h <= 0):
-            raise ValueError(f"boxes[{i}] ({name}): half_extents must be positive, got {b.half_extents!r}")
+            raise GenplanError(f"boxes[{i}] ({name}): half_extents must be positive, got {b.half_extents!r}")
         out.append(_Obstacle(name, h, c))
     return out
 
@@ -289,10 +292,11 @@ def _check_halfspaces(halfspaces: Sequence[_HalfSpace]) -> list[tuple[str, NDArr
             n = np.asarray(normal, dtype=np.float64)
             d = float(offset)
         except (TypeError, ValueError) as exc:
-            raise ValueError(f"halfspaces[{i}]: expected (name, normal, offset): {exc}") from None
+            raise GenplanError(f"halfspaces[{i}]: expected (name, normal, offset): {exc}") from None
         if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) < 1e-12 or not math.isfinite(d):
-            raise ValueError(f"halfspaces[{i}] ({name}): the normal must be 3 finite numbers, not all zero, "
-                             f"and the offset finite; got {normal!r}, {offset!r}")
+            raise error_class([*n.ravel(), d], n.shape == (3,))(
+                f"halfspaces[{i}] ({name}): the normal must be 3 finite numbers, not all zero, "
+                f"and the offset finite; got {normal!r}, {offset!r}")
         out.append((str(name), n, d))
     return out
 
@@ -320,7 +324,7 @@ def _legend(title: str, trail_label: str | None, obstacles: bool) -> str:
 def _check_out(out: str | os.PathLike[str]) -> Path:
     p = Path(out)
     if p.is_dir():
-        raise ValueError(f"out: {p} is a directory; give a file name such as {p / 'plan.html'}")
+        raise GenplanError(f"out: {p} is a directory; give a file name such as {p / 'plan.html'}")
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -364,7 +368,8 @@ def export_html(
         dark_mode: the viewer's dark theme.
 
     Raises:
-        ValueError: wrong path shape, non-finite values, bad fps / max_frames / geometry.
+        GenplanError: wrong path shape (ShapeError), non-finite values (NonFiniteError), bad fps /
+            max_frames (SettingsError) or geometry (UnknownNameError).
         OSError: ``out`` cannot be written.
         ImportError: viser is not installed.
     """
@@ -372,16 +377,16 @@ def export_html(
     if q.ndim == 1:
         q = q[None, :]
     if len(q) == 0:
-        raise ValueError("path: no configuration (shape (0, nq))")
+        raise ShapeError("path: no configuration (shape (0, nq))")
     if not (math.isfinite(fps) and fps > 0):
-        raise ValueError(f"fps must be a positive number, got {fps}")
+        raise SettingsError(f"fps must be a positive number, got {fps}")
     obstacles = _check_boxes(boxes)
     planes = _check_halfspaces(halfspaces)
     out_path = _check_out(out)
     frames = q[subsample_path(q, max_frames)]
 
     if geometry not in ("visual", "collision"):
-        raise ValueError(f"geometry must be 'visual' or 'collision', got {geometry!r}")
+        raise UnknownNameError(f"geometry must be 'visual' or 'collision', got {geometry!r}")
     model = robot.model
     data = model.createData()
     parts = _visual_parts(robot, geometry)

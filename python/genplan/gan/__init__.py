@@ -2,7 +2,8 @@
 
 * :mod:`genplan.gan.data` -- valid configurations: uniform samples projected onto the manifold.
 * :mod:`genplan.gan.model` -- ensemble generator, discriminator, training, safetensors I/O.
-* :mod:`genplan.gan.sampler` -- :class:`GanSampler` (and uniform, hybrid), the planner's Samplers.
+* :mod:`genplan.gan.sampler` -- :class:`GanSampler`, a planner Sampler (uniform and hybrid sampling:
+  :func:`genplan.planning.make_sampler`).
 
 Imported lazily, so that ``import genplan`` does not import torch.
 """
@@ -19,8 +20,12 @@ _EXPORTS = {
     "load_model": "genplan.gan.model",
     "train": "genplan.gan.model",
     "GanSampler": "genplan.gan.sampler",
-    "UniformSampler": "genplan.gan.sampler",
-    "HybridSampler": "genplan.gan.sampler",
+}
+
+#: Names removed after 0.1.0 and what replaces them (the Python twins of the native samplers).
+_REMOVED = {
+    "UniformSampler": 'genplan.planning.make_sampler(robot, "uniform", seed=...)',
+    "HybridSampler": 'genplan.planning.make_sampler(robot, "hybrid", hybrid_p=..., seed=...)',
 }
 
 __all__ = sorted(_EXPORTS)
@@ -29,4 +34,6 @@ __all__ = sorted(_EXPORTS)
 def __getattr__(name: str) -> Any:
     if name in _EXPORTS:
         return getattr(importlib.import_module(_EXPORTS[name]), name)
+    if name in _REMOVED:
+        raise AttributeError(f"genplan.gan.{name} was removed after 0.1.0 (a Python twin of a native sampler): use {_REMOVED[name]}")
     raise AttributeError(f"module 'genplan.gan' has no attribute '{name}'")

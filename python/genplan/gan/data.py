@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from genplan import _core
 from genplan import projection as P
 from genplan.cache import cache_dir, load_array, save_array
+from genplan.errors import SettingsError
 from genplan.robots import Robot
 
 CHUNK = 2000
@@ -39,7 +40,7 @@ def valid_configurations(robot: Robot, n: int = 25_000, seed: int = 0, use_cache
                          progress: bool = True) -> NDArray[np.float64]:
     """``n`` configurations on ``robot``'s projection manifold (shape (n, nq)), reproducible."""
     if n < 1:
-        raise ValueError(f"n must be positive, got {n}")
+        raise SettingsError(f"n must be positive, got {n}")
     path = cache_path(robot, n, seed)
     cached = load_array(path, (n, robot.nq)) if use_cache else None
     if cached is not None:

@@ -28,8 +28,9 @@ import torch
 from numpy.typing import NDArray
 
 from genplan import _core
-from genplan._arrays import as_box
+from genplan._arrays import as_box, error_class
 from genplan import projection as P
+from genplan.errors import ModelFileError, UnknownNameError
 from genplan.robots import Robot, load
 from genplan.torch_kinematics import TorchKinematics
 
@@ -43,7 +44,7 @@ DISC_MIN_STD = 1e-3
 
 @dataclass(frozen=True)
 class GanConfig:
-    """Hyperparameters (defaults: the authors' public code, see DESIGN.md)."""
+    """Hyperparameters (defaults: the authors' public code; the card records every value)."""
 
     robot: str
     target_frame: str
@@ -92,7 +93,7 @@ def default_config(robot: str, **overrides: Any) -> GanConfig:
                         target_box=((-0.6, -0.6, 0.3), (0.8, 0.6, 1.4)),
                         noise_dim=30, n_net=5, disc_hidden=(40, 40), lr_gen=7e-4, lr_disc=1.4e-3)
     else:
-        raise ValueError(f"the GAN is defined for panda and talos, not '{robot}'")
+        raise UnknownNameError(f"the GAN is defined for panda and talos, not '{robot}'")
     return dataclasses.replace(cfg, **overrides)
 
 
@@ -223,7 +224,8 @@ class GanModel:
         """One configuration per target from every ensemble member: (n_net, n, nq)."""
         targets = np.asarray(targets, dtype=np.float64)
         if targets.ndim != 2 or targets.shape[1] != 3 or not np.all(np.isfinite(targets)):
-            raise ValueError(f"targets: expected finite positions of shape (n, 3), got {targets.shape}")
+            raise error_class(targets, targets.ndim == 2 and targets.shape[1] == 3)(
+                f"targets: expected finite positions of shape (n, 3), got {targets.shape}")
         n = len(targets)
         z = torch.tensor(rng.standard_normal((self.config.n_net, n, self.config.noise_dim)), dtype=torch.float32)
         x = torch.tensor(targets, dtype=torch.float32).expand(self.config.n_net, n, 3)
@@ -274,29 +276,32 @@ def load_model(robot: str | Robot, path: str | Path | None = None) -> GanModel:
     """Load a GAN (default: the shipped ``models/<robot>_gan.safetensors``).
 
     A missing file raises FileNotFoundError naming the command that trains it; a corrupt file or
-    a card that does not match raises ValueError.
+    a card that does not match raises :class:`~genplan.errors.ModelFileError`.
     """
-    from genplan.model_files import read_model
+    from genplan.model_files import read_config, read_model
 
     rob = robot if isinstance(robot, Robot) else load(robot)
     path = models_dir() / f"{rob.name}_gan.safetensors" if path is None else Path(path)
     card, tensors = read_model(path, FORMAT, "GAN", f"genplan train gan --robot {rob.name} --seed 0")
-    cfg_dict = card["config"]
-    cfg_dict["target_box"] = tuple(tuple(b) for b in cfg_dict["target_box"])
-    cfg_dict["gen_hidden"] = tuple(cfg_dict["gen_hidden"])
-    cfg_dict["disc_hidden"] = tuple(cfg_dict["disc_hidden"])
-    cfg = GanConfig(**cfg_dict)
+
+    def make(d: dict[str, Any]) -> GanConfig:
+        d["target_box"] = tuple(tuple(b) for b in d["target_box"])
+        d["gen_hidden"] = tuple(d["gen_hidden"])
+        d["disc_hidden"] = tuple(d["disc_hidden"])
+        return GanConfig(**d)
+
+    cfg = read_config(card, path, "GAN", make)
     if cfg.robot != rob.name:
-        raise ValueError(f"{path} is a GAN for '{cfg.robot}', not '{rob.name}'")
-    mean, std = tensors["codec.mean"].double().numpy(), tensors["codec.std"].double().numpy()
-    codec = Codec(rob, mean, std)
-    gen = EnsembleGenerator(cfg.n_net, cfg.noise_dim + 3, cfg.gen_hidden, codec.dim)
+        raise ModelFileError(f"{path} is a GAN for '{cfg.robot}', not '{rob.name}'")
     try:
+        mean, std = tensors["codec.mean"].double().numpy(), tensors["codec.std"].double().numpy()
+        codec = Codec(rob, mean, std)
+        gen = EnsembleGenerator(cfg.n_net, cfg.noise_dim + 3, cfg.gen_hidden, codec.dim)
         for i in range(len(gen.weights)):
             gen.weights[i].data.copy_(tensors[f"generator.weight.{i}"])
             gen.biases[i].data.copy_(tensors[f"generator.bias.{i}"])
     except (KeyError, RuntimeError) as exc:
-        raise ValueError(f"GAN model file {path} does not fit its card: {exc}") from None
+        raise ModelFileError(f"GAN model file {path} does not fit its card: {exc}") from None
     gen.eval()
     return GanModel(cfg, rob, gen, codec, card)
 

@@ -1,6 +1,8 @@
-"""Samplers of configurations: uniform within the joint limits, GAN, and hybrid.
+"""The GAN sampler: configurations from a trained GAN, conditioned on end-effector targets.
 
-Each has ``sample(n) -> (n, nq)``, the batched call the planner makes through its Sampler trait.
+It has ``sample(n) -> (n, nq)`` (a :class:`genplan.protocols.Sampler`) and runs torch; its
+:meth:`GanSampler.native` twin runs the same generator in Rust, which is what the planner uses.
+Uniform and hybrid sampling are native only: :func:`genplan.planning.make_sampler`.
 """
 
 from __future__ import annotations
@@ -12,19 +14,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from genplan._arrays import as_box
+from genplan.errors import ModelFileError
 from genplan.gan.model import GanModel, load_model
 from genplan.robots import Robot
-
-
-class UniformSampler:
-    """Configurations uniform within the joint limits (a free-flyer base at its default)."""
-
-    def __init__(self, robot: Robot, seed: int | None = None) -> None:
-        self.robot = robot
-        self.rng = np.random.default_rng(seed)
-
-    def sample(self, n: int) -> NDArray[np.float64]:
-        return self.robot.random_configurations(int(n), self.rng)
 
 
 class GanSampler:
@@ -39,7 +31,7 @@ class GanSampler:
         self.robot = robot
         self.model = model if isinstance(model, GanModel) else load_model(robot, model)
         if self.model.config.robot != robot.name:
-            raise ValueError(f"the GAN is for '{self.model.config.robot}', not '{robot.name}'")
+            raise ModelFileError(f"the GAN is for '{self.model.config.robot}', not '{robot.name}'")
         self.box = as_box(self.model.config.target_box if box is None else box)
         self.rng = np.random.default_rng(seed)
 
@@ -54,21 +46,3 @@ class GanSampler:
     def sample(self, n: int) -> NDArray[np.float64]:
         targets = self.rng.uniform(self.box[0], self.box[1], size=(int(n), 3))
         return self.sample_for(targets)
-
-
-class HybridSampler:
-    """GAN samples with probability ``p`` (default 0.8), uniform ones otherwise: keeps the
-    planner probabilistically complete."""
-
-    def __init__(self, gan: GanSampler, uniform: UniformSampler, p: float = 0.8, seed: int | None = None) -> None:
-        if not 0.0 <= p <= 1.0:
-            raise ValueError(f"p must be in [0, 1], got {p}")
-        self.gan, self.uniform, self.p = gan, uniform, p
-        self.rng = np.random.default_rng(seed)
-
-    def sample(self, n: int) -> NDArray[np.float64]:
-        use_gan = self.rng.random(int(n)) < self.p
-        out = self.uniform.sample(int(n))
-        if use_gan.any():
-            out[use_gan] = self.gan.sample(int(use_gan.sum()))
-        return out

@@ -44,6 +44,7 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor
 
+from genplan.errors import CallbackError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.pancake import physics as ph
 from genplan.pancake.model import Seq2SeqModel, check_trajectories, load_model, mirror, start_state
 
@@ -73,9 +74,9 @@ def _as_tensor(a: ArrayLike, b: int, name: str, dim: int = 3) -> Tensor:
     if arr.shape == (dim,):
         arr = np.broadcast_to(arr, (b, dim))
     if arr.shape != (b, dim):
-        raise ValueError(f"{name} must have shape ({dim},) or ({b}, {dim}) for {b} problem(s), got {np.shape(a)}")
+        raise ShapeError(f"{name} must have shape ({dim},) or ({b}, {dim}) for {b} problem(s), got {np.shape(a)}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains NaN or inf")
+        raise NonFiniteError(f"{name} contains NaN or inf")
     return torch.tensor(arr, dtype=torch.float32)
 
 
@@ -123,9 +124,9 @@ class J2:
                  center: Sequence[float] = (0.0, 0.0)) -> None:
         vals = [theta_end, p_lim, theta_lim, alpha, beta, mu_max, *v_lim, *d, *center]
         if not all(math.isfinite(float(v)) for v in vals):
-            raise ValueError("J2 parameters must be finite")
+            raise NonFiniteError("J2 parameters must be finite")
         if len(tuple(v_lim)) != 3 or len(tuple(d)) != 3 or len(tuple(center)) != 2:
-            raise ValueError("J2: v_lim and d need 3 values, center 2")
+            raise ShapeError("J2: v_lim and d need 3 values, center 2")
         self.theta_end, self.p_lim, self.theta_lim = float(theta_end), float(p_lim), float(theta_lim)
         self.alpha, self.beta, self.mu_max = float(alpha), float(beta), float(mu_max)
         self.v_lim = torch.tensor(tuple(v_lim), dtype=torch.float32)
@@ -193,10 +194,10 @@ class J2Executable(J2):
         super().__init__(*args, **kwargs)
         extra = [margin, normal_floor, normal_weight, attitude_weight, attitude_inset, velocity_weight]
         if not all(math.isfinite(float(v)) and v >= 0 for v in extra):
-            raise ValueError(f"J2Executable: margins and weights must be finite and >= 0, got {extra}")
+            raise SettingsError(f"J2Executable: margins and weights must be finite and >= 0, got {extra}")
         if margin >= math.atan(self.mu_max) or attitude_inset >= self.theta_lim:
-            raise ValueError("J2Executable: margin must be below the cone's half-angle and attitude_inset below "
-                             "theta_lim")
+            raise SettingsError("J2Executable: margin must be below the cone's half-angle and attitude_inset below "
+                                "theta_lim")
         self.margin, self.normal_floor, self.normal_weight = float(margin), float(normal_floor), float(normal_weight)
         self.attitude_weight, self.attitude_inset = float(attitude_weight), float(attitude_inset)
         self.velocity_weight = float(velocity_weight)
@@ -284,12 +285,12 @@ def _check_value(j: Any, b: int) -> Tensor:
     if j.ndim == 0 and b == 1:
         j = j.reshape(1)
     if j.shape != (b,):
-        raise ValueError(f"the objective must return one value per problem, shape ({b},), got shape "
-                         f"{tuple(j.shape)}" + (" (a scalar: for a batch return the per-problem values, "
-                                                "not their sum)" if j.ndim == 0 else ""))
+        raise CallbackError(f"the objective must return one value per problem, shape ({b},), got shape "
+                            f"{tuple(j.shape)}" + (" (a scalar: for a batch return the per-problem values, "
+                                                   "not their sum)" if j.ndim == 0 else ""))
     if not j.requires_grad:
-        raise ValueError("the objective does not depend on the trajectory (its value has no gradient); "
-                         "build it from the Rollout's tensors with torch operations")
+        raise CallbackError("the objective does not depend on the trajectory (its value has no gradient); "
+                            "build it from the Rollout's tensors with torch operations")
     return j
 
 
@@ -311,11 +312,11 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
     ``model``: default the shipped model.
     """
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise UnknownNameError(f"method must be one of {METHODS}, got {method!r}")
     if step not in STEPS:
-        raise ValueError(f"step must be one of {STEPS}, got {step!r}")
+        raise UnknownNameError(f"step must be one of {STEPS}, got {step!r}")
     if isinstance(updates, bool) or not isinstance(updates, (int, np.integer)) or updates < 0:
-        raise ValueError(f"updates must be a non-negative integer, got {updates!r}")
+        raise SettingsError(f"updates must be a non-negative integer, got {updates!r}")
     updates = int(updates)
     model = load_model() if model is None else model
     x = check_trajectories(x_in, model.config.K)
@@ -328,10 +329,10 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
         elif name == "j2":
             obj = J2(**kw)
         else:
-            raise ValueError(f"objective must be 'j1', 'j2' or a callable, got {objective!r}")
+            raise UnknownNameError(f"objective must be 'j1', 'j2' or a callable, got {objective!r}")
     elif callable(objective):
         if kw:
-            raise ValueError("objective_kwargs only apply to the built-in objectives 'j1' and 'j2'")
+            raise SettingsError("objective_kwargs only apply to the built-in objectives 'j1' and 'j2'")
         name = getattr(objective, "name", "custom")
         obj = objective
     else:
@@ -341,12 +342,12 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
     if lr is None:
         lr = default_lr(name if name in ("j1", "j2") else "j1", method, step)
     if not (isinstance(lr, (int, float)) and math.isfinite(lr) and lr > 0):
-        raise ValueError(f"lr must be a positive finite number, got {lr!r}")
+        raise SettingsError(f"lr must be a positive finite number, got {lr!r}")
     if max_step is not None and not (math.isfinite(max_step) and max_step > 0):
-        raise ValueError(f"max_step must be a positive finite number, got {max_step!r}")
+        raise SettingsError(f"max_step must be a positive finite number, got {max_step!r}")
     keep = {int(s) for s in snapshots}
     if any(s < 0 or s > updates for s in keep):
-        raise ValueError(f"snapshots must lie in [0, {updates}], got {sorted(keep)}")
+        raise SettingsError(f"snapshots must lie in [0, {updates}], got {sorted(keep)}")
 
     t_start = time.perf_counter()
     xt = torch.as_tensor(x, dtype=torch.float32)
@@ -400,7 +401,7 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
         if need_grad:
             (grad,) = torch.autograd.grad(j.sum(), var, allow_unused=True)
             if grad is None:
-                raise ValueError("the objective has no gradient with respect to the trajectory")
+                raise CallbackError("the objective has no gradient with respect to the trajectory")
         if adaptive:
             # eq. 7 inside a trust radius per problem: a step that raises J is undone and retried
             # with half its length; after a step that lowers J the radius grows by half

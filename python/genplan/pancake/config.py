@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from genplan.errors import SettingsError
 from genplan.pancake.trajectories import DT, K
 
 __all__ = ["Seq2SeqConfig"]
@@ -80,7 +81,7 @@ class Seq2SeqConfig:
 
     def validate(self) -> None:
         if self.K < 2 or self.encoder_stride < 1 or self.decoder_stride < 1 or self.K % self.decoder_stride:
-            raise ValueError(f"bad seq2seq config: K {self.K} must be at least 2 and divisible by "
+            raise SettingsError(f"bad seq2seq config: K {self.K} must be at least 2 and divisible by "
                              f"decoder_stride {self.decoder_stride}; strides must be positive")
 
     def encoder_indices(self) -> list[int]:

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from genplan.cache import cache_dir, load_array, save_array
+from genplan.errors import SettingsError
 from genplan.pancake.trajectories import DT, G, MU_MAX
 from genplan.pancake.trajectories import K as K_DEFAULT
 
@@ -188,9 +189,9 @@ def input_trajectories(n: int, seed: int = 0, k: int = K_DEFAULT, use_cache: boo
                        progress: bool = True) -> NDArray[np.float32]:
     """``n`` input trajectories (n, k, 3) float32, reproducible from ``seed`` and cached."""
     if n < 1:
-        raise ValueError(f"n must be positive, got {n}")
+        raise SettingsError(f"n must be positive, got {n}")
     if k < 2:
-        raise ValueError(f"k must be at least 2, got {k}")
+        raise SettingsError(f"k must be at least 2, got {k}")
     path = cache_path(n, seed, k)
     cached = load_array(path, (n, k, 3), np.float32) if use_cache else None
     if cached is not None:

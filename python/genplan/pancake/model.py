@@ -58,6 +58,7 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor, nn
 
+from genplan.errors import ModelFileError, NonFiniteError, ShapeError
 from genplan.pancake import physics as ph
 from genplan.pancake.config import Seq2SeqConfig
 
@@ -112,7 +113,7 @@ class Seq2SeqNet(nn.Module):
     def decode(self, z: Tensor) -> tuple[Tensor, Tensor]:
         """(B, 128) -> accelerations (B, K, 3) and their variances (B, K, 3)."""
         if z.ndim != 2 or z.shape[1] != self.cfg.latent_dim:
-            raise ValueError(f"z must have shape (batch, {self.cfg.latent_dim}), got {tuple(z.shape)}")
+            raise ShapeError(f"z must have shape (batch, {self.cfg.latent_dim}), got {tuple(z.shape)}")
         b = z.shape[0]
         cfg = self.cfg
         h0 = z.reshape(b, cfg.layers, cfg.hidden).transpose(0, 1).contiguous()
@@ -240,11 +241,11 @@ def check_trajectories(p_in: ArrayLike, k: int = ph.K, name: str = "x_in") -> ND
     if x.ndim == 2:
         x = x[None]
     if x.ndim != 3 or x.shape[1:] != (k, 3) or x.shape[0] < 1:
-        raise ValueError(f"{name} must be poses [y, z, theta] of shape ({k}, 3) or (batch, {k}, 3), "
+        raise ShapeError(f"{name} must be poses [y, z, theta] of shape ({k}, 3) or (batch, {k}, 3), "
                          f"got shape {np.shape(p_in)}")
     if not np.all(np.isfinite(x)):
         bad = np.argwhere(~np.isfinite(x))[0]
-        raise ValueError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
+        raise NonFiniteError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
     return x
 
 
@@ -261,28 +262,28 @@ def load_model(path: str | Path | None = None) -> Seq2SeqModel:
     """Load a seq2seq model (default: the shipped ``models/pancake_seq2seq.safetensors``).
 
     A missing file raises FileNotFoundError naming the command that trains it; a corrupt file or
-    a card that does not match raises ValueError.
+    a card that does not match raises :class:`~genplan.errors.ModelFileError`.
     """
-    from genplan.model_files import read_model
+    from genplan.model_files import read_config, read_model
 
     path = default_path() if path is None else Path(path)
     retrain = RETRAIN_COMMAND + ("" if path == default_path() else f" --out {path}")
     card, tensors = read_model(path, FORMAT, "seq2seq", retrain)
-    try:
-        cfg_dict = dict(card["config"])
+
+    def make(d: dict[str, Any]) -> Seq2SeqConfig:
         for key in ("u_scale", "in_scale"):
-            cfg_dict[key] = tuple(cfg_dict[key])
-        cfg = Seq2SeqConfig(**cfg_dict)
-    except (KeyError, TypeError) as exc:
-        raise ValueError(f"seq2seq model card {path.with_suffix('.json')} has a bad config: {exc}") from None
+            d[key] = tuple(d[key])
+        return Seq2SeqConfig(**d)
+
+    cfg = read_config(card, path, "seq2seq", make)
     net = Seq2SeqNet(cfg)
     try:
         net.load_state_dict(tensors, strict=True)
     except RuntimeError as exc:
-        raise ValueError(f"seq2seq model file {path} does not fit its card: {exc}") from None
+        raise ModelFileError(f"seq2seq model file {path} does not fit its card: {exc}") from None
     for name, t in tensors.items():
         if not torch.all(torch.isfinite(t)):
-            raise ValueError(f"seq2seq model file {path} is corrupt: tensor {name} holds NaN or inf")
+            raise ModelFileError(f"seq2seq model file {path} is corrupt: tensor {name} holds NaN or inf")
     net.eval()
     return Seq2SeqModel(cfg, net, card)
 
@@ -339,7 +340,7 @@ def train(cfg: Seq2SeqConfig, data: NDArray[np.float32] | None = None, progress:
         data = input_trajectories(cfg.trajectories, cfg.data_seed, cfg.K, progress=progress)
     t_data = time.perf_counter() - t_data
     if data.ndim != 3 or data.shape[1:] != (cfg.K, 3):
-        raise ValueError(f"training data must have shape (n, {cfg.K}, 3), got {data.shape}")
+        raise ShapeError(f"training data must have shape (n, {cfg.K}, 3), got {data.shape}")
     data = np.ascontiguousarray(data, dtype=np.float32)
     val = generate_chunk(cfg.validation, np.random.default_rng([cfg.data_seed, 1]), cfg.K)
 

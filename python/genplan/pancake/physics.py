@@ -26,6 +26,7 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor
 
+from genplan.errors import ShapeError
 from genplan.pancake.trajectories import DT, G, K, MU_MAX
 from genplan.pancake.trajectories import phi as phi_np
 
@@ -72,7 +73,7 @@ def _lower_apply(m: Tensor, u: Tensor) -> Tensor:
 
 def _check_u(u: Tensor) -> None:
     if u.ndim != 3 or u.shape[-1] != 3:
-        raise ValueError(f"u must have shape (batch, K, 3) [a_y, a_z, a_theta], got {tuple(u.shape)}")
+        raise ShapeError(f"u must have shape (batch, K, 3) [a_y, a_z, a_theta], got {tuple(u.shape)}")
 
 
 def rollout(u: Tensor, x0: Tensor | None = None, dt: float = DT) -> tuple[Tensor, Tensor]:
@@ -87,7 +88,7 @@ def rollout(u: Tensor, x0: Tensor | None = None, dt: float = DT) -> tuple[Tensor
     if x0 is None:
         x0 = u.new_zeros(6)
     if x0.shape[-1] != 6 or x0.ndim > 2:
-        raise ValueError(f"x0 must have shape (6,) or (batch, 6), got {tuple(x0.shape)}")
+        raise ShapeError(f"x0 must have shape (6,) or (batch, 6), got {tuple(x0.shape)}")
     x0 = x0.to(u.dtype).expand(b, 6)
     p0, v0 = x0[:, None, :3], x0[:, None, 3:]
     p = p0 + t[None, :, None] * v0 + _lower_apply(mp, u)
@@ -110,7 +111,7 @@ def phi(theta: Tensor, u: Tensor, g: float = G) -> Tensor:
     where the resultant vanishes and at the wrap point +-pi.
     """
     if u.shape[-1] not in (2, 3):
-        raise ValueError(f"u must have a last axis of 2 or 3, got shape {tuple(u.shape)}")
+        raise ShapeError(f"u must have a last axis of 2 or 3, got shape {tuple(u.shape)}")
     a = torch.atan2(-g - u[..., 1], -u[..., 0]) + 0.5 * math.pi - theta
     return torch.atan2(torch.sin(a), torch.cos(a))
 
@@ -157,7 +158,7 @@ def rollout_np(u: ArrayLike, x0: ArrayLike | None = None, dt: float = DT) -> NDA
     """States (..., K, 6) by the literal recursion ``x[k+1] = A x[k] + B u[k]`` (float64)."""
     uu = np.asarray(u, dtype=np.float64)
     if uu.ndim < 2 or uu.shape[-1] != 3:
-        raise ValueError(f"u must have shape (..., K, 3), got {uu.shape}")
+        raise ShapeError(f"u must have shape (..., K, 3), got {uu.shape}")
     A, B = transition_matrices(dt)
     lead, k = uu.shape[:-2], uu.shape[-2]
     x = np.zeros(lead + (k, 6))
@@ -171,7 +172,7 @@ def rollout_variance_np(var_u: ArrayLike, dt: float = DT) -> NDArray[np.float64]
     """Position variances (K, 3) by the covariance recursion ``S' = A S A^T + B diag(var_u) B^T``."""
     vu = np.asarray(var_u, dtype=np.float64)
     if vu.ndim != 2 or vu.shape[-1] != 3:
-        raise ValueError(f"var_u must have shape (K, 3), got {vu.shape}")
+        raise ShapeError(f"var_u must have shape (K, 3), got {vu.shape}")
     A, B = transition_matrices(dt)
     s = np.zeros((6, 6))
     out = np.zeros_like(vu)

@@ -1,6 +1,6 @@
-"""Reference trajectories of the spatula and the friction-cone angle phi (numpy only, no torch).
+"""Reference trajectories of the spatula and the friction-cone angle phi (numpy, no torch).
 
-Conventions (the seq2seq paper, Section 4.1, and DESIGN.md):
+Conventions (the seq2seq paper, Section 4.1):
 
 * a pose is ``p = [y, z, theta]`` (metres, metres, radians) in the vertical y-z plane; samples are
   ``dt = 1 ms`` apart and a trajectory has ``K = 500`` samples (0.5 s), sample ``k`` at ``t = k dt``;
@@ -18,6 +18,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from genplan import _core
+from genplan.errors import NonFiniteError, SettingsError, ShapeError
+
 #: the paper's sampling interval (s) and sequence length
 DT = 1e-3
 K = 500
@@ -26,7 +29,7 @@ G = 9.8
 #: static friction coefficient of the paper
 MU_MAX = 1.0
 
-__all__ = ["DT", "K", "G", "MU_MAX", "s_curve", "s_curve_profile", "linear", "phi", "wrap_angle"]
+__all__ = ["DT", "K", "G", "MU_MAX", "s_curve", "s_curve_profile", "linear", "j1_problems", "phi", "wrap_angle"]
 
 
 def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
@@ -39,9 +42,9 @@ def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
 def _pose(name: str, p: ArrayLike) -> NDArray[np.float64]:
     a = np.asarray(p, dtype=np.float64)
     if a.shape != (3,):
-        raise ValueError(f"{name} must be a pose [y, z, theta] of shape (3,), got shape {a.shape}")
+        raise ShapeError(f"{name} must be a pose [y, z, theta] of shape (3,), got shape {a.shape}")
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be finite, got {a.tolist()}")
+        raise NonFiniteError(f"{name} must be finite, got {a.tolist()}")
     return a
 
 
@@ -53,7 +56,7 @@ def s_curve_profile(K: int = K) -> tuple[NDArray[np.float64], NDArray[np.float64
     one sine period (positive while speeding up, negative while slowing down).
     """
     if K < 2:
-        raise ValueError(f"K must be at least 2, got {K}")
+        raise SettingsError(f"K must be at least 2, got {K}")
     tau = np.arange(K, dtype=np.float64) / (K - 1)
     w = 2.0 * np.pi
     s = tau - np.sin(w * tau) / w
@@ -75,7 +78,7 @@ def s_curve(p_start: ArrayLike, p_end: ArrayLike, K: int = K, dt: float = DT) ->
     a = _pose("p_start", p_start)
     b = _pose("p_end", p_end)
     if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be positive, got {dt}")
+        raise SettingsError(f"dt must be positive, got {dt}")
     s, _, _ = s_curve_profile(int(K))
     return a[None, :] + s[:, None] * (b - a)[None, :]
 
@@ -89,9 +92,19 @@ def linear(p_start: ArrayLike, p_end: ArrayLike, K: int = K) -> NDArray[np.float
     a = _pose("p_start", p_start)
     b = _pose("p_end", p_end)
     if K < 2:
-        raise ValueError(f"K must be at least 2, got {K}")
+        raise SettingsError(f"K must be at least 2, got {K}")
     tau = np.arange(K, dtype=np.float64) / (K - 1)
     return a[None, :] + tau[:, None] * (b - a)[None, :]
+
+
+def j1_problems() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The seq2seq paper's 27 J1 problems (Section 4.3): the S-curve inputs (27, K, 3) from the
+    origin at rest and their end poses (27, 3), y, z in {-0.1, 0, 0.1} m, theta in {-pi, 0, pi},
+    grouped by theta."""
+    yz = (-0.1, 0.0, 0.1)
+    p_end = np.array([[y, z, t] for t in (-np.pi, 0.0, np.pi) for y in yz for z in yz])
+    x_in = np.stack([s_curve(np.zeros(3), pe) for pe in p_end])
+    return x_in, p_end
 
 
 def phi(theta: ArrayLike, acc: ArrayLike, g: float = G) -> NDArray[np.float64]:
@@ -105,7 +118,10 @@ def phi(theta: ArrayLike, acc: ArrayLike, g: float = G) -> NDArray[np.float64]:
     th = np.asarray(theta, dtype=np.float64)
     u = np.asarray(acc, dtype=np.float64)
     if u.ndim < 1 or u.shape[-1] not in (2, 3):
-        raise ValueError(f"acc must have a last axis of 2 ([a_y, a_z]) or 3 ([a_y, a_z, a_theta]), got shape {u.shape}")
-    fy = -u[..., 0]
-    fz = -g - u[..., 1]
-    return wrap_angle(np.arctan2(fz, fy) + 0.5 * np.pi - th)
+        raise ShapeError(f"acc must have a last axis of 2 ([a_y, a_z]) or 3 ([a_y, a_z, a_theta]), got shape {u.shape}")
+    shape = np.broadcast_shapes(th.shape, u.shape[:-1])
+    th_flat = np.ascontiguousarray(np.broadcast_to(th, shape).reshape(-1))
+    u_flat = np.ascontiguousarray(np.broadcast_to(u[..., :2], (*shape, 2)).reshape(-1, 2))
+    # one definition of eq. 16: the 1 kHz loop's (rust/core/src/control.rs, `phi`); the torch
+    # twin in pancake/physics.py (differentiable) is cross-checked against it in the tests
+    return np.asarray(_core.pancake_phi(th_flat, u_flat, float(g))).reshape(shape)

@@ -1,6 +1,6 @@
 """The planning environments of the GAN paper (Fig. 5, Table II) as data, and their queries.
 
-Geometry and queries follow the authors' public code (see DESIGN.md and the notes below):
+Geometry and queries follow the authors' public code (the notes below):
 
 * ``panda_shelf``: the Panda on its stand, a table in front (table top x in [0.2, 1.2], y in
   [-0.75, 0.75], z in [0.075, 0.125]) and a bookshelf to its left (five 0.75 x 0.4 x 0.02 boards
@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from genplan.collision import CollisionWorld
+from genplan.errors import GenplanError, UnknownNameError
 from genplan.robots import Robot
 
 __all__ = ["ENVIRONMENT_NAMES", "Box", "Environment", "Query", "environment"]
@@ -75,7 +76,7 @@ class Environment:
     def world(self, robot: Robot, self_collision: bool = True) -> CollisionWorld:
         """The robot's collision world with this environment's obstacles."""
         if robot.name != self.robot:
-            raise ValueError(f"environment '{self.name}' is for {self.robot}, not {robot.name}")
+            raise GenplanError(f"environment '{self.name}' is for {self.robot}, not {robot.name}")
         w = robot.collision_world(self_collision=self_collision)
         for b in self.boxes:
             w.add_box(b.name, half_extents=b.half_extents, center=b.center)
@@ -154,4 +155,4 @@ def environment(name: str) -> Environment:
     try:
         return _ENVIRONMENTS[name]
     except KeyError:
-        raise ValueError(f"unknown environment '{name}' (known: {', '.join(ENVIRONMENT_NAMES)})") from None
+        raise UnknownNameError(f"unknown environment '{name}' (known: {', '.join(ENVIRONMENT_NAMES)})") from None

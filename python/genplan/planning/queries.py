@@ -9,6 +9,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from genplan import projection as P
+from genplan.errors import GenplanError, SettingsError
 from genplan.robots import Robot
 
 if TYPE_CHECKING:
@@ -65,9 +66,9 @@ def make_queries(env: Environment, robot: Robot, n: int, seed: int = 0, k: int =
     from genplan.planning.environments import Query
 
     if robot.name != env.robot:
-        raise ValueError(f"environment '{env.name}' is for {env.robot}, not {robot.name}")
+        raise GenplanError(f"environment '{env.name}' is for {env.robot}, not {robot.name}")
     if n < 1 or k < 1:
-        raise ValueError(f"n and k must be >= 1, got n={n}, k={k}")
+        raise SettingsError(f"n and k must be >= 1, got n={n}, k={k}")
     rng = np.random.default_rng(seed)
     world = env.world(robot)
     # starts and goals are projected as tightly as the planner projects its states
