@@ -258,7 +258,10 @@ impl CollisionWorld {
             if rb.is_finite() && (ca - cb).norm() - g.radius - rb >= best {
                 continue;
             }
-            if self.aabb_gap(i, t, s) >= best {
+            // The box gap bounds only a separated pair's distance: overlapping boxes (gap 0) may
+            // hide a penetration deeper than `best`, so they are never skipped.
+            let gap = self.aabb_gap(i, t, s);
+            if gap > 0.0 && gap >= best {
                 continue;
             }
             let d = Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b);
