@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -17,7 +18,7 @@ import pytest
 
 import genplan
 from genplan import _core, control
-from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError
+from genplan.errors import GenplanError, LimitExceededError, NonFiniteError, SettingsError, ShapeError
 from genplan.pancake.trajectories import phi as phi_py
 from genplan.pancake.trajectories import s_curve
 
@@ -105,7 +106,8 @@ def test_the_dob_halves_the_tracking_error_and_estimates_the_disturbance(referen
 def test_gentle_move_keeps_the_pancake_and_the_papers_unadjusted_input_loses_it(reference_runs):
     assert not reference_runs["dob"].slipped
     assert reference_runs["dob"].max_abs_phi_deg < 45.0
-    log = control.execute(LINE, disturbances=control.Disturbances.reference(), settle=0.3, tail=0.1)
+    with pytest.warns(control.LimitWarning, match="wrist_3_joint' exceeds its velocity limit"):
+        log = control.execute(LINE, disturbances=control.Disturbances.reference(), settle=0.3, tail=0.1)
     assert log.slipped
     first = log.summary["first_slip_time"] - 0.3
     # constant rotation, no linear acceleration: phi = -theta leaves the cone near theta = -45 deg
@@ -117,7 +119,8 @@ def test_gentle_move_keeps_the_pancake_and_the_papers_unadjusted_input_loses_it(
 
 def test_the_same_move_too_fast_slips():
     fast = s_curve([0.0, 0.0, 0.0], [0.06, 0.02, -0.4], K=120)
-    log = control.execute(fast, settle=0.2)
+    with pytest.warns(control.LimitWarning, match="wrist_3_joint' exceeds its velocity limit"):
+        log = control.execute(fast, settle=0.2)
     assert log.slipped and log.max_abs_phi_deg > 45.0
 
 
@@ -133,9 +136,9 @@ def test_bad_trajectories_raise_before_the_loop(bad, error, match):
 
 
 def test_bad_configuration_raises():
-    with pytest.raises(GenplanError, match="disturbances.payload_mass must be >= 0"):
+    with pytest.raises(SettingsError, match=r"disturbances.payload_mass must be finite and in \[0, 100\] kg, got -1"):
         control.execute(GENTLE, disturbances=control.Disturbances(payload_mass=-1.0))
-    with pytest.raises(ShapeError, match="disturbances.coulomb: expected length 6"):
+    with pytest.raises(SettingsError, match="disturbances.coulomb must have length 6, got 2"):
         control.execute(GENTLE, disturbances=control.Disturbances(coulomb=[1.0, 2.0]))
     with pytest.raises(SettingsError, match="unknown key 'kp'"):
         _core.SpatulaSimulation(str(genplan.robots.robots_dir()), "ur5", {"controller": {"kp": 1.0}})
@@ -148,10 +151,12 @@ def test_bad_configuration_raises():
 def test_singularity_mid_run_is_damped_and_reported():
     """Reaching sideways to the edge of the UR5's workspace on its elbow-up branch (y = 0.672 m;
     the branch ends at 0.6727 m, where the elbow is straight): the task Jacobian becomes
-    singular, the inverse is damped, the run completes and reports the damped ticks."""
+    singular, the inverse is damped, the run completes and reports the damped ticks (and the
+    elbow's speed just over its rated 3.15 rad/s near the singularity)."""
     arm = control.SpatulaArm(settle=0.0, controller=control.ControllerConfig(singular_det=1e-2))
     traj = s_curve([0.6, 0.0, 0.0], [0.672, 0.0, 0.0])
-    log = arm.execute(traj)
+    with pytest.warns(control.LimitWarning, match="'elbow_joint' exceeds its velocity limit"):
+        log = arm.execute(traj)
     s = log.summary
     assert s["min_abs_det_j"] < 1e-3
     assert s["damped_ticks"] > 0 and s["first_damped_time"] is not None
@@ -184,3 +189,94 @@ def test_deceleration_tail():
     assert np.array_equal(control.deceleration_tail(x, 0.0), x)
     with pytest.raises(SettingsError, match="duration"):
         control.deceleration_tail(x, -0.1)
+
+
+# ---------------------------------------------------------------------------------------------
+# configuration values and joint limits (issue [hardening], kind 6)
+# ---------------------------------------------------------------------------------------------
+
+C, D, S = control.ControllerConfig, control.Disturbances, control.SpatulaSetup
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    ({"controller": C(dt=0.0)}, "controller.dt"),
+    ({"controller": C(dt=-1e-3)}, "controller.dt"),
+    ({"controller": C(dt=math.nan)}, "controller.dt"),
+    ({"controller": C(dt=math.inf)}, "controller.dt"),
+    ({"controller": C(dob_cutoff_hz=0.0)}, "controller.dob_cutoff_hz"),
+    ({"controller": C(dob_cutoff_hz=-2.0)}, "controller.dob_cutoff_hz"),
+    ({"controller": C(gains=control.Gains(kpp=-450.0))}, "controller.gains.kpp"),
+    ({"controller": C(gains=control.Gains(kvr=math.nan))}, "controller.gains.kvr"),
+    ({"controller": C(max_damping=-0.1)}, "controller.max_damping"),
+    ({"controller": C(torque_limit=[100.0] * 5 + [-1.0])}, "controller.torque_limit"),
+    ({"disturbances": D(payload_mass=-0.3)}, "disturbances.payload_mass"),
+    ({"disturbances": D(payload_mass=101.0)}, "disturbances.payload_mass"),
+    ({"disturbances": D(payload_mass=math.inf)}, "disturbances.payload_mass"),
+    ({"disturbances": D(payload_com=[0.0, 0.0, 5.0])}, "disturbances.payload_com"),
+    ({"disturbances": D(viscous=[-1.0] * 6)}, "disturbances.viscous"),
+    ({"disturbances": D(friction_velocity=0.0)}, "disturbances.friction_velocity"),
+    ({"setup": S(spatula_mass=500.0)}, "setup.spatula_mass"),
+    ({"setup": S(spatula_length=-0.1)}, "setup.spatula_length"),
+    ({"pancake": control.PancakeConfig(blade_half_length=0.0)}, "pancake.blade_half_length"),
+    ({"limits": control.JointLimits(torque=[150.0] * 5)}, "limits.torque"),
+    ({"limits": control.JointLimits(velocity=[3.0] * 5 + [0.0])}, "limits.velocity"),
+    ({"limits": control.JointLimits(velocity=[math.nan] * 6)}, "limits.velocity"),
+])
+def test_bad_configuration_values_raise_settings_errors_naming_the_field(kwargs, field):
+    """Checked once, by the native core, before anything runs (SpatulaArm's constructor)."""
+    with pytest.raises(SettingsError, match=rf"^settings: {field.replace('.', r'[.]')} "):
+        control.SpatulaArm(**kwargs)
+    with pytest.raises(SettingsError, match=field.replace(".", "[.]")):
+        control.execute(GENTLE, **kwargs)
+
+
+def test_a_config_value_of_the_wrong_type_names_the_field():
+    with pytest.raises(SettingsError, match="config.controller: 'dt'"):
+        control.SpatulaArm(controller=C(dt="1ms"))  # type: ignore[arg-type]
+
+
+def test_default_joint_limits_are_the_urdfs(ur5):
+    """The limits every run is checked against are the URDF's, as Pinocchio reads them."""
+    limits = control.SpatulaArm(settle=0.0).limits
+    assert np.array_equal(limits["torque"], ur5.model.effortLimit)
+    assert np.array_equal(limits["velocity"], ur5.model.velocityLimit)
+    assert limits["torque"].tolist() == [150.0, 150.0, 150.0, 28.0, 28.0, 28.0]
+    own = control.SpatulaArm(settle=0.0, limits=control.JointLimits(velocity=[1.0] * 6)).limits
+    assert own["velocity"].tolist() == [1.0] * 6 and np.array_equal(own["torque"], ur5.model.effortLimit)
+
+
+#: the issue's unsafe trajectory: the command jumps 30 cm sideways after 0.2 s
+JUMP = np.zeros((400, 3))
+JUMP[200:, 0] = 0.3
+
+
+def test_a_30_cm_jump_is_flagged_and_warned_about():
+    with pytest.warns(control.LimitWarning, match="exceeded the arm's joint limits") as record:
+        log = control.execute(JUMP, settle=0.2)
+    assert record[0].filename == __file__  # the warning points at the caller
+    assert log.exceeded_limits
+    v = log.limit_violation
+    assert v is not None and v["joint"] == "shoulder_pan_joint" and v["quantity"] == "torque"
+    assert v["time"] == pytest.approx(0.4) and v["tick"] == 400 and log.t[v["tick"]] == pytest.approx(v["time"])
+    assert abs(v["value"]) > 1e4 and v["limit"] == 150.0 and v["unit"] == "N m"
+    assert abs(v["value"]) == pytest.approx(abs(log.tau[v["tick"], 0]))
+    assert log.summary["limit_ticks"] > 1 and max(log.summary["max_abs_v"]) > 3.2
+    assert v["message"] in str(record[0].message)
+
+
+def test_strict_refuses_the_jump_naming_the_joint_time_and_limit():
+    with pytest.raises(LimitExceededError, match=r"^trajectory refused \(strict=True\): joint 'shoulder_pan_joint' exceeds "
+                                                 r"its torque limit at t = 0.400 s: \|torque\| = \d+ N m > 150 N m$"):
+        control.execute(JUMP, settle=0.2, strict=True)
+    # a speed limit of one's own, torque unchecked
+    limits = control.JointLimits(torque=[math.inf] * 6, velocity=[0.5] * 6)
+    with pytest.raises(LimitExceededError, match=r"exceeds its velocity limit at t = 0.4\d\d s: .* > 0.500 rad/s"):
+        control.SpatulaArm(settle=0.2, limits=limits).execute(JUMP, strict=True)
+
+
+def test_a_gentle_move_is_within_the_limits_strict_or_not(reference_runs):
+    assert not reference_runs["dob"].exceeded_limits and reference_runs["dob"].limit_violation is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", control.LimitWarning)
+        log = control.execute(GENTLE, settle=0.2, strict=True)
+    assert not log.exceeded_limits and log.summary["limit_ticks"] == 0

@@ -155,11 +155,14 @@ def test_model_file_error(panda: genplan.Robot, talos: genplan.Robot, tmp_path) 
 def shelf(panda: genplan.Robot):
     env = environment("panda_shelf")
     world = env.world(panda)
-    free = panda.q_default
+    planner = Planner(panda, world=world)
+    # the planner refuses a start or goal off its manifold before it checks validity: both are on it
+    free = env.queries(panda, n=1, seed=0)[0].start
     folded = free.copy()
     folded[1], folded[3] = 1.7, -0.1  # the arm folded into the table
+    folded = planner.projector.solve(folded).q
     assert not world.in_collision(free) and world.in_collision(folded)
-    return Planner(panda, world=world), free, folded
+    return planner, free, folded
 
 
 def test_invalid_start_and_goal_errors(shelf) -> None:
@@ -179,7 +182,7 @@ def test_callback_error(shelf) -> None:
 
     # native core: a Python sampler called back from the Rust planner
     with pytest.raises(CallbackError, match=r"sampler.sample\(n\): expected shape \(16, 7\)"):
-        planner.plan(free, free[None] + 0.1, sampler=WrongShape())
+        planner.plan(free, planner.projector.solve(free + 0.1).q[None], sampler=WrongShape())
     # Python front end: an objective of the latent adjustment that returns one value, not one per problem
     from genplan.pancake.adjustment import adjust
     from genplan.pancake.trajectories import s_curve

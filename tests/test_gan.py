@@ -1,18 +1,23 @@
 """genplan.gan: data, training mechanics, model files (safetensors + card), samplers, the shipped
 models."""
 
+import copy
+import dataclasses
 import json
+import re
 
 import numpy as np
 import pytest
+import torch
 
 import genplan
 from genplan import projection as P
 from genplan.cli import main
-from genplan.errors import GenplanError, ModelFileError, SettingsError, ShapeError
+from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError, ShapeError
 from genplan.gan import data as gan_data
-from genplan.gan.model import default_config, load_model, models_dir, train
+from genplan.gan.model import TARGET_MARGIN, default_config, load_model, models_dir, train
 from genplan.gan.sampler import GanSampler
+from tests.model_file_cases import common_cases, tamper
 
 
 @pytest.fixture(scope="module")
@@ -74,14 +79,143 @@ def test_model_file_errors(tiny_panda_model, panda: genplan.Robot, talos: genpla
     weights.write_bytes(weights.read_bytes()[:-10])  # truncated
     with pytest.raises(ModelFileError, match="does not match its card"):
         load_model(panda, weights)
+    tamper(weights)  # the card now vouches for the truncated file: it does not load
+    with pytest.raises(ModelFileError, match="is corrupt"):
+        load_model(panda, weights)
     data = json.loads(card.read_text())
-    data.pop("weights_sha256")
+    data.pop("weights_sha256")  # before: no hash skipped the check; now it is refused
     card.write_text(json.dumps(data))
-    with pytest.raises(ModelFileError, match="corrupt"):
+    with pytest.raises(ModelFileError, match=r"lacks \['weights_sha256'\]: the weights cannot be vouched for"):
         load_model(panda, weights)
     card.write_text("{not json")
     with pytest.raises(ModelFileError, match="card .* is corrupt"):
         load_model(panda, weights)
+
+
+GAN_CASES = common_cases("generator.weight.0") + [
+    ("other_robot", lambda c: c["config"].update(robot="talos"), None, True, "is a GAN for 'talos', not 'panda'"),
+    ("card_robot", lambda c: c.update(robot="talos"), None, True, "metadata says robot 'panda', its card 'talos'"),
+    ("missing_config_key", lambda c: c["config"].pop("n_net"), None, True, r"missing key\(s\) \['n_net'\]"),
+    ("config_type", lambda c: c["config"].update(n_net="3"), None, True, "n_net must be int, got '3'"),
+    ("config_nan", lambda c: c["config"].update(w_target=float("nan")), None, True, "w_target must be a finite float"),
+    ("config_value", lambda c: c["config"].update(noise_dim=0), None, True, "GanConfig.noise_dim must be a positive"),
+    ("config_box", lambda c: c["config"].update(target_box=[[1, 1, 1], [0, 0, 0]]), None, True, "target_box"),
+    ("config_shape", lambda c: c["config"].update(n_net=4), None, True, r"misshapen tensor\(s\)"),
+    ("target_frame", lambda c: c["config"].update(target_frame="nose"), None, True, "target frame 'nose'"),
+    ("codec_scale", None, lambda t: t["codec.std"].__setitem__(0, 0.0), True, "codec.std holds a scale <= 0"),
+]
+
+
+@pytest.mark.parametrize("case, card_change, tensor_change, rehash, message", GAN_CASES, ids=[c[0] for c in GAN_CASES])
+def test_loader_refuses_what_it_cannot_vouch_for(tiny_panda_model, panda: genplan.Robot, tmp_path, case,
+                                                 card_change, tensor_change, rehash, message) -> None:
+    """Before: a card without weights_sha256 skipped the hash check and NaN weights loaded; a bad
+    card could raise KeyError/TypeError. Now: one ModelFileError naming the file and the problem."""
+    weights, _ = tiny_panda_model.save(tmp_path / f"{case}.safetensors")
+    load_model(panda, weights)  # the untampered file loads
+    tamper(weights, card_change, tensor_change, rehash)
+    with pytest.raises(ModelFileError, match=message) as info:
+        load_model(panda, weights)
+    assert f"{case}.safetensors" in str(info.value) or f"{case}.json" in str(info.value)
+
+
+def _copy(model):
+    """The model with its own generator and card (the robot is shared)."""
+    return dataclasses.replace(model, generator=copy.deepcopy(model.generator), card=copy.deepcopy(model.card))
+
+
+def test_what_cannot_be_loaded_is_not_written(tiny_panda_model, tmp_path) -> None:
+    model = _copy(tiny_panda_model)
+    with torch.no_grad():
+        model.generator.biases[1][0, 0, 0] = float("nan")
+    with pytest.raises(ModelFileError, match="cannot write GAN model .* tensor generator.bias.1 holds NaN"):
+        model.save(tmp_path / "nan.safetensors")
+    model = _copy(tiny_panda_model)
+    model.card["bogus"] = 1
+    with pytest.raises(ModelFileError, match=r"card keys \['bogus'\] are not part of a GAN card"):
+        model.save(tmp_path / "key.safetensors")
+    assert not list(tmp_path.iterdir())
+
+
+def test_config_is_validated_before_work() -> None:
+    for field, value in (("iterations", -1), ("n_net", 0), ("seed", -1), ("lr_gen", 0.0), ("w_target", float("inf"))):
+        with pytest.raises(SettingsError, match=f"GanConfig.{field} must be"):
+            default_config("panda", **{field: value})
+
+
+def test_shipped_cards_vouch_for_their_weights() -> None:
+    import hashlib
+
+    for name in ("panda", "talos"):
+        path = models_dir() / f"{name}_gan.safetensors"
+        card = json.loads(path.with_suffix(".json").read_text())
+        assert card["weights_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_sample_for_refuses_targets_it_cannot_vouch_for(tiny_panda_model, panda: genplan.Robot) -> None:
+    """Before: a target of 1e200 gave all-NaN configurations (float32 overflow), 1e6 gave joint
+    angles of 1e6 rad. Now: targets are validated up front, farther than TARGET_MARGIN outside
+    the model's target box are refused (not clipped), naming the row."""
+    gan = GanSampler(panda, tiny_panda_model, seed=0)
+    lim = tiny_panda_model.target_limits()
+    box = np.asarray(tiny_panda_model.config.target_box)
+    np.testing.assert_allclose(lim, [box[0] - TARGET_MARGIN, box[1] + TARGET_MARGIN])
+    ok = np.array([box[0] - 0.9 * TARGET_MARGIN, box[1] + 0.9 * TARGET_MARGIN, [0.3, 0.0, 0.5]])
+    assert np.all(np.isfinite(gan.sample_for(ok)))
+    with pytest.raises(GenplanError, match=re.escape("targets: row 1 [1e+200, 0.0, 0.5] lies outside the region")):
+        gan.sample_for([[0.3, 0.0, 0.5], [1e200, 0.0, 0.5]])
+    with pytest.raises(GenplanError, match="row 0 .* lies outside"):
+        gan.sample_for([box[1] + [1.1 * TARGET_MARGIN, 0, 0]])
+    with pytest.raises(NonFiniteError, match=r"row 1 is not"):
+        gan.sample_for([[0.3, 0.0, 0.5], [np.nan, 0.0, 0.5]])
+    with pytest.raises(ShapeError, match=r"shape \(n, 3\)"):
+        gan.sample_for(np.zeros(3))
+    with pytest.raises(ShapeError, match="cannot be read"):
+        gan.sample_for([["a", "b", "c"]])
+    assert gan.sample_for(np.zeros((0, 3))).shape == (0, 7)
+    with pytest.raises(GenplanError, match="box: row 1 .* lies outside"):
+        GanSampler(panda, tiny_panda_model, box=[[0, 0, 0], [5, 0, 0]])
+    with pytest.raises(SettingsError, match="n must be a non-negative integer"):
+        gan.sample(-1)
+    with pytest.raises(GenplanError, match="box: row 1 .* lies outside"):
+        tiny_panda_model.native_sampler(box=[[0, 0, 0], [5, 0, 0]])
+
+
+def test_non_finite_samples_raise(tiny_panda_model, panda: genplan.Robot) -> None:
+    """An in-memory model whose weights overflow: the torch sampler names the target row, the
+    native one is refused before sampling (its output is bounded by interval arithmetic)."""
+    model = _copy(tiny_panda_model)
+    with torch.no_grad():
+        for w in model.generator.weights:
+            w.mul_(1e25)
+    with pytest.raises(NonFiniteError, match=r"GAN sample for target row 0 \[0.3, 0.0, 0.5\] is not finite"):
+        model.sample([[0.3, 0.0, 0.5]], 0)
+    # natively (float64) those weights still give finite samples
+    assert np.all(np.isfinite(GanSampler(panda, model).native(seed=0).sample(50)))
+    # a deep generator of huge float32 weights overflows float64 too: refused before sampling
+    from genplan.gan.model import EnsembleGenerator
+
+    deep = dataclasses.replace(model.config, gen_hidden=(16,) * 10)
+    gen = EnsembleGenerator(deep.n_net, deep.noise_dim + 3, deep.gen_hidden, 7)
+    with torch.no_grad():
+        for w in gen.weights:
+            w.fill_(1e30)
+    deep_model = dataclasses.replace(model, config=deep, generator=gen)
+    with pytest.raises(NonFiniteError, match="not bounded in float64"):
+        GanSampler(panda, deep_model).native()
+    with pytest.raises(NonFiniteError, match="target row 0"):
+        deep_model.sample([[0.3, 0.0, 0.5]])
+    nan_codec = _copy(tiny_panda_model)
+    nan_codec.codec = copy.copy(nan_codec.codec)
+    nan_codec.codec.mean = nan_codec.codec.mean.clone()
+    nan_codec.codec.mean[0] = float("nan")  # the native core does not check the codec: Python does
+    with pytest.raises(NonFiniteError, match="not bounded in float64"):
+        nan_codec.native_sampler()
+    # the bound holds for the real model: native samples stay inside it
+    bound = tiny_panda_model.feature_bound()
+    assert np.isfinite(bound)
+    native = tiny_panda_model.native_sampler(seed=1)
+    assert np.abs(native.sample(2000)).max() <= bound
 
 
 def test_samplers(tiny_panda_model, panda: genplan.Robot) -> None:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from genplan.errors import CallbackError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
+from genplan.errors import CallbackError, GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.pancake import physics as ph
 from genplan.pancake.adjustment import J1, J2, PAPER_LR, J2Executable, adjust, default_lr, normal_acceleration
 from genplan.pancake.model import Seq2SeqModel, load_model
@@ -203,3 +203,34 @@ def test_bad_inputs_get_clear_errors(model, x_in) -> None:
         adjust(x_in, updates=2, snapshots=(5,), model=model)
     with pytest.raises(NonFiniteError, match="J2 parameters must be finite"):
         J2(p_lim=float("nan"))
+
+
+def test_inputs_beyond_float32_are_refused_up_front(model, x_in) -> None:
+    """Before: x_in or p_end of 1e200 (finite in float64, inf in float32) failed with "the
+    objective became NaN ... lower lr". Now: refused before any work, naming the element."""
+    with pytest.raises(GenplanError, match=r"x_in: element \(0, 0, 0\) is 1e\+200, beyond 10000"):
+        adjust(x_in + [1e200, 0.0, 0.0], model=model)
+    with pytest.raises(GenplanError, match=r"p_end: element \(1, 2\) is 1e\+39, beyond 10000"):
+        adjust(x_in, "j1", p_end=[[0, 0, 0], [0, 0, 1e39], [0, 0, 0]], model=model)
+    with pytest.raises(GenplanError, match="J2 parameters: element .* beyond 10000"):
+        J2(theta_end=1e200)
+
+
+def test_every_decoded_trajectory_is_finite_or_an_error(model, x_in) -> None:
+    """An objective that hides a non-finite trajectory (nan_to_num) no longer returns NaN
+    trajectories: the rollout itself is checked at every update, naming the problem."""
+
+    def blind(r):
+        return torch.nan_to_num(r.p[:, -1, 0], nan=0.0, posinf=0.0, neginf=0.0) ** 2 + 1.0
+
+    with pytest.raises(FloatingPointError, match=r"decoded trajectory of problem 0 became NaN or inf after 1 "
+                                                 r"update\(s\) \(method direct-u, step gd, .*lower lr"):
+        adjust(x_in, blind, "direct-u", 3, lr=1e45, step="gd", model=model)
+    from genplan.pancake.model import Seq2SeqNet
+
+    net = Seq2SeqNet(model.config)
+    net.load_state_dict(model.net.state_dict())
+    with torch.no_grad():
+        net.head.bias[1] = float("nan")
+    with pytest.raises(FloatingPointError, match=r"problem 0 became NaN or inf after 0 update\(s\) \(the model cannot"):
+        adjust(x_in, "j1", "latent", 2, model=Seq2SeqModel(model.config, net))

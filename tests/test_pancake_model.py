@@ -7,13 +7,14 @@ import numpy as np
 import pytest
 import torch
 
-from genplan.errors import ModelFileError, NonFiniteError, SettingsError, ShapeError
+from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError, ShapeError
 from genplan.pancake import physics as ph
 from genplan.pancake.model import (
     FORMAT, Seq2SeqModel, Seq2SeqNet, check_trajectories, default_config, default_path, load_model, nll,
     start_state, train,
 )
 from genplan.pancake.trajectories import s_curve
+from tests.model_file_cases import common_cases, tamper
 
 
 @pytest.fixture(scope="module")
@@ -103,19 +104,87 @@ def test_save_load_round_trip_and_bad_files(model: Seq2SeqModel, tmp_path) -> No
     bad.with_suffix(".json").write_text(c.read_text())
     with pytest.raises(ModelFileError, match="does not match its card"):
         load_model(bad)
-    card = json.loads(c.read_text())
-    card.pop("weights_sha256")
-    bad.with_suffix(".json").write_text(json.dumps(card))
+    tamper(bad)  # a card that vouches for a file that is not safetensors
     with pytest.raises(ModelFileError, match="is corrupt"):
+        load_model(bad)
+    card = json.loads(c.read_text())
+    card.pop("weights_sha256")  # before: no hash skipped the check; now it is refused
+    bad.with_suffix(".json").write_text(json.dumps(card))
+    with pytest.raises(ModelFileError, match=r"bad.json lacks \['weights_sha256'\]"):
         load_model(bad)
     bad.with_suffix(".json").write_text("{broken")
     with pytest.raises(ModelFileError, match="card .* is corrupt"):
         load_model(bad)
     # weights that do not fit the card's architecture
-    card["config"]["hidden"] = 32
-    w.with_suffix(".json").write_text(json.dumps(card))
-    with pytest.raises(ModelFileError, match="does not fit its card"):
+    tamper(w, lambda c: c["config"].update(hidden=32))
+    with pytest.raises(ModelFileError, match=r"does not fit its card: misshapen tensor\(s\)"):
         load_model(w)
+
+
+@pytest.fixture(scope="module")
+def tiny_model() -> Seq2SeqModel:
+    """An untrained small model (hidden 8): what the loader tests save and tamper with."""
+    torch.manual_seed(0)
+    cfg = default_config(hidden=8)
+    return Seq2SeqModel(cfg, Seq2SeqNet(cfg), {"description": "tiny test model"})
+
+
+SEQ_CASES = common_cases("encoder.weight_ih_l0") + [
+    ("missing_config_key", lambda c: c["config"].pop("hidden"), None, True, r"missing key\(s\) \['hidden'\]"),
+    ("config_type", lambda c: c["config"].update(hidden="8"), None, True, "hidden must be int, got '8'"),
+    ("config_tuple", lambda c: c["config"].update(u_scale=[1.0, 2.0]), None, True, "u_scale must have 3 values"),
+    ("config_nan", lambda c: c["config"].update(dt=float("nan")), None, True, "dt must be a finite float"),
+    ("config_value", lambda c: c["config"].update(decoder_stride=3), None, True, "divisible by decoder_stride"),
+    ("config_range", lambda c: c["config"].update(logvar_max=-20.0), None, True, "logvar_max must be a finite number"),
+    ("config_shape", lambda c: c["config"].update(hidden=16), None, True, r"misshapen tensor\(s\)"),
+]
+
+
+@pytest.mark.parametrize("case, card_change, tensor_change, rehash, message", SEQ_CASES, ids=[c[0] for c in SEQ_CASES])
+def test_loader_refuses_what_it_cannot_vouch_for(tiny_model: Seq2SeqModel, tmp_path, case, card_change, tensor_change,
+                                                 rehash, message) -> None:
+    """Every way a seq2seq file cannot be vouched for: one ModelFileError naming the file."""
+    w, _ = tiny_model.save(tmp_path / f"{case}.safetensors")
+    load_model(w)  # the untampered file loads
+    tamper(w, card_change, tensor_change, rehash)
+    with pytest.raises(ModelFileError, match=message) as info:
+        load_model(w)
+    assert f"{case}.safetensors" in str(info.value) or f"{case}.json" in str(info.value)
+
+
+def test_what_cannot_be_loaded_is_not_written(tiny_model: Seq2SeqModel, tmp_path) -> None:
+    net = Seq2SeqNet(tiny_model.config)
+    net.load_state_dict(tiny_model.net.state_dict())
+    with torch.no_grad():
+        net.head.bias[0] = float("inf")
+    with pytest.raises(ModelFileError, match="cannot write seq2seq model .* tensor head.bias holds NaN or inf"):
+        Seq2SeqModel(tiny_model.config, net).save(tmp_path / "inf.safetensors")
+    with pytest.raises(ModelFileError, match=r"card keys \['bogus'\] are not part of a seq2seq card"):
+        Seq2SeqModel(tiny_model.config, tiny_model.net, {"bogus": 1}).save(tmp_path / "key.safetensors")
+    assert not list(tmp_path.iterdir())
+
+
+def test_shipped_card_vouches_for_its_weights() -> None:
+    import hashlib
+
+    card = json.loads(default_path().with_suffix(".json").read_text())
+    assert card["weights_sha256"] == hashlib.sha256(default_path().read_bytes()).hexdigest()
+
+
+def test_deform_refuses_what_it_cannot_vouch_for(model: Seq2SeqModel, tiny_model: Seq2SeqModel) -> None:
+    """Before: an input offset by 1e200 (finite in float64, inf in the model's float32) deformed
+    to NaN without an error. Now: poses beyond MAX_ABS are refused up front, and a non-finite
+    deformation raises, naming the input."""
+    x = s_curve(np.zeros(3), [0.1, 0.0, -1.0])
+    with pytest.raises(GenplanError, match=r"x_in: element \(0, 0, 0\) is 1e\+200, beyond 10000"):
+        model.deform(x + [1e200, 0.0, 0.0])
+    assert np.all(np.isfinite(model.deform(x + [5e3, 0.0, 0.0])["p"]))
+    net = Seq2SeqNet(tiny_model.config)
+    net.load_state_dict(tiny_model.net.state_dict())
+    with torch.no_grad():
+        net.head.bias[0] = float("nan")  # an in-memory model gone bad (a file like it is refused)
+    with pytest.raises(FloatingPointError, match=r"the deformation of x_in\[0\] is not finite"):
+        Seq2SeqModel(tiny_model.config, net).deform(x)
 
 
 def test_input_checks() -> None:

@@ -4,10 +4,6 @@ called back from Rust, exceptions and Ctrl-C, bad input."""
 
 from __future__ import annotations
 
-import os
-import signal
-import threading
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -18,6 +14,7 @@ from genplan import projection as P
 from genplan.errors import (CallbackError, GenplanError, InvalidGoalError, InvalidStartError, NonFiniteError, SettingsError,
                             ShapeError, UnknownNameError)
 from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler, uniform_base_box
+from tests.interrupt import MAX_LATENCY_S, ctrl_c_latency
 
 
 @pytest.fixture(scope="module")
@@ -189,26 +186,32 @@ def test_an_exception_in_a_callback_reaches_the_caller_unchanged(panda, shelf) -
         def project(self, qs, q_noms):
             return qs
 
-    with pytest.raises(TypeError, match="must return"):
+    with pytest.raises(CallbackError, match=r"projector.project\(qs, q_noms\) must return \(q, success\) or "
+                                            r"\(q, success, iterations\), got ndarray"):
         Planner(panda, world=world, projector=BadProjector()).plan(queries[0].start, queries[0].goals)
 
 
 def test_ctrl_c_interrupts_a_long_native_plan(panda, shelf) -> None:
     env, world, queries = shelf
-    # a constraint no sample can meet (the hand 3 m away): the planner would keep sampling
-    task = P.Task(primary=[P.FramePosition(name="far", frame="hand", target=(3.0, 0.0, 0.0), weight=1, tolerance=1e-3)])
-    planner = Planner(panda, world=world, task=task, settings=PlannerSettings(max_empty_batches=10**9))
-    # Python's own Ctrl-C handler, whatever the runner inherited (a shell without job control
-    # starts background jobs with SIGINT ignored, and then the signal would never arrive)
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
-    timer.start()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            planner.plan(queries[0].start, queries[0].goals)
-    finally:
-        timer.cancel()
-        signal.signal(signal.SIGINT, previous)
+    # every extension stops at once (any step is a "jump"): the planner would keep sampling for
+    # 10^9 iterations
+    planner = Planner(panda, world=world, settings=PlannerSettings(max_jump=1e-9, max_extensions=10**9))
+    assert ctrl_c_latency(lambda: planner.plan(queries[0].start, queries[0].goals), after=0.5) < MAX_LATENCY_S
+
+
+@pytest.mark.parametrize("kind", ["uniform", "gan"])
+def test_native_samplers_draw_the_same_stream_in_any_batch_size(panda, kind) -> None:
+    """Large draws run in chunks (Ctrl-C is checked between them) without changing the stream."""
+    once = make_sampler(panda, kind, seed=5).sample(2000)
+    sampler = make_sampler(panda, kind, seed=5)
+    pieces = np.vstack([sampler.sample(n) for n in (1, 0, 999, 1000)])
+    np.testing.assert_array_equal(once, pieces)
+
+
+def test_ctrl_c_interrupts_a_long_native_sampling(panda) -> None:
+    """Within 0.5 s of the signal (uninterrupted: about 5 s on an idle 2-core machine)."""
+    gan = make_sampler(panda, "gan", seed=0)
+    assert ctrl_c_latency(lambda: gan.sample(300_000)) < MAX_LATENCY_S
 
 
 def test_bad_input_is_a_clear_error(panda, shelf) -> None:
@@ -223,6 +226,7 @@ def test_bad_input_is_a_clear_error(panda, shelf) -> None:
         planner.plan(q, goals[:, :5])
     colliding = q.copy()
     colliding[1], colliding[3] = 1.7, -0.1  # the arm folded into the table
+    colliding = planner.projector.solve(colliding).q  # on the manifold
     assert world.in_collision(colliding)
     with pytest.raises(InvalidStartError, match="start: the configuration is not valid"):
         planner.plan(colliding, goals)
@@ -240,6 +244,107 @@ def test_bad_input_is_a_clear_error(panda, shelf) -> None:
         PlannerSettings(stepp=0.2)
     with pytest.raises(SettingsError, match=r"p must be in \[0, 1\]"):
         _core.MixtureSampler(make_sampler(panda), make_sampler(panda), 1.5)
+
+
+def _violation(robot: genplan.Robot, q: np.ndarray) -> float:
+    """The largest primary residual of the paper's projection task at q, over its tolerance."""
+    task = P.paper_task(robot, "projection")
+    st = P._State(robot, q, False)
+    return max(float(np.abs(r).max()) / t.tolerance
+               for t in task.primary if (r := t.bind(robot).residual(st)).size)
+
+
+def test_start_and_goals_off_the_manifold_are_refused(panda, shelf) -> None:
+    """Issue 15, kind 1: goals collision-free but off the manifold (joint 6 shifted by 0.3) gave
+    success=True with a last state 211x over the orientation tolerance; a start off it failed
+    silently after the whole budget. Each is refused before the search, naming which and why."""
+    env, world, queries = shelf
+    q = queries[0]
+    planner = Planner(panda, world=world, sampler="gan", seed=0)
+    one_off = q.goals.copy()
+    one_off[3, 5] -= 0.3
+    assert not world.in_collision(one_off[3]) and _violation(panda, one_off[3]) > 100
+    # refused even though the other goals are fine: such a goal was not made for this constraint
+    with pytest.raises(InvalidGoalError, match=r"^goals\[3\]: not on the constraint manifold: the projector moved it by "
+                                               r"0\.[0-9]+ \(goal_tolerance 0\.001\)$"):
+        planner.plan(q.start, one_off)
+    all_off = q.goals.copy()
+    all_off[:, 5] -= 0.3
+    with pytest.raises(InvalidGoalError, match=r"^goals\[0\]: .*; also off it: goals\[1\], goals\[2\], .*, goals\[9\]$"):
+        planner.plan(q.start, all_off)
+    start = q.start.copy()
+    start[5] -= 0.3
+    with pytest.raises(InvalidStartError, match=r"^start: not on the constraint manifold: the projector moved it by"):
+        planner.plan(start, q.goals)
+    # a projector that cannot move anything (no iterations): an input off the manifold cannot
+    # be projected at all
+    stiff = P.GaussNewtonProjector(panda, P.paper_task(panda, "projection").with_tolerances_scaled(0.1),
+                                   P.SolverSettings(max_iterations=0))
+    with pytest.raises(InvalidGoalError, match=r"^goals\[3\]: not on the constraint manifold: the projector could not project it$"):
+        Planner(panda, world=world, projector=stiff).plan(q.start, one_off)
+    # a start and goals on the manifold are used exactly as given
+    res = planner.plan(q.start, q.goals)
+    assert res.success
+    np.testing.assert_array_equal(res.path[0], q.start)
+    np.testing.assert_array_equal(res.path[-1], q.goals[res.goal_index])
+
+
+def test_start_and_goals_within_goal_tolerance_of_the_manifold_are_projected(panda, shelf) -> None:
+    """Off the manifold by less than goal_tolerance: planned from and to their projections, so
+    that every state of the path, its ends included, satisfies the constraint."""
+    env, world, queries = shelf
+    q = queries[1]
+    start, goals = q.start.copy(), q.goals.copy()
+    start[5] += 6e-4
+    goals[:, 5] -= 6e-4
+    assert _violation(panda, start) > 1 and min(_violation(panda, g) for g in goals) > 1
+    res = Planner(panda, world=world, sampler="gan", seed=0).plan(start, goals)
+    assert res.success
+    for end, given in ((res.path[0], start), (res.path[-1], goals[res.goal_index])):
+        assert 0 < np.linalg.norm(pin.difference(panda.model, given, end)) <= PlannerSettings().goal_tolerance
+    assert max(_violation(panda, x) for x in res.path) < 1
+    assert not np.any(world.in_collision(res.path))
+
+
+class _Answers:
+    """A validity checker that answers every configuration with the same value."""
+
+    def __init__(self, value, dtype=None) -> None:
+        self.value, self.dtype = value, dtype
+
+    def is_valid(self, qs: np.ndarray):
+        return np.full(len(qs), self.value, dtype=self.dtype)
+
+
+@pytest.mark.parametrize("value, shown", [(np.nan, "returned NaN at index 0"), (0.5, "returned 0.5 at index 0"),
+                                          (2.0, "returned 2 at index 0"), (-1, "returned -1 at index 0"),
+                                          ("yes", "returned an array of dtype <U3"), (None, "returned an array of dtype object")])
+def test_a_checker_must_answer_with_booleans(panda, shelf, value, shown) -> None:
+    """Issue 15, kind 1: a checker returning NaN, 0.5 or 2.0 was read as "valid"."""
+    env, world, queries = shelf
+    planner = Planner(panda, world=world, checker=_Answers(value))
+    with pytest.raises(CallbackError, match=rf"^checker\.is_valid\(qs\): {shown}; expected booleans \(or 0 / 1\)$"):
+        planner.plan(queries[0].start, queries[0].goals)
+
+
+@pytest.mark.parametrize("value, dtype", [(True, bool), (1, np.int64), (1.0, np.float64), (1, np.uint8)])
+def test_a_checker_may_answer_with_zeros_and_ones(panda, shelf, value, dtype) -> None:
+    env, world, queries = shelf
+    res = Planner(panda, world=world, checker=_Answers(value, dtype), seed=1).plan(queries[0].start, queries[0].goals)
+    assert res.success
+
+
+def test_a_projector_must_report_success_with_booleans(panda, shelf) -> None:
+    env, world, queries = shelf
+    inner = PythonProjector(panda)
+
+    class Unsure:
+        def project(self, qs, q_noms):
+            q, ok, _ = inner.project(qs, q_noms)
+            return q, np.where(ok, 0.5, 0.0)
+
+    with pytest.raises(CallbackError, match=r"^projector\.project: success: returned 0\.5 at index 0; expected booleans"):
+        Planner(panda, world=world, projector=Unsure()).plan(queries[0].start, queries[0].goals)
 
 
 def test_native_samplers(panda, talos) -> None:

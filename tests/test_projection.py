@@ -11,6 +11,7 @@ import genplan
 from genplan import projection as P
 from genplan.errors import GenplanError, NonFiniteError, ShapeError, UnknownNameError
 from tests.conftest import random_configurations
+from tests.interrupt import MAX_LATENCY_S, ctrl_c_latency
 
 
 def _fd_jacobian(robot, bound, q, eps=1e-7):
@@ -133,6 +134,32 @@ def test_ik_reaches_targets_given_per_row(panda: genplan.Robot) -> None:
     assert res.success.mean() > 0.6
     for q, t in zip(res.q[res.success], targets[res.success]):
         assert np.abs(panda.frame_placement(q, "hand").translation - t).max() < 1e-3
+
+
+def test_large_batches_solve_each_row_with_its_own_target(panda: genplan.Robot) -> None:
+    """Batches run in chunks (Ctrl-C is checked between them): each row keeps its own start and
+    target, whatever chunk it falls in."""
+    task = P.panda_task("ik")
+    rng = np.random.default_rng(2)
+    q0 = panda.random_configurations(600, rng)
+    targets = rng.uniform(P.PANDA_IK_BOX[0], P.PANDA_IK_BOX[1], size=(600, 3))
+    res = P.GaussNewtonProjector(panda, task).solve_batch(q0, targets={"hand_position": targets})
+    for i in range(0, 600, 37):
+        one = P.GaussNewtonProjector(panda, task.with_targets(hand_position=targets[i])).solve(q0[i])
+        np.testing.assert_array_equal(one.q, res.q[i])
+        assert one.iterations == res.iterations[i]
+
+
+@pytest.mark.parametrize("targets", [False, True])
+def test_ctrl_c_interrupts_a_long_solve_batch(panda: genplan.Robot, targets: bool) -> None:
+    """Within 0.5 s of the signal. Every row aims at a hand target 3 m away and runs all its
+    iterations: uninterrupted, the batch would take about 6 s on an idle 2-core machine."""
+    task = P.panda_task("ik", target=[3.0, 0.0, 0.5])
+    n = 15_000
+    q0 = random_configurations(panda, n, seed=3)
+    given = {"hand_position": np.tile([3.0, 0.0, 0.5], (n, 1))} if targets else None
+    proj = P.GaussNewtonProjector(panda, task)
+    assert ctrl_c_latency(lambda: proj.solve_batch(q0, targets=given)) < MAX_LATENCY_S
 
 
 @pytest.mark.parametrize("backend", P.BACKENDS)

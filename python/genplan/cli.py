@@ -1,4 +1,12 @@
-"""The ``genplan`` command line."""
+"""The ``genplan`` command line.
+
+Every user error (a bad argument, an output location that cannot be written, a missing or unusable
+input file, any :class:`genplan.errors.GenplanError`) is one line on stderr,
+``genplan: error: ...``, and exit code 2, before the command starts when the arguments alone
+show it. Arguments are checked by the argparse types of :mod:`genplan._cli_args`; outputs are
+checked by :func:`main` once all arguments parsed. Anything else is a bug and keeps its traceback
+(exit code 1).
+"""
 
 from __future__ import annotations
 
@@ -10,6 +18,13 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NoReturn
+
+from genplan._cli_args import UsageError, check_outputs, output_actions
+from genplan.errors import GenplanError
+
+#: errors of the user's making: one line and exit code 2 (OSErrors: on a path the user gave)
+USER_ERRORS = (GenplanError, FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError)
 
 
 def _version(dist: str) -> str:
@@ -70,8 +85,16 @@ COMMANDS: list[tuple[str, str, str, str]] = [
 ]
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argparse parser whose errors are :class:`UsageError` (one line, from :func:`main`)."""
+
+    def error(self, message: str) -> NoReturn:
+        command = self.prog.removeprefix("genplan").strip()
+        raise UsageError(f"{command + ': ' if command else ''}{message} (see `{self.prog} --help`)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="genplan",
         description="Learned, constraint-aware robot motion generation (GAN samplers, constrained "
         "IK and planning, latent trajectory adjustment) with a Rust core.",
@@ -90,17 +113,32 @@ def build_parser() -> argparse.ArgumentParser:
         p = groups[group].add_parser(name, help=help_text, description=mod.__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.add_arguments(p)
-        p.set_defaults(func=mod.main)
+        p.set_defaults(func=mod.main, outputs_=output_actions(p))
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``genplan ARGV``; returns the exit code (2 and one line on stderr for a user error)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
-    if not hasattr(args, "func"):
-        parser.print_help()
+    try:
+        args = parser.parse_args(argv)
+        if not hasattr(args, "func"):
+            parser.print_help()
+            return 2
+        check_outputs(args, getattr(args, "outputs_", []))
+        return int(args.func(args))
+    except USER_ERRORS as exc:
+        print(f"genplan: error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    return int(args.func(args))
+
+
+def _one_line(exc: BaseException) -> str:
+    """The message of ``exc`` on one line (an OSError with its path)."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}"
+    else:
+        text = str(exc) or type(exc).__name__
+    return " ".join(text.split())
 
 
 if __name__ == "__main__":

@@ -23,11 +23,20 @@ Conventions (see ``rust/core/src/control.rs`` for the full statement):
   frame's z axis (the handle, along the UR5 flange axis) points along world +x, the blade normal
   is ``[0, -sin theta, cos theta]`` and ``theta`` tilts the blade about world x;
 * the spatula point is the UR5's ``tool0`` frame moved 0.1 m along its z axis.
+
+Safety: every tick's torque and joint speed are checked against the arm's rated limits (the
+URDF's ``<limit effort velocity>``, or :class:`JointLimits`). A run over them warns
+(:class:`LimitWarning`) and says so in its log (``log.exceeded_limits``,
+``log.limit_violation``: the first tick's time, joint, value and limit); ``strict=True`` refuses
+it with :class:`genplan.errors.LimitExceededError`. Bad configuration values (``dt <= 0``, a
+negative gain, a payload outside [0, 100] kg, ...) raise :class:`genplan.errors.SettingsError`
+naming the field before anything runs.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -36,11 +45,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
 from genplan._arrays import error_class
-from genplan.errors import NonFiniteError, SettingsError, ShapeError
+from genplan.errors import LimitExceededError, NonFiniteError, SettingsError, ShapeError
 
 __all__ = [
-    "Gains", "ControllerConfig", "Disturbances", "SpatulaSetup", "PancakeConfig", "ExecutionLog",
-    "SpatulaArm", "execute", "deceleration_tail", "as_trajectory", "DT",
+    "Gains", "ControllerConfig", "Disturbances", "SpatulaSetup", "PancakeConfig", "JointLimits", "ExecutionLog",
+    "LimitWarning", "SpatulaArm", "execute", "deceleration_tail", "as_trajectory", "DT",
 ]
 
 #: the paper's control period (s)
@@ -63,7 +72,8 @@ class ControllerConfig:
     torque ``h_n(q, v)``; ``velocity_feedforward`` puts the D term on ``v_cmd - v`` (else
     ``-v``); ``acceleration_feedforward`` adds the command's acceleration (the paper does not);
     ``singular_det``: ``|det J|`` (m^3) below which the Jacobian inverse is damped (damping up to
-    ``max_damping``); ``torque_limit``: symmetric limits per joint (N m) or None."""
+    ``max_damping``); ``torque_limit``: symmetric limits per joint (N m) at which the controller
+    clips its torque, or None (the arm's rated limits are checked apart: :class:`JointLimits`)."""
 
     gains: Gains = field(default_factory=Gains)
     dt: float = DT
@@ -142,6 +152,24 @@ class PancakeConfig:
 
 
 @dataclass
+class JointLimits:
+    """The rated limits every tick of a run is checked against, per joint: ``torque`` (N m)
+    and ``velocity`` (rad/s); None takes the robot model's (the URDF's ``<limit effort>`` and
+    ``<limit velocity>``: 150/150/150/28/28/28 N m and 3.15/3.15/3.15/3.2/3.2/3.2 rad/s on the
+    UR5); ``math.inf`` leaves a joint unchecked."""
+
+    torque: list[float] | None = None
+    velocity: list[float] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: None if v is None else [float(x) for x in v] for k, v in asdict(self).items()}
+
+
+class LimitWarning(RuntimeWarning):
+    """A run went over the arm's joint limits (see :attr:`ExecutionLog.limit_violation`)."""
+
+
+@dataclass
 class ExecutionLog:
     """One run, one row per 1 ms tick (the state at the tick's start, the torque it applied).
 
@@ -155,7 +183,8 @@ class ExecutionLog:
     ``normal`` (normal force per unit mass), ``pancake_mode`` (0 stuck, 1 sliding, 2 left the
     spatula), ``slip`` (mode != 0). ``damped``: ticks where the Jacobian was near-singular.
     Ticks ``[motion_start, motion_end)`` are the motion proper (before: settle, after: tail).
-    ``summary``: the Rust summary (errors, slip, timing); ``jitter``: paced runs only (us).
+    ``summary``: the Rust summary (errors, slip, timing, ``max_abs_tau``, ``max_abs_v``, the
+    joint limits' ``limit_violation`` and ``limit_ticks``); ``jitter``: paced runs only (us).
     """
 
     t: NDArray[np.float64]
@@ -214,6 +243,19 @@ class ExecutionLog:
         """Wall time of the loop per tick (us); for a paced run, the period."""
         return float(self.summary["us_per_tick"])
 
+    @property
+    def exceeded_limits(self) -> bool:
+        """Did any tick go over the arm's torque or speed limits (settle and tail included)?"""
+        return self.summary["limit_violation"] is not None
+
+    @property
+    def limit_violation(self) -> dict[str, Any] | None:
+        """The first tick over a joint limit: ``time`` (s from the start of the run), ``tick``,
+        ``joint`` (name), ``quantity`` ("torque" or "velocity"), ``value``, ``limit``, ``unit``
+        and ``message``; None if the run stayed within the limits."""
+        v = self.summary["limit_violation"]
+        return None if v is None else dict(v)
+
 
 def as_trajectory(trajectory: ArrayLike, what: str = "trajectory") -> NDArray[np.float64]:
     """``trajectory`` as a C-contiguous float64 (K, 3) array, K >= 2, finite (else ShapeError or
@@ -252,7 +294,8 @@ def deceleration_tail(trajectory: ArrayLike, duration: float = 0.1, dt: float = 
 
 
 def _config(controller: ControllerConfig | None, disturbances: Disturbances | None, setup: SpatulaSetup | None,
-            pancake: PancakeConfig | None, substeps: int, settle_ticks: int) -> dict[str, Any]:
+            pancake: PancakeConfig | None, substeps: int, settle_ticks: int,
+            limits: JointLimits | None = None) -> dict[str, Any]:
     return {
         "controller": (controller or ControllerConfig()).to_dict(),
         "disturbances": (disturbances or Disturbances()).to_dict(),
@@ -260,16 +303,20 @@ def _config(controller: ControllerConfig | None, disturbances: Disturbances | No
         "pancake": asdict(pancake or PancakeConfig()),
         "substeps": int(substeps),
         "settle_ticks": int(settle_ticks),
+        "limits": (limits or JointLimits()).to_dict(),
     }
 
 
 class SpatulaArm:
     """A simulated arm with the spatula, its controller and the pancake (reusable for many
-    runs). ``robot``: a fixed-base 6-joint preset of :mod:`genplan.robots` ("ur5")."""
+    runs). ``robot``: a fixed-base 6-joint preset of :mod:`genplan.robots` ("ur5"). ``limits``:
+    the joint limits runs are checked against (default: the robot model's). The configuration
+    is checked here (the native core names the bad field in a SettingsError)."""
 
     def __init__(self, *, robot: str = "ur5", controller: ControllerConfig | None = None,
                  disturbances: Disturbances | None = None, setup: SpatulaSetup | None = None,
-                 pancake: PancakeConfig | None = None, substeps: int = 1, settle: float = 1.0) -> None:
+                 pancake: PancakeConfig | None = None, substeps: int = 1, settle: float = 1.0,
+                 limits: JointLimits | None = None) -> None:
         from genplan.robots import robots_dir
 
         controller = controller or ControllerConfig()
@@ -277,8 +324,11 @@ class SpatulaArm:
             raise SettingsError(f"settle must be >= 0 seconds, got {settle}")
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)):
             raise SettingsError(f"substeps must be an integer, got {substeps!r}")
-        settle_ticks = int(round(settle / controller.dt))
-        self.config: dict[str, Any] = _config(controller, disturbances, setup, pancake, substeps, settle_ticks)
+        dt = controller.dt
+        # a bad dt is the core's to refuse (SettingsError naming controller.dt); no ticks then
+        dt_ok = isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0
+        settle_ticks = int(round(settle / dt)) if dt_ok else 0
+        self.config: dict[str, Any] = _config(controller, disturbances, setup, pancake, substeps, settle_ticks, limits)
         self._sim = _core.SpatulaSimulation(str(robots_dir()), robot, self.config)
         self.robot = robot
         self.dt = float(controller.dt)
@@ -286,6 +336,11 @@ class SpatulaArm:
     @property
     def joint_names(self) -> list[str]:
         return self._sim.joint_names
+
+    @property
+    def limits(self) -> dict[str, NDArray[np.float64]]:
+        """The joint limits in force: ``{"torque": (6,), "velocity": (6,)}`` (N m, rad/s)."""
+        return {k: np.asarray(v, dtype=np.float64) for k, v in self._sim.limits.items()}
 
     def command_pose(self, p: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """eq. 23: world position (3,) and rotation (3, 3) commanded for a pose [y, z, theta]."""
@@ -303,16 +358,28 @@ class SpatulaArm:
         pose by IK within the joint limits); return the initial joint configuration."""
         return self._sim.check_trajectory(as_trajectory(trajectory))
 
-    def execute(self, trajectory: ArrayLike, *, tail: float = 0.0, paced: bool = False) -> ExecutionLog:
+    def execute(self, trajectory: ArrayLike, *, tail: float = 0.0, paced: bool = False,
+                strict: bool = False, _stacklevel: int = 2) -> ExecutionLog:
         """Run ``trajectory`` (K, 3); ``tail`` > 0 appends :func:`deceleration_tail` of that many
         seconds (outside the motion window). ``paced``: tick on the wall clock every dt and
-        report the jitter. Bad input raises ValueError before the loop starts."""
+        report the jitter. Bad input raises ValueError before the loop starts.
+
+        A run over the joint limits (:attr:`limits`) warns with :class:`LimitWarning` and is
+        flagged in the log; with ``strict=True`` the run stops at the first tick over a limit
+        and :class:`~genplan.errors.LimitExceededError` names the joint, the time and the limit."""
         x = as_trajectory(trajectory)
         k = x.shape[0]
         if tail:
             x = deceleration_tail(x, tail, self.dt)
-        out = self._sim.run(x, motion_len=k, paced=bool(paced))
+        out = self._sim.run(x, motion_len=k, paced=bool(paced), stop_at_limit=bool(strict))
         summary = out.pop("summary")
+        violation = summary["limit_violation"]
+        if violation is not None:
+            if strict:
+                raise LimitExceededError(f"trajectory refused (strict=True): {violation['message']}")
+            warnings.warn(f"the run exceeded the arm's joint limits in {summary['limit_ticks']} ticks, first: "
+                          f"{violation['message']} (see log.limit_violation; strict=True refuses it)",
+                          LimitWarning, stacklevel=_stacklevel)
         jitter = summary.pop("jitter", None)
         return ExecutionLog(summary=summary, jitter=jitter, lateness=out.pop("lateness", None),
                             compute=out.pop("compute", None), **out)
@@ -321,7 +388,8 @@ class SpatulaArm:
 def execute(trajectory: ArrayLike, *, dob: bool = True, disturbances: Disturbances | None = None,
             controller: ControllerConfig | None = None, setup: SpatulaSetup | None = None,
             pancake: PancakeConfig | None = None, tail: float = 0.0, settle: float = 1.0,
-            paced: bool = False, substeps: int = 1, robot: str = "ur5") -> ExecutionLog:
+            paced: bool = False, substeps: int = 1, robot: str = "ur5", limits: JointLimits | None = None,
+            strict: bool = False) -> ExecutionLog:
     """Execute a spatula trajectory (K, 3) of ``[y, z, theta]`` at 1 kHz on the simulated arm.
 
     ``dob``: feed the disturbance observer back (overrides ``controller.dob``).
@@ -329,13 +397,17 @@ def execute(trajectory: ArrayLike, *, dob: bool = True, disturbances: Disturbanc
     the benchmark's set). ``settle``: seconds holding the first pose before the motion (the DOB
     converges; the paper's robot waited 25 s). ``tail``: seconds of constant deceleration after
     the motion (the paper: 0.1). ``paced``: tick on the wall clock and report jitter.
-    ``substeps``: RK4 steps of the plant per tick.
+    ``substeps``: RK4 steps of the plant per tick. ``limits``: the joint limits every tick is
+    checked against (default: the robot model's, from its URDF).
 
     Returns an :class:`ExecutionLog`. A trajectory with the wrong shape, a NaN, or a pose the arm
-    cannot reach raises ValueError naming the row before the loop starts.
+    cannot reach raises ValueError naming the row before the loop starts; a bad configuration
+    value raises SettingsError naming the field. A run over the joint limits warns
+    (:class:`LimitWarning`; ``log.limit_violation`` has the first tick) or, with ``strict=True``,
+    raises :class:`~genplan.errors.LimitExceededError` naming the joint, the time and the limit.
     """
     controller = controller or ControllerConfig()
     controller = ControllerConfig(**{**{f.name: getattr(controller, f.name) for f in fields(controller)}, "dob": bool(dob)})
     arm = SpatulaArm(robot=robot, controller=controller, disturbances=disturbances, setup=setup,
-                     pancake=pancake, substeps=substeps, settle=settle)
-    return arm.execute(trajectory, tail=tail, paced=paced)
+                     pancake=pancake, substeps=substeps, settle=settle, limits=limits)
+    return arm.execute(trajectory, tail=tail, paced=paced, strict=strict, _stacklevel=3)

@@ -22,6 +22,7 @@ __all__ = [
     "GenplanError",
     "InvalidGoalError",
     "InvalidStartError",
+    "LimitExceededError",
     "ModelFileError",
     "NonFiniteError",
     "RobotFileError",
@@ -72,3 +73,9 @@ class InvalidGoalError(GenplanError):
 class CallbackError(GenplanError):
     """A Python sampler, projector or checker called back from the native core returned a value
     of the wrong shape or type."""
+
+
+class LimitExceededError(GenplanError):
+    """A trajectory whose execution exceeds the robot's rated joint limits (torque or speed),
+    refused under strict checking (``genplan.control.execute(..., strict=True)``); the message
+    names the joint, the time, the value and the limit."""

@@ -1,6 +1,19 @@
 """Shipped models: safetensors weights plus a JSON card beside them (never pickles).
 
 Shared by the GAN (:mod:`genplan.gan.model`) and the seq2seq model (:mod:`genplan.pancake.model`).
+A loader refuses, with :class:`~genplan.errors.ModelFileError` naming the file and the problem and
+before building anything, what it cannot vouch for:
+
+* the card: not JSON, not an object, another format, a key the format does not know, no
+  ``config`` or no ``weights_sha256``;
+* the weights: a sha256 other than the card's, not a safetensors file, metadata that contradicts
+  the card, a tensor that is not floating point or holds NaN or inf, a tensor missing, extra or of
+  another shape than the card's config implies (:func:`check_tensors`);
+* the config: a missing or unknown field, a value of the wrong type or not finite, or one the
+  config's ``validate()`` refuses (:func:`read_config`).
+
+:func:`write_model` refuses to write what :func:`read_model` would refuse, so a model that saves
+loads.
 """
 
 from __future__ import annotations
@@ -8,16 +21,24 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
+import re
+import typing
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Callable, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
-from genplan.errors import ModelFileError
+from genplan.errors import GenplanError, ModelFileError
 
-__all__ = ["write_model", "read_model", "read_config", "json_default"]
+__all__ = ["REQUIRED_CARD_KEYS", "write_model", "read_model", "read_config", "check_tensors", "json_default"]
 
 T = TypeVar("T")
+
+#: keys every card has (the rest are descriptive, listed per format by the loaders)
+REQUIRED_CARD_KEYS = frozenset({"format", "config", "weights_sha256"})
+_SHA256 = re.compile(r"[0-9a-f]{64}")
 
 
 def json_default(o: Any) -> Any:
@@ -29,16 +50,40 @@ def json_default(o: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(o)}")
 
 
+def _unknown_keys(card: Mapping[str, Any], card_keys: frozenset[str]) -> list[str]:
+    return sorted(set(card) - card_keys - REQUIRED_CARD_KEYS)
+
+
+def _bad_tensor(name: str, t: Any) -> str | None:
+    """Why tensor ``t`` cannot be vouched for, or None."""
+    import torch
+
+    if not t.is_floating_point():
+        return f"tensor {name} has dtype {t.dtype}, not floating point"
+    if not bool(torch.isfinite(t).all()):
+        return f"tensor {name} holds NaN or inf"
+    return None
+
+
 def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, str], card: dict[str, Any],
-                config: Any) -> tuple[Path, Path]:
+                config: Any, card_keys: frozenset[str], kind: str) -> tuple[Path, Path]:
     """Write ``path`` (.safetensors, torch tensors) and its card (.json beside it).
 
     The card gets ``metadata["format"]``, the config (a dataclass) and the weights' sha256, which
-    the loaders check.
+    the loaders check. A card key outside ``card_keys`` or a non-finite tensor raises
+    :class:`~genplan.errors.ModelFileError` before anything is written (it could not be loaded).
     """
     from safetensors.torch import save_file
 
     path = Path(path).with_suffix(".safetensors")
+    unknown = _unknown_keys(card, card_keys)
+    if unknown:
+        raise ModelFileError(f"cannot write {kind} model {path}: card keys {unknown} are not part of a {kind} card "
+                             f"(known: {sorted(card_keys | REQUIRED_CARD_KEYS)})")
+    for name, t in tensors.items():
+        why = _bad_tensor(name, t)
+        if why:
+            raise ModelFileError(f"cannot write {kind} model {path}: {why}")
     path.parent.mkdir(parents=True, exist_ok=True)
     save_file({k: v.detach().contiguous() for k, v in tensors.items()}, str(path), metadata=metadata)
     card = dict(card)
@@ -49,16 +94,29 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
     return path, card_path
 
 
-def read_model(path: Path, fmt: str, kind: str, retrain: str) -> tuple[dict[str, Any], dict[str, Any]]:
+def _safetensors_metadata(data: bytes) -> dict[str, str]:
+    """The ``__metadata__`` of a safetensors file's header (8-byte length, then JSON)."""
+    n = int.from_bytes(data[:8], "little")
+    header = json.loads(data[8:8 + n])
+    meta = header.get("__metadata__", {}) if isinstance(header, dict) else None
+    if not isinstance(meta, dict):
+        raise ValueError("the header's __metadata__ is not an object")
+    return meta
+
+
+def read_model(path: Path, fmt: str, kind: str, retrain: str,
+               card_keys: frozenset[str]) -> tuple[dict[str, Any], dict[str, Any]]:
     """Read and check a model written by :func:`write_model`: ``(card, tensors)``.
 
     ``kind`` names the model in messages ("GAN", "seq2seq"); ``retrain`` is the command a missing
-    file's error names. Missing files raise FileNotFoundError; a card that does not parse, has
-    another format or another weights sha256, and weights that do not load raise
-    :class:`~genplan.errors.ModelFileError`.
+    file's error names; ``card_keys`` are the descriptive card keys the format allows besides
+    :data:`REQUIRED_CARD_KEYS`. Missing files raise FileNotFoundError; everything else the module
+    docstring lists (but the config and the tensor names and shapes, which need the config:
+    :func:`read_config`, :func:`check_tensors`) raises :class:`~genplan.errors.ModelFileError`.
+    The weights are read once: the bytes hashed are the bytes loaded.
     """
     from safetensors import SafetensorError
-    from safetensors.torch import load_file
+    from safetensors.torch import load as load_bytes
 
     card_path = path.with_suffix(".json")
     for p in (path, card_path):
@@ -71,21 +129,96 @@ def read_model(path: Path, fmt: str, kind: str, retrain: str) -> tuple[dict[str,
     if not isinstance(card, dict) or card.get("format") != fmt:
         got = card.get("format") if isinstance(card, dict) else type(card).__name__
         raise ModelFileError(f"{card_path}: unknown format {got!r} (expected {fmt})")
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    if card.get("weights_sha256") not in (None, digest):
+    unknown = _unknown_keys(card, card_keys)
+    if unknown:
+        raise ModelFileError(f"{kind} model card {card_path} has unknown key(s) {unknown} "
+                             f"(a {kind} card holds {sorted(card_keys | REQUIRED_CARD_KEYS)})")
+    missing = sorted(REQUIRED_CARD_KEYS - set(card))
+    if missing:
+        raise ModelFileError(f"{kind} model card {card_path} lacks {missing}: the weights cannot be vouched for "
+                             f"without them (re-save the model with genplan, or retrain it: `{retrain}`)")
+    expected = card["weights_sha256"]
+    if not isinstance(expected, str) or not _SHA256.fullmatch(expected):
+        raise ModelFileError(f"{kind} model card {card_path}: weights_sha256 must be 64 lowercase hex digits, "
+                             f"got {str(expected)[:80]!r}")
+    data = path.read_bytes()
+    digest = hashlib.sha256(data).hexdigest()
+    if digest != expected:
         raise ModelFileError(f"{path} does not match its card (sha256 {digest[:12]}..., card says "
-                             f"{str(card.get('weights_sha256'))[:12]}...): the file is corrupt or was replaced")
+                             f"{expected[:12]}...): the file is corrupt or was replaced")
     try:
-        tensors = load_file(str(path))
-    except (SafetensorError, OSError, ValueError) as exc:
+        tensors = load_bytes(data)
+        metadata = _safetensors_metadata(data)
+    except (SafetensorError, OSError, ValueError, UnicodeDecodeError) as exc:
         raise ModelFileError(f"{kind} model file {path} is corrupt: {exc}") from None
+    for key, value in metadata.items():
+        want = fmt if key == "format" else card.get(key, value)
+        if value != want:
+            raise ModelFileError(f"{kind} model file {path}: its metadata says {key} {value!r}, its card {want!r}")
+    for name, t in tensors.items():
+        why = _bad_tensor(name, t)
+        if why:
+            raise ModelFileError(f"{kind} model file {path} is corrupt: {why}")
     return card, tensors
 
 
-def read_config(card: dict[str, Any], path: Path, kind: str, make: Callable[[dict[str, Any]], T]) -> T:
-    """``make(config)`` of a copy of the card's ``config``; a card without one, or whose config
-    ``make`` rejects (a missing or unknown field: KeyError, TypeError), raises ModelFileError."""
+def check_tensors(tensors: Mapping[str, Any], shapes: Mapping[str, tuple[int, ...]], path: Path, kind: str) -> None:
+    """The tensors are exactly ``shapes`` (name -> shape, as the card's config implies), else
+    ModelFileError naming the missing, extra and misshapen ones."""
+    missing = sorted(set(shapes) - set(tensors))
+    extra = sorted(set(tensors) - set(shapes))
+    wrong = [f"{k} {tuple(tensors[k].shape)} (expected {tuple(s)})" for k, s in shapes.items()
+             if k in tensors and tuple(tensors[k].shape) != tuple(s)]
+    problems = ([f"missing tensor(s) {missing}"] if missing else []) + ([f"extra tensor(s) {extra}"] if extra else []) \
+        + ([f"misshapen tensor(s) {wrong}"] if wrong else [])
+    if problems:
+        raise ModelFileError(f"{kind} model file {path} does not fit its card: {'; '.join(problems)}")
+
+
+def _as_type(value: Any, hint: Any, where: str) -> Any:
+    """``value`` (read from JSON) as the type ``hint`` (bool, int, float, str, tuples of them, or
+    one of them or None); tuples come back as tuples. Raises TypeError naming ``where``."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if type(None) in args:  # Optional[X] (X | None): None or an X
+        (inner,) = [a for a in args if a is not type(None)]
+        return None if value is None else _as_type(value, inner, where)
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            raise TypeError(f"{where} must be a list, got {value!r}")
+        items = [args[0]] * len(value) if len(args) == 2 and args[1] is Ellipsis else list(args)
+        if len(items) != len(value):
+            raise TypeError(f"{where} must have {len(items)} values, got {len(value)}")
+        return tuple(_as_type(v, h, f"{where}[{i}]") for i, (v, h) in enumerate(zip(value, items)))
+    ok = {bool: lambda v: isinstance(v, bool),
+          int: lambda v: isinstance(v, int) and not isinstance(v, bool),
+          float: lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v),
+          str: lambda v: isinstance(v, str)}
+    if hint not in ok:
+        raise TypeError(f"{where}: no reader for the type {hint}")
+    if not ok[hint](value):
+        raise TypeError(f"{where} must be {'a finite float' if hint is float else hint.__name__}, got {value!r}")
+    return float(value) if hint is float else value
+
+
+def read_config(card: dict[str, Any], path: Path, kind: str, cls: type[T]) -> T:
+    """The card's ``config`` as the dataclass ``cls``: exactly its fields (none missing, none
+    unknown), each of its type and finite, and accepted by ``cls.validate()`` if it has one;
+    anything else raises ModelFileError naming the card and the field."""
+    card_path = path.with_suffix(".json")
+    config = card.get("config")
+    bad = f"{kind} model card {card_path} has a bad config"
+    if not isinstance(config, dict):
+        raise ModelFileError(f"{bad}: expected an object of {cls.__name__} fields, got {type(config).__name__}")
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+    unknown, missing = sorted(set(config) - set(names)), [n for n in names if n not in config]
+    if unknown or missing:
+        parts = ([f"unknown key(s) {unknown}"] if unknown else []) + ([f"missing key(s) {missing}"] if missing else [])
+        raise ModelFileError(f"{bad}: {'; '.join(parts)}")
     try:
-        return make(dict(card["config"]))
-    except (KeyError, TypeError) as exc:
-        raise ModelFileError(f"{kind} model card {path.with_suffix('.json')} has a bad config: {exc}") from None
+        cfg = cls(**{n: _as_type(config[n], hints[n], n) for n in names})
+        if hasattr(cfg, "validate"):
+            cfg.validate()
+    except (TypeError, GenplanError) as exc:
+        raise ModelFileError(f"{bad}: {exc}") from None
+    return cfg

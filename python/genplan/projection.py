@@ -629,8 +629,10 @@ class GaussNewtonProjector:
                 raise error_class(target_rows, target_rows.shape[0] == len(qs))(
                     f"targets['{term_name}']: expected {len(qs)} finite rows, got shape {target_rows.shape}")
         if self._native is not None:
-            q, ok, it, res, ts = self._native.solve_batch(
-                qs, noms, parallel, term_name, None if target_rows is None else target_rows.reshape(len(qs), -1))
+            if target_rows is not None:
+                # one row of numbers per configuration (a FramePose's (4, 4) flattened); zero rows too
+                target_rows = target_rows.reshape(len(qs), int(np.prod(target_rows.shape[1:])))
+            q, ok, it, res, ts = self._native.solve_batch(qs, noms, parallel, term_name, target_rows)
             return BatchResult(q=q, success=ok, iterations=it,
                                residuals={lab: res[:, i] for i, lab in enumerate(self._labels)}, time_s=ts)
         rows = range(len(qs))

@@ -65,8 +65,9 @@ def test_bench_j1_figures(tmp_path) -> None:
         assert (figs / f"{name}.png").stat().st_size > 1000, name
 
 
-def test_bench_rejects_out_with_all(tmp_path) -> None:
-    with pytest.raises(SystemExit, match="use --out-dir"):
-        main(["bench", "adjust", "--method", "all", "--out", str(tmp_path / "x.json")])
-    with pytest.raises(SystemExit, match="several --step rules"):
-        main(["bench", "adjust", "--method", "latent", "--step", "gd", "adam", "--out", str(tmp_path / "x.json")])
+def test_bench_rejects_out_with_all(tmp_path, capsys) -> None:
+    assert main(["bench", "adjust", "--method", "all", "--out", str(tmp_path / "x.json")]) == 2
+    assert capsys.readouterr().err == ("genplan: error: --method all writes one JSON per method: use --out-dir, "
+                                       "not --out\n")
+    assert main(["bench", "adjust", "--method", "latent", "--step", "gd", "adam", "--out", str(tmp_path / "x.json")]) == 2
+    assert "several --step rules write one JSON each" in capsys.readouterr().err

@@ -11,6 +11,10 @@ from genplan import control
 from genplan.cli import main
 from genplan.experiments.benchmarks.control import adjusted_trajectory, casadi_j2_trajectory, model_path
 
+#: the turn-overs (0.5 s to -3 pi / 4) turn the UR5's wrists faster than their rated 3.2 rad/s
+#: (the last one up to 8 rad/s): each run warns (LimitWarning); `genplan bench control` records it
+pytestmark = pytest.mark.filterwarnings("ignore::genplan.control.LimitWarning")
+
 
 @pytest.mark.skipif(not model_path().is_file(), reason="no shipped seq2seq model (genplan train seq2seq)")
 def test_the_paper_j2_plan_rides_the_cone_edge_and_loses_the_pancake():
@@ -33,6 +37,9 @@ def test_the_j2_exec_plan_meets_j2_and_keeps_the_pancake():
     for dob in (True, False):
         log = control.execute(traj, dob=dob, disturbances=control.Disturbances.reference(), tail=0.1)
         assert not log.slipped, (dob, log.summary)
+        # within the rated joint torques; over the wrists' rated speed (recorded, not refused)
+        assert all(t <= lim for t, lim in zip(log.summary["max_abs_tau"], [150.0] * 3 + [28.0] * 3))
+        assert log.limit_violation is not None and log.limit_violation["quantity"] == "velocity"
     # the flip: the pancake leaves in the tail, after the motion
     assert log.pancake_mode[log.motion_end:].max() > 0
 
@@ -55,6 +62,8 @@ def test_bench_control_writes_the_json_and_the_figure(tmp_path):
         assert key in data
     assert data["us_per_tick"] > 0 and isinstance(data["slipped"], bool)
     assert data["unadjusted"]["slipped"] is True
+    assert data["unadjusted"]["joint_limit_violation"]["joint"] == "wrist_3_joint"  # 5 rad/s, rated 3.2
+    assert len(data["max_abs_v_rad_s"]) == 6
     assert data["dob_tracking_error_ratio"]["deviation_position"] > 1.0
     assert data["paced_matches_unpaced"] is True
     assert set(data["jitter_us"]) >= {"lateness_p50_us", "lateness_p99_us", "lateness_max_us"}

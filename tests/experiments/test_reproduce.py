@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 
-import pytest
-
 from genplan.cli import main
 
 
@@ -23,9 +21,10 @@ def test_reproduce_a_subset_writes_results_and_report(tmp_path) -> None:
     assert "98.6" in report  # the paper's number stands beside ours
 
 
-def test_reproduce_rejects_an_unknown_step(tmp_path) -> None:
-    with pytest.raises(SystemExit, match="no step matches"):
-        main(["reproduce", "--quick", "--out", str(tmp_path), "--only", "no-such-step"])
+def test_reproduce_rejects_an_unknown_step(tmp_path, capsys) -> None:
+    assert main(["reproduce", "--quick", "--out", str(tmp_path), "--only", "no-such-step"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("genplan: error: --only no-such-step: no step matches") and err.count("\n") == 1
 
 
 def test_report_rebuilds_from_a_folder_of_json(tmp_path) -> None:
@@ -37,5 +36,19 @@ def test_report_rebuilds_from_a_folder_of_json(tmp_path) -> None:
     report = (out / "report.md").read_text()
     assert report.startswith("# genplan benchmarks") and "| talos | projection | uniform" in report
     assert "84.4" in report  # the paper's Talos success rate beside ours
-    with pytest.raises(SystemExit, match="is not a folder"):
-        main(["report", str(tmp_path / "missing")])
+
+
+
+def test_report_names_a_broken_json_file(tmp_path, capsys) -> None:
+    assert main(["report", str(tmp_path / "missing")]) == 2
+    assert "report: argument folder: " in capsys.readouterr().err
+    (tmp_path / "table1_panda_uniform.json").write_text('{"tasks": 100,')
+    assert main(["report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"genplan: error: {tmp_path / 'table1_panda_uniform.json'}: not a valid JSON file")
+    assert err.count("\n") == 1 and not (tmp_path / "report.md").exists()
+    # valid JSON that lacks what the report reads: the file and the field
+    (tmp_path / "table1_panda_uniform.json").write_text('{"tasks": 100, "projection": {}, "paper": {"projection": {}}}')
+    assert main(["report", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == (f"genplan: error: {tmp_path / 'table1_panda_uniform.json'}.projection: no field "
+                                       "'success_rate' (not what a genplan benchmark writes, or from another version)\n")

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from genplan.experiments.common import save_figure
 from genplan.pancake.trajectories import DT, MU_MAX
 
 COLORS = {"latent": "tab:blue", "random-latent": "tab:orange", "direct-u": "tab:green", "casadi": "tab:red"}
@@ -48,7 +49,7 @@ def objective_curves(curves: Mapping[str, tuple[NDArray[np.float64], NDArray[np.
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
     return path
 
@@ -87,7 +88,7 @@ def trajectories(p: NDArray[np.float64], phi: NDArray[np.float64], p_end: NDArra
         ax.grid(alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -109,7 +110,7 @@ def rmse_bars(rows: Sequence[tuple[str, float, float]], path: Path, title: str) 
         ax.grid(alpha=0.3, axis="y", which="both")
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
     return path
 
@@ -151,7 +152,7 @@ def j2_snapshots(snaps: Mapping[int, Mapping[str, NDArray[np.float64]]], path: P
     axes[0, 0].legend(fontsize=8)
     fig.suptitle(title + "  (" + ", ".join(names) + ")")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -171,6 +172,6 @@ def time_bars(rows: Sequence[tuple[str, float]], path: Path, title: str) -> Path
     ax.set_title(title)
     ax.grid(alpha=0.3, axis="y", which="both")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
     return path

@@ -14,7 +14,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from genplan.experiments.common import table
+from genplan import _cli_args as A
+from genplan.errors import GenplanError
+from genplan.experiments.common import table, write_text
 
 
 def _f(x: Any, digits: int = 3) -> str:
@@ -152,7 +154,10 @@ def _figures(out: Path) -> str:
     return "\n".join(f"![{p.stem}]({p.relative_to(out).as_posix()})" for p in figs) + "\n"
 
 
-def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, str] | None = None) -> Path:
+def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, str] | None = None,
+                 path: Path | None = None) -> Path:
+    """Write the report of ``results`` (figures: those below ``out``) to ``path`` (default
+    ``out/report.md``), atomically."""
     res = results["results"]
     m = results["machine"]
     from genplan.experiments.report_seq2seq import adjust_section, control_section
@@ -200,33 +205,63 @@ def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, s
     ]
     for title, body in (extra_sections or {}).items():
         lines += [f"## {title}", "", body]
-    path = out / "report.md"
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    path = out / "report.md" if path is None else path
+    return write_text(path, "\n".join(lines) + "\n")
+
+
+class _Fields(dict[str, Any]):
+    """A JSON object of a benchmark file: a missing field raises GenplanError naming the file and
+    the field (not a bare KeyError)."""
+
+    def __init__(self, data: dict[str, Any], where: str) -> None:
+        super().__init__({k: _fields(v, f"{where}.{k}") for k, v in data.items()})
+        self.where = where
+
+    def __getitem__(self, key: str) -> Any:
+        try:
+            return super().__getitem__(key)
+        except KeyError:
+            raise GenplanError(f"{self.where}: no field {key!r} (not what a genplan benchmark writes, or from "
+                               "another version)") from None
+
+
+def _fields(value: Any, where: str) -> Any:
+    if isinstance(value, dict):
+        return _Fields(value, where)
+    if isinstance(value, list):
+        return [_fields(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    return value
 
 
 def collect(folder: Path) -> dict[str, Any]:
-    """Every benchmark JSON below ``folder``, keyed by its relative path."""
-    return {p.relative_to(folder).as_posix(): json.loads(p.read_text())
-            for p in sorted(folder.glob("**/*.json")) if p.name not in ("results.json", "criterion.json")}
+    """Every benchmark JSON below ``folder``, keyed by its relative path; a file that is not a
+    JSON object raises GenplanError naming it, and so does a missing field when it is read."""
+    out = {}
+    for p in sorted(folder.glob("**/*.json")):
+        if p.name in ("results.json", "criterion.json"):
+            continue
+        try:
+            data = json.loads(p.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise GenplanError(f"{p}: not a valid JSON file ({exc})") from None
+        if not isinstance(data, dict):
+            raise GenplanError(f"{p}: expected a JSON object (a benchmark's results), got {type(data).__name__}")
+        out[p.relative_to(folder).as_posix()] = _Fields(data, str(p))
+    return out
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("folder", type=Path, help="folder of benchmark JSON (e.g. benches/results)")
-    p.add_argument("--out", type=Path, default=None, help="report file (default FOLDER/report.md)")
+    p.add_argument("folder", type=A.existing_folder, help="folder of benchmark JSON (e.g. benches/results)")
+    p.add_argument("--out", type=A.output_file, default=None,
+                   help="report file (default FOLDER/report.md; folders are created)")
 
 
 def main(args: argparse.Namespace) -> int:
     from genplan.experiments.common import machine
 
-    if not args.folder.is_dir():
-        raise SystemExit(f"{args.folder} is not a folder")
+    out = args.out or A.check_output_file(args.folder / "report.md", "FOLDER")
     results = {"command": f"genplan report {args.folder}", "seed": 0, "machine": machine(),
                "results": collect(args.folder)}
-    path = write_report(args.folder, results)
-    if args.out is not None and args.out != path:
-        args.out.write_text(path.read_text())
-        path.unlink()
-        path = args.out
+    path = write_report(args.folder, results, path=out)
     print(f"wrote {path}")
     return 0

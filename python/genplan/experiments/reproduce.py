@@ -33,7 +33,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from genplan.experiments.common import machine
+from genplan import _cli_args as A
+from genplan.experiments.common import machine, write_text
 
 SEED = 0
 
@@ -114,14 +115,13 @@ def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]
     from genplan.experiments.report import collect, write_report
 
     sizes = QUICK if quick else FULL
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "figures").mkdir(exist_ok=True)
     steps = _steps(out, sizes) + [("3D views", [])]
     if only:
         steps = [s for s in steps if any(o.lower() in s[0].lower() for o in only)]
         if not steps:
-            raise SystemExit(f"--only {' '.join(only)}: no step matches; steps: "
-                             + ", ".join(t for t, _ in _steps(out, sizes)) + ", 3D views")
+            raise A.UsageError(f"--only {' '.join(only)}: no step matches; steps: "
+                               + ", ".join(t for t, _ in _steps(out, sizes)) + ", 3D views")
+    A.check_output_folder(out / "figures", "--out", of=out)
     log: list[dict[str, Any]] = []
     views: dict[str, str] = {}
     t_all = time.perf_counter()
@@ -152,7 +152,7 @@ def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]
         "views": views,
         "results": collect(out),
     }
-    (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+    write_text(out / "results.json", json.dumps(results, indent=2) + "\n")
 
     write_report(out, results)
     return results
@@ -160,7 +160,8 @@ def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true", help="smaller N: finishes in under 10 minutes on 2 cores")
-    p.add_argument("--out", type=Path, default=Path("out/reproduce"), help="output folder (report.md, results.json, figures)")
+    p.add_argument("--out", type=A.output_folder, default="out/reproduce",
+                   help="output folder (report.md, results.json, figures; created if missing)")
     p.add_argument("--only", nargs="*", default=None, help="run only the steps whose title contains one of these words")
 
 

@@ -25,16 +25,27 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import torch
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
-from genplan._arrays import as_box, error_class
+from genplan._arrays import as_box, as_configurations, error_class
 from genplan import projection as P
-from genplan.errors import ModelFileError, UnknownNameError
+from genplan._threads import torch_threads, uses_torch
+from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot, load
 from genplan.torch_kinematics import TorchKinematics
 
 FORMAT = "genplan-gan/1"
+#: the descriptive keys a GAN card may hold (besides format, config and weights_sha256)
+CARD_KEYS = frozenset({"robot", "genplan_version", "data", "training", "command", "discriminator_features",
+                       "evaluation", "notes"})
+#: targets are accepted up to this far (m) outside the model's target box (:meth:`GanModel.target_limits`).
+#: The targets a GAN is trained on, end-effector positions of valid configurations, reach 0.25 m
+#: (Panda) and 0.67 m (Talos) beyond the shipped boxes (3,000 valid configurations each); farther
+#: targets are unreachable, and far ones made the generator's float32 arithmetic overflow to NaN.
+TARGET_MARGIN = 1.0
+#: bound on the native sampler's Gaussian noise: Box-Muller from 53-bit uniforms, sqrt(106 ln 2) = 8.57
+NATIVE_NOISE_MAX = 8.6
 #: smallest feature scale used for standardisation (rad or m)
 STD_FLOOR = 0.05
 #: features whose spread in the data is below this (rad, m, or rotation-matrix entries) are
@@ -66,6 +77,33 @@ class GanConfig:
     data_size: int = 25_000
     data_seed: int = 0
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """SettingsError naming the first field with a value training or sampling cannot use."""
+        positive = {"noise_dim": self.noise_dim, "n_net": self.n_net, "batch": self.batch,
+                    "disc_steps": self.disc_steps, "iterations": self.iterations, "data_size": self.data_size}
+        for name, v in positive.items():
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise SettingsError(f"GanConfig.{name} must be a positive integer, got {v!r}")
+        for name, seq in (("gen_hidden", self.gen_hidden), ("disc_hidden", self.disc_hidden)):
+            if any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in seq):
+                raise SettingsError(f"GanConfig.{name} must hold positive integers, got {seq!r}")
+        for name, v in (("seed", self.seed), ("data_seed", self.data_seed)):
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise SettingsError(f"GanConfig.{name} must be a non-negative integer, got {v!r}")
+        rates = {"lr_gen": self.lr_gen, "lr_disc": self.lr_disc}
+        weights = {"w_target": self.w_target, "w_limits": self.w_limits, "w_constraint": self.w_constraint}
+        for name, x in {**rates, **weights}.items():
+            if not (isinstance(x, (int, float)) and math.isfinite(x) and (x > 0 if name in rates else x >= 0)):
+                raise SettingsError(f"GanConfig.{name} must be a finite number {'> 0' if name in rates else '>= 0'}, "
+                                    f"got {x!r}")
+        try:
+            as_box(self.target_box, "GanConfig.target_box")
+        except GenplanError as exc:
+            raise SettingsError(str(exc)) from None
 
 
 def default_config(robot: str, **overrides: Any) -> GanConfig:
@@ -219,31 +257,104 @@ class GanModel:
     codec: Codec
     card: dict[str, Any] = field(default_factory=dict)
 
-    @torch.no_grad()
-    def sample_members(self, targets: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.float64]:
-        """One configuration per target from every ensemble member: (n_net, n, nq)."""
-        targets = np.asarray(targets, dtype=np.float64)
-        if targets.ndim != 2 or targets.shape[1] != 3 or not np.all(np.isfinite(targets)):
-            raise error_class(targets, targets.ndim == 2 and targets.shape[1] == 3)(
-                f"targets: expected finite positions of shape (n, 3), got {targets.shape}")
-        n = len(targets)
-        z = torch.tensor(rng.standard_normal((self.config.n_net, n, self.config.noise_dim)), dtype=torch.float32)
-        x = torch.tensor(targets, dtype=torch.float32).expand(self.config.n_net, n, 3)
-        q = self.codec.decode(self.generator(torch.cat([z, x], -1)))
-        return q.double().numpy()
+    def target_limits(self) -> NDArray[np.float64]:
+        """The box of targets the model answers for, [[xmin, ymin, zmin], [xmax, ymax, zmax]]: its
+        target box widened by :data:`TARGET_MARGIN` on every side. Farther targets are refused
+        (clip them yourself, e.g. ``np.clip(targets, *model.target_limits())``, to sample anyway)."""
+        box = as_box(self.config.target_box)
+        return np.stack([box[0] - TARGET_MARGIN, box[1] + TARGET_MARGIN])
 
-    def sample(self, targets: NDArray[np.float64], rng: np.random.Generator | int | None = None) -> NDArray[np.float64]:
-        """One configuration per target, each from a member chosen at random: (n, nq)."""
+    def check_targets(self, targets: Any, what: str = "targets") -> NDArray[np.float64]:
+        """``targets`` as finite positions (n, 3) inside :meth:`target_limits`, else ShapeError,
+        NonFiniteError or GenplanError naming the first bad row."""
+        try:
+            t = np.asarray(targets, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise error_class(None, False)(f"{what}: cannot be read as positions of shape (n, 3) ({exc})") from None
+        shape_ok = t.ndim == 2 and t.shape[1] == 3
+        if not shape_ok or not np.all(np.isfinite(t)):
+            row = "" if not shape_ok else f" (row {int(np.argwhere(~np.isfinite(t))[0, 0])} is not)"
+            raise error_class(t, shape_ok)(f"{what}: expected finite positions of shape (n, 3), got {t.shape}{row}")
+        lim = self.target_limits()
+        outside = np.flatnonzero(((t < lim[0]) | (t > lim[1])).any(1))
+        if len(outside):
+            i = int(outside[0])
+            raise GenplanError(
+                f"{what}: row {i} {t[i].tolist()} lies outside the region this GAN answers for, "
+                f"{lim.round(3).tolist()} (its target box widened by {TARGET_MARGIN} m; {len(outside)} row(s) "
+                f"outside); clip the targets into it to sample anyway")
+        return t
+
+    def _check_output(self, q: NDArray[np.float64], targets: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``q`` (n_net, n, nq) if finite, else NonFiniteError naming the first target row."""
+        bad = ~np.isfinite(q).all(-1)
+        if bad.any():
+            m, i = (int(v) for v in np.argwhere(bad)[0])
+            raise NonFiniteError(f"GAN sample for target row {i} {targets[i].tolist()} is not finite (member {m}): "
+                                 "the generator overflows there")
+        return q
+
+    @torch.no_grad()
+    def sample_members(self, targets: ArrayLike, rng: np.random.Generator | int | None = None, *,
+                       threads: int | None = None) -> NDArray[np.float64]:
+        """One configuration per target from every ensemble member: (n_net, n, nq).
+
+        ``targets``: finite positions (n, 3) inside :meth:`target_limits` (else an error naming
+        the row); a sample that comes out non-finite raises NonFiniteError naming its target row.
+        ``threads``: torch threads for the call (default: genplan's choice, see genplan._threads).
+        """
+        t = self.check_targets(targets)
         rng = np.random.default_rng(rng)
-        allq = self.sample_members(targets, rng)
+        with torch_threads("small", threads):
+            n = len(t)
+            z = torch.tensor(rng.standard_normal((self.config.n_net, n, self.config.noise_dim)), dtype=torch.float32)
+            x = torch.tensor(t, dtype=torch.float32).expand(self.config.n_net, n, 3)
+            q = self.codec.decode(self.generator(torch.cat([z, x], -1))).double().numpy()
+        return self._check_output(q, t)
+
+    def sample(self, targets: ArrayLike, rng: np.random.Generator | int | None = None, *,
+               threads: int | None = None) -> NDArray[np.float64]:
+        """One configuration per target, each from a member chosen at random: (n, nq). Targets and
+        output are checked as in :meth:`sample_members`."""
+        rng = np.random.default_rng(rng)
+        allq = self.sample_members(targets, rng, threads=threads)
         pick = rng.integers(0, self.config.n_net, size=allq.shape[1])
         return allq[pick, np.arange(allq.shape[1])]
+
+    def feature_bound(self, box: Any = None, noise_max: float = NATIVE_NOISE_MAX) -> float:
+        """An upper bound on ``|feature|`` of any sample for targets in ``box`` (default: the
+        target box) and noise in ``[-noise_max, noise_max]`` (interval arithmetic through the
+        layers, float64); inf when the bound overflows."""
+        b = as_box(self.config.target_box if box is None else box)
+        nd = self.config.noise_dim
+        lo = np.concatenate([np.full(nd, -noise_max), b[0]])[None, None, :]
+        hi = np.concatenate([np.full(nd, noise_max), b[1]])[None, None, :]
+        last = len(self.generator.weights) - 1
+        with np.errstate(over="ignore", invalid="ignore"):
+            for i, (w, bias) in enumerate(zip(self.generator.weights, self.generator.biases)):
+                wd, bd = w.detach().double().numpy(), bias.detach().double().numpy()
+                wp, wn = np.maximum(wd, 0.0), np.minimum(wd, 0.0)
+                lo, hi = lo @ wp + hi @ wn + bd, hi @ wp + lo @ wn + bd
+                if i < last:
+                    lo, hi = np.maximum(lo, 0.0), np.maximum(hi, 0.0)
+            mean, std = self.codec.mean.double().numpy(), self.codec.std.double().numpy()
+            bound = np.maximum(np.abs(lo), np.abs(hi)) * np.abs(std) + np.abs(mean)
+        return float(bound.max()) if np.all(np.isfinite(bound)) else math.inf
 
     def native_sampler(self, box: Any = None, seed: int = 0) -> _core.GanSampler:
         """The generator run natively (Rust, no GIL): ``sample(n)`` draws targets uniformly in
         ``box`` (default: the model's target box), a member at random and Gaussian noise, like
-        :meth:`sample`. The planner uses it without calling back into Python."""
+        :meth:`sample`. The planner uses it without calling back into Python.
+
+        Its samples are finite: ``box`` must lie inside :meth:`target_limits`, and the weights
+        must bound the output over that box (:meth:`feature_bound`), else an error before any
+        sampling.
+        """
         b = as_box(self.config.target_box if box is None else box)
+        self.check_targets(b, "box")
+        if not math.isfinite(self.feature_bound(b)):
+            raise NonFiniteError(f"GAN generator: its output over the box {b.tolist()} is not bounded in float64 "
+                                 "(non-finite or huge weights or codec): its samples cannot be vouched for")
         return _core.GanSampler(
             self.config.noise_dim,
             [w.detach().double().numpy() for w in self.generator.weights],
@@ -264,7 +375,8 @@ class GanModel:
         tensors.update({f"generator.bias.{i}": b for i, b in enumerate(self.generator.biases)})
         tensors["codec.mean"] = self.codec.mean
         tensors["codec.std"] = self.codec.std
-        return write_model(path, tensors, {"format": FORMAT, "robot": self.config.robot}, self.card, self.config)
+        return write_model(path, tensors, {"format": FORMAT, "robot": self.config.robot}, self.card, self.config,
+                           CARD_KEYS, "GAN")
 
 
 def models_dir() -> Path:
@@ -272,46 +384,68 @@ def models_dir() -> Path:
     return Path(__file__).resolve().parent.parent / "models"
 
 
+def tensor_shapes(cfg: GanConfig, robot: Robot) -> dict[str, tuple[int, ...]]:
+    """The tensors of a GAN file for ``cfg`` and ``robot``: name -> shape."""
+    dim = robot.nq - int(robot.floating_base)
+    dims = [cfg.noise_dim + 3, *cfg.gen_hidden, dim]
+    shapes: dict[str, tuple[int, ...]] = {}
+    for i, (a, b) in enumerate(zip(dims[:-1], dims[1:])):
+        shapes[f"generator.weight.{i}"] = (cfg.n_net, a, b)
+        shapes[f"generator.bias.{i}"] = (cfg.n_net, 1, b)
+    shapes["codec.mean"] = shapes["codec.std"] = (dim,)
+    return shapes
+
+
 def load_model(robot: str | Robot, path: str | Path | None = None) -> GanModel:
     """Load a GAN (default: the shipped ``models/<robot>_gan.safetensors``).
 
-    A missing file raises FileNotFoundError naming the command that trains it; a corrupt file or
-    a card that does not match raises :class:`~genplan.errors.ModelFileError`.
+    A missing file raises FileNotFoundError naming the command that trains it; a file that cannot
+    be vouched for (see :mod:`genplan.model_files`: no or another weights sha256, a bad card or
+    config, NaN weights, missing, extra or misshapen tensors, a GAN for another robot or target
+    frame, a non-positive codec scale) raises :class:`~genplan.errors.ModelFileError` naming the
+    file and the problem, before any sampling.
     """
-    from genplan.model_files import read_config, read_model
+    from genplan.model_files import check_tensors, read_config, read_model
 
     rob = robot if isinstance(robot, Robot) else load(robot)
     path = models_dir() / f"{rob.name}_gan.safetensors" if path is None else Path(path)
-    card, tensors = read_model(path, FORMAT, "GAN", f"genplan train gan --robot {rob.name} --seed 0")
-
-    def make(d: dict[str, Any]) -> GanConfig:
-        d["target_box"] = tuple(tuple(b) for b in d["target_box"])
-        d["gen_hidden"] = tuple(d["gen_hidden"])
-        d["disc_hidden"] = tuple(d["disc_hidden"])
-        return GanConfig(**d)
-
-    cfg = read_config(card, path, "GAN", make)
-    if cfg.robot != rob.name:
-        raise ModelFileError(f"{path} is a GAN for '{cfg.robot}', not '{rob.name}'")
-    try:
-        mean, std = tensors["codec.mean"].double().numpy(), tensors["codec.std"].double().numpy()
-        codec = Codec(rob, mean, std)
-        gen = EnsembleGenerator(cfg.n_net, cfg.noise_dim + 3, cfg.gen_hidden, codec.dim)
+    card, tensors = read_model(path, FORMAT, "GAN", f"genplan train gan --robot {rob.name} --seed 0", CARD_KEYS)
+    cfg = read_config(card, path, "GAN", GanConfig)
+    if cfg.robot != rob.name or card.get("robot", cfg.robot) != cfg.robot:
+        raise ModelFileError(f"{path} is a GAN for '{cfg.robot}', not '{rob.name}'"
+                             + ("" if card.get("robot", cfg.robot) == cfg.robot else
+                                f" (and its card also says '{card['robot']}')"))
+    if cfg.target_frame not in rob.frames:
+        raise ModelFileError(f"{path}: the GAN's target frame '{cfg.target_frame}' is not a frame of "
+                             f"'{rob.name}' (known: {sorted(rob.frames)})")
+    check_tensors(tensors, tensor_shapes(cfg, rob), path, "GAN")
+    if not bool((tensors["codec.std"] > 0).all()):
+        raise ModelFileError(f"GAN model file {path} is corrupt: tensor codec.std holds a scale <= 0")
+    codec = Codec(rob, tensors["codec.mean"].double().numpy(), tensors["codec.std"].double().numpy())
+    gen = EnsembleGenerator(cfg.n_net, cfg.noise_dim + 3, cfg.gen_hidden, codec.dim)
+    with torch.no_grad():
         for i in range(len(gen.weights)):
-            gen.weights[i].data.copy_(tensors[f"generator.weight.{i}"])
-            gen.biases[i].data.copy_(tensors[f"generator.bias.{i}"])
-    except (KeyError, RuntimeError) as exc:
-        raise ModelFileError(f"GAN model file {path} does not fit its card: {exc}") from None
+            gen.weights[i].copy_(tensors[f"generator.weight.{i}"])
+            gen.biases[i].copy_(tensors[f"generator.bias.{i}"])
     gen.eval()
     return GanModel(cfg, rob, gen, codec, card)
 
 
+@uses_torch("training")
 def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: bool = True,
-          log_every: int = 500) -> GanModel:
-    """Train a GAN; returns the model with a card holding the loss log and training time."""
+          log_every: int = 500, *, threads: int | None = None) -> GanModel:
+    """Train a GAN; returns the model with a card holding the loss log and training time.
+
+    ``threads``: torch threads for the call (default: genplan's choice for training, see
+    genplan._threads; the card records the count used)."""
     from genplan.gan.data import cache_path, valid_configurations
 
+    cfg.validate()
     robot = load(cfg.robot)
+    if data is not None:
+        data = as_configurations(data, robot.nq, "data")
+        if data.ndim != 2:
+            raise ShapeError(f"data: expected configurations of shape (n, {robot.nq}), got {data.shape}")
     # a saturated discriminator drives activations into denormal floats, which are ~4x slower
     torch.set_flush_denormal(True)
     torch.manual_seed(cfg.seed)
@@ -407,6 +541,9 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
                 bar.set_postfix(d=f"{entry['d_loss']:.3f}", tgt=f"{math.sqrt(entry['target_m2']) * 100:.1f}cm",
                                 cons=f"{entry['constraint']:.1e}")
     train_s = time.perf_counter() - t0
+    if not all(bool(torch.isfinite(w).all()) for w in gen.parameters()):
+        raise FloatingPointError(f"GAN training diverged: the generator's weights hold NaN or inf after "
+                                 f"{cfg.iterations} iterations")
     gen.eval()
     card = {
         "robot": cfg.robot,

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 from typing import Any
 
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from genplan import _cli_args as A
 
 if TYPE_CHECKING:
     from genplan.gan.model import GanModel
@@ -40,15 +41,17 @@ def evaluate(model: GanModel, n: int = 500, seed: int = 1) -> dict[str, Any]:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", choices=["panda", "talos"], required=True)
-    p.add_argument("--seed", type=int, default=0, help="training seed (torch and numpy)")
-    p.add_argument("--iterations", type=int, default=None, help="generator steps (default: the paper's 10,000)")
-    p.add_argument("--n-net", type=int, default=None, help="ensemble size (default: 10 Panda, 5 Talos)")
+    p.add_argument("--seed", type=A.seed, default=0, help="training seed (torch and numpy)")
+    p.add_argument("--iterations", type=A.positive_int, default=None, help="generator steps (default: the paper's 10,000)")
+    p.add_argument("--n-net", type=A.positive_int, default=None, help="ensemble size (default: 10 Panda, 5 Talos)")
     p.add_argument("--no-discriminator", action="store_true", help="train on the costs only (ablation)")
-    p.add_argument("--data-size", type=int, default=None, help="valid configurations (default 25,000)")
-    p.add_argument("--out", type=Path, default=None, help="model path (default models/<robot>_gan.safetensors)")
-    p.add_argument("--threads", type=int, default=1,
-                   help="torch threads (default 1: batches of 100 gain little from more, and on a busy "
-                        "machine extra threads contend and run up to 10x slower)")
+    p.add_argument("--data-size", type=A.positive_int, default=None, help="valid configurations (default 25,000)")
+    p.add_argument("--out", type=A.output_file, default=None,
+                   help="model path (default models/<robot>_gan.safetensors; folders are created)")
+    p.add_argument("--threads", type=A.positive_int, default=None,
+                   help="torch threads (default: genplan's choice for training, one -- batches of 100 gain "
+                        "little from more, and on a busy machine extra threads contend and run many times "
+                        "slower; $GENPLAN_TORCH_THREADS overrides it too)")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -64,16 +67,11 @@ def main(args: argparse.Namespace) -> int:
     if args.no_discriminator:
         overrides["use_discriminator"] = False
     cfg = default_config(args.robot, **overrides)
-    if args.threads < 1:
-        raise SystemExit("--threads must be >= 1")
-    import torch
-
-    torch.set_num_threads(args.threads)
+    out = args.out or A.check_output_file(models_dir() / f"{args.robot}_gan.safetensors", "--out")
     t0 = time.perf_counter()
-    model = train(cfg)
+    model = train(cfg, threads=args.threads)
     model.card["evaluation"] = evaluate(model)
     model.card["training"]["total_seconds_including_data"] = time.perf_counter() - t0
-    out = args.out or models_dir() / f"{args.robot}_gan.safetensors"
     weights, card = model.save(out)
     ev = model.card["evaluation"]
     print(f"trained in {model.card['training']['seconds']:.0f} s; target error median "

@@ -44,9 +44,12 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor
 
+from genplan._threads import uses_torch
 from genplan.errors import CallbackError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.pancake import physics as ph
-from genplan.pancake.model import Seq2SeqModel, check_trajectories, load_model, mirror, start_state
+from genplan.pancake.model import (
+    Seq2SeqModel, check_magnitude, check_trajectories, first_nonfinite, load_model, mirror, start_state,
+)
 
 Method = Literal["latent", "random-latent", "direct-u"]
 METHODS: tuple[str, ...] = ("latent", "random-latent", "direct-u")
@@ -77,6 +80,7 @@ def _as_tensor(a: ArrayLike, b: int, name: str, dim: int = 3) -> Tensor:
         raise ShapeError(f"{name} must have shape ({dim},) or ({b}, {dim}) for {b} problem(s), got {np.shape(a)}")
     if not np.all(np.isfinite(arr)):
         raise NonFiniteError(f"{name} contains NaN or inf")
+    check_magnitude(arr, name)
     return torch.tensor(arr, dtype=torch.float32)
 
 
@@ -127,6 +131,8 @@ class J2:
             raise NonFiniteError("J2 parameters must be finite")
         if len(tuple(v_lim)) != 3 or len(tuple(d)) != 3 or len(tuple(center)) != 2:
             raise ShapeError("J2: v_lim and d need 3 values, center 2")
+        # poses, limits and centre in m or rad (the weights may be large; an infinite objective is an error)
+        check_magnitude(np.array([theta_end, p_lim, theta_lim, *v_lim, *center], dtype=np.float64), "J2 parameters")
         self.theta_end, self.p_lim, self.theta_lim = float(theta_end), float(p_lim), float(theta_lim)
         self.alpha, self.beta, self.mu_max = float(alpha), float(beta), float(mu_max)
         self.v_lim = torch.tensor(tuple(v_lim), dtype=torch.float32)
@@ -294,10 +300,12 @@ def _check_value(j: Any, b: int) -> Tensor:
     return j
 
 
+@uses_torch("small")
 def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "latent", updates: int = 100,
            lr: float | None = None, *, model: Seq2SeqModel | None = None, p_end: ArrayLike | None = None,
            step: str = "adaptive", seed: int = 0, snapshots: Sequence[int] = (), progress: bool = False,
-           objective_kwargs: dict[str, Any] | None = None, max_step: float | None = None) -> AdjustResult:
+           objective_kwargs: dict[str, Any] | None = None, max_step: float | None = None,
+           threads: int | None = None) -> AdjustResult:
     """Adjust the model's deformation of ``x_in`` to minimise ``objective``.
 
     ``x_in``: input poses (K, 3) or (B, K, 3); the output starts at ``x_in[:, 0]`` at rest.
@@ -309,7 +317,11 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
     ``"random-latent"``. ``max_step``: the adaptive rule's initial trust radius.
     ``snapshots``: update indices whose trajectories to keep. With
     ``"adaptive"`` the history, the snapshots and the result are those of the kept (best) iterate.
-    ``model``: default the shipped model.
+    ``model``: default the shipped model. ``threads``: torch threads for the call (default:
+    genplan's choice, one; see genplan._threads).
+
+    Every decoded trajectory is finite, or FloatingPointError names the problem and the update
+    (as for an objective that becomes NaN or inf).
     """
     if method not in METHODS:
         raise UnknownNameError(f"method must be one of {METHODS}, got {method!r}")
@@ -394,9 +406,15 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
             r = forward(var)
             j = _check_value(obj(r), b)
         jd = j.detach()
-        if not torch.all(torch.isfinite(jd)):
-            raise FloatingPointError(f"the objective became NaN or inf after {i} update(s) "
-                                     f"(method {method}, step {step}, lr {lr}); lower lr")
+        bad_r = first_nonfinite(r)
+        bad_j = None if bool(torch.isfinite(jd).all()) else int((~torch.isfinite(jd)).nonzero()[0, 0])
+        if bad_r is not None or bad_j is not None:
+            what = (f"the decoded trajectory of problem {bad_r}" if bad_r is not None
+                    else f"the objective of problem {bad_j}")
+            hint = (f"method {method}, step {step}, lr {lr}; lower lr" if i > 0
+                    else "the model cannot decode this input" if bad_r is not None
+                    else "check the objective and its parameters")
+            raise FloatingPointError(f"{what} became NaN or inf after {i} update(s) ({hint})")
         need_grad = i < updates
         if need_grad:
             (grad,) = torch.autograd.grad(j.sum(), var, allow_unused=True)

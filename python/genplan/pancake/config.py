@@ -73,16 +73,52 @@ class Seq2SeqConfig:
     lr: float = 3e-3
     lr_final: float = 1e-4
     grad_clip: float = 1.0
-    threads: int = 1
+    #: torch threads for training; None: genplan's choice for training (genplan._threads: one,
+    #: or $GENPLAN_TORCH_THREADS). The card's training record holds the count used.
+    threads: int | None = None
+
+    def __post_init__(self) -> None:
+        self.validate()
 
     @property
     def latent_dim(self) -> int:
         return self.hidden * self.layers
 
     def validate(self) -> None:
-        if self.K < 2 or self.encoder_stride < 1 or self.decoder_stride < 1 or self.K % self.decoder_stride:
+        """SettingsError naming the first field with a value the model or its training cannot use."""
+        ints = {"hidden": 1, "layers": 1, "K": 2, "encoder_stride": 1, "decoder_stride": 1, "seed": 0,
+                "data_seed": 0, "trajectories": 1, "validation": 1, "epochs": 1, "batch_size": 1}
+        for name, least in ints.items():
+            i = getattr(self, name)
+            if isinstance(i, bool) or not isinstance(i, int) or i < least:
+                raise SettingsError(f"Seq2SeqConfig.{name} must be an integer >= {least}, got {i!r}")
+        if self.K % self.decoder_stride:
             raise SettingsError(f"bad seq2seq config: K {self.K} must be at least 2 and divisible by "
-                             f"decoder_stride {self.decoder_stride}; strides must be positive")
+                                f"decoder_stride {self.decoder_stride}; strides must be positive")
+        if self.threads is not None and (isinstance(self.threads, bool) or not isinstance(self.threads, int)
+                                         or self.threads < 1):
+            raise SettingsError(f"Seq2SeqConfig.threads must be None or a positive integer, got {self.threads!r}")
+        # (field, values, lower bound, bound included)
+        floats = [("dt", (self.dt,), 0.0, False), ("u_scale", self.u_scale, 0.0, False),
+                  ("in_scale", self.in_scale, 0.0, False), ("var_floor", (self.var_floor,), 0.0, True),
+                  ("alpha", (self.alpha,), 0.0, True), ("alpha_start", (self.alpha_start,), 0.0, False),
+                  ("train_margin", (self.train_margin,), 0.0, True), ("nll_beta", (self.nll_beta,), 0.0, True),
+                  ("nll_beta_final", (self.nll_beta_final,), 0.0, True),
+                  ("nll_var_ref", (self.nll_var_ref,), 0.0, False), ("lr", (self.lr,), 0.0, False),
+                  ("lr_final", (self.lr_final,), 0.0, True), ("grad_clip", (self.grad_clip,), 0.0, False),
+                  ("logvar_min", (self.logvar_min,), -math.inf, False),
+                  ("logvar_max", (self.logvar_max,), self.logvar_min, False)]
+        for name, values, low, closed in floats:
+            vals, count = tuple(values), 3 if name in ("u_scale", "in_scale") else 1
+            if len(vals) != count or not all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                    and (v >= low if closed else v > low) for v in vals):
+                raise SettingsError(f"Seq2SeqConfig.{name} must be {'3 finite numbers' if count == 3 else 'a finite number'} "
+                                    f"{'>=' if closed else '>'} {low}, got {getattr(self, name)!r}")
+        for name in ("alpha_ramp_fraction", "nll_beta_fraction"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
+                raise SettingsError(f"Seq2SeqConfig.{name} must lie in [0, 1], got {v!r}")
 
     def encoder_indices(self) -> list[int]:
         """The input samples the encoder reads: every encoder_stride-th, plus the last."""

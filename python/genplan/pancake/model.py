@@ -58,13 +58,19 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor, nn
 
-from genplan.errors import ModelFileError, NonFiniteError, ShapeError
+from genplan._threads import torch_threads, uses_torch
+from genplan.errors import GenplanError, NonFiniteError, ShapeError
 from genplan.pancake import physics as ph
 from genplan.pancake.config import Seq2SeqConfig
 
 FORMAT = "genplan-pancake-seq2seq-v1"
 DEFAULT_NAME = "pancake_seq2seq"
 RETRAIN_COMMAND = "genplan train seq2seq --seed 0"
+#: the descriptive keys a seq2seq card may hold (besides format, config and weights_sha256)
+CARD_KEYS = frozenset({"description", "deviations_from_paper", "retrain", "data", "training", "evaluation", "notes"})
+#: largest |pose value| accepted (m, rad): the model computes in float32, which beyond 1e4 no
+#: longer resolves a millimetre (and overflows to inf beyond 3.4e38)
+MAX_ABS = 1e4
 #: how the shipped recipe differs from the paper's Section 4.2 (written to every card)
 DEVIATIONS = [
     "data families: S-curves, perturbed S-curves, constant-velocity lines, and motions that keep the pancake "
@@ -217,11 +223,19 @@ class Seq2SeqModel:
         return total, {"nll": float(plain.mean()) / k, "f_dyn": float(l2.detach().mean())}
 
     # ----------------------------------------------------------------- numpy API
+    @uses_torch("small")
     @torch.no_grad()
-    def deform(self, p_in: ArrayLike) -> dict[str, NDArray[np.float64]]:
-        """Deform input trajectories (K, 3) or (B, K, 3): returns p, v, u, phi, var_p, z."""
+    def deform(self, p_in: ArrayLike, *, threads: int | None = None) -> dict[str, NDArray[np.float64]]:
+        """Deform input trajectories (K, 3) or (B, K, 3): returns p, v, u, phi, var_p, z.
+
+        The inputs are checked (:func:`check_trajectories`); an output that is not finite raises
+        FloatingPointError naming the problem. ``threads``: torch threads for the call (default:
+        genplan's choice, see genplan._threads)."""
         x = check_trajectories(p_in, self.config.K)
         z, out = self.forward(torch.as_tensor(x, dtype=torch.float32))
+        bad = first_nonfinite(out)
+        if bad is not None:
+            raise FloatingPointError(f"the deformation of x_in[{bad}] is not finite (the model overflows there)")
         res = {"p": out.p, "v": out.v, "u": out.u, "phi": out.phi, "var_p": out.var_p, "z": z}
         return {k: v.double().numpy() for k, v in res.items() if v is not None}
 
@@ -230,11 +244,21 @@ class Seq2SeqModel:
         """Write ``path`` (.safetensors) and its card (.json beside it)."""
         from genplan.model_files import write_model
 
-        return write_model(path, dict(self.net.state_dict()), {"format": FORMAT}, self.card, self.config)
+        return write_model(path, dict(self.net.state_dict()), {"format": FORMAT}, self.card, self.config,
+                           CARD_KEYS, "seq2seq")
+
+
+def first_nonfinite(r: ph.Rollout) -> int | None:
+    """The first problem (batch row) whose trajectory (p, v, u, phi) holds NaN or inf, or None."""
+    bad = torch.zeros(r.batch, dtype=torch.bool)
+    for t in (r.p, r.v, r.u, r.phi):
+        bad |= ~torch.isfinite(t.detach().reshape(r.batch, -1)).all(1)
+    return int(bad.nonzero()[0, 0]) if bool(bad.any()) else None
 
 
 def check_trajectories(p_in: ArrayLike, k: int = ph.K, name: str = "x_in") -> NDArray[np.float64]:
-    """Validate input poses: (K, 3) or (B, K, 3), finite. Returns (B, K, 3) float64."""
+    """Validate input poses: (K, 3) or (B, K, 3), finite, within :data:`MAX_ABS`. Returns (B, K, 3)
+    float64."""
     if isinstance(p_in, Tensor):
         p_in = p_in.detach().cpu().numpy()
     x = np.asarray(p_in, dtype=np.float64)
@@ -246,7 +270,17 @@ def check_trajectories(p_in: ArrayLike, k: int = ph.K, name: str = "x_in") -> ND
     if not np.all(np.isfinite(x)):
         bad = np.argwhere(~np.isfinite(x))[0]
         raise NonFiniteError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
+    check_magnitude(x, name)
     return x
+
+
+def check_magnitude(x: NDArray[np.float64], name: str) -> None:
+    """A GenplanError naming the first element of ``x`` beyond :data:`MAX_ABS`."""
+    big = np.abs(x) > MAX_ABS
+    if big.any():
+        idx = tuple(int(i) for i in np.argwhere(big)[0])
+        raise GenplanError(f"{name}: element {idx} is {x[idx]:.6g}, beyond {MAX_ABS:g} (m or rad): the model "
+                           "computes in float32 and cannot vouch for poses that large")
 
 
 def models_dir() -> Path:
@@ -261,29 +295,20 @@ def default_path() -> Path:
 def load_model(path: str | Path | None = None) -> Seq2SeqModel:
     """Load a seq2seq model (default: the shipped ``models/pancake_seq2seq.safetensors``).
 
-    A missing file raises FileNotFoundError naming the command that trains it; a corrupt file or
-    a card that does not match raises :class:`~genplan.errors.ModelFileError`.
+    A missing file raises FileNotFoundError naming the command that trains it; a file that cannot
+    be vouched for (see :mod:`genplan.model_files`: no or another weights sha256, a bad card or
+    config, NaN weights, missing, extra or misshapen tensors) raises
+    :class:`~genplan.errors.ModelFileError` naming the file and the problem.
     """
-    from genplan.model_files import read_config, read_model
+    from genplan.model_files import check_tensors, read_config, read_model
 
     path = default_path() if path is None else Path(path)
     retrain = RETRAIN_COMMAND + ("" if path == default_path() else f" --out {path}")
-    card, tensors = read_model(path, FORMAT, "seq2seq", retrain)
-
-    def make(d: dict[str, Any]) -> Seq2SeqConfig:
-        for key in ("u_scale", "in_scale"):
-            d[key] = tuple(d[key])
-        return Seq2SeqConfig(**d)
-
-    cfg = read_config(card, path, "seq2seq", make)
+    card, tensors = read_model(path, FORMAT, "seq2seq", retrain, CARD_KEYS)
+    cfg = read_config(card, path, "seq2seq", Seq2SeqConfig)
     net = Seq2SeqNet(cfg)
-    try:
-        net.load_state_dict(tensors, strict=True)
-    except RuntimeError as exc:
-        raise ModelFileError(f"seq2seq model file {path} does not fit its card: {exc}") from None
-    for name, t in tensors.items():
-        if not torch.all(torch.isfinite(t)):
-            raise ModelFileError(f"seq2seq model file {path} is corrupt: tensor {name} holds NaN or inf")
+    check_tensors(tensors, {k: tuple(v.shape) for k, v in net.state_dict().items()}, path, "seq2seq")
+    net.load_state_dict(tensors, strict=True)
     net.eval()
     return Seq2SeqModel(cfg, net, card)
 
@@ -295,6 +320,7 @@ def default_config(**overrides: Any) -> Seq2SeqConfig:
     return dataclasses.replace(Seq2SeqConfig(), **overrides)
 
 
+@uses_torch("small")
 @torch.no_grad()
 def evaluate(model: Seq2SeqModel, p_in: NDArray[np.float32], batch: int = 512) -> dict[str, float]:
     """Deformation quality on inputs: NLL, reproduction RMSE, f_dyn, share inside the cone."""
@@ -327,10 +353,19 @@ def evaluate(model: Seq2SeqModel, p_in: NDArray[np.float32], batch: int = 512) -
 
 def train(cfg: Seq2SeqConfig, data: NDArray[np.float32] | None = None, progress: bool = True,
           log_every: int = 50) -> Seq2SeqModel:
-    """Train a model; returns it with a card holding the loss curve and training time."""
+    """Train a model; returns it with a card holding the loss curve and training time.
+
+    torch runs on ``cfg.threads`` threads (None: genplan's choice for training, see
+    genplan._threads); the card records the count used."""
+    cfg.validate()
+    with torch_threads("training", cfg.threads) as threads:
+        return _train(cfg, data, progress, log_every, threads)
+
+
+def _train(cfg: Seq2SeqConfig, data: NDArray[np.float32] | None, progress: bool, log_every: int,
+           threads: int) -> Seq2SeqModel:
     from genplan.pancake.data import cache_path, generate_chunk, input_trajectories
 
-    torch.set_num_threads(max(1, int(cfg.threads)))
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     t_data = time.perf_counter()
@@ -341,6 +376,9 @@ def train(cfg: Seq2SeqConfig, data: NDArray[np.float32] | None = None, progress:
     t_data = time.perf_counter() - t_data
     if data.ndim != 3 or data.shape[1:] != (cfg.K, 3):
         raise ShapeError(f"training data must have shape (n, {cfg.K}, 3), got {data.shape}")
+    if not np.all(np.isfinite(data)):
+        raise NonFiniteError(f"training data: element {tuple(int(i) for i in np.argwhere(~np.isfinite(data))[0])} "
+                             "is NaN or inf")
     data = np.ascontiguousarray(data, dtype=np.float32)
     val = generate_chunk(cfg.validation, np.random.default_rng([cfg.data_seed, 1]), cfg.K)
 
@@ -409,11 +447,11 @@ def train(cfg: Seq2SeqConfig, data: NDArray[np.float32] | None = None, progress:
         "description": "seq2seq trajectory deformation for the pancake task (Kutsuzawa et al. 2019)",
         "deviations_from_paper": [
             f"training data: {n:,} generated inputs (the paper: 1,638,400), {cfg.epochs} epochs, "
-            f"{seconds / 60:.0f} min on {cfg.threads} CPU thread(s)", *DEVIATIONS],
+            f"{seconds / 60:.0f} min on {threads} CPU thread(s)", *DEVIATIONS],
         "retrain": f"genplan train seq2seq --seed {cfg.seed} --trajectories {cfg.trajectories} --epochs {cfg.epochs}",
         "data": {"trajectories": n, "source": source, "data_seed": cfg.data_seed, "seconds": t_data,
                  "paper_trajectories": 1_638_400},
-        "training": {"seconds": seconds, "steps": step, "threads": cfg.threads, "torch": torch.__version__,
+        "training": {"seconds": seconds, "steps": step, "threads": threads, "torch": torch.__version__,
                      "loss_log": log, "validation_log": val_log},
     }
     return model

@@ -13,10 +13,11 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from genplan import _cli_args as A
 
 if TYPE_CHECKING:
     from genplan.pancake.model import Seq2SeqModel
@@ -61,20 +62,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     from genplan.pancake.config import Seq2SeqConfig
 
     d = Seq2SeqConfig()
-    p.add_argument("--seed", type=int, default=0, help="training seed (weights, batches)")
-    p.add_argument("--data-seed", type=int, default=None, help="seed of the training inputs (default: --seed)")
-    p.add_argument("--trajectories", type=int, default=d.trajectories,
+    p.add_argument("--seed", type=A.seed, default=0, help="training seed (weights, batches)")
+    p.add_argument("--data-seed", type=A.seed, default=None, help="seed of the training inputs (default: --seed)")
+    p.add_argument("--trajectories", type=A.positive_int, default=d.trajectories,
                    help=f"training inputs (default {d.trajectories:,}; the paper used 1,638,400)")
-    p.add_argument("--epochs", type=int, default=d.epochs, help=f"default {d.epochs}")
-    p.add_argument("--batch-size", type=int, default=d.batch_size, help=f"default {d.batch_size}")
-    p.add_argument("--lr", type=float, default=d.lr, help=f"Adam learning rate, cosine-annealed (default {d.lr})")
-    p.add_argument("--alpha", type=float, default=d.alpha, help=f"weight of f_dyn in the loss (default {d.alpha})")
-    p.add_argument("--encoder-stride", type=int, default=d.encoder_stride,
+    p.add_argument("--epochs", type=A.positive_int, default=d.epochs, help=f"default {d.epochs}")
+    p.add_argument("--batch-size", type=A.positive_int, default=d.batch_size, help=f"default {d.batch_size}")
+    p.add_argument("--lr", type=A.positive_float, default=d.lr,
+                   help=f"Adam learning rate, cosine-annealed (default {d.lr})")
+    p.add_argument("--alpha", type=A.non_negative_float, default=d.alpha,
+                   help=f"weight of f_dyn in the loss (default {d.alpha})")
+    p.add_argument("--encoder-stride", type=A.positive_int, default=d.encoder_stride,
                    help=f"encoder reads every n-th pose (default {d.encoder_stride}; 1 = the paper)")
-    p.add_argument("--decoder-stride", type=int, default=d.decoder_stride,
+    p.add_argument("--decoder-stride", type=A.positive_int, default=d.decoder_stride,
                    help=f"accelerations per decoder LSTM step (default {d.decoder_stride}; 1 = the paper)")
-    p.add_argument("--threads", type=int, default=d.threads, help=f"torch threads (default {d.threads})")
-    p.add_argument("--out", type=Path, default=None, help="model path (default models/pancake_seq2seq.safetensors)")
+    p.add_argument("--threads", type=A.positive_int, default=d.threads,
+                   help="torch threads (default: genplan's choice for training, one; $GENPLAN_TORCH_THREADS "
+                        "overrides it too)")
+    p.add_argument("--out", type=A.output_file, default=None,
+                   help="model path (default models/pancake_seq2seq.safetensors; folders are created)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -86,7 +92,8 @@ def main(args: argparse.Namespace) -> int:
                          lr=args.lr, alpha=args.alpha, encoder_stride=args.encoder_stride,
                          decoder_stride=args.decoder_stride, threads=args.threads)
     if cfg.trajectories < cfg.batch_size:
-        raise SystemExit(f"--trajectories ({cfg.trajectories}) must be at least --batch-size ({cfg.batch_size})")
+        raise A.UsageError(f"--trajectories ({cfg.trajectories}) must be at least --batch-size ({cfg.batch_size})")
+    out = args.out or A.check_output_file(default_path(), "--out")
     t0 = time.perf_counter()
     model = train(cfg, progress=not args.no_progress)
     t_eval = time.perf_counter()
@@ -96,7 +103,6 @@ def main(args: argparse.Namespace) -> int:
     retrain = (f"genplan train seq2seq --seed {cfg.seed} --trajectories {cfg.trajectories} --epochs {cfg.epochs}"
                + ("" if args.data_seed is None else f" --data-seed {cfg.data_seed}"))
     model.card["retrain"] = retrain
-    out = args.out or default_path()
     weights, card = model.save(out)
     ev = model.card["evaluation"]
     lat = ev["latent_adjustment_j1_adaptive"]

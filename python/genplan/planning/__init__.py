@@ -19,10 +19,12 @@ Python object, called back in batches:
 * ``projector``: a :class:`~genplan.projection.GaussNewtonProjector` (its native solver is used) or
   any object with ``project(qs, q_noms) -> (q, success[, iterations])``;
 * ``checker``: a :class:`~genplan.collision.CollisionWorld` (native) or any object with
-  ``is_valid(qs) -> (n,) bool``.
+  ``is_valid(qs) -> (n,) bool`` (booleans or exactly 0 / 1; anything else is a
+  :class:`~genplan.errors.CallbackError`).
 
 An exception raised inside a Python part ends the plan and reaches the caller unchanged; Ctrl-C
-interrupts a long plan (KeyboardInterrupt).
+interrupts a long plan (KeyboardInterrupt). A start or goal off the constraint manifold is refused
+before the search (see :meth:`Planner.plan`).
 """
 
 from __future__ import annotations
@@ -152,7 +154,31 @@ class Planner:
         solutions from :meth:`Environment.queries`). Failing to find a path within the settings'
         budget is ``success=False``, not an exception; bad input raises a :mod:`genplan.errors` class. ``sampler``
         replaces the planner's sampler for this plan (e.g. a GAN conditioned on this query's
-        region: ``make_sampler(robot, "gan", gan_box=...)``)."""
+        region: ``make_sampler(robot, "gan", gan_box=...)``).
+
+        Before the search, every input the result's guarantee rests on is checked:
+
+        * on the manifold: the start and each goal are projected with the planner's projector
+          (posture around themselves). One it cannot project, or moves by more than
+          ``settings.goal_tolerance``, is refused: :class:`~genplan.errors.InvalidStartError`, or
+          :class:`~genplan.errors.InvalidGoalError` naming every such goal and the distance, e.g.
+          ``goals[3]: not on the constraint manifold: the projector moved it by 0.312
+          (goal_tolerance 0.001)``. A goal off the manifold is refused even when other goals are
+          fine (as OMPL refuses a constrained problem whose goal does not satisfy the
+          constraint): it was not made for this task, and planning to the others would hide
+          that. One it moves by less is replaced by its projection, so that the path's first and
+          last states satisfy the constraint too (a configuration already on the manifold, such
+          as the queries', is used exactly as given);
+        * valid (the checker): a start in collision or outside the joint limits is refused; goals
+          that are not valid are dropped (IK solutions often collide), and refused only when
+          none is left. ``result.goal_index`` says which goal was reached.
+
+        A Python checker's or projector's flags must be booleans (or exactly 0 / 1): anything
+        else is a :class:`~genplan.errors.CallbackError` naming the callback and the value.
+
+        On success, ``result.path`` runs from the start to ``goals[result.goal_index]`` (each as
+        projected above), every state of it on the manifold and valid, consecutive states at most
+        ``1.25 * edge_resolution`` apart."""
         q0 = self.robot.check_configuration(start, "start")
         if q0.ndim != 1:
             raise ShapeError(f"start: expected shape ({self.robot.nq},), got {q0.shape}")

@@ -57,13 +57,21 @@
 //! `dds = (g - a).t + s w^2 - mu_kinetic N sign(ds)`. `N <= 0` is a lift-off and `|s|` past the
 //! blade's half length a fall: the pancake has left the spatula (the intended end of a flip).
 //! At `s = 0` the stick condition is the paper's `|phi| <= arctan(mu)` (eq. 15).
+//!
+//! # Joint limits
+//!
+//! Every tick's applied torque and joint speed are checked against the robot's rated limits
+//! ([`JointLimits`]; by default the URDF's `<limit effort velocity>`, see
+//! [`Dynamics::effort_limit`]). A run that exceeds them is reported
+//! ([`Summary::limit_violation`]: the first tick, joint and value); asked to
+//! (`stop_at_limit`), the run stops at that tick instead.
 
 use std::time::{Duration, Instant};
 
 use nalgebra::{DMatrix, Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
 
 use crate::dynamics::{DynWorkspace, Dynamics, Frame};
-use crate::error::{check_finite, Error, Result};
+use crate::error::{Error, Result};
 use crate::lie::log3;
 
 /// The paper's gains, Section 5.1.
@@ -178,22 +186,61 @@ impl Disturbances {
     }
 
     fn check(&self, nv: usize) -> Result<()> {
-        for (what, v) in [("coulomb", &self.coulomb), ("viscous", &self.viscous), ("offset", &self.offset)] {
-            crate::error::check_vector(&format!("disturbances.{what}"), v, nv)?;
+        setting_vector("disturbances.coulomb", &self.coulomb, nv, 0.0)?;
+        setting_vector("disturbances.viscous", &self.viscous, nv, 0.0)?;
+        setting_vector("disturbances.offset", &self.offset, nv, f64::NEG_INFINITY)?;
+        positive("disturbances.friction_velocity", self.friction_velocity)?;
+        within("disturbances.payload_mass", self.payload_mass, 0.0, MAX_MASS, " kg")?;
+        setting_vector("disturbances.payload_com", &self.payload_com, 3, f64::NEG_INFINITY)?;
+        let d = Vector3::from(self.payload_com).norm();
+        if d > MAX_OFFSET {
+            return Err(setting("disturbances.payload_com", format!("must lie within {MAX_OFFSET} m of the spatula point, got {d:.3} m")));
         }
-        if self.coulomb.iter().chain(&self.viscous).any(|&x| x < 0.0) {
-            return Err(Error::Invalid("disturbances: friction coefficients must be >= 0".into()));
-        }
-        if !(self.friction_velocity.is_finite() && self.friction_velocity > 0.0) {
-            return Err(Error::Invalid(format!(
-                "disturbances.friction_velocity must be > 0, got {}",
-                self.friction_velocity
-            )));
-        }
-        if !(self.payload_mass.is_finite() && self.payload_mass >= 0.0) {
-            return Err(Error::Invalid(format!("disturbances.payload_mass must be >= 0, got {}", self.payload_mass)));
-        }
-        check_finite("disturbances.payload_com", &self.payload_com)
+        Ok(())
+    }
+}
+
+/// Largest mass a configuration may give the spatula or the payload (kg): beyond it the arm
+/// model (a 5 kg payload UR5) means nothing.
+pub const MAX_MASS: f64 = 100.0;
+
+/// Largest distance (m) of the payload's centre of mass from the spatula point, and largest
+/// spatula length.
+pub const MAX_OFFSET: f64 = 1.0;
+
+fn setting(field: &'static str, msg: String) -> Error {
+    Error::Settings { field, msg }
+}
+
+/// `x` finite and > 0.
+fn positive(field: &'static str, x: f64) -> Result<()> {
+    if x.is_finite() && x > 0.0 {
+        Ok(())
+    } else {
+        Err(setting(field, format!("must be finite and > 0, got {x}")))
+    }
+}
+
+/// `x` finite and in `[lo, hi]` (`unit`: of the bounds, for the message).
+fn within(field: &'static str, x: f64, lo: f64, hi: f64, unit: &str) -> Result<()> {
+    if x.is_finite() && x >= lo && x <= hi {
+        Ok(())
+    } else if hi.is_finite() {
+        Err(setting(field, format!("must be finite and in [{lo}, {hi}]{unit}, got {x}")))
+    } else {
+        Err(setting(field, format!("must be finite and >= {lo}, got {x}")))
+    }
+}
+
+/// `values` of length `n`, each finite and `>= min`.
+fn setting_vector(field: &'static str, values: &[f64], n: usize, min: f64) -> Result<()> {
+    if values.len() != n {
+        return Err(setting(field, format!("must have length {n}, got {}", values.len())));
+    }
+    match values.iter().position(|&x| !(x.is_finite() && x >= min)) {
+        None => Ok(()),
+        Some(i) if values[i].is_finite() => Err(setting(field, format!("element {i} must be >= {min}, got {}", values[i]))),
+        Some(i) => Err(setting(field, format!("element {i} must be finite, got {}", values[i]))),
     }
 }
 
@@ -258,6 +305,97 @@ impl Default for PancakeConfig {
     }
 }
 
+/// The rated joint limits a run is checked against (see the module docs, "Joint limits").
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct JointLimits {
+    /// Largest |torque| per joint (N m; N for a prismatic joint); None: the robot model's
+    /// ([`Dynamics::effort_limit`]). `inf` leaves a joint unchecked.
+    pub torque: Option<Vec<f64>>,
+    /// Largest |speed| per joint (rad/s; m/s); None: the robot model's
+    /// ([`Dynamics::velocity_limit`]). `inf` leaves a joint unchecked.
+    pub velocity: Option<Vec<f64>>,
+}
+
+impl JointLimits {
+    /// The limits in force on `arm`: the given ones, else the arm's.
+    fn resolve(&self, arm: &Dynamics) -> (Vec<f64>, Vec<f64>) {
+        (
+            self.torque.clone().unwrap_or_else(|| arm.effort_limit.clone()),
+            self.velocity.clone().unwrap_or_else(|| arm.velocity_limit.clone()),
+        )
+    }
+
+    fn check(&self, nv: usize) -> Result<()> {
+        for (field, v) in [("limits.torque", &self.torque), ("limits.velocity", &self.velocity)] {
+            if let Some(v) = v {
+                if v.len() != nv {
+                    return Err(setting(field, format!("must have length {nv}, got {}", v.len())));
+                }
+                if let Some(i) = v.iter().position(|&x| x.is_nan() || x <= 0.0) {
+                    return Err(setting(field, format!("element {i} must be > 0 (inf: unchecked), got {}", v[i])));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Which limit a tick exceeded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LimitKind {
+    /// The applied torque (force).
+    Torque,
+    /// The joint speed.
+    Velocity,
+}
+
+/// The first tick of a run that exceeded a joint limit (the joint furthest over its limit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LimitViolation {
+    /// Time of the tick from the start of the run (s; the settle phase included).
+    pub time: f64,
+    /// Index of the tick.
+    pub tick: usize,
+    /// Index of the joint (v order).
+    pub joint: usize,
+    /// Torque or speed.
+    pub kind: LimitKind,
+    /// The signed torque or speed.
+    pub value: f64,
+    /// The limit it exceeded.
+    pub limit: f64,
+    /// The unit of both ("N m", "rad/s", "N", "m/s").
+    pub unit: &'static str,
+}
+
+impl LimitViolation {
+    /// "torque" or "velocity".
+    pub fn quantity(&self) -> &'static str {
+        match self.kind {
+            LimitKind::Torque => "torque",
+            LimitKind::Velocity => "velocity",
+        }
+    }
+
+    /// One sentence naming the joint (from `joint_names`), the time, the value and the limit.
+    pub fn describe(&self, joint_names: &[String]) -> String {
+        let name = joint_names.get(self.joint).map_or("?", String::as_str);
+        let (q, u) = (self.quantity(), self.unit);
+        let (value, limit) = (self.value.abs(), self.limit);
+        // about 3 significant digits, more where the two would print the same
+        let mut d: usize = match limit {
+            x if x >= 100.0 => 0,
+            x if x >= 10.0 => 1,
+            x if x >= 1.0 => 2,
+            _ => 3,
+        };
+        while d < 9 && format!("{value:.d$}") == format!("{limit:.d$}") {
+            d += 1;
+        }
+        format!("joint '{name}' exceeds its {q} limit at t = {:.3} s: |{q}| = {value:.d$} {u} > {limit:.d$} {u}", self.time)
+    }
+}
+
 /// Everything a run needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {
@@ -274,6 +412,8 @@ pub struct SimConfig {
     /// Ticks holding the first pose before the motion (the DOB settles; the paper's robot
     /// held still for 25 s).
     pub settle_ticks: usize,
+    /// The joint limits every tick is checked against.
+    pub limits: JointLimits,
 }
 
 impl SimConfig {
@@ -286,53 +426,45 @@ impl SimConfig {
             pancake: PancakeConfig::default(),
             substeps: 1,
             settle_ticks: 0,
+            limits: JointLimits::default(),
         }
     }
 
-    fn check(&self, nv: usize) -> Result<()> {
+    /// Check every value (the error, [`Error::Settings`], names the field): positive and finite
+    /// period, cut-off and blade; non-negative gains, damping, friction; masses in
+    /// `[0, MAX_MASS]` kg; vectors of the arm's length; 1..=1000 substeps.
+    pub fn check(&self, nv: usize) -> Result<()> {
         let c = &self.controller;
-        let pos = |what: &str, x: f64| -> Result<()> {
-            if x.is_finite() && x > 0.0 {
-                Ok(())
-            } else {
-                Err(Error::Invalid(format!("{what} must be finite and > 0, got {x}")))
-            }
-        };
-        let nonneg = |what: &str, x: f64| -> Result<()> {
-            if x.is_finite() && x >= 0.0 {
-                Ok(())
-            } else {
-                Err(Error::Invalid(format!("{what} must be finite and >= 0, got {x}")))
-            }
-        };
-        pos("controller.dt", c.dt)?;
-        pos("controller.dob_cutoff_hz", c.dob_cutoff_hz)?;
-        for (w, x) in [("kpp", c.gains.kpp), ("kpr", c.gains.kpr), ("kvp", c.gains.kvp), ("kvr", c.gains.kvr)] {
-            nonneg(&format!("controller.gains.{w}"), x)?;
-        }
+        let nonneg = |field: &'static str, x: f64| within(field, x, 0.0, f64::INFINITY, "");
+        positive("controller.dt", c.dt)?;
+        positive("controller.dob_cutoff_hz", c.dob_cutoff_hz)?;
+        nonneg("controller.gains.kpp", c.gains.kpp)?;
+        nonneg("controller.gains.kpr", c.gains.kpr)?;
+        nonneg("controller.gains.kvp", c.gains.kvp)?;
+        nonneg("controller.gains.kvr", c.gains.kvr)?;
         nonneg("controller.singular_det", c.singular_det)?;
         nonneg("controller.max_damping", c.max_damping)?;
         if let Some(l) = &c.torque_limit {
-            crate::error::check_vector("controller.torque_limit", l, nv)?;
-            if l.iter().any(|&x| x <= 0.0) {
-                return Err(Error::Invalid("controller.torque_limit must be > 0 for every joint".into()));
+            setting_vector("controller.torque_limit", l, nv, 0.0)?;
+            if let Some(i) = l.iter().position(|&x| x <= 0.0) {
+                return Err(setting("controller.torque_limit", format!("element {i} must be > 0, got {}", l[i])));
             }
         }
         self.disturbances.check(nv)?;
         let s = &self.setup;
-        nonneg("setup.spatula_length", s.spatula_length)?;
-        nonneg("setup.spatula_mass", s.spatula_mass)?;
-        check_finite("setup.spatula_com", &[s.spatula_com])?;
-        check_finite("setup.origin", &s.origin)?;
-        check_finite("setup.attitude", &s.attitude)?;
+        within("setup.spatula_length", s.spatula_length, 0.0, MAX_OFFSET, " m")?;
+        within("setup.spatula_mass", s.spatula_mass, 0.0, MAX_MASS, " kg")?;
+        within("setup.spatula_com", s.spatula_com, -MAX_OFFSET, MAX_OFFSET, " m")?;
+        setting_vector("setup.origin", &s.origin, 3, f64::NEG_INFINITY)?;
+        setting_vector("setup.attitude", &s.attitude, 2, f64::NEG_INFINITY)?;
         let p = &self.pancake;
         nonneg("pancake.mu_static", p.mu_static)?;
         nonneg("pancake.mu_kinetic", p.mu_kinetic)?;
-        pos("pancake.blade_half_length", p.blade_half_length)?;
+        positive("pancake.blade_half_length", p.blade_half_length)?;
         if self.substeps == 0 || self.substeps > 1000 {
-            return Err(Error::Invalid(format!("substeps must be in 1..=1000, got {}", self.substeps)));
+            return Err(setting("substeps", format!("must be in 1..=1000, got {}", self.substeps)));
         }
-        Ok(())
+        self.limits.check(nv)
     }
 }
 
@@ -542,6 +674,9 @@ pub struct Simulation {
     tilt_prev: Option<f64>,
     /// Ticks since the last reset.
     pub ticks: u64,
+    torque_limits: Vec<f64>,
+    velocity_limits: Vec<f64>,
+    limit_units: Vec<(&'static str, &'static str)>,
 }
 
 /// Summary numbers of a run.
@@ -579,6 +714,14 @@ pub struct Summary {
     pub saturated_ticks: usize,
     /// Largest |torque| per joint (N m).
     pub max_abs_tau: Vec<f64>,
+    /// Largest |joint speed| per joint (rad/s).
+    pub max_abs_v: Vec<f64>,
+    /// The first tick that exceeded a joint limit (None: the run stayed within them).
+    pub limit_violation: Option<LimitViolation>,
+    /// Ticks that exceeded a joint limit.
+    pub limit_ticks: usize,
+    /// The run stopped at the first limit violation (`stop_at_limit`): the log ends there.
+    pub stopped_at_limit: bool,
 }
 
 /// Per-tick log of a run (row-major arrays).
@@ -693,6 +836,12 @@ impl Simulation {
         let i_rod = s.spatula_mass * l * l / 12.0;
         let rod = Matrix3::from_diagonal(&Vector3::new(i_rod, i_rod, 0.0));
         nominal.add_inertia(&flange, s.spatula_mass, Vector3::new(0.0, 0.0, s.spatula_com), rod)?;
+        let (torque_limits, velocity_limits) = config.limits.resolve(arm);
+        let limit_units = arm
+            .bodies
+            .iter()
+            .map(|b| if b.kind == crate::dynamics::JointKind::Prismatic { ("N", "m/s") } else { ("N m", "rad/s") })
+            .collect();
         let mut plant = nominal.clone();
         let d = &config.disturbances;
         if d.payload_mass > 0.0 {
@@ -718,6 +867,9 @@ impl Simulation {
             djac: DMatrix::zeros(6, nv),
             tilt_prev: None,
             ticks: 0,
+            torque_limits,
+            velocity_limits,
+            limit_units,
             config,
         })
     }
@@ -725,6 +877,31 @@ impl Simulation {
     /// The configuration this simulation was built with.
     pub fn config(&self) -> &SimConfig {
         &self.config
+    }
+
+    /// The joint limits in force (torque, speed per joint): the configuration's, else the robot
+    /// model's.
+    pub fn limits(&self) -> (&[f64], &[f64]) {
+        (&self.torque_limits, &self.velocity_limits)
+    }
+
+    /// The joint furthest over its limit (relative to the limit) at tick `k` with applied torque
+    /// `tau` and joint speeds `v`; None when every joint is within its limits.
+    fn limit_violation(&self, k: usize, tau: &Vector6<f64>, v: &[f64; 6]) -> Option<LimitViolation> {
+        let mut worst: Option<(f64, LimitViolation)> = None;
+        for i in 0..self.nv {
+            for (kind, value, limit) in
+                [(LimitKind::Torque, tau[i], self.torque_limits[i]), (LimitKind::Velocity, v[i], self.velocity_limits[i])]
+            {
+                let ratio = value.abs() / limit;
+                if ratio > 1.0 && worst.as_ref().is_none_or(|(r, _)| ratio > *r) {
+                    let unit = if kind == LimitKind::Torque { self.limit_units[i].0 } else { self.limit_units[i].1 };
+                    let time = k as f64 * self.config.controller.dt;
+                    worst = Some((ratio, LimitViolation { time, tick: k, joint: i, kind, value, limit, unit }));
+                }
+            }
+        }
+        worst.map(|(_, v)| v)
     }
 
     /// The command pose of a paper pose `[y, z, theta]` (eq. 23 with this setup).
@@ -1088,14 +1265,24 @@ impl Simulation {
 
     /// Execute a paper trajectory (see [`prepare`](Self::prepare)). `motion_len`: how many rows
     /// are the motion proper (the rest is a tail, e.g. the paper's deceleration; None: all).
-    /// `paced`: tick on the wall clock every `dt` and record the lateness of each tick.
+    /// `paced`: tick on the wall clock every `dt` and record the lateness of each tick. Ticks
+    /// over the joint limits are reported in the summary ([`Summary::limit_violation`]).
     pub fn run(&mut self, trajectory: &[f64], motion_len: Option<usize>, paced: bool) -> Result<Run> {
-        self.run_with(trajectory, motion_len, paced, &mut || false)
+        self.run_with(trajectory, motion_len, paced, false, &mut || false)
     }
 
     /// As [`run`](Self::run), asking `stop` every [`STOP_CHECK_TICKS`] ticks whether to abandon
     /// the run (e.g. on Ctrl-C); a stop is the error [`Error::Invalid`] "run interrupted".
-    pub fn run_with(&mut self, trajectory: &[f64], motion_len: Option<usize>, paced: bool, stop: &mut dyn FnMut() -> bool) -> Result<Run> {
+    /// `stop_at_limit`: end the run after the first tick over a joint limit
+    /// ([`Summary::stopped_at_limit`]; the log ends with that tick).
+    pub fn run_with(
+        &mut self,
+        trajectory: &[f64],
+        motion_len: Option<usize>,
+        paced: bool,
+        stop_at_limit: bool,
+        stop: &mut dyn FnMut() -> bool,
+    ) -> Result<Run> {
         let rows = trajectory.len() / 3;
         if rows.saturating_add(self.config.settle_ticks) > MAX_TICKS {
             return Err(Error::Invalid(format!(
@@ -1149,6 +1336,10 @@ impl Simulation {
             min_abs_det_j: f64::INFINITY,
             saturated_ticks: 0,
             max_abs_tau: vec![0.0; nv],
+            max_abs_v: vec![0.0; nv],
+            limit_violation: None,
+            limit_ticks: 0,
+            stopped_at_limit: false,
         };
         let mut outs: Vec<TickOutput> = Vec::with_capacity(n);
         let mut states: Vec<([f64; 6], [f64; 6])> = Vec::with_capacity(n);
@@ -1165,17 +1356,37 @@ impl Simulation {
                 log.lateness.push(now.saturating_duration_since(deadline).as_secs_f64());
             }
             let t0 = if paced { Some(Instant::now()) } else { None };
-            states.push((self.q, self.v));
-            let out = self.tick(cmd).map_err(|e| match e {
-                Error::Invalid(msg) => Error::Invalid(format!("{msg} (t = {:.3} s)", k as f64 * dt)),
-                e => e,
-            })?;
+            let v0 = self.v;
+            states.push((self.q, v0));
+            let out = match self.tick(cmd) {
+                Ok(out) => out,
+                Err(Error::Invalid(msg)) => {
+                    let t = k as f64 * dt;
+                    return Err(Error::Invalid(match &summary.limit_violation {
+                        Some(v) => format!("{msg} (t = {t:.3} s), after exceeding a limit: {}", v.describe(&self.nominal.joint_names)),
+                        None => format!("{msg} (t = {t:.3} s)"),
+                    }));
+                }
+                Err(e) => return Err(e),
+            };
             if let Some(t0) = t0 {
                 log.compute.push(t0.elapsed().as_secs_f64());
             }
+            let over = self.limit_violation(k, &out.tau, &v0);
             outs.push(out);
+            if let Some(v) = over {
+                summary.limit_ticks += 1;
+                summary.limit_violation.get_or_insert(v);
+                if stop_at_limit {
+                    summary.stopped_at_limit = true;
+                    break;
+                }
+            }
         }
         let elapsed = start.elapsed().as_secs_f64();
+        let n = outs.len();
+        log.n = n;
+        summary.ticks = n;
         summary.us_per_tick = elapsed / n as f64 * 1e6;
         // fill the log outside the timed loop
         let (mut se_p, mut se_r, mut cnt) = (0.0, 0.0, 0usize);
@@ -1220,8 +1431,9 @@ impl Simulation {
                 summary.saturated_ticks += 1;
             }
             summary.min_abs_det_j = summary.min_abs_det_j.min(out.det_j.abs());
-            for i in 0..nv {
-                summary.max_abs_tau[i] = summary.max_abs_tau[i].max(out.tau[i].abs());
+            for (i, (tau_i, v_i)) in summary.max_abs_tau.iter_mut().zip(&mut summary.max_abs_v).enumerate() {
+                *tau_i = tau_i.max(out.tau[i].abs());
+                *v_i = v_i.max(v[i].abs());
             }
             if mode != 0 {
                 summary.first_slip_time.get_or_insert(t);

@@ -169,6 +169,12 @@ pub struct Dynamics {
     pub lower: Vec<f64>,
     /// Upper position limit per q element.
     pub upper: Vec<f64>,
+    /// Largest effort per v element (N m or N), the URDF's `<limit effort>`; +inf where the
+    /// URDF gives none (or a value that is not positive).
+    pub effort_limit: Vec<f64>,
+    /// Largest speed per v element (rad/s or m/s), the URDF's `<limit velocity>`; +inf where
+    /// the URDF gives none (or a value that is not positive).
+    pub velocity_limit: Vec<f64>,
     /// For each body, the bodies from the root to it (inclusive), root first.
     pub chains: Vec<Vec<usize>>,
     /// Link names and, for each link, the body it belongs to and its placement in that body.
@@ -310,7 +316,18 @@ impl Dynamics {
                 c
             })
             .collect();
+        // the URDF's effort and speed limits of the active joints, in v order
+        let (mut effort_limit, mut velocity_limit) = (vec![f64::INFINITY; model.nv], vec![f64::INFINITY; model.nv]);
+        let positive = |x: f64| if x > 0.0 { x } else { f64::INFINITY };
+        for b in &bodies {
+            if let Some(j) = urdf.joints.iter().find(|j| j.name == b.joint) {
+                effort_limit[b.v_index] = positive(j.effort);
+                velocity_limit[b.v_index] = positive(j.velocity);
+            }
+        }
         let dynamics = Dynamics {
+            effort_limit,
+            velocity_limit,
             nq: model.nq,
             nv: model.nv,
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),

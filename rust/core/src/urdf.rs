@@ -115,6 +115,11 @@ pub struct Joint {
     pub lower: f64,
     /// Upper limit (`<limit upper>` of a revolute or prismatic joint, default 0); +inf otherwise.
     pub upper: f64,
+    /// Largest effort (`<limit effort>`: N m for a revolute joint, N for a prismatic one);
+    /// +inf when not given.
+    pub effort: f64,
+    /// Largest speed (`<limit velocity>`: rad/s or m/s); +inf when not given.
+    pub velocity: f64,
 }
 
 /// A parsed URDF file.
@@ -429,11 +434,14 @@ fn parse_joint(node: roxmltree::Node) -> Result<Joint> {
         None => Vector3::x(),
     };
     let (mut lower, mut upper) = (f64::NEG_INFINITY, f64::INFINITY);
+    let (mut effort, mut velocity) = (f64::INFINITY, f64::INFINITY);
     if let Some(limit) = child(node, "limit") {
         if matches!(joint_type, JointType::Revolute | JointType::Prismatic) {
             lower = f64_attr(limit, "lower")?.unwrap_or(0.0);
             upper = f64_attr(limit, "upper")?.unwrap_or(0.0);
         }
+        effort = f64_attr(limit, "effort")?.unwrap_or(f64::INFINITY);
+        velocity = f64_attr(limit, "velocity")?.unwrap_or(f64::INFINITY);
     }
     Ok(Joint {
         name: name.to_string(),
@@ -444,5 +452,7 @@ fn parse_joint(node: roxmltree::Node) -> Result<Joint> {
         axis,
         lower,
         upper,
+        effort,
+        velocity,
     })
 }

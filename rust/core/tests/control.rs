@@ -1,14 +1,16 @@
 //! The spatula controller: conventions (phi, attitude), the pancake's stick/slip against closed
 //! forms and the paper's cone criterion, and on the UR5 (needs example-robot-data: ignored by a
 //! bare `cargo test`): reachability of the task region, input errors, the plant integrator's
-//! accuracy, disturbance rejection by the DOB, singularity damping, slip verdicts, paced mode.
+//! accuracy, disturbance rejection by the DOB, singularity damping, slip verdicts, paced mode,
+//! joint limits (the URDF's, checked every tick) and configuration errors naming the field.
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
 use genplan_core::control::{
-    attitude_matrix, phi, wrap_angle, Disturbances, Pancake, PancakeConfig, PancakeMode, PlanarMotion, SimConfig,
-    Simulation,
+    attitude_matrix, phi, wrap_angle, Disturbances, JointLimits, LimitKind, Pancake, PancakeConfig, PancakeMode,
+    PlanarMotion, SimConfig, Simulation,
 };
+use genplan_core::Error;
 use genplan_core::dynamics::Dynamics;
 use genplan_core::robot::find_robots_dir;
 use nalgebra::Vector3;
@@ -363,4 +365,71 @@ fn paced_mode_ticks_on_the_wall_clock() {
     let mut s2 = sim(SimConfig::new(6));
     let r2 = s2.run(&traj, None, false).unwrap();
     assert_eq!(r.log.q, r2.log.q);
+}
+
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn runs_are_checked_against_the_urdf_joint_limits() {
+    let arm = ur5();
+    assert_eq!(arm.effort_limit, vec![150.0, 150.0, 150.0, 28.0, 28.0, 28.0]);
+    assert_eq!(arm.velocity_limit, vec![3.15, 3.15, 3.15, 3.2, 3.2, 3.2]);
+    // a gentle move stays within them
+    let mut s = sim(SimConfig::new(6));
+    let r = s.run(&s_curve([0.0; 3], [0.06, 0.02, -0.4], 500), None, false).unwrap();
+    assert!(r.summary.limit_violation.is_none() && r.summary.limit_ticks == 0);
+    assert!(r.summary.max_abs_v.iter().zip(&arm.velocity_limit).all(|(v, l)| v < l));
+    // a 30 cm jump of the command after 0.2 s: tens of thousands of N m at the jump
+    let mut jump = vec![0.0; 3 * 400];
+    for k in 200..400 {
+        jump[3 * k] = 0.3;
+    }
+    let r = s.run(&jump, None, false).unwrap();
+    let v = r.summary.limit_violation.expect("a violation");
+    assert_eq!((v.tick, v.kind, v.unit), (200, LimitKind::Torque, "N m"));
+    assert!((v.time - 0.2).abs() < 1e-12 && v.value.abs() > 1e4 && v.limit == 150.0);
+    assert!(r.summary.limit_ticks > 1 && r.log.n == 400 && !r.summary.stopped_at_limit);
+    let msg = v.describe(&arm.joint_names);
+    assert!(msg.starts_with("joint 'shoulder_pan_joint' exceeds its torque limit at t = 0.200 s: |torque| = "), "{msg}");
+    assert!(msg.ends_with(" N m > 150 N m"), "{msg}");
+    // stop_at_limit: the run ends with the violating tick
+    let r = s.run_with(&jump, None, false, true, &mut || false).unwrap();
+    assert!(r.summary.stopped_at_limit && r.log.n == 201 && r.log.t.len() == 201 && r.summary.ticks == 201);
+    assert_eq!(r.summary.limit_violation, Some(v));
+    // limits of one's own: unchecked joints (inf) and a speed limit
+    let mut c = SimConfig::new(6);
+    c.limits = JointLimits { torque: Some(vec![f64::INFINITY; 6]), velocity: Some(vec![0.5; 6]) };
+    let r = sim(c).run(&jump, None, false).unwrap();
+    let v = r.summary.limit_violation.unwrap();
+    assert_eq!((v.kind, v.unit, v.limit), (LimitKind::Velocity, "rad/s", 0.5));
+    assert!(v.tick > 200);
+}
+
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn bad_configuration_values_are_settings_errors_naming_the_field() {
+    let cases: Vec<(fn(&mut SimConfig), &str)> = vec![
+        (|c| c.controller.dt = 0.0, "controller.dt"),
+        (|c| c.controller.dt = f64::NAN, "controller.dt"),
+        (|c| c.controller.dob_cutoff_hz = 0.0, "controller.dob_cutoff_hz"),
+        (|c| c.controller.gains.kvr = -1.0, "controller.gains.kvr"),
+        (|c| c.controller.torque_limit = Some(vec![1.0, 1.0, 1.0, 1.0, 1.0, 0.0]), "controller.torque_limit"),
+        (|c| c.disturbances.payload_mass = -1.0, "disturbances.payload_mass"),
+        (|c| c.disturbances.payload_mass = 150.0, "disturbances.payload_mass"),
+        (|c| c.disturbances.payload_com = [2.0, 0.0, 0.0], "disturbances.payload_com"),
+        (|c| c.disturbances.viscous = vec![-1.0; 6], "disturbances.viscous"),
+        (|c| c.setup.spatula_mass = 1e6, "setup.spatula_mass"),
+        (|c| c.pancake.blade_half_length = f64::INFINITY, "pancake.blade_half_length"),
+        (|c| c.limits.velocity = Some(vec![f64::NAN; 6]), "limits.velocity"),
+        (|c| c.limits.torque = Some(vec![1.0; 5]), "limits.torque"),
+        (|c| c.substeps = 0, "substeps"),
+    ];
+    for (change, field) in cases {
+        let mut c = SimConfig::new(6);
+        change(&mut c);
+        match Simulation::new(&ur5(), c) {
+            Err(Error::Settings { field: f, msg }) => assert_eq!(f, field, "{msg}"),
+            Err(e) => panic!("{field}: {e}"),
+            Ok(_) => panic!("{field}: accepted"),
+        }
+    }
 }

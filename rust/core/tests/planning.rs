@@ -68,28 +68,93 @@ fn sphere_through_the_door() {
     }
 }
 
-#[test]
-fn bad_input_is_an_error_not_a_panic() {
+/// `f` given the sphere problem's planner (default settings) and components (a seeded cube
+/// sampler, the unit sphere, the band).
+fn on_the_sphere<R>(f: impl FnOnce(&Planner, &mut Components<'_>) -> R) -> R {
     let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings::default()).unwrap();
     let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
     let mut projector = SphereProjector { radius: 1.0 };
     let mut checker = Band;
     let mut interrupt = no_interrupt;
     let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
-    let mut plan = |start: &[f64], goals: &[f64]| planner.plan(start, goals, &mut c).map(|s| s.success);
+    f(&planner, &mut c)
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    on_the_sphere(bad_input_cases);
+}
+
+fn bad_input_cases(planner: &Planner, c: &mut Components<'_>) {
+    let mut plan = |start: &[f64], goals: &[f64]| planner.plan(start, goals, c).map(|s| s.success);
     assert!(matches!(plan(&[0.0, 0.0], &[0.0, 0.0, 1.0]), Err(PlanError::InvalidStart(m)) if m == "start: expected length 3, got 2"));
     assert!(matches!(plan(&[0.0, f64::NAN, -1.0], &[0.0, 0.0, 1.0]), Err(PlanError::InvalidStart(m)) if m.contains("not finite")));
     assert!(matches!(plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0, 2.0]), Err(PlanError::InvalidGoal(m)) if m.starts_with("goals")));
     // a start inside the band
     assert!(matches!(plan(&[1.0, 0.0, 0.0], &[0.0, 0.0, 1.0]), Err(PlanError::InvalidStart(m)) if m.contains("not valid")));
     assert!(matches!(plan(&[0.0, 0.0, -1.0], &[1.0, 0.0, 0.0]), Err(PlanError::InvalidGoal(m)) if m.contains("none of the goal")));
-    assert!(matches!(planner.extend(&[0.0], &[0.0, 0.0, 1.0], false, &mut c), Err(PlanError::Input(m)) if m.starts_with("from")));
+    assert!(matches!(planner.extend(&[0.0], &[0.0, 0.0, 1.0], false, c), Err(PlanError::Input(m)) if m.starts_with("from")));
     let settings_error = |bad: Settings| Planner::new(Arc::new(EuclideanSpace(3)), bad).err().expect("bad settings").to_string();
     let e = settings_error(Settings { step: -1.0, ..Settings::default() });
     assert_eq!(e, "settings: step must be positive and finite, got -1");
     let e = Settings { sample_batch: 0, ..Settings::default() }.validate().unwrap_err();
     assert!(matches!(e, PlanError::Settings { field: "sample_batch", .. }));
     assert_eq!(e.to_string(), "settings: max_increments, max_extensions, sample_batch and max_empty_batches must be >= 1");
+}
+
+/// A projector that cannot project anything with z > 0.9 (e.g. an IK target out of reach).
+struct RefusesTheTop(SphereProjector);
+impl Projector for RefusesTheTop {
+    fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        self.0.project(qs, q_noms, out, reports)?;
+        for (q, r) in qs.chunks(3).zip(reports.iter_mut()) {
+            r.success &= q[2] <= 0.9;
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn start_and_goals_off_the_manifold_are_refused_or_projected() {
+    on_the_sphere(off_the_manifold_cases);
+}
+
+fn off_the_manifold_cases(planner: &Planner, c: &mut Components<'_>) {
+    let mut plan = |start: &[f64], goals: &[f64]| planner.plan(start, goals, c);
+    let (start, goal) = ([0.0, 0.0, -1.0], [0.0, 0.0, 1.0]);
+    // 0.1 off the sphere: refused, named, with the distance and the tolerance
+    match plan(&[0.0, 0.0, -1.1], &goal) {
+        Err(PlanError::InvalidStart(m)) => {
+            assert_eq!(m, "start: not on the constraint manifold: the projector moved it by 0.100 (goal_tolerance 0.001)")
+        }
+        other => panic!("expected InvalidStart, got {:?}", other.map(|s| s.success)),
+    }
+    // every goal off the manifold is named, even when another is fine
+    let goals = [0.0, 0.0, 1.0, 0.0, 0.0, 1.3, 0.0, 1.0, 0.0, 0.6, 0.0, 0.8, 0.5, 0.0, 0.0];
+    match plan(&start, &goals) {
+        Err(PlanError::InvalidGoal(m)) => assert_eq!(
+            m,
+            "goals[1]: not on the constraint manifold: the projector moved it by 0.300 (goal_tolerance 0.001); also off it: goals[4]"
+        ),
+        other => panic!("expected InvalidGoal, got {:?}", other.map(|s| s.success)),
+    }
+    // within goal_tolerance of the sphere: planned from / to its projection, so that every state
+    // of the path is on the sphere
+    let sol = plan(&[0.0, 0.0, -1.0005], &[0.0, 0.0, 1.0004]).unwrap();
+    assert!(sol.success);
+    assert_eq!(&sol.path[..3], &start);
+    assert_eq!(&sol.path[sol.path.len() - 3..], &goal);
+    // a start or goal the projector cannot project
+    let mut projector = RefusesTheTop(SphereProjector { radius: 1.0 });
+    let mut c = Components { sampler: &mut *c.sampler, projector: &mut projector, checker: &mut *c.checker, interrupt: &mut *c.interrupt };
+    match planner.plan(&start, &goal, &mut c) {
+        Err(PlanError::InvalidGoal(m)) => assert_eq!(m, "goals[0]: not on the constraint manifold: the projector could not project it"),
+        other => panic!("expected InvalidGoal, got {:?}", other.map(|s| s.success)),
+    }
+    match planner.plan(&goal, &start, &mut c) {
+        Err(PlanError::InvalidStart(m)) => assert_eq!(m, "start: not on the constraint manifold: the projector could not project it"),
+        other => panic!("expected InvalidStart, got {:?}", other.map(|s| s.success)),
+    }
 }
 
 #[derive(Debug)]
@@ -108,10 +173,14 @@ impl Sampler for FailingSampler {
     }
 }
 
+/// Returns NaN (and claims success) for every configuration not already on the unit sphere.
 struct NaNProjector;
 impl Projector for NaNProjector {
-    fn project(&mut self, _qs: &[f64], _n: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
-        out.fill(f64::NAN);
+    fn project(&mut self, qs: &[f64], _n: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        for (q, o) in qs.chunks(3).zip(out.chunks_mut(3)) {
+            let on = (q.iter().map(|x| x * x).sum::<f64>() - 1.0).abs() < 1e-12;
+            o.copy_from_slice(if on { q } else { &[f64::NAN; 3] });
+        }
         reports.fill(Projection { success: true, iterations: 1 });
         Ok(())
     }
@@ -151,6 +220,11 @@ fn component_errors_come_back_intact() {
     let mut c = Components { sampler: &mut sampler, projector: &mut nan, checker: &mut checker, interrupt: &mut interrupt };
     match planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c) {
         Err(PlanError::NoProjectableSample(m)) => assert!(m.contains("no sample could be projected"), "{m}"),
+        other => panic!("expected an error, got {:?}", other.map(|s| s.success)),
+    }
+    // nor as a start: a NaN projection of the start is a start off the manifold
+    match planner.plan(&[0.0, 0.0, -1.1], &[0.0, 0.0, 1.0], &mut c) {
+        Err(PlanError::InvalidStart(m)) => assert!(m.ends_with("the projector could not project it"), "{m}"),
         other => panic!("expected an error, got {:?}", other.map(|s| s.success)),
     }
 }

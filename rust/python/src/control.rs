@@ -254,7 +254,7 @@ fn sub<'py>(d: &Bound<'py, PyDict>, key: &str) -> PyResult<Option<Bound<'py, PyD
 fn config_from_dict(nv: usize, d: Option<Bound<'_, PyDict>>) -> PyResult<SimConfig> {
     let mut c = SimConfig::new(nv);
     let Some(d) = d else { return Ok(c) };
-    check_keys(&d, &["controller", "disturbances", "setup", "pancake", "substeps", "settle_ticks"], "config")?;
+    check_keys(&d, &["controller", "disturbances", "setup", "pancake", "substeps", "settle_ticks", "limits"], "config")?;
     c.substeps = crate::get_or(&d, "substeps", c.substeps, "config")?;
     c.settle_ticks = crate::get_or(&d, "settle_ticks", c.settle_ticks, "config")?;
     if let Some(x) = sub(&d, "controller")? {
@@ -306,7 +306,22 @@ fn config_from_dict(nv: usize, d: Option<Bound<'_, PyDict>>) -> PyResult<SimConf
         k.mu_kinetic = crate::get_or(&x, "mu_kinetic", k.mu_kinetic, w)?;
         k.blade_half_length = crate::get_or(&x, "blade_half_length", k.blade_half_length, w)?;
     }
+    if let Some(x) = sub(&d, "limits")? {
+        let w = "config.limits";
+        check_keys(&x, &["torque", "velocity"], w)?;
+        let k = &mut c.limits;
+        k.torque = crate::get_or(&x, "torque", k.torque.clone(), w)?;
+        k.velocity = crate::get_or(&x, "velocity", k.velocity.clone(), w)?;
+    }
     Ok(c)
+}
+
+/// The torque and speed limits `(torque, velocity)` as a dict of lists.
+fn limits_dict<'py>(py: Python<'py>, torque: Option<&[f64]>, velocity: Option<&[f64]>) -> PyResult<Bound<'py, PyDict>> {
+    let k = PyDict::new(py);
+    k.set_item("torque", torque.map(<[f64]>::to_vec))?;
+    k.set_item("velocity", velocity.map(<[f64]>::to_vec))?;
+    Ok(k)
 }
 
 fn config_to_dict<'py>(py: Python<'py>, c: &SimConfig) -> PyResult<Bound<'py, PyDict>> {
@@ -353,6 +368,7 @@ fn config_to_dict<'py>(py: Python<'py>, c: &SimConfig) -> PyResult<Bound<'py, Py
     d.set_item("pancake", k)?;
     d.set_item("substeps", c.substeps)?;
     d.set_item("settle_ticks", c.settle_ticks)?;
+    d.set_item("limits", limits_dict(py, c.limits.torque.as_deref(), c.limits.velocity.as_deref())?)?;
     Ok(d)
 }
 
@@ -395,6 +411,14 @@ impl PySpatulaSimulation {
         self.inner.nominal.joint_names.clone()
     }
 
+    /// The joint limits every tick is checked against: {"torque": [...], "velocity": [...]}
+    /// (the configuration's, else the robot model's URDF limits).
+    #[getter]
+    fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let (torque, velocity) = self.inner.limits();
+        limits_dict(py, Some(torque), Some(velocity))
+    }
+
     /// Command pose (position (3,), rotation (3, 3)) of a paper pose [y, z, theta] (eq. 23).
     fn command_pose<'py>(&self, py: Python<'py>, p: [f64; 3]) -> PyResult<PyPose<'py>> {
         genplan_core::error::check_finite("p", &p).map_err(to_py)?;
@@ -420,16 +444,17 @@ impl PySpatulaSimulation {
 
     /// Execute a trajectory (K, 3) of [y, z, theta] rows at dt. `motion_len`: rows of the motion
     /// proper (the rest is a tail; slip and phi verdicts cover the motion). `paced`: tick on the
-    /// wall clock. Returns a dict of numpy arrays and a 'summary' dict. The loop runs in Rust
-    /// without the GIL.
-    #[pyo3(signature = (trajectory, motion_len=None, paced=false))]
-    fn run<'py>(&mut self, py: Python<'py>, trajectory: PyReadonlyArrayDyn<'py, f64>, motion_len: Option<usize>, paced: bool) -> PyResult<Bound<'py, PyDict>> {
+    /// wall clock. `stop_at_limit`: end the run at the first tick over a joint limit. Returns a
+    /// dict of numpy arrays and a 'summary' dict (its 'limit_violation': the first tick over a
+    /// limit, or None). The loop runs in Rust without the GIL.
+    #[pyo3(signature = (trajectory, motion_len=None, paced=false, stop_at_limit=false))]
+    fn run<'py>(&mut self, py: Python<'py>, trajectory: PyReadonlyArrayDyn<'py, f64>, motion_len: Option<usize>, paced: bool, stop_at_limit: bool) -> PyResult<Bound<'py, PyDict>> {
         let traj = trajectory_rows(&trajectory)?;
         let sim = &mut self.inner;
         // Ctrl-C: the loop asks every few hundred ticks; the pending exception is raised as is
         let mut interrupt: Option<PyErr> = None;
         let result = py.detach(|| {
-            sim.run_with(&traj, motion_len, paced, &mut || match Python::attach(|py| py.check_signals()) {
+            sim.run_with(&traj, motion_len, paced, stop_at_limit, &mut || match Python::attach(|py| py.check_signals()) {
                 Ok(()) => false,
                 Err(e) => {
                     interrupt = Some(e);
@@ -484,6 +509,25 @@ impl PySpatulaSimulation {
         sd.set_item("min_abs_det_j", s.min_abs_det_j)?;
         sd.set_item("saturated_ticks", s.saturated_ticks)?;
         sd.set_item("max_abs_tau", s.max_abs_tau.clone())?;
+        sd.set_item("max_abs_v", s.max_abs_v.clone())?;
+        sd.set_item("limit_ticks", s.limit_ticks)?;
+        sd.set_item("stopped_at_limit", s.stopped_at_limit)?;
+        let violation = match &s.limit_violation {
+            None => None,
+            Some(v) => {
+                let vd = PyDict::new(py);
+                vd.set_item("time", v.time)?;
+                vd.set_item("tick", v.tick)?;
+                vd.set_item("joint", &self.inner.nominal.joint_names[v.joint])?;
+                vd.set_item("quantity", v.quantity())?;
+                vd.set_item("value", v.value)?;
+                vd.set_item("limit", v.limit)?;
+                vd.set_item("unit", v.unit)?;
+                vd.set_item("message", v.describe(&self.inner.nominal.joint_names))?;
+                Some(vd)
+            }
+        };
+        sd.set_item("limit_violation", violation)?;
         if paced {
             let j = PyDict::new(py);
             for (name, xs) in [("lateness", &log.lateness), ("compute", &log.compute)] {

@@ -1,10 +1,13 @@
 //! `genplan._core`: the private native module. Thin wrappers around `genplan-core`.
 //!
 //! Inputs are float64 C-contiguous numpy arrays (the Python layer converts); batched calls
-//! release the GIL and run in parallel; every error is a Python exception, never a panic.
+//! release the GIL and run in parallel, in chunks of ~20 ms between which Ctrl-C is answered
+//! ([`for_chunks`]); empty batches give empty arrays; every error is a Python exception, never a
+//! panic.
 
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::time::Instant;
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use numpy::ndarray::{Array, IxDyn};
@@ -78,14 +81,62 @@ fn check_rows(model: &KinematicModel, b: &Batch, what: &str) -> PyResult<()> {
     Ok(())
 }
 
-fn rows_map<T: Send>(data: &[f64], nq: usize, f: impl Fn(&[f64], &mut Scratch) -> T + Sync) -> Vec<T> {
-    if data.len() <= nq {
-        let mut s = Scratch::default();
-        return data.chunks(nq.max(1)).map(|q| f(q, &mut s)).collect();
+/// Work per chunk of a batched call ([`chunked`]): long enough that what each chunk costs
+/// beyond its rows (releasing and taking the GIL, a rayon fork-join, a signal check) is well
+/// under 1 %, short enough that Ctrl-C is answered within a fraction of a second.
+const CHUNK_TARGET_S: f64 = 0.02;
+/// Rows of the first chunk; the next ones are sized from the time the previous one took.
+const FIRST_CHUNK: usize = 64;
+
+/// Run `work` over the rows 0..n in consecutive ranges (chunks), each without the GIL, sized
+/// to take about [`CHUNK_TARGET_S`] at the pace of the previous one, with Python's signal
+/// handlers run between chunks: a long batch answers Ctrl-C (KeyboardInterrupt) within a
+/// fraction of a second, as the planner does. Every batched call over rows goes through here.
+pub(crate) fn for_chunks(py: Python<'_>, n: usize, mut work: impl FnMut(std::ops::Range<usize>) -> PyResult<()> + Send) -> PyResult<()> {
+    let mut size = FIRST_CHUNK;
+    let mut start = 0;
+    while start < n {
+        let end = n.min(start + size);
+        let t = Instant::now();
+        py.detach(|| work(start..end))?;
+        if end < n {
+            py.check_signals()?;
+            // the next chunk: CHUNK_TARGET_S at this chunk's pace, at most 8x larger
+            let per_row = t.elapsed().as_secs_f64() / (end - start) as f64;
+            let want = if per_row > 0.0 { CHUNK_TARGET_S / per_row } else { f64::INFINITY };
+            size = want.clamp(1.0, 8.0 * size as f64) as usize;
+        }
+        start = end;
     }
-    data.par_chunks(nq.max(1))
-        .map_init(Scratch::default, |s, q| f(q, s))
-        .collect()
+    Ok(())
+}
+
+/// `f(scratch, i)` for every row i of 0..n, in order, through [`for_chunks`]: each chunk on
+/// rayon's threads when `parallel` (one scratch per thread).
+pub(crate) fn chunked<T: Send, S>(
+    py: Python<'_>,
+    n: usize,
+    parallel: bool,
+    init: impl Fn() -> S + Sync + Send,
+    f: impl Fn(&mut S, usize) -> T + Sync + Send,
+) -> PyResult<Vec<T>> {
+    let mut out = Vec::with_capacity(n);
+    for_chunks(py, n, |rows| {
+        if parallel && rows.len() > 1 {
+            out.par_extend(rows.into_par_iter().map_init(&init, &f));
+        } else {
+            let mut s = init();
+            out.extend(rows.map(|i| f(&mut s, i)));
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// [`chunked`] over the rows of `data` (rows of `nq`), in parallel unless there is one row.
+fn rows_map<T: Send>(py: Python<'_>, data: &[f64], nq: usize, f: impl Fn(&[f64], &mut Scratch) -> T + Sync + Send) -> PyResult<Vec<T>> {
+    let nq = nq.max(1);
+    chunked(py, data.len() / nq, true, Scratch::default, |s, i| f(&data[i * nq..(i + 1) * nq], s))
 }
 
 fn pose_from(center: [f64; 3], rotation: Option<[[f64; 3]; 3]>, what: &str) -> PyResult<Isometry3<f64>> {
@@ -185,24 +236,20 @@ impl PyKinematicModel {
                 .collect::<Result<_, _>>()
                 .map_err(to_py)?,
         };
-        let data = b.data;
-        let nq = m.nq;
-        let rows: Vec<Vec<f64>> = py.detach(|| {
-            rows_map(data, nq, |q, _| {
-                let mut poses = Vec::new();
-                m.forward_kinematics_unchecked(q, &mut poses);
-                let mut out = Vec::with_capacity(idx.len() * 16);
-                for &i in &idx {
-                    let h = poses[i].to_homogeneous();
-                    for r in 0..4 {
-                        for c in 0..4 {
-                            out.push(h[(r, c)]);
-                        }
+        let rows: Vec<Vec<f64>> = rows_map(py, b.data, m.nq, |q, _| {
+            let mut poses = Vec::new();
+            m.forward_kinematics_unchecked(q, &mut poses);
+            let mut out = Vec::with_capacity(idx.len() * 16);
+            for &i in &idx {
+                let h = poses[i].to_homogeneous();
+                for r in 0..4 {
+                    for c in 0..4 {
+                        out.push(h[(r, c)]);
                     }
                 }
-                out
-            })
-        });
+            }
+            out
+        })?;
         let mut shape = b.lead.clone();
         shape.extend([idx.len(), 4, 4]);
         let flat: Vec<f64> = rows.into_iter().flatten().collect();
@@ -243,8 +290,7 @@ impl PyCollisionWorld {
         let w = &self.inner;
         let b = batch(&q, w.model.nq, "q")?;
         check_rows(&w.model, &b, "q")?;
-        let data = b.data;
-        let mut out: Vec<T> = py.detach(|| rows_map(data, w.model.nq, |q, s| f(w, q, s)));
+        let mut out: Vec<T> = rows_map(py, b.data, w.model.nq, |q, s| f(w, q, s))?;
         if b.lead.is_empty() {
             let first = out.swap_remove(0);
             first.into_py_any(py)
@@ -494,34 +540,36 @@ impl PyProjector {
         let n = b.data.len() / nq.max(1);
         let data = b.data;
         let solver = &self.inner;
-        // per-row targets of one primary term: build each row's solver up front (errors surface
-        // before any work), then solve
-        let per_row: Option<Vec<Projector>> = match (&target_term, &targets) {
+        // per-row targets of one primary term: checked up front (the term, the numbers per row,
+        // finite values), so that errors surface before any work; each row's solver is built
+        // where the row is solved
+        let retarget: Option<(usize, &[f64], usize)> = match (&target_term, &targets) {
             (None, None) => None,
             (Some(name), Some(arr)) => {
                 let ti = solver.primary.iter().position(|t| &t.name == name).ok_or_else(|| {
                     err(Kind::UnknownName, format!("unknown target term '{name}' (primary terms: {:?})", solver.primary.iter().map(|t| &t.name).collect::<Vec<_>>()))
                 })?;
                 let tdata = arr.as_slice().map_err(|_| err(Kind::Shape, "targets: array must be C-contiguous"))?;
-                if arr.shape().first().copied() != Some(n) || tdata.len() % n.max(1) != 0 {
+                if arr.shape().first().copied() != Some(n) {
                     return Err(err(Kind::Shape, format!("targets: expected {n} rows, got shape {:?}", arr.shape())));
                 }
-                let k = tdata.len() / n.max(1);
-                Some((0..n).map(|i| solver.retargeted(ti, &tdata[i * k..(i + 1) * k]).map_err(|e| to_py_in(&format!("targets[{i}]"), e))).collect::<PyResult<_>>()?)
+                let k: usize = arr.shape()[1..].iter().product();
+                solver.retargeted(ti, &vec![0.0; k]).map_err(|e| to_py_in("targets", e))?;
+                for (i, row) in tdata.chunks(k.max(1)).enumerate() {
+                    genplan_core::error::check_finite("target", row).map_err(|e| to_py_in(&format!("targets[{i}]"), e))?;
+                }
+                Some((ti, tdata, k))
             }
             _ => return Err(err(Kind::Generic, "give both target_term and targets, or neither")),
         };
-        let run = |i: usize| {
-            let s = per_row.as_ref().map_or(solver, |v| &v[i]);
-            s.solve_unchecked(&data[i * nq..(i + 1) * nq], noms.map(|d| &d[i * nq..(i + 1) * nq]))
-        };
-        let outs: Vec<genplan_core::projection::Outcome> = py.detach(|| {
-            if parallel && n > 1 {
-                (0..n).into_par_iter().map(run).collect()
-            } else {
-                (0..n).map(run).collect()
+        let outs = chunked(py, n, parallel, || (), |_, i| {
+            let (q, nom) = (&data[i * nq..(i + 1) * nq], noms.map(|d| &d[i * nq..(i + 1) * nq]));
+            match retarget {
+                None => Ok(solver.solve_unchecked(q, nom)),
+                Some((ti, t, k)) => solver.retargeted(ti, &t[i * k..(i + 1) * k]).map(|s| s.solve_unchecked(q, nom)),
             }
-        });
+        })?;
+        let outs: Vec<genplan_core::projection::Outcome> = outs.into_iter().collect::<Result<_, _>>().map_err(to_py)?;
         let nt = solver.primary.len();
         let q = Array::from_shape_vec(IxDyn(&[n, nq]), outs.iter().flat_map(|o| o.q.iter().copied()).collect())
             .map_err(|e| PyValueError::new_err(e.to_string()))?;

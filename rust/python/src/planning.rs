@@ -7,9 +7,13 @@
 //! * projector: `project(qs, q_noms) -> (q (n, nq), success (n,)[, iterations (n,)])`;
 //! * validity checker: `is_valid(qs) -> (n,)` booleans.
 //!
+//! A flag (validity, success) that is not a boolean or exactly 0 / 1 is a CallbackError naming
+//! the callback, the index and the value: NaN, 0.5 or 2 is neither true nor false.
+//!
 //! The plan runs without the GIL; a Python component takes it back for each (batched) call. An
 //! exception raised in a component ends the plan and is re-raised to the caller as it was; Ctrl-C
-//! is checked every 50 ms.
+//! is checked every 50 ms. The native samplers' batched `sample` runs in chunks that answer
+//! Ctrl-C too (`crate::for_chunks`).
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -18,6 +22,7 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::{PyList, PyTuple};
 
 use genplan_core::planning::{
     self, CollisionChecker, Components, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
@@ -28,7 +33,7 @@ use genplan_core::gan;
 
 use crate::errors::{err, Kind};
 use crate::settings::{record_class, settings_class};
-use crate::{to_py, PyCollisionWorld, PyKinematicModel, PyProjector};
+use crate::{for_chunks, to_py, PyCollisionWorld, PyKinematicModel, PyProjector};
 
 fn component_error(e: PyErr) -> PlanError {
     PlanError::Component(Box::new(e))
@@ -48,6 +53,7 @@ fn plan_error_to_py(e: PlanError) -> PyErr {
         PlanError::InvalidGoal(_) => Kind::InvalidGoal,
         PlanError::Sampler(_) => Kind::Callback,
         PlanError::Input(_) | PlanError::NoProjectableSample(_) => Kind::Generic,
+        PlanError::Internal(m) => return PyRuntimeError::new_err(m),
     };
     err(kind, e.to_string())
 }
@@ -75,6 +81,30 @@ fn vector_from<'py, T: numpy::Element + Copy>(py: Python<'py>, obj: &Bound<'py, 
         return Err(err(Kind::Callback, format!("{what}: expected {n} values, got {}", arr.len())));
     }
     Ok(arr.as_array().iter().copied().collect())
+}
+
+/// The booleans a Python component returned: a 1-D array of n booleans, or of n numbers each
+/// exactly 0 or 1. Anything else (NaN, 0.5, 2, strings, None) is a CallbackError naming
+/// `what` and the first offending index and value: a validity or success flag that is not
+/// clearly true or false must not be read as one.
+fn bools_from(py: Python<'_>, obj: &Bound<'_, PyAny>, n: usize, what: &str) -> PyResult<Vec<bool>> {
+    let np = py.import("numpy")?;
+    let arr = np.call_method1("asarray", (obj,)).map_err(|_| err(Kind::Callback, format!("{what}: expected a 1-D array of {n} booleans")))?;
+    let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
+    match kind.as_str() {
+        "b" => vector_from(py, &arr, n, "bool", what),
+        "i" | "u" | "f" => {
+            let v: Vec<f64> = vector_from(py, &arr, n, "float64", what)?;
+            match v.iter().position(|&x| x != 0.0 && x != 1.0) {
+                Some(i) => Err(err(Kind::Callback, format!("{what}: returned {} at index {i}; expected booleans (or 0 / 1)", v[i]))),
+                None => Ok(v.iter().map(|&x| x == 1.0).collect()),
+            }
+        }
+        _ => {
+            let dtype = arr.getattr("dtype")?.str()?.to_string();
+            Err(err(Kind::Callback, format!("{what}: returned an array of dtype {dtype}; expected booleans (or 0 / 1)")))
+        }
+    }
 }
 
 fn to_array<'py>(py: Python<'py>, data: &[f64], nq: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
@@ -116,17 +146,16 @@ impl planning::Projector for PyProjectorAdapter {
         let nq = self.nq;
         Python::attach(|py| -> PyResult<()> {
             let r = self.obj.bind(py).call_method1("project", (to_array(py, qs, nq)?, to_array(py, q_noms, nq)?))?;
-            let parts: Vec<Bound<'_, PyAny>> = r.extract().map_err(|_| {
-                PyTypeError::new_err("projector.project(qs, q_noms) must return (q, success) or (q, success, iterations)")
-            })?;
+            const RETURNS: &str = "projector.project(qs, q_noms) must return (q, success) or (q, success, iterations)";
+            if !(r.is_instance_of::<PyTuple>() || r.is_instance_of::<PyList>()) {
+                return Err(err(Kind::Callback, format!("{RETURNS}, got {}", r.get_type().name()?)));
+            }
+            let parts: Vec<Bound<'_, PyAny>> = r.extract()?;
             if !(2..=3).contains(&parts.len()) {
-                return Err(PyTypeError::new_err(format!(
-                    "projector.project(qs, q_noms) must return (q, success) or (q, success, iterations), got {} items",
-                    parts.len()
-                )));
+                return Err(err(Kind::Callback, format!("{RETURNS}, got {} items", parts.len())));
             }
             let q = rows_from(py, &parts[0], n, nq, "projector.project: q")?;
-            let ok: Vec<bool> = vector_from(py, &parts[1], n, "bool", "projector.project: success")?;
+            let ok = bools_from(py, &parts[1], n, "projector.project: success")?;
             let it: Vec<i64> = if parts.len() == 3 {
                 vector_from(py, &parts[2], n, "int64", "projector.project: iterations")?
             } else {
@@ -152,7 +181,7 @@ impl ValidityChecker for PyChecker {
         let n = valid.len();
         Python::attach(|py| -> PyResult<()> {
             let r = self.obj.bind(py).call_method1("is_valid", (to_array(py, qs, self.nq)?,))?;
-            let v: Vec<bool> = vector_from(py, &r, n, "bool", "checker.is_valid(qs)")?;
+            let v = bools_from(py, &r, n, "checker.is_valid(qs)")?;
             valid.copy_from_slice(&v);
             Ok(())
         })
@@ -185,14 +214,20 @@ impl PyUniformSampler {
 
     /// n configurations, (n, nq).
     fn sample<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-        let mut out = vec![0.0; n * self.nq];
-        self.inner
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("uniform sampler: lock poisoned"))?
-            .sample(n, &mut out)
-            .map_err(plan_error_to_py)?;
+        let out = sample_in_chunks(py, &self.inner, n, self.nq, "uniform sampler")?;
         to_array(py, &out, self.nq)
     }
+}
+
+/// n configurations (rows of nq) from a native sampler shared with the planner, drawn in
+/// chunks (the same stream as one call) without the GIL, Ctrl-C answered between chunks.
+fn sample_in_chunks<S: Sampler>(py: Python<'_>, sampler: &Mutex<S>, n: usize, nq: usize, what: &str) -> PyResult<Vec<f64>> {
+    let mut out = vec![0.0; n * nq];
+    for_chunks(py, n, |rows| {
+        let mut s = sampler.lock().map_err(|_| PyRuntimeError::new_err(format!("{what}: lock poisoned")))?;
+        s.sample(rows.len(), &mut out[rows.start * nq..rows.end * nq]).map_err(plan_error_to_py)
+    })?;
+    Ok(out)
 }
 
 /// A sampler shared with Python, used by one plan at a time.
@@ -264,12 +299,7 @@ impl PyGanSampler {
     /// n configurations, (n, nq), targets uniform in the box.
     fn sample<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
         let nq = self.generator.nq();
-        let mut out = vec![0.0; n * nq];
-        self.inner
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("GAN sampler: lock poisoned"))?
-            .sample(n, &mut out)
-            .map_err(plan_error_to_py)?;
+        let out = sample_in_chunks(py, &self.inner, n, nq, "GAN sampler")?;
         to_array(py, &out, nq)
     }
 
@@ -299,10 +329,13 @@ impl PyGanSampler {
         let nq = g.nq();
         let mut out = vec![0.0; n * nq];
         let mut scratch = Default::default();
-        for i in 0..n {
-            let target = [t[3 * i], t[3 * i + 1], t[3 * i + 2]];
-            g.generate(members[i], &z[i * g.noise_dim..(i + 1) * g.noise_dim], &target, &mut out[i * nq..(i + 1) * nq], &mut scratch);
-        }
+        for_chunks(py, n, |rows| {
+            for i in rows {
+                let target = [t[3 * i], t[3 * i + 1], t[3 * i + 2]];
+                g.generate(members[i], &z[i * g.noise_dim..(i + 1) * g.noise_dim], &target, &mut out[i * nq..(i + 1) * nq], &mut scratch);
+            }
+            Ok(())
+        })?;
         to_array(py, &out, nq)
     }
 }
@@ -405,9 +438,9 @@ record_class!(
      validity_checks, nodes, pruned, shortcuts, time_s, sampler_s, projector_s, checker_s]
 );
 
-/// A plan's outcome. `path` is dense: every state is on the manifold and valid, consecutive
-/// states at most ~`edge_resolution` apart; `waypoints` are the tree nodes along it; `stats`
-/// what it cost.
+/// A plan's outcome. `path` is dense: from the start to the goal reached, every state is on the
+/// manifold and valid, consecutive states at most ~`edge_resolution` apart; `waypoints` are the
+/// tree nodes along it; `stats` what it cost.
 #[pyclass(name = "PlanResult", module = "genplan._core", frozen)]
 pub(crate) struct PyPlanResult {
     #[pyo3(get)]

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from genplan import _cli_args as A
 from genplan.experiments.common import machine, table, write_json
 from genplan.pancake.trajectories import j1_problems
 
@@ -121,7 +122,8 @@ def _common(objective: str, p: NDArray[np.float64], v: NDArray[np.float64], phi:
 
 
 def run_gd(method: str, objective: str, updates: int, lr: float | None, step: str, seed: int,
-           model: Any, problems: int | None = None, snapshots: tuple[int, ...] = ()) -> tuple[dict[str, Any], Any]:
+           model: Any, problems: int | None = None, snapshots: tuple[int, ...] = (),
+           threads: int | None = None) -> tuple[dict[str, Any], Any]:
     """One gradient method on the J1 (27) or J2 (1) problems, as one batch."""
     from genplan.pancake.adjustment import adjust
 
@@ -130,7 +132,7 @@ def run_gd(method: str, objective: str, updates: int, lr: float | None, step: st
         x_in, p_end = x_in[:problems], p_end[:problems]
     kw = {"p_end": p_end} if objective == "j1" else {"objective_kwargs": dict(J2_SETUP)}
     res = adjust(x_in, objective, method, updates, lr, model=model, step=step, seed=seed,
-                 snapshots=snapshots, progress=True, **kw)
+                 snapshots=snapshots, progress=True, threads=threads, **kw)
     h = res.objective_history
     mean = h.mean(1)
     first = res.first_update_below(LEVEL)
@@ -224,20 +226,22 @@ def _j2_np(res: Any) -> NDArray[np.float64]:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=[*ALL_METHODS, "all"], default="all")
     p.add_argument("--objective", choices=["j1", "j2"], default="j1")
-    p.add_argument("--updates", type=int, default=None, help="gradient updates (default 100 for j1, 20 for j2)")
-    p.add_argument("--lr", type=float, default=None, help="learning rate (default: the paper's eta per case)")
+    p.add_argument("--updates", type=A.non_negative_int, default=None, help="gradient updates (default 100 for j1, 20 for j2)")
+    p.add_argument("--lr", type=A.positive_float, default=None, help="learning rate (default: the paper's eta per case)")
     p.add_argument("--step", choices=["gd", "adaptive", "adam"], nargs="+", default=["adaptive"],
                    help="step rule(s), each measured in this run: adaptive = eq. 7 inside a per-problem "
                         "trust radius (a step that raises J is undone and retried at half length; default); "
                         "gd = eq. 7 with a fixed eta (the paper's); adam")
-    p.add_argument("--seed", type=int, default=0, help="seed of z ~ N(0, I) for random-latent")
-    p.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
-    p.add_argument("--model", type=Path, default=None, help="model file (default: the shipped one)")
-    p.add_argument("--problems", type=int, default=None, help="only the first N problems (smoke tests)")
-    p.add_argument("--out", type=Path, default=None, help="JSON file (one method)")
-    p.add_argument("--out-dir", type=Path, default=None,
-                   help="with --method all: write adjust_<objective>_<method>[_<step>].json here")
-    p.add_argument("--figures", type=Path, default=None, help="write PNG figures to this directory")
+    p.add_argument("--seed", type=A.seed, default=0, help="seed of z ~ N(0, I) for random-latent")
+    p.add_argument("--threads", type=A.positive_int, default=1, help="torch threads (default 1)")
+    p.add_argument("--model", type=A.existing_file, default=None, help="model file (default: the shipped one)")
+    p.add_argument("--problems", type=A.positive_int, default=None, help="only the first N problems (smoke tests)")
+    p.add_argument("--out", type=A.output_file, default=None, help="JSON file (one method; folders are created)")
+    p.add_argument("--out-dir", type=A.output_folder, default=None,
+                   help="with --method all: write adjust_<objective>_<method>[_<step>].json here "
+                        "(default benches/results; created if missing)")
+    p.add_argument("--figures", type=A.output_folder, default=None,
+                   help="write PNG figures to this folder (created if missing)")
     p.add_argument("--skip-casadi", action="store_true", help="with --method all: leave out the CasADi peer")
 
 
@@ -255,12 +259,13 @@ def main(args: argparse.Namespace) -> int:
     from genplan.pancake.model import load_model
 
     if args.method == "all" and args.out is not None:
-        raise SystemExit("--method all writes one JSON per method: use --out-dir, not --out")
+        raise A.UsageError("--method all writes one JSON per method: use --out-dir, not --out")
     if args.out is not None and len(args.step) > 1:
-        raise SystemExit("several --step rules write one JSON each: use --method all and --out-dir")
-    if args.problems is not None and args.problems < 1:
-        raise SystemExit("--problems must be positive")
-    torch.set_num_threads(max(1, args.threads))
+        raise A.UsageError("several --step rules write one JSON each: use --method all and --out-dir")
+    out_dir = None
+    if args.method == "all":
+        out_dir = args.out_dir or A.check_output_folder(Path("benches/results"), "--out-dir")
+    torch.set_num_threads(args.threads)
     updates = args.updates if args.updates is not None else (100 if args.objective == "j1" else 20)
     methods: tuple[str, ...] = ALL_METHODS if args.method == "all" else (args.method,)
     if args.method == "all" and args.skip_casadi:
@@ -284,7 +289,7 @@ def main(args: argparse.Namespace) -> int:
             else:
                 try:
                     out, res = run_gd(m, args.objective, updates, args.lr, st, args.seed, model, args.problems,
-                                      snapshots=snaps)
+                                      snapshots=snaps, threads=args.threads)
                 except FloatingPointError as exc:  # eq. 7 with too large an eta: report it
                     print(f"{m} ({st}): diverged: {exc}")
                     out, res = {"diverged": True, "error": str(exc), "per_problem": [],
@@ -296,8 +301,7 @@ def main(args: argparse.Namespace) -> int:
             results[(m, st)] = {**base, **out}
             raw[(m, st)] = res
     _print(args.objective, results)
-    if args.method == "all":
-        out_dir = args.out_dir or Path("benches/results")
+    if out_dir is not None:
         for (m, st), r in results.items():
             suffix = f"_{st}" if st not in (DEFAULT_STEP, "-") else ""
             write_json(out_dir / f"adjust_{args.objective}_{m}{suffix}.json", r)

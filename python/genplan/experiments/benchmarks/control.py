@@ -34,6 +34,7 @@ import math
 import statistics
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +42,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from genplan import control
-from genplan.experiments.common import machine, table, write_json
+from genplan import _cli_args as A
+from genplan.experiments.common import machine, save_figure, table, write_json
 
 #: the paper's J2 input (Section 5.2) and horizon
 P_END = (0.0, 0.0, -0.75 * math.pi)
@@ -197,6 +199,8 @@ def _run_summary(log: control.ExecutionLog) -> dict[str, Any]:
         "max_slide_mm": 1e3 * s["max_abs_slide"],
         "damped_ticks": s["damped_ticks"],
         "max_abs_tau_nm": s["max_abs_tau"],
+        "max_abs_v_rad_s": s["max_abs_v"],
+        "joint_limit_violation": log.limit_violation,
         "us_per_tick": log.us_per_tick,
     }
 
@@ -337,28 +341,29 @@ def figure(dob: control.ExecutionLog, no_dob: control.ExecutionLog, unadjusted: 
     fig.suptitle("UR5 spatula, 1 kHz task-space P-D + DOB (2 Hz)\n" + "\n".join(textwrap.wrap(source, 90)), fontsize=9)
     fig.tight_layout()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
     print(f"wrote {path}")
 
 
+def _row(label: str, r: dict[str, Any]) -> list[Any]:
+    """A table row of one run's summary (:func:`_run_summary`)."""
+    v = r.get("joint_limit_violation")
+    limits = "yes" if v is None else f"no: {v['joint']} {v['quantity']} at {v['time']:.3f} s"
+    return [label, r["max_tracking_error_mm"], r["max_tracking_error_deg"], r["max_abs_phi_deg"], r["slipped"], limits]
+
+
 def print_table(p: dict[str, Any]) -> None:
     rows = [
-        ["executed (DOB)", p["max_tracking_error_mm"], p["max_tracking_error_deg"], p["max_abs_phi_deg"], p["slipped"]],
-        ["executed (no DOB)", p["without_dob"]["max_tracking_error_mm"], p["without_dob"]["max_tracking_error_deg"],
-         p["without_dob"]["max_abs_phi_deg"], p["without_dob"]["slipped"]],
-        ["undisturbed plant", p["undisturbed"]["max_tracking_error_mm"], p["undisturbed"]["max_tracking_error_deg"],
-         p["undisturbed"]["max_abs_phi_deg"], p["undisturbed"]["slipped"]],
-        *([["paper's J2 plan (DOB)", p["paper_j2"]["max_tracking_error_mm"], p["paper_j2"]["max_tracking_error_deg"],
-             p["paper_j2"]["max_abs_phi_deg"], p["paper_j2"]["slipped"]]] if "paper_j2" in p else []),
-        *([["CasADi J2 optimum (DOB)", p["casadi_j2"]["max_tracking_error_mm"], p["casadi_j2"]["max_tracking_error_deg"],
-             p["casadi_j2"]["max_abs_phi_deg"], p["casadi_j2"]["slipped"]]] if "casadi_j2" in p else []),
-        ["unadjusted input (DOB)", p["unadjusted"]["max_tracking_error_mm"], p["unadjusted"]["max_tracking_error_deg"],
-         p["unadjusted"]["max_abs_phi_deg"], p["unadjusted"]["slipped"]],
+        _row("executed (DOB)", p),
+        _row("executed (no DOB)", p["without_dob"]),
+        _row("undisturbed plant", p["undisturbed"]),
+        *([_row("paper's J2 plan (DOB)", p["paper_j2"])] if "paper_j2" in p else []),
+        *([_row("CasADi J2 optimum (DOB)", p["casadi_j2"])] if "casadi_j2" in p else []),
+        _row("unadjusted input (DOB)", p["unadjusted"]),
     ]
     print(f"trajectory: {p['trajectory']['source']}")
-    print(table(["run", "max err [mm]", "max err [deg]", "max |phi| [deg]", "slipped"], rows))
+    print(table(["run", "max err [mm]", "max err [deg]", "max |phi| [deg]", "slipped", "within joint limits"], rows))
     r = p["dob_tracking_error_ratio"]
     print(f"DOB, error without / with: max {r['max_position']:.2f} (position) {r['max_attitude']:.2f} (attitude); "
           f"rms {r['rms_position']:.2f} / {r['rms_attitude']:.2f}; deviation from the undisturbed response "
@@ -373,24 +378,25 @@ def print_table(p: dict[str, Any]) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--objective", choices=sorted(ADJUSTMENT), default="j2-exec",
                    help="j2-exec (default): eq. 24 plus execution margins (J2Executable); j2: the paper's eq. 24")
-    p.add_argument("--updates", type=int, default=None,
+    p.add_argument("--updates", type=A.non_negative_int, default=None,
                    help="latent updates (default: 500 Adam for j2-exec; 20 adaptive for j2, the paper's 20)")
-    p.add_argument("--repeats", type=int, default=7, help="unpaced runs timed for us_per_tick")
-    p.add_argument("--settle", type=float, default=1.0, help="seconds holding the start pose before the motion")
-    p.add_argument("--tail", type=float, default=0.1, help="constant-deceleration tail (s; the paper: 0.1)")
+    p.add_argument("--repeats", type=A.positive_int, default=7, help="unpaced runs timed for us_per_tick")
+    p.add_argument("--settle", type=A.non_negative_float, default=1.0,
+                   help="seconds holding the start pose before the motion")
+    p.add_argument("--tail", type=A.non_negative_float, default=0.1, help="constant-deceleration tail (s; the paper: 0.1)")
     p.add_argument("--no-paced", action="store_true", help="skip the wall-clock paced run (jitter)")
-    p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
-    p.add_argument("--png", type=Path, default=None,
+    p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
+    p.add_argument("--png", type=A.output_file, default=None,
                    help="Fig. 12-like figure (default: <out stem>_fig12.png beside --out)")
 
 
 def main(args: argparse.Namespace) -> int:
-    if (args.updates is not None and args.updates < 0) or args.repeats < 1 or args.settle < 0 or args.tail < 0:
-        raise SystemExit("--updates >= 0, --repeats >= 1, --settle >= 0 and --tail >= 0 are required")
     png = args.png
     if png is None and args.out is not None:
         png = args.out.with_name(args.out.stem + "_fig12.png")
-    payload = run(args.updates, args.repeats, args.settle, args.tail, not args.no_paced, png, args.objective)
+    with warnings.catch_warnings():  # the table and the JSON say which runs exceed the joint limits
+        warnings.simplefilter("ignore", control.LimitWarning)
+        payload = run(args.updates, args.repeats, args.settle, args.tail, not args.no_paced, png, args.objective)
     print_table(payload)
     write_json(args.out, payload)
     return 0

@@ -29,7 +29,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from genplan.experiments.common import machine, table, write_json
+from genplan import _cli_args as A
+from genplan.experiments.common import machine, save_figure, table, write_json
 
 K_CLUSTERS = 20
 
@@ -207,8 +208,7 @@ def _plot_planar(held_out: NDArray[np.float64], samples: dict[int, NDArray[np.fl
         ax.set_ylim(-np.pi, np.pi)
         ax.legend(loc="upper right", fontsize=7)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -217,7 +217,8 @@ def _plot_planar(held_out: NDArray[np.float64], samples: dict[int, NDArray[np.fl
 # ---------------------------------------------------------------------------------------------
 
 
-def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progress: bool) -> dict[str, Any]:
+def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progress: bool,
+              threads: int | None = None) -> dict[str, Any]:
     import genplan
     from genplan import projection as P
     from genplan.gan.data import valid_configurations
@@ -242,10 +243,10 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
     for label, overrides in variants.items():
         cfg = default_config(name, iterations=iterations, seed=seed, **overrides)
         t0 = time.perf_counter()
-        model = train(cfg, data=data, progress=progress)
+        model = train(cfg, data=data, progress=progress, threads=threads)
         train_s = time.perf_counter() - t0
         rng = np.random.default_rng(seed)
-        q = model.sample(targets, rng)  # one sample per held-out target: same conditioning
+        q = model.sample(targets, rng, threads=threads)  # one sample per held-out target: same conditioning
         res = solver.solve_batch(q)
         s = Codec.features(robot, q) / scale
         out[label] = {
@@ -283,8 +284,7 @@ def _plot_robot(name: str, ref: NDArray[np.float64], samples: dict[str, NDArray[
         ax.legend(loc="upper right", fontsize=7)
     axes[0].set_ylabel("principal component 2")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -294,22 +294,24 @@ def _plot_robot(name: str, ref: NDArray[np.float64], samples: dict[str, NDArray[
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true", help="fewer iterations (planar 1,500, robots 1,500)")
     p.add_argument("--robots", nargs="*", default=["panda", "talos"], choices=["panda", "talos"])
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--figures", type=Path, default=Path("benches/results"), help="folder for the PNG figures")
-    p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
-    p.add_argument("--threads", type=int, default=1, help="torch threads (default 1, see `genplan train gan --help`)")
+    p.add_argument("--seed", type=A.seed, default=0)
+    p.add_argument("--figures", type=A.output_folder, default="benches/results",
+                   help="folder for the PNG figures (created if missing)")
+    p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
+    p.add_argument("--threads", type=A.positive_int, default=1,
+                   help="torch threads (default 1, see `genplan train gan --help`)")
 
 
 def main(args: argparse.Namespace) -> int:
     import torch
 
-    torch.set_num_threads(max(1, args.threads))
+    torch.set_num_threads(args.threads)
     planar_it = 1500 if args.quick else 5000
     robot_it = 1500 if args.quick else 10_000
     payload: dict[str, Any] = {"benchmark": "coverage", "quick": args.quick, "machine": machine(),
                                "k_clusters": K_CLUSTERS, "planar": run_planar(planar_it, args.seed, args.figures, True)}
     for name in args.robots:
-        payload[name] = run_robot(name, robot_it, args.seed, args.figures, True)
+        payload[name] = run_robot(name, robot_it, args.seed, args.figures, True, threads=args.threads)
     rows = [["planar", f"N_net={k}", payload["planar"][f"n_net_{k}"]["cluster_coverage"],
              payload["planar"][f"n_net_{k}"]["mmd"], f"valid {payload['planar'][f'n_net_{k}']['valid_rate']:.3f}"]
             for k in (1, 5)]

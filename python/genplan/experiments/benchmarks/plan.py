@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from genplan import _cli_args as A
 from genplan.experiments.common import machine, table, write_json
 
 #: Table II of the GAN paper: (success %, T_ave s, Opt. Steps, E).
@@ -199,18 +199,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", default="all", choices=[*ENVS, "all"])
     p.add_argument("--sampler", default="all", choices=[*SAMPLERS, "all"])
     p.add_argument("--planner", default="genplan", choices=[*PLANNERS, "all"])
-    p.add_argument("--queries", type=int, default=100, help="queries per environment (the paper: 100)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--ompl-time-limit", type=float, default=30.0, help="seconds per OMPL query")
-    p.add_argument("--edge-resolution", type=float, default=None, help="genplan edge validation spacing (0: off)")
-    p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
+    p.add_argument("--queries", type=A.positive_int, default=100, help="queries per environment (the paper: 100)")
+    p.add_argument("--seed", type=A.seed, default=0)
+    p.add_argument("--ompl-time-limit", type=A.positive_float, default=30.0, help="seconds per OMPL query")
+    p.add_argument("--edge-resolution", type=A.non_negative_float, default=None,
+                   help="genplan edge validation spacing (0: off)")
+    p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
 
 
 def main(args: argparse.Namespace) -> int:
     from genplan.planning import PlannerSettings
 
-    if args.queries < 1:
-        raise SystemExit("--queries must be at least 1")
     envs = list(ENVS) if args.env == "all" else [args.env]
     samplers = list(SAMPLERS) if args.sampler == "all" else [args.sampler]
     planners = list(PLANNERS) if args.planner == "all" else [args.planner]

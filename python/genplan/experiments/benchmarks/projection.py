@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 import genplan
 from genplan import projection as P
+from genplan import _cli_args as A
 from genplan.experiments.common import machine, table, write_json
 
 #: Table I of the GAN paper: (success %, T_ave ms, T*_ave ms, steps*).
@@ -178,17 +179,16 @@ def print_table(payload: dict[str, Any]) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", choices=["panda", "talos"], required=True)
     p.add_argument("--init", choices=INITS, default="uniform", help="initial configurations")
-    p.add_argument("--tasks", type=int, default=500, help="tasks per kind (projection, IK)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tasks", type=A.positive_int, default=500, help="tasks per kind (projection, IK)")
+    p.add_argument("--seed", type=A.seed, default=0)
     p.add_argument("--solver", choices=SOLVERS, default="gauss-newton")
     p.add_argument("--backend", choices=P.BACKENDS, default="native", help="Gauss-Newton implementation")
-    p.add_argument("--model", type=Path, default=None, help="GAN model file for --init gan (default: the shipped one)")
-    p.add_argument("--out", type=Path, default=None, help="write the results as JSON")
+    p.add_argument("--model", type=A.existing_file, default=None,
+                   help="GAN model file for --init gan (default: the shipped one)")
+    p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
 
 
 def main(args: argparse.Namespace) -> int:
-    if args.tasks < 1:
-        raise SystemExit("--tasks must be at least 1")
     payload = run(args.robot, args.init, args.tasks, args.seed, args.solver, args.backend, args.model)
     print_table(payload)
     write_json(args.out, payload)

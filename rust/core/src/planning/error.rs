@@ -6,7 +6,8 @@
 pub type ComponentError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 /// Why a plan (or a planner part's construction) stopped without a result. Every variant but
-/// [`PlanError::Component`] is the caller's error; its text names what was wrong.
+/// [`PlanError::Component`] and [`PlanError::Internal`] is the caller's error; its text names
+/// what was wrong.
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
     /// A planner setting has a bad value ([`Settings::validate`](super::Settings::validate)).
@@ -17,11 +18,12 @@ pub enum PlanError {
         /// What is wrong with it (the text after "settings: ").
         msg: String,
     },
-    /// The start configuration is malformed (length, NaN) or not valid (in collision or
-    /// outside the joint limits).
+    /// The start configuration is malformed (length, NaN), not on the constraint manifold, or
+    /// not valid (in collision or outside the joint limits).
     #[error("{0}")]
     InvalidStart(String),
-    /// The goal rows are malformed, or none of them is valid.
+    /// The goal rows are malformed, one of them is not on the constraint manifold, or none of
+    /// them is valid.
     #[error("{0}")]
     InvalidGoal(String),
     /// Another input is malformed: a configuration given to [`Planner::extend`](super::Planner::extend),
@@ -38,6 +40,10 @@ pub enum PlanError {
     /// A component (sampler, projector, validity checker, interrupt check) failed.
     #[error("{0}")]
     Component(ComponentError),
+    /// A result failed the planner's own final check: a bug in the planner, never returned as
+    /// a success.
+    #[error("{0}")]
+    Internal(String),
 }
 
 /// The result of the planner and its parts.

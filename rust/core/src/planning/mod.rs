@@ -5,7 +5,9 @@
 //! node towards it ([`Planner`]'s *ConstrainedExtend*: steps of `step` radians, each projected
 //! onto the constraint manifold with a posture task around the interpolated configuration), then
 //! extends greedily from the reached node towards the nearest goal. It succeeds when a goal is
-//! reached within `goal_tolerance`.
+//! reached within `goal_tolerance`. The start and goals are checked first (on the manifold, by
+//! the projector; valid, by the checker), and a bad one is refused with its name and the reason
+//! ([`Planner::plan`]): a success never rests on an input that fails the planner's own checks.
 //!
 //! Every part the planner calls is a trait object, so each can be native (Rust) or a user's
 //! (the Python bindings wrap Python objects):

@@ -281,7 +281,22 @@ impl Planner {
     }
 
     /// Plan from `start` to any of `goals` (rows of nq, on the manifold, e.g. from IK).
-    /// Invalid goals are dropped; an invalid start or no valid goal is an error.
+    ///
+    /// Before the search, every input the result's guarantee rests on is checked, and refused
+    /// with a message naming it and saying why:
+    ///
+    /// * shape and finite values ([`Space::check`]);
+    /// * on the manifold: the start and every goal are projected (posture around themselves);
+    ///   one the projector cannot project, or moves by more than `goal_tolerance`, is refused
+    ///   ([`PlanError::InvalidStart`], or [`PlanError::InvalidGoal`] naming every such goal,
+    ///   even when others are fine: such a goal was not made for this constraint). One it moves
+    ///   by less is replaced by its projection, so that every state of the path satisfies the
+    ///   projector (a configuration already on the manifold is not moved at all);
+    /// * valid (the checker): an invalid start is refused; invalid goals are dropped, and
+    ///   refused only when none is left ([`Solution::goal_index`] says which goal was reached).
+    ///
+    /// A solution is checked once more before it is returned: its path starts at the start and
+    /// ends at the goal reached (its edges were validated as they were built).
     pub fn plan(&self, start: &[f64], goals: &[f64], c: &mut Components<'_>) -> PlanResult<Solution> {
         let t0 = Instant::now();
         let space = &*self.space;
@@ -294,6 +309,8 @@ impl Planner {
             space.check(g, &format!("goals[{i}]")).map_err(PlanError::InvalidGoal)?;
         }
         let mut run = Run { space, st: &self.settings, c, stats: Stats::default(), samples: VecDeque::new() };
+        let (start, goals) = run.onto_manifold(start, goals)?;
+        let (start, goals) = (&start[..], &goals[..]);
         let mut start_ok = [false];
         run.check_valid(start, &mut start_ok)?;
         if !start_ok[0] {
@@ -328,9 +345,45 @@ impl Planner {
         stats.success = solution.is_some();
         stats.time_s = t0.elapsed().as_secs_f64();
         Ok(match solution {
-            Some((waypoints, path, g)) => Solution { success: true, waypoints, path, goal_index: Some(g), stats },
+            Some((waypoints, path, g)) => {
+                self.check_solution(&path, start, &goals[g * nq..(g + 1) * nq])?;
+                Solution { success: true, waypoints, path, goal_index: Some(g), stats }
+            }
             None => Solution { success: false, waypoints: Vec::new(), path: Vec::new(), goal_index: None, stats },
         })
+    }
+
+    /// The last word before a success: the path is whole rows of finite numbers from `start` to
+    /// within `goal_tolerance` of `goal`. (Every state on the way was projected and checked when
+    /// its edge was validated; this catches a broken invariant, not a bad input.)
+    fn check_solution(&self, path: &[f64], start: &[f64], goal: &[f64]) -> PlanResult<()> {
+        let nq = self.space.nq();
+        let fail = |why: &str| Err(PlanError::Internal(format!("the planner found a path that fails its own check: {why}")));
+        if path.len() < nq || path.len() % nq != 0 || path.iter().any(|x| !x.is_finite()) {
+            return fail("not whole rows of finite numbers");
+        }
+        if path[..nq] != *start {
+            return fail("it does not begin at the start");
+        }
+        let d = self.space.distance(&path[path.len() - nq..], goal);
+        if d.is_nan() || d > self.settings.goal_tolerance {
+            return fail(&format!("it ends {} from the goal (goal_tolerance {})", short(d), self.settings.goal_tolerance));
+        }
+        Ok(())
+    }
+}
+
+/// A distance for a message: three significant digits, scientific notation when tiny or huge.
+fn short(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let sci = format!("{x:.2e}");
+    let e: i32 = sci.rsplit('e').next().and_then(|e| e.parse().ok()).unwrap_or(0);
+    if (-3..6).contains(&e) {
+        format!("{:.*}", (2 - e).max(0) as usize, x)
+    } else {
+        sci
     }
 }
 
@@ -401,6 +454,42 @@ impl Run<'_, '_> {
         let r = self.c.projector.project(qs, q_noms, out, reports);
         self.stats.projector_s += t.elapsed().as_secs_f64();
         r
+    }
+
+    /// The start and goals checked against the manifold (see [`Planner::plan`]): each projected
+    /// around itself in one batch; refused when the projection fails or moves it by more than
+    /// `goal_tolerance`, else replaced by its projection. Not counted in the stats (an input
+    /// check, not the search).
+    fn onto_manifold(&mut self, start: &[f64], goals: &[f64]) -> PlanResult<(Vec<f64>, Vec<f64>)> {
+        let nq = self.space.nq();
+        let rows = [start, goals].concat();
+        let n = rows.len() / nq;
+        let mut out = vec![0.0; rows.len()];
+        let mut reps = vec![Projection::default(); n];
+        self.c.projector.project(&rows, &rows, &mut out, &mut reps)?;
+        let tol = self.st.goal_tolerance;
+        let why = |i: usize| -> Option<String> {
+            let (q, p) = (&rows[i * nq..(i + 1) * nq], &out[i * nq..(i + 1) * nq]);
+            if !reps[i].success || p.iter().any(|x| !x.is_finite()) {
+                return Some("not on the constraint manifold: the projector could not project it".into());
+            }
+            let d = self.space.distance(q, p);
+            (d.is_nan() || d > tol).then(|| format!("not on the constraint manifold: the projector moved it by {} (goal_tolerance {tol})", short(d)))
+        };
+        if let Some(w) = why(0) {
+            return Err(PlanError::InvalidStart(format!("start: {w}")));
+        }
+        let bad: Vec<(usize, String)> = (1..n).filter_map(|i| why(i).map(|w| (i - 1, w))).collect();
+        if let Some((i, w)) = bad.first() {
+            let mut msg = format!("goals[{i}]: {w}");
+            if bad.len() > 1 {
+                let others: Vec<String> = bad[1..].iter().map(|(j, _)| format!("goals[{j}]")).collect();
+                msg += &format!("; also off it: {}", others.join(", "));
+            }
+            return Err(PlanError::InvalidGoal(msg));
+        }
+        let goals = out.split_off(nq);
+        Ok((out, goals))
     }
 
     /// One attempt: returns the goal node and the goal's index on success.
@@ -633,5 +722,36 @@ impl Run<'_, '_> {
         } else {
             Ok(None)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planning::EuclideanSpace;
+
+    #[test]
+    fn a_path_that_fails_the_final_check_is_an_internal_error() {
+        let planner = Planner::new(Arc::new(EuclideanSpace(2)), Settings::default()).unwrap();
+        let (start, goal) = ([0.0, 0.0], [1.0, 0.0]);
+        assert!(planner.check_solution(&[0.0, 0.0, 0.5, 0.0, 1.0, 0.0], &start, &goal).is_ok());
+        let internal = |path: &[f64]| match planner.check_solution(path, &start, &goal) {
+            Err(PlanError::Internal(m)) => m,
+            other => panic!("expected an internal error, got {other:?}"),
+        };
+        assert!(internal(&[0.1, 0.0, 1.0, 0.0]).ends_with("it does not begin at the start"));
+        assert!(internal(&[0.0, 0.0, 0.9, 0.0]).ends_with("it ends 0.100 from the goal (goal_tolerance 0.001)"));
+        assert!(internal(&[0.0, 0.0, f64::NAN, 0.0]).ends_with("not whole rows of finite numbers"));
+        assert!(internal(&[]).ends_with("not whole rows of finite numbers"));
+    }
+
+    #[test]
+    fn short_numbers() {
+        assert_eq!(short(0.31234), "0.312");
+        assert_eq!(short(1.5), "1.50");
+        assert_eq!(short(123.456), "123");
+        assert_eq!(short(0.0012345), "0.00123");
+        assert_eq!(short(2.5e-7), "2.50e-7");
+        assert_eq!(short(0.0), "0");
     }
 }

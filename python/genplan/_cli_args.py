@@ -1,0 +1,159 @@
+"""Argument types and output checks of the ``genplan`` commands (one definition for all of them).
+
+Each command's ``add_arguments(parser)`` uses these as argparse ``type=``: a bad value is an
+argparse error naming the option before anything runs. Output locations (:data:`output_file`,
+:data:`output_folder`) are checked by ``genplan.cli.main`` after every argument parsed and before
+the command starts (:func:`check_outputs`): the folder is created if missing (the commands' writers
+do the same) and a temporary file is created and removed in it, so a read-only or impossible place
+fails in a fraction of a second instead of after the work. A command whose output has a computed
+default checks it itself, first, with :func:`check_output_file` / :func:`check_output_folder`.
+User errors found inside a command raise :class:`UsageError`; ``genplan.cli.main`` prints any
+:class:`~genplan.errors.GenplanError` as one line and exits with code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import secrets
+from pathlib import Path
+from typing import Any
+
+from genplan.errors import GenplanError
+
+#: largest seed the commands accept (numpy, torch and the Rust samplers all take it)
+MAX_SEED = 2**32 - 1
+
+
+class UsageError(GenplanError):
+    """A command line genplan cannot run: a bad argument or combination of arguments, or an
+    output location that cannot be written; the message names the option."""
+
+
+def _int(text: str, what: str, lo: int, hi: int | None = None) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+    if value < lo or (hi is not None and value > hi):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """An integer >= 1."""
+    return _int(text, "a positive integer", 1)
+
+
+def non_negative_int(text: str) -> int:
+    """An integer >= 0."""
+    return _int(text, "an integer >= 0", 0)
+
+
+def seed(text: str) -> int:
+    """A seed: an integer in 0..2^32 - 1."""
+    return _int(text, f"a seed in 0..{MAX_SEED}", 0, MAX_SEED)
+
+
+def _float(text: str, what: str, ok: Any) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+    if not (math.isfinite(value) and ok(value)):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0."""
+    return _float(text, "a finite number > 0", lambda x: x > 0)
+
+
+def non_negative_float(text: str) -> float:
+    """A finite number >= 0."""
+    return _float(text, "a finite number >= 0", lambda x: x >= 0)
+
+
+def existing_file(text: str) -> Path:
+    """An input file that exists."""
+    path = Path(text)
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text}: {'is a folder, not a file' if path.is_dir() else 'no such file'}")
+    return path
+
+
+def existing_folder(text: str) -> Path:
+    """An input folder that exists."""
+    path = Path(text)
+    if not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: {'is a file, not a folder' if path.exists() else 'no such folder'}")
+    return path
+
+
+class Output:
+    """The argparse type of an output location (``kind``: "file" or "folder"): a Path, checked
+    by :func:`check_outputs` once every argument parsed."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.__name__ = f"output {kind}"  # argparse names the type in some messages
+
+    def __call__(self, text: str) -> Path:
+        if not text:
+            raise argparse.ArgumentTypeError(f"expected an output {self.kind}, got ''")
+        return Path(text)
+
+    def check(self, path: Path, what: str) -> Path:
+        return check_output_file(path, what) if self.kind == "file" else check_output_folder(path, what)
+
+
+output_file = Output("file")
+output_folder = Output("folder")
+
+
+def check_output_folder(path: Path, what: str, *, of: Path | None = None) -> Path:
+    """Create ``path`` if missing and make sure a file can be written in it, else raise
+    :class:`UsageError` naming ``what`` (the option) and why. ``of``: the file it is the folder
+    of, for the message."""
+    path = Path(path)
+    where = f"{what} {of if of is not None else path}: "
+    folder = f"the folder {path}" if of is not None else "the folder"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise UsageError(f"{where}{folder} is a file") from None
+    except OSError as exc:
+        raise UsageError(f"{where}cannot create {folder} ({exc.strerror or exc})") from None
+    probe = path / f".genplan-write-test-{os.getpid()}-{secrets.token_hex(4)}"
+    try:
+        probe.touch(exist_ok=False)
+        probe.unlink()
+    except OSError as exc:
+        raise UsageError(f"{where}cannot write in {folder} ({exc.strerror or exc})") from None
+    return path
+
+
+def check_output_file(path: Path, what: str) -> Path:
+    """An output file's location: not a folder, and its folder writable (created if missing)."""
+    path = Path(path)
+    if path.is_dir():
+        raise UsageError(f"{what} {path}: is a folder, not a file")
+    check_output_folder(path.parent, what, of=path)
+    return path
+
+
+def output_actions(parser: argparse.ArgumentParser) -> list[tuple[str, str, Output]]:
+    """(dest, option, type) of every output argument of ``parser``."""
+    return [(a.dest, a.option_strings[0] if a.option_strings else a.dest, a.type)
+            for a in parser._actions if isinstance(a.type, Output)]
+
+
+def check_outputs(args: argparse.Namespace, actions: list[tuple[str, str, Output]]) -> None:
+    """Check every output location given in ``args`` (see :func:`output_actions`)."""
+    for dest, option, out in actions:
+        value = getattr(args, dest, None)
+        for path in value if isinstance(value, list) else [value]:
+            if path is not None:
+                out.check(Path(path), option)

@@ -1,0 +1,38 @@
+"""Every ```python block of the README runs, in order, as written, in one namespace (what a user
+pasting them one after the other into a session gets). The blocks keep their counts small so
+this stays quick; the slowest line is the 500-update turn-over plan (a few seconds)."""
+
+from __future__ import annotations
+
+import re
+import warnings
+from pathlib import Path
+
+import pytest
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+BLOCKS = re.findall(r"^```python\n(.*?)^```", README.read_text(), re.S | re.M)
+
+
+def test_the_readme_has_python_blocks() -> None:
+    assert len(BLOCKS) >= 5
+    assert any("targets" in b for b in BLOCKS)
+
+
+@pytest.fixture(scope="module")
+def namespace() -> dict:
+    return {"__name__": "readme"}
+
+
+@pytest.mark.parametrize("index", range(len(BLOCKS)), ids=[f"block{i + 1}" for i in range(len(BLOCKS))])
+def test_readme_block_runs(index: int, namespace: dict) -> None:
+    if namespace.get("failed") is not None:
+        pytest.skip(f"block {namespace['failed'] + 1} failed")
+    namespace["failed"] = index
+    with warnings.catch_warnings():
+        # the J1 flip of the control block runs a hair over the UR5's wrist speed limit: it warns
+        from genplan.control import LimitWarning
+
+        warnings.simplefilter("ignore", LimitWarning)
+        exec(compile(BLOCKS[index], f"README.md python block {index + 1}", "exec"), namespace)
+    namespace["failed"] = None
