@@ -87,19 +87,6 @@ impl Field for NeighborIndex {
     }
 }
 
-impl Field for Option<usize> {
-    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
-        if v.is_none() {
-            Ok(None)
-        } else {
-            usize::from_py(v, what).map(Some)
-        }
-    }
-    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        self.into_bound_py_any(py)
-    }
-}
-
 /// `repr` of a record: `Name(a=1, b=2.0)`.
 pub(crate) fn record_repr(name: &str, d: &Bound<'_, PyDict>) -> PyResult<String> {
     let mut parts = Vec::with_capacity(d.len());
