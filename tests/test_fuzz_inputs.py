@@ -10,9 +10,11 @@ expected) may raise TypeError; ``adjust`` raises FloatingPointError when an upda
 (documented); the planner's per-call callbacks are not fuzzed here.
 
 Known gaps are findings: each has its own narrow test below, marked ``xfail(strict=True)`` with
-the finding in its reason, and the general properties leave exactly that input out (see the
-``gap`` helpers). When a gap is closed its test passes, strict xfail turns that into a failure,
-and the test's mark and the exemption go. The Rust twins of some findings are in
+the finding in its reason, and the general properties leave exactly that input out (a comment
+naming the finding marks the exemption). When a gap is closed its test passes, strict xfail turns
+that into a failure, and the test's mark and the exemption go; a fixed finding's test stays, as a
+plain test. "Valid" input follows the documented bounds (e.g. 1e6 on lengths, obstacle sizes and
+projection targets), cited where they are used. The Rust twins of some findings are in
 ``rust/core/tests/fuzz_*.rs``.
 
 Runs are deterministic (hypothesis ``derandomize``) with small example counts; to search harder:
@@ -91,11 +93,12 @@ def finite(x: Any) -> bool:
 SPECIAL = [0.0, -0.0, 1e300, -1e300, 1.7976931348623157e308, 5e-324, np.nan, np.inf, -np.inf]
 NUMBERS = st.one_of(st.floats(-4, 4), st.sampled_from(SPECIAL), st.floats())
 SANE = st.floats(-3, 3)
-DTYPES = [np.float64, np.float32, np.float16, np.int64, np.int8, np.uint8, np.bool_, object]
+DTYPES = [np.float64, np.float32, np.float16, np.int64, np.int8, np.uint8, np.bool_, object, np.complex128]
 
 
 def numeric_arrays(shape: Any, elements: Any = NUMBERS) -> Any:
-    """float64 arrays of ``shape`` cast to a random dtype (ints, bools, objects, float16...)."""
+    """float64 arrays of ``shape`` cast to a random dtype (ints, bools, objects, float16,
+    complex...)."""
     def cast(a_dt: tuple[np.ndarray, Any]) -> np.ndarray:
         a, dt = a_dt
         with np.errstate(all="ignore"):
@@ -104,8 +107,7 @@ def numeric_arrays(shape: Any, elements: Any = NUMBERS) -> Any:
 
 
 def configurations(nq: int) -> Any:
-    """Anything a caller might pass as configurations for a robot with ``nq`` joints (complex
-    arrays aside: finding PY-4)."""
+    """Anything a caller might pass as configurations for a robot with ``nq`` joints."""
     good_shapes = st.one_of(st.just((nq,)), st.tuples(st.integers(0, 3), st.just(nq)))
     any_shape = hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=nq + 2)
     return st.one_of(
@@ -114,18 +116,31 @@ def configurations(nq: int) -> Any:
         hnp.arrays(np.float64, good_shapes, elements=NUMBERS).map(lambda a: a.tolist()),  # lists
         st.lists(st.lists(SANE, max_size=nq + 1), max_size=3),  # ragged lists
         hnp.arrays("U4", good_shapes, elements=st.text(alphabet="ab1.e-n ", max_size=4)),  # strings
+        hnp.arrays(np.complex128, good_shapes, elements=st.complex_numbers(max_magnitude=3)),  # finding PY-4
         st.sampled_from([None, "q", 3.0, {"q": 1}, object()]),
     )
+
+
+def reals(x: Any) -> np.ndarray | None:
+    """The oracle for numbers: ``x`` as float64 as numpy reads it (strings that parse included),
+    or None where it is not real numbers: unreadable, or complex even with a zero imaginary part
+    (finding PY-4: numpy would drop the imaginary part)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            a = np.asarray(x)
+            if a.dtype.kind == "c":
+                return None
+            return np.asarray(a, dtype=np.float64)
+    except (TypeError, ValueError, Warning):
+        return None
 
 
 def read_configurations(x: Any, nq: int, floating_base: bool = False) -> np.ndarray | None:
     """The oracle: ``x`` as valid configurations, (nq,) or (n, nq) finite floats (a free-flyer
     quaternion not zero), or None."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            a = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError, Warning):
+    a = reals(x)
+    if a is None:
         return None
     if a.ndim not in (1, 2) or a.shape[-1] != nq or not np.all(np.isfinite(a)):
         return None
@@ -199,9 +214,8 @@ def test_link_poses(name: str, data: Any) -> None:
     assert exc is None, f"link_poses refused valid q: {exc}"
     assert poses.shape == valid.shape[:-1] + (n_links, 4, 4) and poses.dtype == np.float64
     assert finite(poses), f"non-finite poses for finite q {valid!r}"
-    huge_base = robot.floating_base and np.any(np.abs(valid[..., 3:7]) > 1e150)  # finding PY-5
-    if not huge_base:
-        assert rigid(poses), f"poses that are not rigid transforms for q {valid!r}"
+    # a huge free-flyer quaternion too: finding PY-5 (fixed)
+    assert rigid(poses), f"poses that are not rigid transforms for q {valid!r}"
 
 
 @fuzz(40)
@@ -218,39 +232,59 @@ def test_link_poses_by_name(panda: genplan.Robot, links: Any) -> None:
 
 
 @fuzz(40)
-@given(n=st.integers(0, 50), seed=st.one_of(st.none(), st.integers(0, 2**32)))
-def test_random_configurations(panda: genplan.Robot, n: int, seed: Any) -> None:
-    q, exc = call(panda.random_configurations, n, seed)
+@given(n=st.one_of(st.integers(-3, 50), st.sampled_from([True, 2.0, "3", None, np.int64(3), np.int8(-1)])),
+       seed=st.one_of(st.none(), st.integers(-3, 2**32)))
+def test_random_configurations(panda: genplan.Robot, n: Any, seed: Any) -> None:
+    q, exc = call(panda.random_configurations, n, seed, errors=(GenplanError, TypeError))
+    if seed is not None and seed < 0 and isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 0:
+        assert isinstance(exc, SettingsError) and str(exc).startswith("rng:"), f"seed {seed}: {exc!r}"  # PY-10 (fixed)
+        return
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+        assert isinstance(exc, TypeError) and str(exc).startswith("n:"), f"random_configurations({n!r}): {exc!r}"
+        return
+    if n < 0:  # finding PY-3 (fixed)
+        assert isinstance(exc, ShapeError) and str(exc).startswith("n:"), f"random_configurations({n!r}): {exc!r}"
+        return
     assert exc is None and q.shape == (n, panda.nq) and finite(q)
     assert np.all((panda.lower <= q) & (q <= panda.upper)), "a random configuration outside the limits"
 
 
-@pytest.mark.xfail(strict=True, reason="finding PY-3: random_configurations does not check n or rng: n=-1 raises "
-                   "numpy's plain ValueError ('negative dimensions are not allowed'), rng=-1 numpy's ValueError "
-                   "('expected non-negative integer'); should be a SettingsError naming the argument")
-@pytest.mark.parametrize("n, rng", [(-1, None), (2, -1)], ids=["n=-1", "rng=-1"])
-def test_random_configurations_refuses_bad_counts_with_a_genplan_error(panda: genplan.Robot, n: int, rng: Any) -> None:
-    _, exc = call(panda.random_configurations, n, rng)
-    assert isinstance(exc, SettingsError)
+# finding PY-3 (fixed for n): random_configurations did not check n: n=-1 raised numpy's plain
+# ValueError ('negative dimensions are not allowed'); now a ShapeError naming n (python/genplan/robots.py)
+def test_random_configurations_refuses_a_negative_count_with_a_genplan_error(panda: genplan.Robot) -> None:
+    _, exc = call(panda.random_configurations, -1, None)
+    assert isinstance(exc, ShapeError) and str(exc).startswith("n:"), repr(exc)
 
 
-@pytest.mark.xfail(strict=True, reason="finding PY-4: a complex array is accepted as configurations (numpy drops "
-                   "the imaginary part with only a ComplexWarning): link_poses(np.zeros(7) + 1j) returns the poses "
-                   "of zeros; should be a ShapeError (not readable as real numbers)")
-def test_complex_configurations_are_refused(panda: genplan.Robot) -> None:
-    _, exc = call(panda.link_poses, np.zeros(panda.nq) + 1j)
-    assert isinstance(exc, ShapeError)
+# finding PY-10 (fixed; the rest of PY-3): random_configurations passed rng to
+# np.random.default_rng unchecked: rng=-1 raised numpy's plain ValueError; now a SettingsError naming rng
+def test_random_configurations_refuses_a_negative_seed_with_a_genplan_error(panda: genplan.Robot) -> None:
+    _, exc = call(panda.random_configurations, 2, -1, errors=(BaseException,))
+    assert isinstance(exc, GenplanError) and "rng" in str(exc), repr(exc)
 
 
-@pytest.mark.xfail(strict=True, reason="finding PY-5 (Rust URDF-3): a free-flyer quaternion with huge finite "
-                   "components (1e300) passes the configuration check (it only refuses a zero norm), its norm "
-                   "overflows and normalises to zero: Talos link_poses answer rotation blocks of zeros, not "
-                   "rigid transforms; should normalise without overflow or refuse q")
+# finding PY-4 (fixed): a complex array was accepted as configurations (numpy dropped the imaginary
+# part with only a ComplexWarning): link_poses(np.zeros(7) + 1j) returned the poses of zeros
+@pytest.mark.parametrize("q", [np.zeros(7) + 1j, np.zeros(7, dtype=np.complex64), np.array([np.complex128(1)] * 7, dtype=object),
+                               [1j] * 7], ids=["complex128", "zero-imaginary", "object", "list"])
+def test_complex_configurations_are_refused(panda: genplan.Robot, q: Any) -> None:
+    _, exc = call(panda.link_poses, q)
+    assert isinstance(exc, ShapeError) and "complex" in str(exc) and str(exc).startswith("q:"), exc
+    _, exc = call(panda.collision_world().min_distance, q)
+    assert isinstance(exc, ShapeError), exc
+
+
+# finding PY-5 (fixed; Rust URDF-3): a free-flyer quaternion with huge finite components (1e300)
+# passed the configuration check (it only refuses a zero norm), its norm overflowed and it
+# normalised to zero: Talos link_poses answered rotation blocks of zeros, not rigid transforms.
+# Now normalised without overflow (rust/core/src/kinematics.rs, KinematicModel::base_pose).
 def test_a_huge_base_quaternion_gives_rigid_poses(talos: genplan.Robot) -> None:
     q = talos.q_default.copy()
     q[3:7] = 1e300
     poses, exc = call(talos.link_poses, q)
-    assert exc is not None or rigid(poses)
+    assert exc is None and rigid(poses), exc
+    q[3:7] = 0.5
+    assert np.allclose(poses, talos.link_poses(q), atol=1e-12), "not the poses of the normalised quaternion"
 
 
 # --------------------------------------------------------------------------------------------
@@ -286,48 +320,70 @@ def test_min_distance_is_the_deepest_penetration(panda_world: genplan.CollisionW
     assert abs(float(panda_world.min_distance(q)) - closest) < 1e-6
 
 
+#: numbers at the documented bound 1e6 of obstacle sizes and positions (rust/core/src/collision/world.rs)
+#: and of projection targets (rust/core/src/projection.rs), and just beyond
+AT_1E6 = st.sampled_from([1e6, -1e6, float(np.nextafter(1e6, 2e6)), -float(np.nextafter(1e6, 2e6)), 1e-12, 2e-12])
+
+
 def vec3s() -> Any:
     return st.one_of(st.tuples(NUMBERS, NUMBERS, NUMBERS), st.tuples(SANE, SANE, SANE),
+                     st.tuples(st.one_of(SANE, AT_1E6), st.one_of(SANE, AT_1E6), st.one_of(SANE, AT_1E6)),
                      numeric_arrays(hnp.array_shapes(min_dims=0, max_dims=2, max_side=4)))
 
 
 def read_vec3(v: Any) -> np.ndarray | None:
-    try:
-        a = np.asarray(v, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
+    a = reals(v)
+    if a is None:
         return None
+    a = a.reshape(-1)
     return a if a.shape == (3,) else None
 
 
 @fuzz(60)
 @given(kind=st.sampled_from(["box", "sphere", "halfspace"]), a=vec3s(), b=vec3s(),
-       r=st.one_of(NUMBERS, st.floats(0.01, 0.5)), rot=st.one_of(st.none(), numeric_arrays((3, 3)),
+       r=st.one_of(NUMBERS, st.floats(0.01, 0.5), AT_1E6), rot=st.one_of(st.none(), numeric_arrays((3, 3)),
                                                                  st.just(np.eye(3)), numeric_arrays((2, 2))))
 def test_obstacles(panda: genplan.Robot, kind: str, a: Any, b: Any, r: float, rot: Any) -> None:
     with np.errstate(all="ignore"):
         obstacle(panda, kind, a, b, r, rot)
 
 
+#: The documented bounds of an obstacle (rust/core/src/collision/world.rs): sizes (half extents,
+#: radii) in (0, MAX_EXTENT], centre coordinates and half-space offsets within MAX_EXTENT of 0 (m);
+#: a half-space normal longer than MIN_NORMAL (any finite length above it: findings COL-2, COL-3,
+#: fixed); a box rotation proper within ROTATION_TOLERANCE (rust/python/src/lib.rs, pose_from).
+MAX_EXTENT, MIN_NORMAL, ROTATION_TOLERANCE = 1e6, 1e-12, 1e-6
+
+
+def norm_without_overflow(v: np.ndarray) -> float:
+    m = float(np.max(np.abs(v)))
+    return 0.0 if m == 0.0 else m * float(np.linalg.norm(v / m))
+
+
+def proper_rotation(r: np.ndarray) -> bool:
+    return bool(finite(r) and np.max(np.abs(r.T @ r - np.eye(3))) <= ROTATION_TOLERANCE
+                and abs(np.linalg.det(r) - 1.0) <= ROTATION_TOLERANCE)
+
+
 def obstacle(panda: genplan.Robot, kind: str, a: Any, b: Any, r: float, rot: Any) -> None:
     world = panda.collision_world()
     va, vb = read_vec3(a), read_vec3(b)
+
+    def position_ok(v: np.ndarray | None) -> bool:
+        return bool(v is not None and finite(v) and np.all(np.abs(v) <= MAX_EXTENT))
+
     if kind == "box":
         out, exc = call(world.add_box, "o", a, b, rot)
-        rot_ok = rot is None or (np.shape(rot) == (3, 3) and finite(np.asarray(rot, dtype=float))
-                                 and np.allclose(np.asarray(rot, float).T @ np.asarray(rot, float), np.eye(3), atol=1e-6)
-                                 and np.linalg.det(np.asarray(rot, float)) > 0)
-        ok = bool(va is not None and vb is not None and finite(va) and np.all(va > 0) and finite(vb) and rot_ok)
-        gap = bool(va is not None and vb is not None and np.any(np.abs(np.concatenate([va, vb])) > 1e150))
+        r3 = None if rot is None else reals(rot)
+        rot_ok = rot is None or (r3 is not None and r3.shape == (3, 3) and proper_rotation(r3))
+        ok = bool(va is not None and finite(va) and np.all((va > 0) & (va <= MAX_EXTENT)) and position_ok(vb) and rot_ok)
     elif kind == "sphere":
         out, exc = call(world.add_sphere, "o", r, b)
-        ok = bool(vb is not None and finite(vb) and math.isfinite(r) and r > 0)
-        gap = bool(vb is not None and (np.any(np.abs(vb) > 1e150) or abs(r) > 1e150))
+        ok = bool(position_ok(vb) and math.isfinite(r) and 0 < r <= MAX_EXTENT)
     else:
         out, exc = call(world.add_halfspace, "o", a, r)
-        ok = bool(va is not None and finite(va) and math.isfinite(r) and 1e-12 < np.linalg.norm(va) < 1e150)
-        gap = bool((va is not None and np.any(np.abs(va) > 1e150)) or abs(r) > 1e150)  # findings COL-2, COL-3
-    if gap:
-        return
+        ok = bool(va is not None and finite(va) and norm_without_overflow(va) > MIN_NORMAL
+                  and math.isfinite(r) and abs(r) <= MAX_EXTENT)
     assert (exc is None) == ok, f"add_{kind}: {'refused valid' if ok else 'accepted invalid'} input: {exc}"
     if ok:
         assert world.obstacle_names == ["o"]
@@ -337,43 +393,84 @@ def obstacle(panda: genplan.Robot, kind: str, a: Any, b: Any, r: float, rot: Any
         assert d.shape == (4,) and finite(d)
 
 
-@pytest.mark.xfail(strict=True, reason="finding COL-2 (Rust fuzz_collision): a half-space normal whose squared norm "
-                   "overflows ([0, 0, 1e300]) is normalised to the zero vector instead of refused (a zero normal "
-                   "is refused); the world then holds a degenerate half-space and min_distance is wrong")
+# finding COL-2 (fixed; Rust fuzz_collision): a half-space normal whose squared norm overflowed
+# ([0, 0, 1e300]) was normalised to the zero vector instead of refused (a zero normal is refused);
+# the world then held a degenerate half-space and min_distance was wrong. Now any finite normal
+# longer than 1e-12 is normalised without overflow (rust/core/src/collision/world.rs, unit_normal).
 def test_a_huge_half_space_normal_is_normalised_or_refused(panda: genplan.Robot) -> None:
     a, b = panda.collision_world(), panda.collision_world()
     _, exc = call(a.add_halfspace, "floor", [0, 0, 1e300], 0.1)
     b.add_halfspace("floor", [0, 0, 1], 0.1)
     q = panda.q_default
-    assert exc is not None or float(a.min_distance(q)) == pytest.approx(float(b.min_distance(q)))
+    assert exc is None, exc
+    assert float(a.min_distance(q)) == pytest.approx(float(b.min_distance(q)))
 
 
-#: string inputs where numbers are expected leak a plain ValueError from numpy or float()
-STRING_CASES: dict[str, Callable[[genplan.Robot], Any]] = {
-    "add_sphere radius": lambda r: r.collision_world().add_sphere("s", "x", [0, 0, 0]),  # type: ignore[arg-type]
-    "add_box half_extents": lambda r: r.collision_world().add_box("b", "abc", [0, 0, 0]),
-    "close_pairs margin": lambda r: r.collision_world().close_pairs(r.q_default, "x"),  # type: ignore[arg-type]
-    "phi acc": lambda r: pancake.phi(0.0, ["a", "b"]),
-    "s_curve p_start": lambda r: pancake.s_curve("abc", [0, 0, 0]),
-    "solve_batch targets": lambda r: P.GaussNewtonProjector(r, P.panda_task("ik")).solve_batch(
-        np.zeros((2, 7)), targets={"hand_position": "ab"}),
+def _adjust(x: Any, **kw: Any) -> Any:
+    from genplan.pancake import adjust
+
+    return adjust(x, updates=0, **kw)
+
+
+def _execute(x: Any, **kw: Any) -> Any:
+    from genplan import control
+
+    return control.execute(x, **{"settle": 0.0, **kw})
+
+
+_X = pancake.s_curve([0, 0, 0], [0.01, 0, 0], K=500)
+
+#: finding PY-2 (fixed): strings (and other objects that are not numbers) where numbers are
+#: expected leaked a plain ValueError from numpy or float(). Now a GenplanError naming the
+#: argument, from every entry point: (call, the argument the message must name)
+STRING_CASES: dict[str, tuple[Callable[[genplan.Robot], Any], str]] = {
+    "add_sphere radius": (lambda r: r.collision_world().add_sphere("s", "x", [0, 0, 0]), "radius"),  # type: ignore[arg-type]
+    "add_sphere center": (lambda r: r.collision_world().add_sphere("s", 0.1, "abc"), "center"),
+    "add_box half_extents": (lambda r: r.collision_world().add_box("b", "abc", [0, 0, 0]), "half_extents"),
+    "add_box rotation": (lambda r: r.collision_world().add_box("b", [1, 1, 1], [0, 0, 0], [["a"] * 3] * 3), "rotation"),
+    "add_halfspace offset": (lambda r: r.collision_world().add_halfspace("h", [0, 0, 1], "x"), "offset"),  # type: ignore[arg-type]
+    "add_halfspace normal": (lambda r: r.collision_world().add_halfspace("h", {"z": 1}, 0.0), "normal"),
+    "close_pairs margin": (lambda r: r.collision_world().close_pairs(r.q_default, "x"), "margin"),  # type: ignore[arg-type]
+    "phi acc": (lambda r: pancake.phi(0.0, ["a", "b"]), "acc"),
+    "phi theta": (lambda r: pancake.phi("x", [0.0, 0.0]), "theta"),
+    "phi g": (lambda r: pancake.phi(0.0, [0.0, 0.0], "g"), "g"),  # type: ignore[arg-type]
+    "s_curve p_start": (lambda r: pancake.s_curve("abc", [0, 0, 0]), "p_start"),
+    "s_curve K": (lambda r: pancake.s_curve([0, 0, 0], [0, 0, 1], "abc"), "K"),  # type: ignore[arg-type]
+    "s_curve dt": (lambda r: pancake.s_curve([0, 0, 0], [0, 0, 1], 5, "x"), "dt"),  # type: ignore[arg-type]
+    "linear p_end": (lambda r: pancake.linear([0, 0, 0], ["a", 0, 0]), "p_end"),
+    "solve_batch targets": (lambda r: P.GaussNewtonProjector(r, P.panda_task("ik")).solve_batch(
+        np.zeros((2, 7)), targets={"hand_position": "ab"}), "targets"),
+    "adjust x_in": (lambda r: _adjust("abc"), "x_in"),
+    "adjust p_end": (lambda r: _adjust(_X, p_end="abc"), "p_end"),
+    "adjust seed": (lambda r: _adjust(_X, seed="abc"), "seed"),
+    "adjust max_step": (lambda r: _adjust(_X, max_step="abc"), "max_step"),
+    "execute trajectory": (lambda r: _execute([["a", "b", "c"]] * 3), "trajectory"),
+    "execute tail": (lambda r: _execute(_X, tail="x"), "tail"),
+    "execute settle": (lambda r: _execute(_X, settle="x"), "settle"),
+    "gan sample_for targets": (lambda r: _gan_sampler(r).sample_for([["a", "b", "c"]]), "targets"),
 }
 
 
-@pytest.mark.xfail(strict=True, reason="finding PY-2: a string where numbers are expected raises a plain ValueError "
-                   "from numpy or float() ('could not convert string to float'), not a GenplanError naming the "
-                   "argument (add_box/add_sphere/add_halfspace via _vec3/float(), close_pairs margin, pancake.phi, "
-                   "pancake.s_curve poses, solve_batch targets, adjust x_in); configurations are handled "
-                   "(as_configurations turns it into a ShapeError)")
+def _gan_sampler(robot: genplan.Robot) -> Any:
+    from genplan.gan.sampler import GanSampler
+
+    return GanSampler(robot, seed=0)
+
+
 @pytest.mark.parametrize("case", sorted(STRING_CASES))
 def test_strings_where_numbers_are_expected_raise_a_genplan_error(panda: genplan.Robot, case: str) -> None:
-    _, exc = call(STRING_CASES[case], panda, errors=(BaseException,))
+    f, name = STRING_CASES[case]
+    _, exc = call(f, panda, errors=(BaseException,))
     assert isinstance(exc, GenplanError), f"{type(exc).__name__}: {exc}"
+    assert name in str(exc), f"the message does not name {name}: {exc}"
 
 
 # --------------------------------------------------------------------------------------------
 # Projection: solve, solve_batch (with targets)
 # --------------------------------------------------------------------------------------------
+
+#: The largest absolute value of a term's numbers and of the damping settings (rust/core/src/projection.rs)
+P_MAX_MAGNITUDE = 1e6
 
 
 def check_solution(task: Any, panda: genplan.Robot, q: np.ndarray, success: Any, residuals: dict[str, Any]) -> None:
@@ -414,73 +511,113 @@ def test_solve_batch_with_targets(panda: genplan.Robot, ik: Any, data: Any) -> N
         hnp.arrays(np.float64, (n, 3), elements=st.floats(-1, 1)),
         numeric_arrays(hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=4)),
         hnp.arrays(np.float64, (n, 3), elements=NUMBERS),
+        hnp.arrays(np.float64, (n, 3), elements=st.one_of(st.floats(-1, 1), AT_1E6)),
     ), label="targets")
     res, exc = call(proj.solve_batch, q0s, targets=None if targets is None else {"hand_position": targets})
     qs = read_configurations(q0s, panda.nq)
     if qs is None or qs.ndim != 2:
         return expect_refused(q0s, exc, "solve_batch")
     if targets is not None:
-        t = np.asarray(targets, dtype=np.float64)
-        if t.shape != (len(qs), 3) or not finite(t):
-            assert isinstance(exc, GenplanError), f"targets {t.shape} accepted: {exc}"
+        t = reals(targets)
+        # a term's numbers finite and at most 1e6 in absolute value (rust/core/src/projection.rs,
+        # MAX_MAGNITUDE): finding PROJ-1 (fixed)
+        if t is None or t.shape != (len(qs), 3) or not finite(t) or np.any(np.abs(t) > P_MAX_MAGNITUDE):
+            assert isinstance(exc, GenplanError), f"targets {targets!r} accepted: {exc}"
             return
     assert exc is None, f"solve_batch refused valid input: {exc}"
     assert res.q.shape == qs.shape and len(res) == len(qs)
-    if targets is not None and np.any(np.abs(np.asarray(targets, dtype=np.float64)) > 1e150):
-        return  # finding PROJ-1
     check_solution(task, panda, res.q, res.success, res.residuals)
 
 
-@pytest.mark.xfail(strict=True, reason="finding PROJ-1 (Rust fuzz_projection): targets are only checked to be "
-                   "finite; a huge one (1.8e308) makes the solver's arithmetic overflow and solve_batch returns an "
-                   "all-NaN q (success False) without an error; the core's Projector::new checks no target, mask "
-                   "or margin either")
-def test_a_huge_target_gives_a_finite_answer_or_an_error(ik: Any) -> None:
+# finding PY-11 (fixed): solve_batch checked per-row targets only by their row count and each row's
+# count of numbers (it reshapes them to (n, -1)): an empty batch took targets of any shape, and
+# (n, 1, 3) passed as (n, 3); now the term's row shape is checked (python/genplan/projection.py)
+@pytest.mark.parametrize("n, shape", [(0, (0,)), (0, (0, 5)), (1, (1, 1, 3))], ids=["(0,)", "(0,5)", "(1,1,3)"])
+def test_mis_shaped_targets_are_refused(ik: Any, n: int, shape: tuple[int, ...]) -> None:
     _, proj = ik
-    res, exc = call(proj.solve_batch, np.zeros((1, 7)), targets={"hand_position": np.full((1, 3), 1.7976931348623157e308)})
-    assert exc is not None or finite(res.q)
+    _, exc = call(proj.solve_batch, np.zeros((n, 7)), targets={"hand_position": np.zeros(shape)})
+    assert isinstance(exc, ShapeError) and "targets" in str(exc), repr(exc)
+
+
+# finding PROJ-1 (fixed; Rust fuzz_projection): targets were only checked to be finite; a huge one
+# (1.8e308) made the solver's arithmetic overflow and solve_batch returned an all-NaN q (success
+# False) without an error. Now every number of a term is bounded by 1e6 (rust/core/src/projection.rs,
+# MAX_MAGNITUDE), per-row targets checked before any work, the error naming the row.
+@pytest.mark.parametrize("row", [0, 1])
+def test_a_huge_target_gives_a_finite_answer_or_an_error(ik: Any, row: int) -> None:
+    _, proj = ik
+    targets = np.full((2, 3), 0.5)
+    targets[row] = 1.7976931348623157e308
+    res, exc = call(proj.solve_batch, np.zeros((2, 7)), targets={"hand_position": targets})
+    assert isinstance(exc, GenplanError) and f"targets[{row}]" in str(exc), repr(exc)
 
 
 # --------------------------------------------------------------------------------------------
 # Planning: settings and plan inputs
 # --------------------------------------------------------------------------------------------
 
-PLANNER_FLOATS = {"step": "positive", "max_jump": "positive", "goal_tolerance": "positive", "edge_resolution": "nonneg"}
-PLANNER_COUNTS = {"max_increments": 1, "max_extensions": 1, "retries": 0, "sample_batch": 1, "max_empty_batches": 1}
+#: The documented ranges (rust/core/src/planning/rrt.rs, Settings::validate; findings PLAN-1,
+#: PLAN-2, fixed): lengths in (0, 1e6]; edge_resolution 0 or in [1e-6, 1e6], and then at least
+#: step * max_jump / 2^20 (see edge_states); sample_batch in [1, 65536]
+PLAN_MAX_LENGTH, PLAN_MIN_EDGE_RESOLUTION, PLAN_MAX_EDGE_STATES, PLAN_MAX_SAMPLE_BATCH = 1e6, 1e-6, 2**20, 2**16
+PLANNER_FLOATS = {"step": "length", "max_jump": "length", "goal_tolerance": "length", "edge_resolution": "resolution"}
+#: counts: (least, largest)
+PLANNER_COUNTS = {"max_increments": (1, 2**64 - 1), "max_extensions": (1, 2**64 - 1), "retries": (0, 2**64 - 1),
+                  "sample_batch": (1, PLAN_MAX_SAMPLE_BATCH), "max_empty_batches": (1, 2**64 - 1)}
 PLANNER_FLAGS = ["project_samples", "lazy_edges", "simplify"]
-SOLVER_FLOATS = {"mu": "nonneg", "mu_bar": "nonneg", "secondary_slack": "nonneg", "armijo_c1": "unit", "backtrack": "unit"}
-SOLVER_COUNTS = {"max_iterations": 0, "max_backtracks": 0, "secondary_backtracks": 0}
+PLANNER_DEFAULTS = {"step": 0.3, "max_jump": 3.0, "edge_resolution": 0.025}
+#: (rust/core/src/projection.rs, Settings::validate; finding PROJ-1, fixed): the damping in [0, 1e6]
+SOLVER_FLOATS = {"mu": "damping", "mu_bar": "damping", "secondary_slack": "damping", "armijo_c1": "unit", "backtrack": "unit"}
+SOLVER_COUNTS = {"max_iterations": (0, 2**64 - 1), "max_backtracks": (0, 2**64 - 1), "secondary_backtracks": (0, 2**64 - 1)}
 SOLVER_FLAGS = ["clip_to_limits"]
 
+#: values at the bounds above and just beyond them
+AT_BOUNDS = [1e6, float(np.nextafter(1e6, 2e6)), 1e-6, float(np.nextafter(1e-6, 0)), 1e-300, 2**16, 2**16 + 1, 2**40,
+             2**64 - 1]
 ANY_VALUE = st.one_of(NUMBERS, st.integers(-5, 100), st.sampled_from([2**63, 2**64, 2**70, -(2**63)]), st.booleans(),
-                      st.none(), st.text(max_size=3), st.sampled_from(["auto", "linear", "kdtree", 1.5, [1], 2.0]))
+                      st.none(), st.text(max_size=3), st.sampled_from(["auto", "linear", "kdtree", 1.5, [1], 2.0]),
+                      st.sampled_from(AT_BOUNDS))
 
 
 def in_range(kind: str, v: Any) -> bool:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         return False
-    return {"positive": v > 0, "nonneg": v >= 0, "unit": 0 < v < 1}[kind]
+    return {"length": 0 < v <= PLAN_MAX_LENGTH,
+            "resolution": v == 0 or PLAN_MIN_EDGE_RESOLUTION <= v <= PLAN_MAX_LENGTH,
+            "damping": 0 <= v <= P_MAX_MAGNITUDE, "unit": 0 < v < 1}[kind]
 
 
-def check_settings(cls: Any, floats: dict[str, str], counts: dict[str, int], flags: list[str], kw: dict[str, Any],
-                   extra: Callable[[str, Any], bool | None] = lambda k, v: None) -> None:
+def edge_states(kw: dict[str, Any]) -> bool | None:
+    """A tree edge (at most step * max_jump long) needs at most 2^20 states at edge_resolution;
+    None when one of the three is out of its own range (its own verdict decides)."""
+    v = {k: kw.get(k, d) for k, d in PLANNER_DEFAULTS.items()}
+    if not all(in_range(PLANNER_FLOATS[k], x) for k, x in v.items()):
+        return None
+    er = float(v["edge_resolution"])
+    return er == 0 or float(v["step"]) * float(v["max_jump"]) / er <= PLAN_MAX_EDGE_STATES
+
+
+def check_settings(cls: Any, floats: dict[str, str], counts: dict[str, tuple[int, int]], flags: list[str],
+                   kw: dict[str, Any], extra: Callable[[str, Any], bool | None] = lambda k, v: None,
+                   joint: Callable[[dict[str, Any]], bool | None] = lambda kw: None) -> None:
     s, exc = call(cls, **kw)
-    verdicts = []
+    verdicts = {}
     for k, v in kw.items():
         verdict = extra(k, v)
         if verdict is None and k in floats:
             verdict = in_range(floats[k], v) if not isinstance(v, str) else False
         elif verdict is None and k in counts:
-            verdict = (isinstance(v, int) and not isinstance(v, bool) and counts[k] <= v < 2**64
+            verdict = (isinstance(v, int) and not isinstance(v, bool) and counts[k][0] <= v <= counts[k][1]
                        if not isinstance(v, float) else None)  # 2.0: either way
         elif verdict is None and k in flags:
             verdict = True if isinstance(v, bool) else None
         elif verdict is None:
             verdict = False  # unknown key
-        verdicts.append(verdict)
-    if all(v is True for v in verdicts):
+        verdicts[k] = verdict
+    together = joint(kw)  # a bound between fields
+    if all(v is True for v in verdicts.values()) and together is not False:
         assert exc is None, f"{cls.__name__}({kw}) refused: {exc}"
-    if any(v is False for v in verdicts):
+    if any(v is False for v in verdicts.values()) or together is False:
         assert isinstance(exc, SettingsError), f"{cls.__name__}({kw}) accepted (or not a SettingsError): {exc!r}"
     if exc is None:
         for k, v in kw.items():
@@ -491,6 +628,8 @@ def check_settings(cls: Any, floats: dict[str, str], counts: dict[str, int], fla
         assert pickle.loads(pickle.dumps(s)) == s and s.replace() == s and cls(**s.to_dict()) == s
     else:
         assert isinstance(exc, SettingsError), f"{type(exc).__name__}: {exc}"
+        suspects = [k for k, v in verdicts.items() if v is not True] + (["edge_resolution"] if together is False else [])
+        assert any(f"{k}" in str(exc) for k in suspects), f"the error names none of {suspects}: {exc}"
 
 
 def settings_kwargs(fields: list[str]) -> Any:
@@ -506,7 +645,7 @@ def test_planner_settings(kw: dict[str, Any]) -> None:
     def neighbors(k: str, v: Any) -> bool | None:
         return v in ("auto", "linear", "kdtree") if k == "neighbors" else None
 
-    check_settings(PlannerSettings, PLANNER_FLOATS, PLANNER_COUNTS, PLANNER_FLAGS, kw, neighbors)
+    check_settings(PlannerSettings, PLANNER_FLOATS, PLANNER_COUNTS, PLANNER_FLAGS, kw, neighbors, edge_states)
 
 
 @fuzz(60)
@@ -580,39 +719,42 @@ def test_plans_that_succeed_pass_their_own_checks(panda: genplan.Robot, shelf: A
         check_path(panda, world, planner.task, res, query.start, goals, planner.settings.goal_tolerance)
 
 
-@pytest.mark.xfail(strict=True, reason="finding PLAN-1: PlannerSettings accepts any finite edge_resolution > 0; "
-                   "with 1e-300 the edge's state count overflows and plan() panics ('capacity overflow', a "
-                   "PanicException in Python); 1e-9 asks for tens of GB. The range needs a lower bound (SettingsError)")
-def test_a_tiny_edge_resolution_is_refused_not_a_panic(panda: genplan.Robot, shelf: Any) -> None:
-    from genplan.planning import Planner, PlannerSettings
+# finding PLAN-1 (fixed): PlannerSettings accepted any finite edge_resolution > 0; with 1e-300 the
+# edge's state count overflowed and plan() panicked ('capacity overflow', a PanicException in
+# Python); 1e-9 asked for tens of GB. Now edge_resolution is 0 or in [1e-6, 1e6] and at least
+# step * max_jump / 2^20 (rust/core/src/planning/rrt.rs, Settings::validate): a SettingsError
+@pytest.mark.parametrize("kw", [{"edge_resolution": 1e-300}, {"edge_resolution": 1e-9},
+                                {"step": 1e6, "max_jump": 1e6, "edge_resolution": 1.0}],
+                         ids=["1e-300", "1e-9", "long-edges"])
+def test_a_tiny_edge_resolution_is_refused_not_a_panic(kw: dict[str, float]) -> None:
+    from genplan.planning import PlannerSettings
 
-    env, world, _, query = shelf
-    try:
-        planner = Planner(panda, world=world, settings=PlannerSettings(edge_resolution=1e-300))
-        call(planner.plan, query.start, query.goals)
-    except SettingsError:
-        pass
+    _, exc = call(PlannerSettings, **kw, errors=(BaseException,))
+    assert isinstance(exc, SettingsError) and "edge_resolution" in str(exc), repr(exc)
 
 
 _ABORT = """
 import resource
 resource.setrlimit(resource.RLIMIT_AS, (6 << 30, 6 << 30))
 import genplan
-from genplan.errors import GenplanError
+from genplan.errors import GenplanError, SettingsError
 from genplan.planning import Planner, PlannerSettings, environment
 panda = genplan.load("panda"); env = environment("panda_shelf")
 q = env.queries(panda, n=1, seed=0)[0]
 try:
     Planner(panda, world=env.world(panda), settings=PlannerSettings(sample_batch=2**40)).plan(q.start, q.goals)
-except GenplanError:
-    pass
+except GenplanError as e:
+    assert isinstance(e, SettingsError) and "sample_batch" in str(e), repr(e)
+else:
+    raise SystemExit("sample_batch=2**40 accepted")
 """
 
 
-@pytest.mark.xfail(strict=True, reason="finding PLAN-2: PlannerSettings accepts any sample_batch >= 1; with 2**40 the "
-                   "planner allocates sample_batch x nq floats and the process aborts ('memory allocation of "
-                   "61572651155456 bytes failed', SIGABRT: no exception, the interpreter dies). Needs an upper "
-                   "bound (SettingsError) or a checked allocation")
+# finding PLAN-2 (fixed): PlannerSettings accepted any sample_batch >= 1; with 2**40 the planner
+# allocated sample_batch x nq floats and the process aborted ('memory allocation of 61572651155456
+# bytes failed', SIGABRT: no exception, the interpreter died). Now sample_batch is in [1, 65536]
+# (rust/core/src/planning/rrt.rs, Settings::MAX_SAMPLE_BATCH): a SettingsError. In a subprocess,
+# so that a regression is a failure, not the end of the test run.
 def test_a_huge_sample_batch_is_refused_not_an_abort() -> None:
     p = subprocess.run([sys.executable, "-c", _ABORT], capture_output=True, text=True, timeout=300,
                        env={**os.environ, "RUST_BACKTRACE": "0"})
@@ -646,10 +788,7 @@ def test_gan_sample(panda: genplan.Robot, gan: Any, n: Any) -> None:
 ))
 def test_gan_sample_for(panda: genplan.Robot, gan: Any, targets: Any) -> None:
     q, exc = call(gan.sample_for, targets)
-    try:
-        t = np.asarray(targets, dtype=np.float64)
-    except (TypeError, ValueError):
-        t = None
+    t = reals(targets)
     lim = gan.model.target_limits()
     ok = (t is not None and t.ndim == 2 and t.shape[1] == 3 and finite(t)
           and bool(np.all((t >= lim[0]) & (t <= lim[1]))))
@@ -686,35 +825,33 @@ def test_s_curve(a: Any, b: Any, k: int, dt: float) -> None:
         assert exc is not None, f"s_curve accepted {a!r}, {b!r}, K={k}, dt={dt}"
         return
     assert va is not None and vb is not None
-    with np.errstate(over="ignore"):
-        far = not finite(vb - va)
-    if far or np.any(np.abs(np.concatenate([va, vb])) > 1e300):  # finding PY-6
-        return
+    # far poses too (findings PY-6, fixed): no overflow, every sample between the two
     assert exc is None, exc
     assert x.shape == (k, 3) and finite(x)
-    scale = max(1.0, float(np.abs(va).max()), float(np.abs(vb).max()))
-    assert np.array_equal(x[0], va) and np.allclose(x[-1], vb, rtol=0, atol=1e-12 * scale)  # exactly: finding PY-9
+    assert np.all((np.minimum(va, vb) <= x) & (x <= np.maximum(va, vb))), "a sample outside [p_start, p_end]"
+    assert np.array_equal(x[0], va) and np.array_equal(x[-1], vb)  # exactly: finding PY-9 (fixed)
 
 
-@pytest.mark.xfail(strict=True, reason="finding PY-9: s_curve documents 'sample K - 1 exactly p_end' but computes "
-                   "p_start + 1 * (p_end - p_start), which rounds when |p_end| << |p_start|: from y = 1 to y = 1e-20 "
-                   "(or 2.2e-313) the last sample is 0; the last row should be p_end itself")
+# finding PY-9 (fixed): s_curve documents 'sample K - 1 exactly p_end' but computed
+# p_start + 1 * (p_end - p_start), which rounds when |p_end| << |p_start| (from y = 1 to y = 1e-20,
+# or 2.2e-313, the last sample was 0)
 @pytest.mark.parametrize("a, b", [([1.0, 0, 0], [2.2250738585e-313, 0, 0]), ([1.0, 0, 0], [1e-20, 0, 0])],
                          ids=["subnormal", "tiny"])
-def test_s_curve_ends_exactly_at_p_end(a: list[float], b: list[float]) -> None:
-    from genplan.pancake import s_curve
+@pytest.mark.parametrize("f", ["s_curve", "linear"])
+def test_s_curve_ends_exactly_at_p_end(a: list[float], b: list[float], f: str) -> None:
+    assert np.array_equal(getattr(pancake, f)(a, b, 5)[-1], b)
 
-    assert np.array_equal(s_curve(a, b, 5)[-1], b)
 
-
-@pytest.mark.xfail(strict=True, reason="finding PY-6: s_curve between finite but far poses (y from -1e308 to 1e308) "
-                   "overflows: (p_end - p_start) is inf, sample 0 is NaN (0 * inf) and the rest inf, returned "
-                   "without an error; should raise (NonFiniteError) or compute without overflow")
-def test_s_curve_between_far_poses_is_finite_or_refused() -> None:
-    from genplan.pancake import s_curve
-
-    x, exc = call(s_curve, [-1e308, 0, 0], [1e308, 0, 0], 3)
-    assert exc is not None or finite(x)
+# finding PY-6 (fixed): s_curve between finite but far poses (y from -1e308 to 1e308) overflowed:
+# (p_end - p_start) was inf, sample 0 NaN (0 * inf) and the rest inf, returned without an error
+@pytest.mark.parametrize("f", ["s_curve", "linear"])
+@pytest.mark.parametrize("a, b", [([-1e308, 0, 0], [1e308, 0, 0]), ([1.7976931348623157e308] * 3, [-1.7976931348623157e308] * 3),
+                                  ([1.7976931348623157e308] * 3, [1.7e308] * 3)], ids=["opposite", "max", "same-sign"])
+def test_s_curve_between_far_poses_is_finite_or_refused(f: str, a: list[float], b: list[float]) -> None:
+    x, exc = call(getattr(pancake, f), a, b, 7)
+    assert exc is None and finite(x), (exc, x)
+    assert np.array_equal(x[0], a) and np.array_equal(x[-1], b)
+    assert np.all((np.minimum(a, b) <= x) & (x <= np.maximum(a, b)))
 
 
 def phi_args() -> Any:
@@ -731,33 +868,42 @@ def test_phi(args: Any) -> None:
     from genplan.pancake import phi
 
     theta, acc = args
-    th, u = np.asarray(theta, dtype=np.float64), np.asarray(acc, dtype=np.float64)
-    if u.ndim < 1 or u.shape[-1] not in (2, 3):
+    th, u = reals(theta), reals(acc)
+    if th is None or u is None or u.ndim < 1 or u.shape[-1] not in (2, 3):
         _, exc = call(phi, theta, acc)
         assert isinstance(exc, ShapeError), exc
         return
     try:
         shape = np.broadcast_shapes(th.shape, u.shape[:-1])
-    except ValueError:
-        return  # finding PY-7
-    if not (finite(th) and finite(u[..., :2])):
-        return  # finding PY-7
+    except ValueError:  # finding PY-7 (fixed): numpy's plain ValueError
+        _, exc = call(phi, theta, acc)
+        assert isinstance(exc, ShapeError) and "theta" in str(exc) and "acc" in str(exc), exc
+        return
+    if not (finite(th) and finite(u[..., :2])):  # finding PY-7 (fixed): NaN out without an error
+        _, exc = call(phi, theta, acc)
+        assert isinstance(exc, NonFiniteError) and str(exc).startswith("theta" if not finite(th) else "acc"), exc
+        return
     out, exc = call(phi, theta, acc)
     assert exc is None, exc
     assert out.shape == shape and finite(out) and np.all((-np.pi < out) & (out <= np.pi))
 
 
-@pytest.mark.xfail(strict=True, reason="finding PY-7: pancake.phi does not check its inputs: NaN or inf in theta, acc "
-                   "or g comes out as NaN without an error; theta and acc that do not broadcast raise numpy's "
-                   "plain ValueError ('shape mismatch'), not a ShapeError")
-@pytest.mark.parametrize("theta, acc, g", [([np.nan], [[0.0, 0.0]], 9.8), ([0.0], [[np.nan, 0.0]], 9.8),
-                                           (0.0, [0.0, 0.0], np.nan), (np.zeros(3), np.zeros((2, 2)), 9.8)],
-                         ids=["nan-theta", "nan-acc", "nan-g", "no-broadcast"])
-def test_phi_refuses_what_it_cannot_compute(theta: Any, acc: Any, g: float) -> None:
+# finding PY-7 (fixed): pancake.phi did not check its inputs: NaN or inf in theta, acc or g came out
+# as NaN without an error; theta and acc that do not broadcast raised numpy's plain ValueError
+# ('shape mismatch'). Now the typed error naming the argument.
+@pytest.mark.parametrize("theta, acc, g, error, name", [
+    ([np.nan], [[0.0, 0.0]], 9.8, NonFiniteError, "theta"), ([0.0], [[np.nan, 0.0]], 9.8, NonFiniteError, "acc"),
+    ([0.0], [[0.0, -np.inf, 0.0]], 9.8, NonFiniteError, "acc"), (0.0, [0.0, 0.0], np.nan, NonFiniteError, "g"),
+    (0.0, [0.0, 0.0], np.inf, NonFiniteError, "g"), (np.zeros(3), np.zeros((2, 2)), 9.8, ShapeError, "theta"),
+    (0.0, np.zeros(2) + 1j, 9.8, ShapeError, "acc")],
+    ids=["nan-theta", "nan-acc", "inf-acc", "nan-g", "inf-g", "no-broadcast", "complex-acc"])
+def test_phi_refuses_what_it_cannot_compute(theta: Any, acc: Any, g: float, error: type, name: str) -> None:
     from genplan.pancake import phi
 
-    out, exc = call(phi, theta, acc, g, errors=(BaseException,))
-    assert isinstance(exc, GenplanError) or (exc is None and finite(out)), f"{exc!r} / {out!r}"
+    _, exc = call(phi, theta, acc, g, errors=(BaseException,))
+    assert isinstance(exc, error) and str(exc).startswith(name), repr(exc)
+    # a NaN in a_theta, which eq. 16 does not use, is no reason to refuse
+    assert phi(0.0, [0.0, 0.0, np.nan]) == 0.0
 
 
 @fuzz(25)
@@ -771,14 +917,17 @@ def test_adjust(data: Any) -> None:
         st.integers(1, 2).map(lambda b: np.stack([base] * b)),
         hnp.arrays(np.float64, (500, 3), elements=st.floats(-0.2, 0.2)),
         hnp.arrays(np.float64, st.sampled_from([(500, 3), (1, 500, 3), (500, 2), (3,), (2, 3)]), elements=NUMBERS),
+        st.just(np.zeros((0, 500, 3))),  # an empty batch: finding PY-8 (fixed)
+        numeric_arrays((1, 500, 3), elements=st.floats(-0.2, 0.2)),
     ), label="x_in")
     updates = data.draw(st.integers(0, 2), label="updates")
     r, exc = call(adjust, x, updates=updates, errors=(GenplanError, FloatingPointError))
-    a = np.asarray(x, dtype=np.float64)
-    ok = a.shape[-2:] == (500, 3) and a.ndim in (2, 3) and finite(a) and np.all(np.abs(a) <= 1e4)
+    a = reals(x)
+    ok = a is not None and a.shape[-2:] == (500, 3) and a.ndim in (2, 3) and finite(a) and np.all(np.abs(a) <= 1e4)
     if not ok:
-        assert exc is not None, f"adjust accepted x_in of shape {a.shape}"
+        assert isinstance(exc, GenplanError), f"adjust accepted x_in {x!r}"
         return
+    assert a is not None
     if isinstance(exc, FloatingPointError):
         return  # documented: an update diverged
     assert exc is None, exc
@@ -787,13 +936,15 @@ def test_adjust(data: Any) -> None:
     assert r.objective_history.shape == (updates + 1, b) and finite(r.objective_history)
 
 
-@pytest.mark.xfail(strict=True, reason="finding PY-8: adjust refuses an empty batch (0, 500, 3) with a ShapeError "
-                   "(issue 15 item 8: empty batches work everywhere); it should return an empty result")
-def test_adjust_takes_an_empty_batch() -> None:
+# finding PY-8 (fixed): adjust refused an empty batch (0, 500, 3) with a ShapeError (issue 15 item 8:
+# empty batches work everywhere)
+@pytest.mark.parametrize("method", ["latent", "random-latent", "direct-u"])
+def test_adjust_takes_an_empty_batch(method: str) -> None:
     from genplan.pancake import adjust
 
-    r, exc = call(adjust, np.zeros((0, 500, 3)), updates=1)
-    assert exc is None and r.p.shape == (0, 500, 3)
+    r, exc = call(adjust, np.zeros((0, 500, 3)), method=method, updates=1, snapshots=(0, 1))
+    assert exc is None and r.p.shape == r.v.shape == r.u.shape == (0, 500, 3) and r.phi.shape == (0, 500)
+    assert r.objective_history.shape == (2, 0) and r.batch == 0 and set(r.snapshots) == {0, 1}
 
 
 # --------------------------------------------------------------------------------------------
@@ -815,14 +966,19 @@ def test_execute(data: Any) -> None:
         hnp.arrays(np.float64, st.tuples(st.integers(0, 4), st.integers(0, 4)), elements=NUMBERS),
         numeric_arrays((k, 3)),
     ), label="trajectory")
-    tail = data.draw(st.one_of(st.just(0.0), st.floats(0, 0.2), NUMBERS.filter(lambda v: not abs(v) > 10)), label="tail")
+    tail = data.draw(st.one_of(st.just(0.0), st.floats(0, 0.2), NUMBERS), label="tail")  # any: finding CTRL-1 (fixed)
     strict = data.draw(st.booleans(), label="strict")
     log, exc = call(control.execute, x, settle=0.0, tail=tail, strict=strict)
-    a = np.asarray(x, dtype=np.float64)
-    ok = a.ndim == 2 and a.shape[1] == 3 and a.shape[0] >= 2 and finite(a) and math.isfinite(tail) and tail >= 0
+    a = reals(x)
+    ok = (a is not None and a.ndim == 2 and a.shape[1] == 3 and a.shape[0] >= 2 and finite(a)
+          and 0 <= tail <= control.MAX_TAIL_S)
     if not ok:
-        assert exc is not None, f"execute accepted a trajectory of shape {a.shape} / tail {tail}"
+        assert exc is not None, f"execute accepted a trajectory {x!r} / tail {tail}"
+        if not 0 <= tail <= control.MAX_TAIL_S and a is not None and a.ndim == 2 and a.shape[1] == 3 and a.shape[0] >= 2 \
+                and finite(a):
+            assert isinstance(exc, SettingsError) and "tail" in str(exc), repr(exc)
         return
+    assert a is not None
     if exc is not None:
         return  # unreachable pose, or over the limits with strict=True: GenplanError, checked by call()
     n = len(log.t)
@@ -831,16 +987,19 @@ def test_execute(data: Any) -> None:
         assert finite(getattr(log, k_)), f"log.{k_} is not finite"
 
 
-@pytest.mark.xfail(strict=True, reason="finding CTRL-1: execute(tail=1e9) is not checked against a bound: the "
-                   "deceleration tail asks numpy for 1e12 samples and raises numpy's MemoryError ('Unable to "
-                   "allocate 7.28 TiB'), not a SettingsError naming tail")
-def test_a_huge_tail_is_refused() -> None:
+# finding CTRL-1 (fixed): execute(tail=1e9) was not checked against a bound: the deceleration tail
+# asked numpy for 1e12 samples and raised numpy's MemoryError ('Unable to allocate 7.28 TiB')
+@pytest.mark.parametrize("kwargs, name", [({"tail": 1e9}, "tail"), ({"tail": 1e300}, "tail"), ({"tail": 10.5}, "tail"),
+                                          ({"settle": 1e9}, "settle"), ({"settle": 1e300}, "settle")])
+def test_a_huge_tail_is_refused(kwargs: dict[str, float], name: str) -> None:
     from genplan import control
     from genplan.pancake import s_curve
 
-    _, exc = call(control.execute, s_curve([0, 0, 0], [0.01, 0, 0], K=10), settle=0.0, tail=1e9,
+    _, exc = call(control.execute, s_curve([0, 0, 0], [0.01, 0, 0], K=10), **{"settle": 0.0, **kwargs},
                   errors=(BaseException,))
-    assert isinstance(exc, SettingsError), repr(exc)
+    assert isinstance(exc, SettingsError) and str(exc).startswith(name), repr(exc)
+    _, exc = call(control.deceleration_tail, s_curve([0, 0, 0], [0.01, 0, 0], K=10), 1e9, errors=(BaseException,))
+    assert isinstance(exc, SettingsError) and str(exc).startswith("duration"), repr(exc)
 
 
 # --------------------------------------------------------------------------------------------

@@ -230,6 +230,59 @@ def test_samplers(tiny_panda_model, panda: genplan.Robot) -> None:
         genplan.gan.UniformSampler  # noqa: B018
 
 
+def _unchunked(sampler: GanSampler, n: int) -> tuple[np.ndarray, np.random.Generator]:
+    """What GanSampler.sample(n) computed before it ran in chunks: targets, then the model's
+    unchunked sample (python/genplan/gan/model.py), from one stream."""
+    t = sampler.rng.uniform(sampler.box[0], sampler.box[1], size=(n, 3))
+    return sampler.model.sample(t, sampler.rng), sampler.rng
+
+
+@pytest.mark.parametrize("n", [0, 1, 5, 2048, 2049, 4095])
+def test_chunked_sampling_is_the_unchunked_sampling(panda: genplan.Robot, n: int) -> None:
+    """Below 2 * CHUNK_ROWS rows: one chunk, bit for bit the unchunked call, leaving the
+    generator where it left it."""
+    import genplan.gan.sampler as S
+
+    assert S.CHUNK_ROWS == 2048
+    chunked = GanSampler(panda, seed=3)
+    q = chunked.sample(n)
+    ref, rng = _unchunked(GanSampler(panda, seed=3), n)
+    assert q.shape == (n, 7) and np.array_equal(q, ref)
+    assert chunked.rng.bit_generator.state == rng.bit_generator.state
+    targets = np.random.default_rng(9).uniform(chunked.box[0], chunked.box[1], size=(n, 3))
+    assert np.array_equal(chunked.sample_for(targets), chunked.model.sample(targets, rng))
+
+
+def test_chunking_keeps_the_random_stream(panda: genplan.Robot, monkeypatch) -> None:
+    """Many chunks: the same targets, noise and members as one unchunked call (the random stream
+    is the same); the float32 products of a chunk may round the last bit differently, ~1e-6."""
+    import genplan.gan.sampler as S
+
+    monkeypatch.setattr(S, "CHUNK_ROWS", 7)
+    for n in (14, 15, 300):
+        chunked = GanSampler(panda, seed=5)
+        q = chunked.sample(n)
+        ref, rng = _unchunked(GanSampler(panda, seed=5), n)
+        assert chunked.rng.bit_generator.state == rng.bit_generator.state
+        np.testing.assert_allclose(q, ref, rtol=0, atol=1e-5)
+        assert np.array_equal(GanSampler(panda, seed=5).sample(n), q)  # deterministic, bit for bit
+    monkeypatch.setattr(S, "CHUNK_ROWS", 2048)
+    with pytest.raises(SettingsError, match=f"n must be at most {S.MAX_SAMPLES} per call"):
+        GanSampler(panda, seed=0).sample(S.MAX_SAMPLES + 1)
+    with pytest.raises(ShapeError, match="^targets: complex numbers"):
+        GanSampler(panda, seed=0).sample_for(np.zeros((2, 3)) + 1j)
+
+
+@pytest.mark.parametrize("after", [0.2, 1.0], ids=["drawing", "evaluating"])
+def test_ctrl_c_interrupts_a_long_torch_sampling(panda: genplan.Robot, after: float) -> None:
+    """Within 0.5 s of the signal, while the noise is drawn (the first ~0.2 s) or the generator
+    evaluated (uninterrupted: about 10 s on an idle 2-core machine)."""
+    from tests.interrupt import MAX_LATENCY_S, ctrl_c_latency
+
+    sampler = GanSampler(panda, seed=0)
+    assert ctrl_c_latency(lambda: sampler.sample(200_000), after=after) < MAX_LATENCY_S
+
+
 def test_train_command(tmp_path, monkeypatch, capsys) -> None:
     monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "cli.safetensors"

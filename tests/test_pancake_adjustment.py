@@ -234,3 +234,45 @@ def test_every_decoded_trajectory_is_finite_or_an_error(model, x_in) -> None:
         net.head.bias[1] = float("nan")
     with pytest.raises(FloatingPointError, match=r"problem 0 became NaN or inf after 0 update\(s\) \(the model cannot"):
         adjust(x_in, "j1", "latent", 2, model=Seq2SeqModel(model.config, net))
+
+
+@pytest.mark.parametrize("method", ["latent", "random-latent", "direct-u"])
+def test_an_empty_batch_gives_an_empty_result(model, method) -> None:
+    """Finding PY-8 of tests/test_fuzz_inputs.py: (0, K, 3) was refused with a ShapeError."""
+    res = adjust(np.zeros((0, 500, 3)), "j1", method, 3, model=model, snapshots=(0, 3), p_end=[0.1, 0.0, 0.0])
+    assert res.p.shape == res.v.shape == res.u.shape == (0, 500, 3) and res.phi.shape == (0, 500)
+    assert res.objective_history.shape == (4, 0) and res.batch == 0 and res.updates == 3
+    assert res.z is None if method == "direct-u" else res.z.shape == (0, model.config.latent_dim)
+    assert set(res.snapshots) == {0, 3} and res.snapshots[3]["phi"].shape == (0, 500)
+    assert res.max_abs_phi.shape == (0,) and res.inside_cone().shape == (0,) and res.first_update_below(1.0).shape == (0,)
+    assert math.isnan(res.ms_per_update)
+    assert adjust(np.zeros((0, 500, 3)), "j2", model=model, updates=0).objective_history.shape == (1, 0)
+    # the arguments are still checked
+    with pytest.raises(ShapeError, match="p_end"):
+        adjust(np.zeros((0, 500, 3)), "j1", p_end=np.zeros((2, 3)), model=model)
+    with pytest.raises(SettingsError, match="lr"):
+        adjust(np.zeros((0, 500, 3)), lr=-1.0, model=model)
+    deformed = model.deform(np.zeros((0, 500, 3)))
+    assert deformed["p"].shape == (0, 500, 3) and deformed["z"].shape == (0, model.config.latent_dim)
+
+
+@pytest.mark.parametrize("call, error, match", [
+    (lambda x, m: adjust("abc", model=m), ShapeError, "^x_in: cannot be read"),
+    (lambda x, m: adjust(x + 1j, model=m), ShapeError, "^x_in: complex numbers"),
+    (lambda x, m: adjust(x, p_end="abc", model=m), ShapeError, "^p_end: cannot be read"),
+    (lambda x, m: adjust(x, seed="abc", model=m), SettingsError, "^seed must be an integer"),
+    (lambda x, m: adjust(x, seed=1.5, model=m), SettingsError, "^seed must be an integer"),
+    (lambda x, m: adjust(x, max_step="big", model=m), SettingsError, "^max_step: cannot be read"),
+    (lambda x, m: adjust(x, updates=2, snapshots=("1",), model=m), SettingsError, "^snapshots must be an integer"),
+    (lambda x, m: adjust(x, updates=10**9, model=m), SettingsError, "^updates must be at most 1000000"),
+    (lambda x, m: J1([0, 0, 0], alpha="x"), ShapeError, "^alpha: cannot be read"),
+    (lambda x, m: J1([0, 0, 0], d=[1, 1]), ShapeError, "^d must have 3 values"),
+    (lambda x, m: J2(p_lim="x"), ShapeError, "^J2 p_lim: cannot be read"),
+    (lambda x, m: J2(v_lim=(1.0, 1.0)), ShapeError, "^J2: v_lim and d need 3 values"),
+    (lambda x, m: J2(center="ab"), ShapeError, "^J2 center: cannot be read"),
+    (lambda x, m: J2Executable(margin="x"), SettingsError, "^J2Executable margin: cannot be read"),
+])
+def test_arguments_that_are_not_numbers_name_themselves(model, x_in, call, error, match) -> None:
+    """Finding PY-2 of tests/test_fuzz_inputs.py: strings leaked numpy's or float()'s ValueError."""
+    with pytest.raises(error, match=match):
+        call(x_in, model)

@@ -196,6 +196,13 @@ def test_input_checks() -> None:
     x[1, 7, 2] = np.nan
     with pytest.raises(NonFiniteError, match=r"NaN or inf \(first at index \(1, 7, 2\)\)"):
         check_trajectories(x)
+    # an empty batch is a batch (finding PY-8 of tests/test_fuzz_inputs.py); strings and complex
+    # numbers are not poses (PY-2, PY-4)
+    assert check_trajectories(np.zeros((0, 500, 3))).shape == (0, 500, 3)
+    with pytest.raises(ShapeError, match="^x_in: complex numbers"):
+        check_trajectories(np.zeros((500, 3)) + 1j)
+    with pytest.raises(ShapeError, match="^x_in: cannot be read"):
+        check_trajectories([["a", "b", "c"]] * 500)
     with pytest.raises(SettingsError, match="divisible by decoder_stride"):
         Seq2SeqNet(default_config(decoder_stride=3))
 

@@ -110,3 +110,75 @@ def test_the_papers_j1_problems() -> None:
     np.testing.assert_allclose(np.unique(p_end[:, 2]), [-math.pi, 0, math.pi])
     np.testing.assert_allclose(x_in[:, 0], 0.0)
     np.testing.assert_allclose(x_in[:, -1], p_end)
+
+
+# ---------------------------------------------------------------------------------------------
+# inputs (findings PY-2, PY-4, PY-6, PY-7, PY-9 of tests/test_fuzz_inputs.py)
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("f", [s_curve, linear])
+def test_the_last_sample_is_p_end_exactly(f) -> None:
+    """PY-9: p_start + 1 * (p_end - p_start) rounds when |p_end| << |p_start|."""
+    for b in ([1e-20, 0.0, 0.0], [2.2250738585e-313, -1e-300, 0.1]):
+        x = f([1.0, 1.0, 1.0], b, 5)
+        assert np.array_equal(x[-1], b) and np.array_equal(x[0], [1.0, 1.0, 1.0])
+
+
+@pytest.mark.parametrize("f", [s_curve, linear])
+def test_far_poses_do_not_overflow(f) -> None:
+    """PY-6: from y = -1e308 to 1e308 the difference overflows; the move stays finite and between
+    the poses, with the same shape as a near move scaled up."""
+    big = np.finfo(np.float64).max
+    x = f([-1e308, -big, big], [1e308, big, 0.9 * big], K)
+    assert np.all(np.isfinite(x)) and np.array_equal(x[0], [-1e308, -big, big])
+    assert np.array_equal(x[-1], [1e308, big, 0.9 * big])
+    assert np.all(np.diff(x[:, :2], axis=0) >= 0) and np.all(np.diff(x[:, 2]) <= 0)
+    near = f([-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], K)
+    np.testing.assert_allclose(x[:, 0] / 1e308, near[:, 0], rtol=1e-12, atol=1e-15)
+    # near moves are unchanged by the far-pose path: a + s (b - a)
+    a, b = np.array([0.01, -0.02, 0.1]), np.array([0.1, -0.1, -math.pi])
+    s_, _, _ = s_curve_profile(K)
+    np.testing.assert_array_equal(s_curve(a, b)[:-1], (a + s_[:, None] * (b - a))[:-1])
+
+
+@pytest.mark.parametrize("bad, error, match", [
+    ({"p_start": "abc"}, ShapeError, "^p_start: cannot be read"),
+    ({"p_end": np.zeros(3) + 1j}, ShapeError, "^p_end: complex numbers"),
+    ({"K": 2.0}, SettingsError, "^K must be an integer, got 2.0"),
+    ({"K": "500"}, SettingsError, "^K must be an integer"),
+    ({"K": 10**9}, SettingsError, "^K must be at most 10000000"),
+    ({"dt": "x"}, SettingsError, "^dt: cannot be read"),
+])
+def test_bad_arguments_name_themselves(bad, error, match) -> None:
+    """PY-2 / PY-4: strings and complex numbers leaked numpy's ValueError or lost their imaginary
+    part; a float or huge K went to numpy as it was."""
+    kwargs = {"p_start": np.zeros(3), "p_end": np.ones(3), **bad}
+    with pytest.raises(error, match=match):
+        s_curve(**kwargs)
+    if "dt" not in bad:
+        with pytest.raises(error, match=match):
+            linear(**kwargs)
+
+
+@pytest.mark.parametrize("theta, acc, g, error, match", [
+    ([np.nan, 0.0], np.zeros((2, 2)), G, NonFiniteError, r"^theta: element \(0,\) is not finite"),
+    (0.0, [[0.0, 0.0], [np.inf, 0.0]], G, NonFiniteError, r"^acc: element \(1, 0\) is not finite"),
+    (0.0, [0.0, 0.0], np.nan, NonFiniteError, "^g must be finite"),
+    (np.zeros(3), np.zeros((2, 2)), G, ShapeError, r"^theta of shape \(3,\) and acc of shape \(2, 2\) do not broadcast"),
+    ("x", [0.0, 0.0], G, ShapeError, "^theta: cannot be read"),
+    (0.0, ["a", "b"], G, ShapeError, "^acc: cannot be read"),
+    (0.0, [0.0, 0.0], "g", ShapeError, "^g: cannot be read"),
+    (1j, [0.0, 0.0], G, ShapeError, "^theta: complex numbers"),
+])
+def test_phi_refuses_what_it_cannot_compute(theta, acc, g, error, match) -> None:
+    """PY-7: NaN in came out as NaN without an error; shapes that do not broadcast raised numpy's
+    plain ValueError."""
+    with pytest.raises(error, match=match):
+        phi(theta, acc, g)
+
+
+def test_phi_ignores_a_theta_and_takes_empty_batches() -> None:
+    assert phi(0.0, [0.0, 0.0, np.nan]) == 0.0  # a_theta does not enter eq. 16
+    assert phi(np.zeros(0), np.zeros((0, 3))).shape == (0,)
+    assert phi(0.0, np.zeros((2, 0, 2))).shape == (2, 0)

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
-from genplan._arrays import as_configurations
+from genplan._arrays import as_configurations, as_float_array, as_real
 from genplan.errors import ShapeError
 
 
@@ -67,11 +67,12 @@ class CollisionWorld:
                              _vec3(center, f"box '{name}' center"), rot)
 
     def add_sphere(self, name: str, radius: float, center: ArrayLike) -> None:
-        self._native.add_sphere(name, float(radius), _vec3(center, f"sphere '{name}' center"))
+        """Add a sphere of ``radius`` (m) at ``center``."""
+        self._native.add_sphere(name, as_real(radius, f"sphere '{name}' radius"), _vec3(center, f"sphere '{name}' center"))
 
     def add_halfspace(self, name: str, normal: ArrayLike, offset: float) -> None:
         """Add the solid half-space below the plane ``normal . x = offset``."""
-        self._native.add_halfspace(name, _vec3(normal, f"plane '{name}' normal"), float(offset))
+        self._native.add_halfspace(name, _vec3(normal, f"plane '{name}' normal"), as_real(offset, f"plane '{name}' offset"))
 
     def remove_obstacle(self, name: str) -> None:
         self._native.remove_obstacle(name)
@@ -96,21 +97,21 @@ class CollisionWorld:
         qa = as_configurations(q, self._nq)
         if qa.ndim != 1:
             raise ShapeError(f"q: close_pairs takes one configuration of shape ({self._nq},), got {qa.shape}")
-        return self._native.close_pairs(list(qa), float(margin))
+        return self._native.close_pairs(list(qa), as_real(margin, "margin"))
 
     def __repr__(self) -> str:
         return repr(self._native)
 
 
 def _vec3(v: ArrayLike, what: str) -> tuple[float, float, float]:
-    a = np.asarray(v, dtype=np.float64).reshape(-1)
+    a = as_float_array(v, what).reshape(-1)
     if a.shape != (3,):
         raise ShapeError(f"{what}: expected 3 numbers, got shape {np.shape(v)}")
     return (float(a[0]), float(a[1]), float(a[2]))
 
 
 def _matrix3(m: ArrayLike, what: str) -> list[list[float]]:
-    a = np.asarray(m, dtype=np.float64)
+    a = as_float_array(m, what)
     if a.shape != (3, 3):
         raise ShapeError(f"{what}: expected a 3x3 matrix, got shape {a.shape}")
     return a.tolist()

@@ -3,21 +3,39 @@
 It has ``sample(n) -> (n, nq)`` (a :class:`genplan.protocols.Sampler`) and runs torch; its
 :meth:`GanSampler.native` twin runs the same generator in Rust, which is what the planner uses.
 Uniform and hybrid sampling are native only: :func:`genplan.planning.make_sampler`.
+
+Large calls run in chunks of :data:`CHUNK_ROWS` to ``2 * CHUNK_ROWS - 1`` rows, so that Ctrl-C
+is answered between two chunks (within half a second). The random stream is that of one
+unchunked call (:meth:`genplan.gan.GanModel.sample` with the same generator): the same targets,
+noise and ensemble members, whatever the chunking. A call of fewer than ``2 * CHUNK_ROWS`` rows
+is one chunk, bit for bit the unchunked call; in larger ones the float32 matrix products of a
+chunk may round the last bit differently from one product over all rows (the BLAS kernel for
+a row depends on the matrix's size), about 1e-6 relative. A sampler stays deterministic: the
+same seed and the same calls give the same samples, bit for bit.
 """
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 from numpy.typing import ArrayLike, NDArray
 
-from genplan._arrays import as_box
-from genplan._threads import resolve
-from genplan.errors import ModelFileError, SettingsError
+from genplan._arrays import as_box, as_float_array
+from genplan._threads import resolve, torch_threads
+from genplan.errors import ModelFileError, NonFiniteError, SettingsError, ShapeError
 from genplan.gan.model import GanModel, load_model
 from genplan.robots import Robot
+
+#: rows per chunk (the last chunk takes the rest, up to ``2 * CHUNK_ROWS - 1`` rows): the shipped
+#: Panda GAN takes ~0.1 s for 2048 rows on one thread
+CHUNK_ROWS = 2048
+#: most samples (or targets) per call: ~90 bytes a row stay in memory (targets, output, member
+#: choice; the noise is drawn chunk by chunk)
+MAX_SAMPLES = 10_000_000
 
 
 class GanSampler:
@@ -28,8 +46,13 @@ class GanSampler:
     lie inside the model's :meth:`~genplan.gan.GanModel.target_limits` (its target box widened
     by 1 m): farther ones are refused with an error naming the first bad row, not clipped (clip
     them yourself to sample anyway). Every sample is finite, or NonFiniteError names its target
-    row. ``threads``: torch threads while sampling (default: genplan's choice, one; see
+    row. At most :data:`MAX_SAMPLES` per call (SettingsError naming ``n``, ShapeError naming
+    ``targets``). ``threads``: torch threads while sampling (default: genplan's choice, one; see
     genplan._threads).
+
+    The random stream is the model's: ``sample_for(targets)`` gives what
+    ``model.sample(targets, sampler.rng)`` would, computed in chunks (Ctrl-C is answered between
+    them).
     """
 
     def __init__(self, robot: Robot, model: GanModel | str | Path | None = None,
@@ -49,10 +72,67 @@ class GanSampler:
 
     def sample_for(self, targets: ArrayLike) -> NDArray[np.float64]:
         """One configuration per target position (n, 3) -> (n, nq)."""
-        return self.model.sample(targets, self.rng, threads=self.threads)
+        t = as_float_array(targets, "targets")
+        if t.ndim >= 1 and len(t) > MAX_SAMPLES:
+            raise ShapeError(f"targets: at most {MAX_SAMPLES} rows per call, got {len(t)}")
+        return self._sample(self.model.check_targets(t))
 
     def sample(self, n: int) -> NDArray[np.float64]:
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+        """``n`` configurations for targets drawn uniformly in :attr:`box`: (n, nq)."""
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 0:
             raise SettingsError(f"n must be a non-negative integer, got {n!r}")
-        targets = self.rng.uniform(self.box[0], self.box[1], size=(int(n), 3))
-        return self.sample_for(targets)
+        n = int(n)
+        if n > MAX_SAMPLES:
+            raise SettingsError(f"n must be at most {MAX_SAMPLES} per call, got {n}")
+        targets = np.empty((n, 3))
+        for s in range(0, n, CHUNK_ROWS):  # the same stream as one (n, 3) draw
+            targets[s:s + CHUNK_ROWS] = self.rng.uniform(self.box[0], self.box[1], size=(min(CHUNK_ROWS, n - s), 3))
+        return self._sample(targets)
+
+    @torch.no_grad()
+    def _sample(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """:meth:`GanModel.sample` (python/genplan/gan/model.py: noise (n_net, n, noise_dim), then
+        a member per row, from one stream) evaluated ``CHUNK_ROWS`` rows at a time; ``t`` checked."""
+        model, rng = self.model, self.rng
+        n_net, nd, n = model.config.n_net, model.config.noise_dim, len(t)
+        # the noise of member m follows that of member m - 1 in the stream: one pass records the
+        # stream's state where each member's noise starts (drawing and dropping it, chunk by chunk)
+        starts = []
+        for _ in range(n_net):
+            starts.append(copy.deepcopy(rng.bit_generator.state))
+            for s in range(0, n, CHUNK_ROWS):
+                rng.standard_normal((min(CHUNK_ROWS, n - s), nd))
+        members = []
+        for state in starts:
+            g = np.random.Generator(type(rng.bit_generator)())
+            g.bit_generator.state = state
+            members.append(g)
+        pick = np.empty(n, dtype=np.int64)
+        for s in range(0, n, CHUNK_ROWS):
+            pick[s:s + CHUNK_ROWS] = rng.integers(0, n_net, size=min(CHUNK_ROWS, n - s))
+        out = np.empty((n, self.robot.nq))
+        with torch_threads("small", self.threads):
+            for s, e in _chunks(n):
+                m = e - s
+                z = torch.tensor(np.stack([g.standard_normal((m, nd)) for g in members]), dtype=torch.float32)
+                x = torch.tensor(t[s:s + m], dtype=torch.float32).expand(n_net, m, 3)
+                q = model.codec.decode(model.generator(torch.cat([z, x], -1))).double().numpy()
+                bad = ~np.isfinite(q).all(-1)
+                if bad.any():
+                    k, i = (int(v) for v in np.argwhere(bad)[0])
+                    raise NonFiniteError(f"GAN sample for target row {s + i} {t[s + i].tolist()} is not finite "
+                                         f"(member {k}): the generator overflows there")
+                out[s:s + m] = q[pick[s:s + m], np.arange(m)]
+        return out
+
+
+def _chunks(n: int) -> list[tuple[int, int]]:
+    """Row ranges ``[s, e)`` of ``CHUNK_ROWS`` rows covering ``range(n)``, the last one taking the
+    rest (``CHUNK_ROWS`` to ``2 * CHUNK_ROWS - 1`` rows): fewer than ``2 * CHUNK_ROWS`` rows are
+    one chunk, evaluated exactly as one unchunked call."""
+    ranges, s = [], 0
+    while s < n:
+        e = n if n - s < 2 * CHUNK_ROWS else s + CHUNK_ROWS
+        ranges.append((s, e))
+        s = e
+    return ranges

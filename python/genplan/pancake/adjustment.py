@@ -44,6 +44,7 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor
 
+from genplan._arrays import as_count, as_float_array, as_real
 from genplan._threads import uses_torch
 from genplan.errors import CallbackError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.pancake import physics as ph
@@ -65,15 +66,17 @@ PAPER_LR = {("j1", "latent"): 200.0, ("j1", "random-latent"): 200.0, ("j1", "dir
 #: 2.4e-7, 0.21 mm; 0.05 -> 3.7e-4 / 1.4e-5, 2.8 mm (larger first steps cross into the cone more
 #: often and each crossing halves the radius)
 ADAPTIVE_RADIUS = {"latent": 0.02, "random-latent": 0.02, "direct-u": 0.5}
+#: most updates per call (the history keeps one objective per problem and update)
+MAX_UPDATES = 1_000_000
 #: defaults for the Adam step rule (chosen by the measurements in benches/results/adjust_*adam*.json)
 ADAM_LR = {"latent": 0.02, "random-latent": 0.02, "direct-u": 2.0}
 
 __all__ = ["adjust", "AdjustResult", "J1", "J2", "J2Executable", "normal_acceleration", "METHODS", "STEPS", "PAPER_LR", "ADAM_LR", "ADAPTIVE_RADIUS",
-           "default_lr"]
+           "MAX_UPDATES", "default_lr"]
 
 
 def _as_tensor(a: ArrayLike, b: int, name: str, dim: int = 3) -> Tensor:
-    arr = np.asarray(a, dtype=np.float64)
+    arr = as_float_array(a, name)
     if arr.shape == (dim,):
         arr = np.broadcast_to(arr, (b, dim))
     if arr.shape != (b, dim):
@@ -95,9 +98,10 @@ class J1:
 
     def __init__(self, p_end: ArrayLike, alpha: float = 1.0, mu_max: float = ph.MU_MAX,
                  d: Sequence[float] = ph.D_SCALE, margin: float = 0.0) -> None:
-        self.p_end_raw = np.asarray(p_end, dtype=np.float64)
-        self.alpha, self.mu_max, self.margin = float(alpha), float(mu_max), float(margin)
-        self.d = torch.tensor(tuple(d), dtype=torch.float32)
+        self.p_end_raw = as_float_array(p_end, "p_end")
+        self.alpha, self.mu_max = as_real(alpha, "alpha"), as_real(mu_max, "mu_max")
+        self.margin = as_real(margin, "margin")
+        self.d = torch.tensor(_vector(d, 3, "d"), dtype=torch.float32)
         self._p_end: Tensor | None = None
 
     def bind(self, batch: int) -> None:
@@ -126,11 +130,15 @@ class J2:
                  alpha: float = 1.0, beta: float = 0.01, v_lim: Sequence[float] = (1.5, 1.5, 4.5),
                  mu_max: float = ph.MU_MAX, d: Sequence[float] = ph.D_SCALE,
                  center: Sequence[float] = (0.0, 0.0)) -> None:
-        vals = [theta_end, p_lim, theta_lim, alpha, beta, mu_max, *v_lim, *d, *center]
-        if not all(math.isfinite(float(v)) for v in vals):
-            raise NonFiniteError("J2 parameters must be finite")
-        if len(tuple(v_lim)) != 3 or len(tuple(d)) != 3 or len(tuple(center)) != 2:
+        scalars = dict(theta_end=theta_end, p_lim=p_lim, theta_lim=theta_lim, alpha=alpha, beta=beta, mu_max=mu_max)
+        theta_end, p_lim, theta_lim, alpha, beta, mu_max = (as_real(v, f"J2 {k}") for k, v in scalars.items())
+        vectors = [as_float_array(v, f"J2 {k}") for k, v in (("v_lim", v_lim), ("d", d), ("center", center))]
+        if [v.shape for v in vectors] != [(3,), (3,), (2,)]:
             raise ShapeError("J2: v_lim and d need 3 values, center 2")
+        v_lim, d, center = (tuple(float(x) for x in v) for v in vectors)
+        vals = [theta_end, p_lim, theta_lim, alpha, beta, mu_max, *v_lim, *d, *center]
+        if not all(math.isfinite(v) for v in vals):
+            raise NonFiniteError("J2 parameters must be finite")
         # poses, limits and centre in m or rad (the weights may be large; an infinite objective is an error)
         check_magnitude(np.array([theta_end, p_lim, theta_lim, *v_lim, *center], dtype=np.float64), "J2 parameters")
         self.theta_end, self.p_lim, self.theta_lim = float(theta_end), float(p_lim), float(theta_lim)
@@ -198,8 +206,11 @@ class J2Executable(J2):
                  normal_weight: float = 0.1, attitude_weight: float = 3.0, attitude_inset: float = 0.02,
                  velocity_weight: float = 10.0, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        extra = [margin, normal_floor, normal_weight, attitude_weight, attitude_inset, velocity_weight]
-        if not all(math.isfinite(float(v)) and v >= 0 for v in extra):
+        names = ["margin", "normal_floor", "normal_weight", "attitude_weight", "attitude_inset", "velocity_weight"]
+        extra = [as_real(v, f"J2Executable {k}", error=SettingsError) for k, v in zip(names, [
+            margin, normal_floor, normal_weight, attitude_weight, attitude_inset, velocity_weight])]
+        margin, normal_floor, normal_weight, attitude_weight, attitude_inset, velocity_weight = extra
+        if not all(math.isfinite(v) and v >= 0 for v in extra):
             raise SettingsError(f"J2Executable: margins and weights must be finite and >= 0, got {extra}")
         if margin >= math.atan(self.mu_max) or attitude_inset >= self.theta_lim:
             raise SettingsError("J2Executable: margin must be below the cone's half-angle and attitude_inset below "
@@ -258,8 +269,9 @@ class AdjustResult:
 
     @property
     def ms_per_update(self) -> float:
-        """Median wall time of one update (forward, backward, step) of the batch, over B (ms)."""
-        if len(self.update_times_s) == 0:
+        """Median wall time of one update (forward, backward, step) of the batch, over B (ms);
+        NaN without updates or problems."""
+        if len(self.update_times_s) == 0 or self.batch == 0:
             return float("nan")
         return 1e3 * float(np.median(self.update_times_s)) / self.batch
 
@@ -285,6 +297,14 @@ def default_lr(objective: str, method: str, step: str = "gd") -> float:
     return PAPER_LR.get((objective, method), PAPER_LR[("j1", method)])
 
 
+def _vector(v: Any, n: int, what: str) -> tuple[float, ...]:
+    """``v`` as ``n`` real numbers, else ShapeError naming ``what``."""
+    a = as_float_array(v, what)
+    if a.shape != (n,):
+        raise ShapeError(f"{what} must have {n} values, got shape {a.shape}")
+    return tuple(float(x) for x in a)
+
+
 def _check_value(j: Any, b: int) -> Tensor:
     if not isinstance(j, Tensor):
         raise TypeError(f"the objective must return a torch.Tensor, got {type(j).__name__}")
@@ -298,6 +318,17 @@ def _check_value(j: Any, b: int) -> Tensor:
         raise CallbackError("the objective does not depend on the trajectory (its value has no gradient); "
                             "build it from the Rollout's tensors with torch operations")
     return j
+
+
+def _empty_result(model: Seq2SeqModel, method: str, step: str, lr: float, updates: int, keep: set[int]) -> AdjustResult:
+    """What :func:`adjust` returns for an empty batch (torch's LSTMs do not take one)."""
+    k = model.config.K
+    arrays = {"p": np.zeros((0, k, 3)), "v": np.zeros((0, k, 3)), "u": np.zeros((0, k, 3)), "phi": np.zeros((0, k))}
+    return AdjustResult(**arrays, objective_history=np.zeros((updates + 1, 0)),
+                        z=None if method == "direct-u" else np.zeros((0, model.config.latent_dim)), method=method,
+                        step=step, lr=lr, updates=updates, time_init_s=0.0, time_updates_s=0.0, time_total_s=0.0,
+                        update_times_s=np.zeros(updates),
+                        snapshots={i: {key: a.copy() for key, a in arrays.items()} for i in sorted(keep)})
 
 
 @uses_torch("small")
@@ -317,11 +348,12 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
     ``"random-latent"``. ``max_step``: the adaptive rule's initial trust radius.
     ``snapshots``: update indices whose trajectories to keep. With
     ``"adaptive"`` the history, the snapshots and the result are those of the kept (best) iterate.
-    ``model``: default the shipped model. ``threads``: torch threads for the call (default:
-    genplan's choice, one; see genplan._threads).
+    ``updates``: at most :data:`MAX_UPDATES`. ``model``: default the shipped model.
+    ``threads``: torch threads for the call (default: genplan's choice, one; see genplan._threads).
 
     Every decoded trajectory is finite, or FloatingPointError names the problem and the update
-    (as for an objective that becomes NaN or inf).
+    (as for an objective that becomes NaN or inf). An empty batch (0, K, 3) gives an empty result
+    (B = 0) once the arguments are checked.
     """
     if method not in METHODS:
         raise UnknownNameError(f"method must be one of {METHODS}, got {method!r}")
@@ -329,7 +361,7 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
         raise UnknownNameError(f"step must be one of {STEPS}, got {step!r}")
     if isinstance(updates, bool) or not isinstance(updates, (int, np.integer)) or updates < 0:
         raise SettingsError(f"updates must be a non-negative integer, got {updates!r}")
-    updates = int(updates)
+    updates = as_count(updates, "updates", maximum=MAX_UPDATES)
     model = load_model() if model is None else model
     x = check_trajectories(x_in, model.config.K)
     b = x.shape[0]
@@ -355,11 +387,16 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
         lr = default_lr(name if name in ("j1", "j2") else "j1", method, step)
     if not (isinstance(lr, (int, float)) and math.isfinite(lr) and lr > 0):
         raise SettingsError(f"lr must be a positive finite number, got {lr!r}")
-    if max_step is not None and not (math.isfinite(max_step) and max_step > 0):
-        raise SettingsError(f"max_step must be a positive finite number, got {max_step!r}")
-    keep = {int(s) for s in snapshots}
+    if max_step is not None:
+        max_step = as_real(max_step, "max_step", error=SettingsError)
+        if not (math.isfinite(max_step) and max_step > 0):
+            raise SettingsError(f"max_step must be a positive finite number, got {max_step!r}")
+    seed = as_count(seed, "seed", maximum=2**64 - 1)
+    keep = {as_count(s, "snapshots") for s in snapshots}
     if any(s < 0 or s > updates for s in keep):
         raise SettingsError(f"snapshots must lie in [0, {updates}], got {sorted(keep)}")
+    if b == 0:
+        return _empty_result(model, method, step, float(lr), updates, keep)
 
     t_start = time.perf_counter()
     xt = torch.as_tensor(x, dtype=torch.float32)

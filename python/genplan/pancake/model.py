@@ -58,6 +58,7 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor, nn
 
+from genplan._arrays import as_float_array
 from genplan._threads import torch_threads, uses_torch
 from genplan.errors import GenplanError, NonFiniteError, ShapeError
 from genplan.pancake import physics as ph
@@ -232,6 +233,10 @@ class Seq2SeqModel:
         FloatingPointError naming the problem. ``threads``: torch threads for the call (default:
         genplan's choice, see genplan._threads)."""
         x = check_trajectories(p_in, self.config.K)
+        if len(x) == 0:  # an empty batch: torch's LSTMs do not take one
+            k = self.config.K
+            return {"p": np.zeros((0, k, 3)), "v": np.zeros((0, k, 3)), "u": np.zeros((0, k, 3)),
+                    "phi": np.zeros((0, k)), "var_p": np.zeros((0, k, 3)), "z": np.zeros((0, self.config.latent_dim))}
         z, out = self.forward(torch.as_tensor(x, dtype=torch.float32))
         bad = first_nonfinite(out)
         if bad is not None:
@@ -258,13 +263,13 @@ def first_nonfinite(r: ph.Rollout) -> int | None:
 
 def check_trajectories(p_in: ArrayLike, k: int = ph.K, name: str = "x_in") -> NDArray[np.float64]:
     """Validate input poses: (K, 3) or (B, K, 3), finite, within :data:`MAX_ABS`. Returns (B, K, 3)
-    float64."""
+    float64; B may be 0 (an empty batch)."""
     if isinstance(p_in, Tensor):
         p_in = p_in.detach().cpu().numpy()
-    x = np.asarray(p_in, dtype=np.float64)
+    x = as_float_array(p_in, name)
     if x.ndim == 2:
         x = x[None]
-    if x.ndim != 3 or x.shape[1:] != (k, 3) or x.shape[0] < 1:
+    if x.ndim != 3 or x.shape[1:] != (k, 3):
         raise ShapeError(f"{name} must be poses [y, z, theta] of shape ({k}, 3) or (batch, {k}, 3), "
                          f"got shape {np.shape(p_in)}")
     if not np.all(np.isfinite(x)):

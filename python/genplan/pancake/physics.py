@@ -26,7 +26,8 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor
 
-from genplan.errors import ShapeError
+from genplan._arrays import as_float_array, as_real
+from genplan.errors import SettingsError, ShapeError
 from genplan.pancake.trajectories import DT, G, K, MU_MAX
 from genplan.pancake.trajectories import phi as phi_np
 
@@ -46,6 +47,9 @@ def cone_limit(mu_max: float = MU_MAX) -> float:
 
 def transition_matrices(dt: float = DT) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``A`` (6x6) and ``B`` (6x3) of eqs. 11-12."""
+    dt = as_real(dt, "dt", error=SettingsError)
+    if not (math.isfinite(dt) and dt > 0):
+        raise SettingsError(f"dt must be positive, got {dt}")
     eye = np.eye(3)
     A = np.block([[eye, dt * eye], [np.zeros((3, 3)), eye]])
     B = np.vstack([0.5 * dt * dt * eye, dt * eye])
@@ -156,13 +160,13 @@ def simulate(u: Tensor, x0: Tensor | None = None, var_u: Tensor | None = None, d
 
 def rollout_np(u: ArrayLike, x0: ArrayLike | None = None, dt: float = DT) -> NDArray[np.float64]:
     """States (..., K, 6) by the literal recursion ``x[k+1] = A x[k] + B u[k]`` (float64)."""
-    uu = np.asarray(u, dtype=np.float64)
+    uu = as_float_array(u, "u")
     if uu.ndim < 2 or uu.shape[-1] != 3:
         raise ShapeError(f"u must have shape (..., K, 3), got {uu.shape}")
     A, B = transition_matrices(dt)
     lead, k = uu.shape[:-2], uu.shape[-2]
     x = np.zeros(lead + (k, 6))
-    x[..., 0, :] = np.zeros(6) if x0 is None else np.asarray(x0, dtype=np.float64)
+    x[..., 0, :] = np.zeros(6) if x0 is None else as_float_array(x0, "x0")
     for i in range(k - 1):
         x[..., i + 1, :] = x[..., i, :] @ A.T + uu[..., i, :] @ B.T
     return x
@@ -170,7 +174,7 @@ def rollout_np(u: ArrayLike, x0: ArrayLike | None = None, dt: float = DT) -> NDA
 
 def rollout_variance_np(var_u: ArrayLike, dt: float = DT) -> NDArray[np.float64]:
     """Position variances (K, 3) by the covariance recursion ``S' = A S A^T + B diag(var_u) B^T``."""
-    vu = np.asarray(var_u, dtype=np.float64)
+    vu = as_float_array(var_u, "var_u")
     if vu.ndim != 2 or vu.shape[-1] != 3:
         raise ShapeError(f"var_u must have shape (K, 3), got {vu.shape}")
     A, B = transition_matrices(dt)
@@ -184,4 +188,5 @@ def rollout_variance_np(var_u: ArrayLike, dt: float = DT) -> NDArray[np.float64]
 
 def f_dyn_np(phi_: ArrayLike, mu_max: float = MU_MAX, margin: float = 0.0) -> NDArray[np.float64]:
     """eq. 18 in numpy, summed over the last axis."""
-    return np.maximum(np.abs(np.asarray(phi_, dtype=np.float64)) - math.atan(mu_max) + margin, 0.0).sum(-1)
+    return np.maximum(np.abs(as_float_array(phi_, "phi")) - math.atan(as_real(mu_max, "mu_max"))
+                      + as_real(margin, "margin"), 0.0).sum(-1)

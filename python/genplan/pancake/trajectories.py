@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
+from genplan._arrays import as_count, as_float_array, as_real
 from genplan.errors import NonFiniteError, SettingsError, ShapeError
 
 #: the paper's sampling interval (s) and sequence length
@@ -28,19 +29,22 @@ K = 500
 G = 9.8
 #: static friction coefficient of the paper
 MU_MAX = 1.0
+#: most samples of a trajectory made here: the longest run of the 1 kHz loop (``MAX_TICKS`` of
+#: rust/core/src/control.rs, genplan.control.MAX_TICKS)
+MAX_K = 10_000_000
 
-__all__ = ["DT", "K", "G", "MU_MAX", "s_curve", "s_curve_profile", "linear", "j1_problems", "phi", "wrap_angle"]
+__all__ = ["DT", "K", "G", "MU_MAX", "MAX_K", "s_curve", "s_curve_profile", "linear", "j1_problems", "phi", "wrap_angle"]
 
 
 def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
     """Angles wrapped to (-pi, pi]."""
-    a = np.asarray(a, dtype=np.float64)
+    a = as_float_array(a, "a")
     w = np.mod(a + np.pi, 2.0 * np.pi) - np.pi  # [-pi, pi)
     return np.where(w <= -np.pi, w + 2.0 * np.pi, w)
 
 
 def _pose(name: str, p: ArrayLike) -> NDArray[np.float64]:
-    a = np.asarray(p, dtype=np.float64)
+    a = as_float_array(p, name)
     if a.shape != (3,):
         raise ShapeError(f"{name} must be a pose [y, z, theta] of shape (3,), got shape {a.shape}")
     if not np.all(np.isfinite(a)):
@@ -53,10 +57,10 @@ def s_curve_profile(K: int = K) -> tuple[NDArray[np.float64], NDArray[np.float64
 
     Cycloidal (sine-acceleration) S-curve: ``s = tau - sin(2 pi tau) / (2 pi)``. Velocity and
     acceleration are zero at both ends (smooth start and stop, finite jerk); the acceleration is
-    one sine period (positive while speeding up, negative while slowing down).
+    one sine period (positive while speeding up, negative while slowing down). ``K``: an
+    integer in [2, :data:`MAX_K`] (else SettingsError).
     """
-    if K < 2:
-        raise SettingsError(f"K must be at least 2, got {K}")
+    K = as_count(K, "K", minimum=2, maximum=MAX_K)
     tau = np.arange(K, dtype=np.float64) / (K - 1)
     w = 2.0 * np.pi
     s = tau - np.sin(w * tau) / w
@@ -73,14 +77,32 @@ def s_curve(p_start: ArrayLike, p_end: ArrayLike, K: int = K, dt: float = DT) ->
     exactly ``p_end``; velocity and acceleration are zero at both ends (see
     :func:`s_curve_profile`). ``theta`` is interpolated as given (no wrapping), so
     ``p_end[2] = pi`` means half a turn counter-clockwise from ``p_start[2] = 0``.
-    ``dt`` only sets the duration; positions do not depend on it.
+    ``dt`` only sets the duration; positions do not depend on it. Any finite poses work, however
+    far apart (no overflow, every sample between the two); ``K``: an integer in
+    [2, :data:`MAX_K`].
     """
     a = _pose("p_start", p_start)
     b = _pose("p_end", p_end)
+    dt = as_real(dt, "dt", error=SettingsError)
     if not (np.isfinite(dt) and dt > 0):
         raise SettingsError(f"dt must be positive, got {dt}")
-    s, _, _ = s_curve_profile(int(K))
-    return a[None, :] + s[:, None] * (b - a)[None, :]
+    s, _, _ = s_curve_profile(K)
+    return _interpolate(a, b, s)
+
+
+def _interpolate(a: NDArray[np.float64], b: NDArray[np.float64], s: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``a + s (b - a)`` (len(s), 3) for ``s`` from 0 to 1, with row 0 exactly ``a``, the last row
+    exactly ``b``, and no overflow: where ``b - a`` overflows (finite poses of opposite signs
+    beyond 9e307) the columns are ``(1 - s) a + s b``, kept between ``a`` and ``b``."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        x = a[None, :] + s[:, None] * (b - a)[None, :]
+        far = ~np.all(np.isfinite(x), axis=0)
+        if far.any():
+            x[:, far] = (1.0 - s)[:, None] * a[None, far] + s[:, None] * b[None, far]
+            x[:, far] = np.clip(x[:, far], np.minimum(a, b)[far], np.maximum(a, b)[far])
+    x[0] = a
+    x[-1] = b  # exactly, not a + 1 * (b - a), which rounds when |b| << |a|
+    return x
 
 
 def linear(p_start: ArrayLike, p_end: ArrayLike, K: int = K) -> NDArray[np.float64]:
@@ -91,10 +113,9 @@ def linear(p_start: ArrayLike, p_end: ArrayLike, K: int = K) -> NDArray[np.float
     """
     a = _pose("p_start", p_start)
     b = _pose("p_end", p_end)
-    if K < 2:
-        raise SettingsError(f"K must be at least 2, got {K}")
+    K = as_count(K, "K", minimum=2, maximum=MAX_K)
     tau = np.arange(K, dtype=np.float64) / (K - 1)
-    return a[None, :] + tau[:, None] * (b - a)[None, :]
+    return _interpolate(a, b, tau)
 
 
 def j1_problems() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -114,14 +135,33 @@ def phi(theta: ArrayLike, acc: ArrayLike, g: float = G) -> NDArray[np.float64]:
     a_theta)]``; ``a_theta`` is ignored), with numpy broadcasting over ``S``. Returns
     ``wrap(atan2(-g - a_z, -a_y) + pi/2 - theta)``: 0 for a level spatula at rest, ``-theta`` for
     a spatula tilted by ``theta`` at rest. The pancake stays while ``|phi| < arctan(mu_max)``.
+
+    Refused, naming the argument: values that are not real numbers and shapes that do not
+    broadcast (:class:`~genplan.errors.ShapeError`), NaN or inf in ``theta``, ``[a_y, a_z]`` or
+    ``g`` (:class:`~genplan.errors.NonFiniteError`).
     """
-    th = np.asarray(theta, dtype=np.float64)
-    u = np.asarray(acc, dtype=np.float64)
+    th = as_float_array(theta, "theta")
+    u = as_float_array(acc, "acc")
+    g = as_real(g, "g")
     if u.ndim < 1 or u.shape[-1] not in (2, 3):
         raise ShapeError(f"acc must have a last axis of 2 ([a_y, a_z]) or 3 ([a_y, a_z, a_theta]), got shape {u.shape}")
-    shape = np.broadcast_shapes(th.shape, u.shape[:-1])
+    try:
+        shape = np.broadcast_shapes(th.shape, u.shape[:-1])
+    except ValueError:
+        raise ShapeError(f"theta of shape {th.shape} and acc of shape {u.shape} do not broadcast: theta takes "
+                         f"acc's leading shape {u.shape[:-1]} (or one that broadcasts with it)") from None
+    _check_finite("theta", th)
+    _check_finite("acc", u[..., :2])
+    if not np.isfinite(g):
+        raise NonFiniteError(f"g must be finite, got {g}")
     th_flat = np.ascontiguousarray(np.broadcast_to(th, shape).reshape(-1))
     u_flat = np.ascontiguousarray(np.broadcast_to(u[..., :2], (*shape, 2)).reshape(-1, 2))
     # one definition of eq. 16: the 1 kHz loop's (rust/core/src/control.rs, `phi`); the torch
     # twin in pancake/physics.py (differentiable) is cross-checked against it in the tests
-    return np.asarray(_core.pancake_phi(th_flat, u_flat, float(g))).reshape(shape)
+    return np.asarray(_core.pancake_phi(th_flat, u_flat, g)).reshape(shape)
+
+
+def _check_finite(name: str, a: NDArray[np.float64]) -> None:
+    if not np.all(np.isfinite(a)):
+        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+        raise NonFiniteError(f"{name}: element {idx} is not finite ({a[idx]})")

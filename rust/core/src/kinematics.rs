@@ -8,9 +8,9 @@ use std::collections::HashMap;
 
 use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
 
-use crate::error::{check_vector, unknown, Error, Result};
-use crate::lie::{action, exp6, jlog6, log6, skew};
-use crate::urdf::{JointType, Urdf};
+use crate::error::{check_finite, check_vector, unknown, Error, Result};
+use crate::lie::{action, exp6, jlog6, log6, skew, stable_norm, unit_quaternion, unit_vector};
+use crate::urdf::{JointType, Urdf, MAX_JOINT_POSITION, MIN_AXIS_NORM};
 
 /// How a joint moves its child link, after its fixed origin transform.
 #[derive(Debug, Clone)]
@@ -106,13 +106,59 @@ pub struct KinematicModel {
 }
 
 fn normalized_axis(joint: &str, axis: Vector3<f64>) -> Result<Unit<Vector3<f64>>> {
-    Unit::try_new(axis, 1e-12)
-        .ok_or_else(|| Error::Invalid(format!("joint '{joint}' has a zero axis")))
+    unit_vector(&axis, MIN_AXIS_NORM)
+        .ok_or_else(|| Error::Invalid(format!("joint '{joint}' has a zero or non-finite axis {:?}", axis.as_slice())))
+}
+
+/// The rotation of a free-flyer quaternion `q[3..7]` = (qx, qy, qz, qw), normalised without
+/// overflow (components of 1e300 give a unit quaternion); the identity if it is zero or not
+/// finite (which [`KinematicModel::check_configuration`] refuses).
+fn base_rotation(q: &[f64]) -> UnitQuaternion<f64> {
+    unit_quaternion(q[6], q[3], q[4], q[5], 0.0).unwrap_or_else(UnitQuaternion::identity)
+}
+
+/// A cycle of the joint graph, if any, as (joint names, link names) along it: following each
+/// link's parent joint (`parent_joint`, at most one per link) to its parent link
+/// (`parent_of_joint`) must end at a root. Linear in the number of links.
+fn find_cycle(urdf: &Urdf, parent_joint: &[Option<usize>], parent_of_joint: &[usize]) -> Option<(Vec<String>, Vec<String>)> {
+    const NEW: u8 = 0;
+    const ON_PATH: u8 = 1;
+    const DONE: u8 = 2;
+    let mut state = vec![NEW; parent_joint.len()];
+    for start in 0..parent_joint.len() {
+        let mut path = Vec::new();
+        let mut l = start;
+        while state[l] == NEW {
+            state[l] = ON_PATH;
+            path.push(l);
+            match parent_joint[l] {
+                Some(ji) => l = parent_of_joint[ji],
+                None => break,
+            }
+        }
+        if state[l] == ON_PATH && parent_joint[l].is_some() {
+            let from = path.iter().position(|&p| p == l).unwrap_or(0);
+            let links = &path[from..];
+            let joints = links.iter().filter_map(|&k| parent_joint[k]).map(|j| urdf.joints[j].name.clone()).collect();
+            return Some((joints, links.iter().map(|&k| urdf.links[k].name.clone()).collect()));
+        }
+        for k in path {
+            state[k] = DONE;
+        }
+    }
+    None
 }
 
 impl KinematicModel {
     /// The tree of `urdf`, with the free-flyer, locked joints and q order of `options`.
+    ///
+    /// Refused: a URDF that [`Urdf::validate`] refuses; a joint whose parent or child link is
+    /// unknown, or the same link; a link with two parent joints; joints that form a cycle (their
+    /// links are not reachable from the root); other than exactly one root link; a locked value
+    /// that is not finite or larger than [`MAX_JOINT_POSITION`] in magnitude; an active joint of
+    /// a type the model does not support (floating, planar).
     pub fn from_urdf(urdf: &Urdf, options: &ModelOptions) -> Result<KinematicModel> {
+        urdf.validate()?;
         let link_pos: HashMap<&str, usize> = urdf
             .links
             .iter()
@@ -122,6 +168,8 @@ impl KinematicModel {
         let link_names_all: Vec<&str> = urdf.links.iter().map(|l| l.name.as_str()).collect();
         let mut parent_joint: Vec<Option<usize>> = vec![None; urdf.links.len()];
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); urdf.links.len()];
+        let mut child_of_joint: Vec<usize> = Vec::with_capacity(urdf.joints.len());
+        let mut parent_of_joint: Vec<usize> = Vec::with_capacity(urdf.joints.len());
         for (ji, j) in urdf.joints.iter().enumerate() {
             let p = *link_pos
                 .get(j.parent.as_str())
@@ -129,32 +177,53 @@ impl KinematicModel {
             let c = *link_pos
                 .get(j.child.as_str())
                 .ok_or_else(|| unknown("child link", &j.child, &link_names_all))?;
-            if parent_joint[c].is_some() {
-                return Err(Error::Parse {
-                    what: "URDF".into(),
-                    msg: format!("link '{}' has two parent joints", j.child),
-                });
+            if p == c {
+                return Err(urdf.error(format!(
+                    "joint '{}' has link '{}' as both parent and child (the joints must form a tree)",
+                    j.name, j.child
+                )));
+            }
+            if let Some(other) = parent_joint[c] {
+                return Err(urdf.error(format!(
+                    "link '{}' has two parent joints ('{}' and '{}')",
+                    j.child, urdf.joints[other].name, j.name
+                )));
             }
             parent_joint[c] = Some(ji);
             children[p].push(ji);
+            parent_of_joint.push(p);
+            child_of_joint.push(c);
+        }
+        if let Some((joints, links)) = find_cycle(urdf, &parent_joint, &parent_of_joint) {
+            return Err(urdf.error(format!(
+                "the joints '{}' form a cycle through the links '{}' (the joints must form a tree; \
+                 these links are not reachable from a root)",
+                joints.join("', '"),
+                links.join("', '")
+            )));
         }
         let roots: Vec<usize> = (0..urdf.links.len())
             .filter(|&i| parent_joint[i].is_none())
             .collect();
         if roots.len() != 1 {
-            return Err(Error::Parse {
-                what: "URDF".into(),
-                msg: format!(
-                    "expected one root link, found {}: {:?}",
-                    roots.len(),
-                    roots.iter().map(|&i| &urdf.links[i].name).collect::<Vec<_>>()
-                ),
-            });
+            return Err(urdf.error(format!(
+                "expected one root link (a link that is no joint's child), found {}: {:?}",
+                roots.len(),
+                roots.iter().map(|&i| &urdf.links[i].name).collect::<Vec<_>>()
+            )));
         }
         let joint_names_all: Vec<&str> = urdf.joints.iter().map(|j| j.name.as_str()).collect();
-        for name in options.locked_joints.keys() {
+        let mut locked_names: Vec<(&String, &f64)> = options.locked_joints.iter().collect();
+        locked_names.sort_by(|a, b| a.0.cmp(b.0)); // the first error is the same on every run
+        for (name, &value) in locked_names {
             if !joint_names_all.contains(&name.as_str()) {
                 return Err(unknown("locked joint", name, &joint_names_all));
+            }
+            check_finite(&format!("locked joint '{name}' value"), &[value])?;
+            if value.abs() > MAX_JOINT_POSITION {
+                return Err(Error::Invalid(format!(
+                    "locked joint '{name}': value {value:e} is too large (at most {MAX_JOINT_POSITION:e} in magnitude)"
+                )));
             }
         }
 
@@ -170,7 +239,7 @@ impl KinematicModel {
         while let Some(l) = stack.pop() {
             order_links.push(l);
             for &ji in children[l].iter().rev() {
-                stack.push(link_pos[urdf.joints[ji].child.as_str()]);
+                stack.push(child_of_joint[ji]);
             }
         }
         for &l in &order_links {
@@ -178,11 +247,16 @@ impl KinematicModel {
                 order_joints.push(ji);
             }
         }
-        let new_index: HashMap<usize, usize> = order_links
-            .iter()
-            .enumerate()
-            .map(|(new, &old)| (old, new))
-            .collect();
+        // one root, no cycle: every link is reached once (checked above)
+        if order_links.len() != urdf.links.len() {
+            return Err(urdf.error("some links are not reachable from the root link".into()));
+        }
+        let mut new_index = vec![0; urdf.links.len()];
+        for (new, &old) in order_links.iter().enumerate() {
+            new_index[old] = new;
+        }
+        let joint_pos: HashMap<&str, usize> =
+            urdf.joints.iter().enumerate().map(|(i, j)| (j.name.as_str(), i)).collect();
 
         let is_active = |ji: usize| {
             let j = &urdf.joints[ji];
@@ -218,7 +292,10 @@ impl KinematicModel {
         let mut lower = vec![f64::NEG_INFINITY; base_nq];
         let mut upper = vec![f64::INFINITY; base_nq];
         for name in &active_joints {
-            let j = urdf.joints.iter().find(|j| &j.name == name).expect("checked above");
+            let Some(&ji) = joint_pos.get(name.as_str()) else {
+                return Err(unknown("joint", name, &joint_names_all));
+            };
+            let j = &urdf.joints[ji];
             q_index_of.insert(name.as_str(), nq);
             v_index_of.insert(name.as_str(), nv);
             match j.joint_type {
@@ -262,7 +339,7 @@ impl KinematicModel {
             let (origin, motion) = if active || j.joint_type == JointType::Fixed {
                 (j.origin, motion_kind)
             } else {
-                let value = options.locked_joints[&j.name];
+                let value = options.locked_joints.get(&j.name).copied().unwrap_or(0.0);
                 let locked = match &motion_kind {
                     Motion::Revolute { axis } | Motion::Continuous { axis } => {
                         Isometry3::from_parts(
@@ -280,8 +357,8 @@ impl KinematicModel {
             };
             joints.push(Joint {
                 name: j.name.clone(),
-                parent: new_index[&link_pos[j.parent.as_str()]],
-                child: new_index[&link_pos[j.child.as_str()]],
+                parent: new_index[parent_of_joint[ji]],
+                child: new_index[child_of_joint[ji]],
                 origin,
                 q_index: q_index_of.get(j.name.as_str()).copied().unwrap_or(usize::MAX),
                 v_index: v_index_of.get(j.name.as_str()).copied().unwrap_or(usize::MAX),
@@ -374,11 +451,12 @@ impl KinematicModel {
         })
     }
 
-    /// Check a configuration: length nq, finite, and a free-flyer quaternion that is not zero.
+    /// Check a configuration: length nq, finite, and a free-flyer quaternion that is not zero
+    /// (norm below 1e-9; any larger finite norm is normalised, without overflow).
     pub fn check_configuration(&self, q: &[f64]) -> Result<()> {
         check_vector("configuration q", q, self.nq)?;
         if self.floating_base {
-            let n = (q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6]).sqrt();
+            let n = stable_norm(&q[3..7]);
             if n < 1e-9 {
                 return Err(Error::Invalid(
                     "configuration q: the base quaternion q[3..7] is zero".into(),
@@ -402,10 +480,7 @@ impl KinematicModel {
         out.clear();
         out.resize(self.link_names.len(), Isometry3::identity());
         if self.floating_base {
-            let rot = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-                q[6], q[3], q[4], q[5],
-            ));
-            out[self.root] = Isometry3::from_parts(Translation3::new(q[0], q[1], q[2]), rot);
+            out[self.root] = Self::base_pose(q);
         }
         for j in &self.joints {
             let motion = match &j.motion {
@@ -436,12 +511,10 @@ impl KinematicModel {
 }
 
 impl KinematicModel {
-    /// Pose of the free-flyer base encoded in `q[0..7]`.
-    fn base_pose(q: &[f64]) -> Isometry3<f64> {
-        Isometry3::from_parts(
-            Translation3::new(q[0], q[1], q[2]),
-            UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5])),
-        )
+    /// Pose of the free-flyer base encoded in `q[0..7]` (its quaternion normalised without
+    /// overflow).
+    pub fn base_pose(q: &[f64]) -> Isometry3<f64> {
+        Isometry3::from_parts(Translation3::new(q[0], q[1], q[2]), base_rotation(q))
     }
 
     fn write_base(q: &mut [f64], m: &Isometry3<f64>) {

@@ -3,8 +3,48 @@
 //! A motion (twist) is `[v; w]`, linear part first. `jlog3(R)` is the Jacobian of
 //! `log3(R exp3(e))` with respect to `e` at 0 (the inverse right Jacobian); `jlog6` likewise for
 //! `log6(M exp6(e))`. Cross-checked against Pinocchio in `tests/test_native_projection.py`.
+//!
+//! [`unit_vector`] and [`unit_quaternion`] normalise without overflow or underflow (a vector
+//! `1e200 0 0`, whose squared norm is infinite, normalises to `1 0 0`).
 
-use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Matrix6, Quaternion, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
+
+/// The Euclidean norm of `v`, computed without overflow or underflow (`v` is scaled by its
+/// largest magnitude first); NaN if an element is NaN, infinite if one is infinite.
+pub fn stable_norm(v: &[f64]) -> f64 {
+    if v.iter().any(|x| x.is_nan()) {
+        return f64::NAN;
+    }
+    let m = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if m == 0.0 || m.is_infinite() {
+        return m;
+    }
+    m * v.iter().map(|x| (x / m) * (x / m)).sum::<f64>().sqrt()
+}
+
+/// `v / |v|`, computed without overflow or underflow; `None` when an element is not finite or
+/// `|v|` is zero or below `min_norm`.
+pub fn unit_vector(v: &Vector3<f64>, min_norm: f64) -> Option<Unit<Vector3<f64>>> {
+    // |v| may exceed f64::MAX (f64::MAX along two axes): the finite elements are what counts
+    let n = stable_norm(v.as_slice());
+    if !v.iter().all(|x| x.is_finite()) || n == 0.0 || n < min_norm {
+        return None;
+    }
+    Some(Unit::new_normalize(v / v.amax()))
+}
+
+/// The rotation of the quaternion `w + x i + y j + z k` of any finite non-zero norm, normalised
+/// without overflow or underflow; `None` when an element is not finite or the norm is zero or
+/// below `min_norm`.
+pub fn unit_quaternion(w: f64, x: f64, y: f64, z: f64, min_norm: f64) -> Option<UnitQuaternion<f64>> {
+    let c = [w, x, y, z];
+    let n = stable_norm(&c);
+    if !c.iter().all(|v| v.is_finite()) || n == 0.0 || n < min_norm {
+        return None;
+    }
+    let m = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    Some(UnitQuaternion::from_quaternion(Quaternion::new(w / m, x / m, y / m, z / m)))
+}
 
 /// The skew-symmetric matrix `[v]x` with `[v]x u = v x u`.
 #[inline]
@@ -160,6 +200,27 @@ mod tests {
             let n = numeric_jacobian(&m);
             assert!((j - n).amax() < 1e-6, "{nu}: {}", (j - n).amax());
         }
+    }
+
+    #[test]
+    fn normalisation_neither_overflows_nor_underflows() {
+        assert_eq!(stable_norm(&[3e300, 4e300]), 5e300);
+        assert_eq!(stable_norm(&[3e-300, 4e-300]), 5e-300);
+        assert_eq!(stable_norm(&[0.0, 0.0]), 0.0);
+        assert!(stable_norm(&[f64::NAN, 1.0]).is_nan() && stable_norm(&[f64::INFINITY, 1.0]).is_infinite());
+        let x = unit_vector(&Vector3::new(1e200, 0.0, 0.0), 1e-12).unwrap();
+        assert_eq!(x.into_inner(), Vector3::x());
+        let d = unit_vector(&Vector3::new(f64::MAX, f64::MAX, 0.0), 1e-12).unwrap();
+        assert!((d.into_inner() - Vector3::new(1.0, 1.0, 0.0).normalize()).amax() < 1e-15);
+        assert!(unit_vector(&Vector3::new(1e-200, 0.0, 0.0), 1e-12).is_none());
+        assert!(unit_vector(&Vector3::zeros(), 0.0).is_none());
+        assert!(unit_vector(&Vector3::new(f64::NAN, 1.0, 0.0), 0.0).is_none());
+        let q = unit_quaternion(1e300, 1e300, 1e300, 1e300, 0.0).unwrap();
+        assert!((q.coords - nalgebra::Vector4::repeat(0.5)).amax() < 1e-15);
+        let q = unit_quaternion(f64::MAX, f64::MAX, f64::MAX, f64::MAX, 0.0).unwrap();
+        assert!((q.coords - nalgebra::Vector4::repeat(0.5)).amax() < 1e-15);
+        assert!(unit_quaternion(0.0, 0.0, 0.0, 0.0, 0.0).is_none());
+        assert!(unit_quaternion(f64::INFINITY, 0.0, 0.0, 0.0, 0.0).is_none());
     }
 
     #[test]

@@ -7,14 +7,31 @@
 //! secondary (posture) step `dq2 = N1 (J2 N1)^+ (r2 - alpha J2 dq1)` kept only while it does not
 //! make the primary cost worse; clipping to the joint limits after every step. Success: every
 //! primary term's largest absolute (unweighted) residual component is below its tolerance.
+//!
+//! Every number of a term is checked when the projector is built ([`Projector::new`],
+//! [`Projector::retargeted`]): finite, and at most [`MAX_MAGNITUDE`] in absolute value
+//! (positions in m, weights, masks, tolerances, margins, posture values), rotations orthonormal;
+//! the settings' ranges are closed ([`Settings::validate`]). With such inputs the solver's sums
+//! of squares cannot overflow; should an iterate still stop being finite (an extreme start or
+//! nominal configuration), the solve ends there, unsuccessful, with the last finite
+//! configuration ([`Projector::solve_unchecked`]): the answer from a finite start is finite.
 
 use std::time::Instant;
 
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3};
 
-use crate::error::{check_vector, Error, Result};
+use crate::error::{check_finite, check_vector, Error, Result};
 use crate::kinematics::KinematicModel;
 use crate::lie::{jlog3, jlog6, log3, log6};
+
+/// The largest absolute value of a term's numbers (target and box coordinates in m, weights,
+/// masks, tolerances, margins, posture weights and values) and of the damping settings: 1e6.
+/// Squared residuals of such terms, weighted, stay far from overflow.
+pub const MAX_MAGNITUDE: f64 = 1e6;
+
+/// How far a term's rotation matrix may be from orthonormal (largest entry of `R^T R - I`), as
+/// `genplan.projection` checks it in Python.
+pub const ROTATION_TOLERANCE: f64 = 1e-6;
 
 /// What a residual term measures.
 #[derive(Debug, Clone)]
@@ -93,9 +110,9 @@ pub struct Term {
 pub struct Settings {
     /// Gauss-Newton iterations at most.
     pub max_iterations: usize,
-    /// Damping `lambda = mu r^T r + mu_bar` of the primary step.
+    /// Damping `lambda = mu r^T r + mu_bar` of the primary step, in [0, 1e6].
     pub mu: f64,
-    /// Constant part of the damping (the secondary step's whole damping).
+    /// Constant part of the damping (the secondary step's whole damping), in [0, 1e6].
     pub mu_bar: f64,
     /// Armijo's sufficient-decrease constant for the primary step.
     pub armijo_c1: f64,
@@ -107,7 +124,7 @@ pub struct Settings {
     pub clip_to_limits: bool,
     /// Tries of the secondary step at most.
     pub secondary_backtracks: usize,
-    /// The secondary step is kept when the primary cost grows by at most this.
+    /// The secondary step is kept when the primary cost grows by at most this, in [0, 1e6].
     pub secondary_slack: f64,
 }
 
@@ -128,12 +145,18 @@ impl Default for Settings {
 }
 
 impl Settings {
-    /// Check every field's range; the error names the first bad field.
+    /// Check every field's range; the error names the first bad field, its value and the range:
+    /// `mu`, `mu_bar`, `secondary_slack` in [0, [`MAX_MAGNITUDE`]] (so that the damping
+    /// `mu r^T r + mu_bar` stays finite), `armijo_c1`, `backtrack` in (0, 1), any counts and flag
+    /// (the counts bound loops that allocate nothing).
     pub fn validate(&self) -> Result<()> {
         let bad = |field: &'static str, msg: String| Err(Error::Settings { field, msg });
         for (field, v) in [("mu", self.mu), ("mu_bar", self.mu_bar), ("secondary_slack", self.secondary_slack)] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(field, format!("must be >= 0 and finite, got {v}"));
+            }
+            if v > MAX_MAGNITUDE {
+                return bad(field, format!("must be at most {MAX_MAGNITUDE:e}, got {v:?}"));
             }
         }
         for (field, v) in [("armijo_c1", self.armijo_c1), ("backtrack", self.backtrack)] {
@@ -182,7 +205,9 @@ pub struct Projector {
 }
 
 impl Projector {
-    /// A projector, its terms and settings checked against the model.
+    /// A projector, its terms and settings checked against the model. A model whose finite
+    /// limits are reversed (lower above upper: only possible by editing its public fields) is
+    /// refused ([`Error::Invalid`] naming the joint).
     pub fn new(
         model: std::sync::Arc<KinematicModel>,
         primary: Vec<Term>,
@@ -196,22 +221,39 @@ impl Projector {
         for t in primary.iter().chain(&secondary) {
             validate(&model, t)?;
         }
-        let bounded = model
+        let bounded_joints = model
             .joints
             .iter()
             .filter(|j| j.q_index != usize::MAX && !matches!(j.motion, crate::kinematics::Motion::Continuous { .. } | crate::kinematics::Motion::Fixed))
-            .filter(|j| model.lower[j.q_index].is_finite() && model.upper[j.q_index].is_finite())
-            .map(|j| (j.q_index, j.v_index, model.lower[j.q_index], model.upper[j.q_index]))
-            .collect();
+            .filter(|j| model.lower[j.q_index].is_finite() && model.upper[j.q_index].is_finite());
+        let mut bounded = Vec::new();
+        for j in bounded_joints {
+            let (lo, hi) = (model.lower[j.q_index], model.upper[j.q_index]);
+            // a model read from a URDF never has reversed limits, but its fields are public: the
+            // clipping (f64::clamp) needs lower <= upper
+            if lo > hi {
+                return Err(Error::Invalid(format!(
+                    "joint '{}': its lower limit {lo:?} is above its upper limit {hi:?} (q index {})",
+                    j.name, j.q_index
+                )));
+            }
+            bounded.push((j.q_index, j.v_index, lo, hi));
+        }
         Ok(Projector { model, primary, secondary, settings, bounded })
     }
 
     /// A copy whose primary term `term` aims at `target`: 3 numbers for a FramePosition, a
-    /// row-major 4x4 pose (16 numbers) for a FramePose.
+    /// row-major 4x4 pose (16 numbers) for a FramePose. The new target is checked like
+    /// [`new`](Self::new) checks terms: finite, a position within [`MAX_MAGNITUDE`], a rotation
+    /// block orthonormal within [`ROTATION_TOLERANCE`].
     pub fn retargeted(&self, term: usize, target: &[f64]) -> Result<Projector> {
         let mut out = self.clone();
-        crate::error::check_finite("target", target)?;
+        check_finite("target", target)?;
         let t = out.primary.get_mut(term).ok_or_else(|| Error::Invalid(format!("no primary term {term}")))?;
+        if target.len() == 16 {
+            let r = Matrix3::from_fn(|i, j| target[4 * i + j]);
+            check_rotation(&t.name, "target rotation", &r)?;
+        }
         match (&mut t.kind, target.len()) {
             (TermKind::FramePosition { target: tg, .. }, 3) => *tg = Vector3::new(target[0], target[1], target[2]),
             (TermKind::FramePose { target: tg, .. }, 16) => {
@@ -229,6 +271,7 @@ impl Projector {
                 )))
             }
         }
+        validate(&out.model, t)?;
         Ok(out)
     }
 
@@ -371,7 +414,7 @@ impl Projector {
     }
 
     fn satisfied(&self, raws: &[DVector<f64>]) -> bool {
-        self.primary.iter().zip(raws).all(|(t, r)| r.len() == 0 || r.amax() < t.tolerance)
+        self.primary.iter().zip(raws).all(|(t, r)| r.len() == 0 || (r.iter().all(|x| x.is_finite()) && r.amax() < t.tolerance))
     }
 
     fn step(&self, q: &[f64], dq: &DVector<f64>, alpha: f64) -> Vec<f64> {
@@ -386,7 +429,8 @@ impl Projector {
         out
     }
 
-    /// Project `q0`; the posture task regularises around `q_nom` (default: `q0`).
+    /// Project `q0`; the posture task regularises around `q_nom` (default: `q0`). The answer is
+    /// finite ([`solve_unchecked`](Self::solve_unchecked)).
     pub fn solve(&self, q0: &[f64], q_nom: Option<&[f64]>) -> Result<Outcome> {
         self.model.check_configuration(q0)?;
         if let Some(n) = q_nom {
@@ -395,7 +439,10 @@ impl Projector {
         Ok(self.solve_unchecked(q0, q_nom))
     }
 
-    /// [`solve`](Self::solve) without input checks.
+    /// [`solve`](Self::solve) without input checks. Every iterate is checked: should one not be
+    /// finite (the arithmetic overflowed, e.g. from an extreme start or nominal configuration),
+    /// the solve stops there and answers the last finite configuration, unsuccessful; a residual
+    /// that cannot be computed is reported as +inf. So the answer is finite whenever `q0` is.
     pub fn solve_unchecked(&self, q0: &[f64], q_nom: Option<&[f64]>) -> Outcome {
         let t0 = Instant::now();
         let st = &self.settings;
@@ -474,12 +521,23 @@ impl Projector {
                     alpha2 *= st.backtrack;
                 }
             }
-            q = q_new;
             iterations += 1;
+            if q_new.iter().any(|x| !x.is_finite()) {
+                // the step overflowed: stop at the last finite iterate (`q`, `raws`), unsuccessful
+                break;
+            }
+            q = q_new;
             s = self.state(q.clone());
             raws = self.stack(&self.primary, &s, &primary_nominal, false).0;
         }
-        let residuals = raws.iter().map(|r| if r.len() == 0 { 0.0 } else { r.amax() }).collect();
+        let residuals = raws
+            .iter()
+            .map(|r| match r.len() {
+                0 => 0.0,
+                _ if r.iter().any(|x| x.is_nan()) => f64::INFINITY,
+                _ => r.amax(),
+            })
+            .collect();
         Outcome {
             success: self.satisfied(&raws),
             q,
@@ -547,32 +605,129 @@ fn damped_pinv_apply(j: &DMatrix<f64>, lam: f64, v: &DVector<f64>) -> DVector<f6
     }
 }
 
+/// Check a term against the model (see the module doc): the link index; every number finite
+/// and at most [`MAX_MAGNITUDE`] in absolute value (`weight` and `tolerance` positive, margins
+/// not negative); rotations orthonormal within [`ROTATION_TOLERANCE`]; a box's lower corner
+/// below its upper one; posture vectors of the model's sizes. The error names the term and the
+/// field.
 fn validate(model: &KinematicModel, t: &Term) -> Result<()> {
-    let bad = |msg: String| Err(Error::Invalid(format!("term '{}': {msg}", t.name)));
-    if !(t.weight.is_finite() && t.weight > 0.0) {
-        return bad(format!("weight must be positive, got {}", t.weight));
-    }
-    if !(t.tolerance.is_finite() && t.tolerance > 0.0) {
-        return bad(format!("tolerance must be positive, got {}", t.tolerance));
+    let name = &t.name;
+    let bad = |msg: String| Err(Error::Invalid(format!("term '{name}': {msg}")));
+    for (field, v) in [("weight", t.weight), ("tolerance", t.tolerance)] {
+        if !(v.is_finite() && v > 0.0 && v <= MAX_MAGNITUDE) {
+            return bad(format!("{field} must be in (0, {MAX_MAGNITUDE:e}], got {v:?}"));
+        }
     }
     let link_ok = |l: usize| l < model.n_links();
     match &t.kind {
         TermKind::FramePose { link, .. } | TermKind::FramePosition { link, .. } | TermKind::FrameOrientation { link, .. } if !link_ok(*link) => {
             bad(format!("link index {link} out of range"))
         }
+        TermKind::FramePose { target, mask, .. } => {
+            bounded(name, "target translation", target.translation.vector.as_slice())?;
+            let r = target.rotation.coords;
+            check_finite(&format!("term '{name}' target rotation"), r.as_slice())?;
+            if (r.norm() - 1.0).abs() > ROTATION_TOLERANCE {
+                return bad(format!("target rotation: not a unit quaternion (norm {:?})", r.norm()));
+            }
+            bounded(name, "mask", mask)
+        }
+        TermKind::FramePosition { target, mask, .. } => {
+            bounded(name, "target", target.as_slice())?;
+            bounded(name, "mask", mask)
+        }
+        TermKind::FrameOrientation { target, offset, mask, .. } => {
+            check_rotation(name, "target", target)?;
+            check_rotation(name, "offset", offset)?;
+            bounded(name, "mask", mask)
+        }
+        TermKind::JointLimits { margin } => margin_ok(name, *margin),
+        TermKind::ComBox { lower, upper, margin } => {
+            bounded(name, "lower", lower.as_slice())?;
+            bounded(name, "upper", upper.as_slice())?;
+            if (0..3).any(|k| lower[k] > upper[k]) {
+                return bad("lower exceeds upper".into());
+            }
+            margin_ok(name, *margin)
+        }
         TermKind::Posture { q_nom, weights, overrides } => {
             if weights.len() != model.nv {
                 return bad(format!("posture weights: expected {} numbers, got {}", model.nv, weights.len()));
             }
+            bounded(name, "posture weights", weights)?;
             if let Some(n) = q_nom {
-                check_vector("posture q_nom", n, model.nq)?;
+                check_vector(&format!("term '{name}' posture q_nom"), n, model.nq)?;
+                bounded(name, "posture q_nom", n)?;
             }
-            if overrides.iter().any(|&(iq, v)| iq >= model.nq || !v.is_finite()) {
-                return bad("posture override out of range or not finite".into());
+            if let Some(&(iq, v)) = overrides.iter().find(|&&(iq, v)| iq >= model.nq || !(v.is_finite() && v.abs() <= MAX_MAGNITUDE)) {
+                return bad(format!(
+                    "posture override (q index {iq}, value {v:?}) out of range: the index must be below nq = {}, the value finite and at most {MAX_MAGNITUDE:e} in absolute value",
+                    model.nq
+                ));
             }
             Ok(())
         }
-        TermKind::ComBox { lower, upper, .. } if (0..3).any(|k| lower[k] > upper[k]) => bad("lower exceeds upper".into()),
-        _ => Ok(()),
+    }
+}
+
+/// Every element of `values` (field `field` of term `term`) finite (else [`Error::NonFinite`])
+/// and at most [`MAX_MAGNITUDE`] in absolute value (else [`Error::Invalid`]).
+fn bounded(term: &str, field: &str, values: &[f64]) -> Result<()> {
+    check_finite(&format!("term '{term}' {field}"), values)?;
+    match values.iter().position(|v| v.abs() > MAX_MAGNITUDE) {
+        Some(i) => Err(Error::Invalid(format!(
+            "term '{term}': {field} element {i} is {:?}, beyond the bound {MAX_MAGNITUDE:e} on a term's numbers",
+            values[i]
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// A margin: finite, in [0, [`MAX_MAGNITUDE`]].
+fn margin_ok(term: &str, margin: f64) -> Result<()> {
+    if margin.is_finite() && (0.0..=MAX_MAGNITUDE).contains(&margin) {
+        Ok(())
+    } else {
+        Err(Error::Invalid(format!("term '{term}': margin must be in [0, {MAX_MAGNITUDE:e}], got {margin:?}")))
+    }
+}
+
+/// A rotation matrix: finite, orthonormal within [`ROTATION_TOLERANCE`].
+fn check_rotation(term: &str, field: &str, r: &Matrix3<f64>) -> Result<()> {
+    check_finite(&format!("term '{term}' {field}"), r.as_slice())?;
+    let err = (r.transpose() * r - Matrix3::identity()).amax();
+    if err > ROTATION_TOLERANCE {
+        return Err(Error::Invalid(format!(
+            "term '{term}': {field} is not a rotation matrix (R^T R differs from the identity by {err:?}, more than {ROTATION_TOLERANCE:e})"
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::kinematics::ModelOptions;
+    use crate::urdf::Urdf;
+
+    /// A model whose public limits were edited to be reversed is refused when the projector is
+    /// built, instead of the clipping (`f64::clamp`) panicking in a solve.
+    #[test]
+    fn reversed_limits_are_refused_not_a_panic() {
+        let urdf = Urdf::parse(
+            r#"<robot name="r"><link name="a"/><link name="b"/>
+              <joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+                <limit lower="-1" upper="1"/></joint></robot>"#,
+        )
+        .unwrap();
+        let mut model = KinematicModel::from_urdf(&urdf, &ModelOptions::default()).unwrap();
+        let terms = || vec![Term { name: "limits".into(), kind: TermKind::JointLimits { margin: 0.0 }, weight: 1.0, tolerance: 1e-6 }];
+        let p = Projector::new(Arc::new(model.clone()), terms(), Vec::new(), Settings::default()).unwrap();
+        assert_eq!(p.solve(&[3.0], None).unwrap().q, vec![1.0]);
+        (model.lower[0], model.upper[0]) = (1.0, -1.0);
+        let e = Projector::new(Arc::new(model), terms(), Vec::new(), Settings::default()).unwrap_err().to_string();
+        assert!(e.contains("joint 'j'") && e.contains("lower limit 1.0 is above its upper limit -1.0"), "{e}");
     }
 }

@@ -1,16 +1,22 @@
 //! The parts of an SRDF that genplan uses: disabled collision pairs and named group states.
+//!
+//! A group state's values are joint positions: the reader refuses one that is not a number, not
+//! finite (`NaN`, `inf`, `1e999`) or larger than [`MAX_JOINT_POSITION`] in magnitude, naming the
+//! group state and the joint.
 
 use std::collections::HashMap;
 use std::path::Path;
 
 use crate::error::{Error, Result};
+use crate::urdf::MAX_JOINT_POSITION;
 
 /// A parsed SRDF file.
 #[derive(Debug, Clone, Default)]
 pub struct Srdf {
     /// Link pairs whose collisions are never checked (`<disable_collisions>`).
     pub disabled_pairs: Vec<(String, String)>,
-    /// `<group_state name=...>`: joint name to its values (one value, or 7 for a free-flyer).
+    /// `<group_state name=...>`: joint name to its values (one value, or 7 for a free-flyer),
+    /// each finite and at most [`MAX_JOINT_POSITION`] in magnitude.
     pub group_states: HashMap<String, HashMap<String, Vec<f64>>>,
 }
 
@@ -58,6 +64,17 @@ impl Srdf {
                         let values = values.map_err(|e| {
                             err(format!("group_state '{name}', joint '{jn}': {e}"))
                         })?;
+                        if let Some(x) = values.iter().find(|x| !x.is_finite()) {
+                            return Err(err(format!(
+                                "group_state '{name}', joint '{jn}': value {x} is not finite"
+                            )));
+                        }
+                        if let Some(x) = values.iter().find(|x| x.abs() > MAX_JOINT_POSITION) {
+                            return Err(err(format!(
+                                "group_state '{name}', joint '{jn}': value {x:e} is too large \
+                                 (at most {MAX_JOINT_POSITION:e} in magnitude)"
+                            )));
+                        }
                         joints.insert(jn, values);
                     }
                     out.group_states.insert(name, joints);

@@ -1,9 +1,11 @@
 //! Property tests of the kinematic model and the collision world on random configurations and
 //! obstacles, NaN, inf and extreme magnitudes included: every query answers `Ok` or `Err`, never
 //! a panic; `Err` exactly for a malformed input (wrong length, not finite, a zero base
-//! quaternion, a bad obstacle); an `Ok` is finite (poses rigid, distances not NaN) and the
-//! answers agree with each other (the filtered collision check with the exhaustive one, the
-//! signed distance with the collision check, close pairs with the margin).
+//! quaternion, a bad obstacle: sizes and coordinates beyond `MAX_OBSTACLE_EXTENT`, a rotation
+//! that is not a unit quaternion, a zero normal); an `Ok` is finite (poses rigid, distances not
+//! NaN) and the answers agree with each other (the filtered collision check with the exhaustive
+//! one, the signed distance with the collision check, close pairs with the margin), whatever
+//! obstacles were accepted.
 
 #[path = "common/fuzz.rs"]
 mod fuzz;
@@ -11,8 +13,8 @@ mod fuzz;
 use std::sync::Arc;
 
 use fuzz::{any_f64, config, finite, rigid_and_finite};
-use genplan_core::collision::CollisionWorld;
-use genplan_core::kinematics::{KinematicModel, ModelOptions};
+use genplan_core::collision::{CollisionWorld, MAX_OBSTACLE_EXTENT};
+use genplan_core::kinematics::{KinematicModel, ModelOptions, Motion};
 use genplan_core::urdf::Urdf;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use proptest::prelude::*;
@@ -51,9 +53,11 @@ enum Obstacle {
     Halfspace { normal: [f64; 3], offset: f64 },
 }
 
-/// Mostly sane numbers, sometimes anything.
+/// Mostly sane numbers, sometimes anything, sometimes at the bound `MAX_OBSTACLE_EXTENT` or just
+/// beyond it.
 fn number(sane: std::ops::Range<f64>) -> BoxedStrategy<f64> {
-    prop_oneof![4 => sane, 1 => any_f64()].boxed()
+    let m = MAX_OBSTACLE_EXTENT;
+    prop_oneof![8 => sane, 2 => any_f64(), 1 => prop::sample::select(vec![m, -m, m * (1.0 + 1e-15), -m * (1.0 + 1e-15), m - 1.0])].boxed()
 }
 
 fn obstacle() -> BoxedStrategy<Obstacle> {
@@ -67,36 +71,27 @@ fn obstacle() -> BoxedStrategy<Obstacle> {
     .boxed()
 }
 
-impl Obstacle {
-    /// Known gaps: numbers beyond 1e150 (finding COL-3: squared norms overflow, and the narrow
-    /// phase and the distances go wrong), a half-space normal whose squared norm overflows
-    /// (finding COL-2: it normalises to zero).
-    fn in_a_gap(&self) -> bool {
-        let huge = |v: &[f64]| v.iter().any(|x| x.abs() > 1e150);
-        match self {
-            Obstacle::Box { half, center, quat } => huge(half) || huge(center) || huge(quat),
-            Obstacle::Sphere { radius, center } => huge(&[*radius]) || huge(center),
-            Obstacle::Halfspace { normal, offset } => huge(normal) || huge(&[*offset]),
-        }
-    }
-}
-
-/// Add it; Err exactly when its numbers are bad (as documented per kind).
+/// Add it; Err exactly when its numbers are bad (as documented per kind: finite, sizes positive
+/// and at most `MAX_OBSTACLE_EXTENT`, coordinates within it, a unit rotation, a normal longer
+/// than 1e-12 -- findings COL-2 and COL-3, fixed).
 fn add(w: &mut CollisionWorld, name: &str, o: &Obstacle) -> Result<(), TestCaseError> {
     let fin = |v: &[f64]| v.iter().all(|x| x.is_finite());
+    let within = |v: &[f64]| v.iter().all(|x| x.abs() <= MAX_OBSTACLE_EXTENT);
+    let size = |v: &[f64]| v.iter().all(|x| *x > 0.0 && *x <= MAX_OBSTACLE_EXTENT);
     let (result, ok) = match o {
         Obstacle::Box { half, center, quat } => {
             let q = Quaternion::new(quat[3], quat[0], quat[1], quat[2]);
             let rot = UnitQuaternion::from_quaternion(q);
             let pose = Isometry3::from_parts(Translation3::new(center[0], center[1], center[2]), rot);
             let r = rot.coords;
-            let pose_ok = fin(center) && r.iter().all(|x| x.is_finite());
-            (w.add_box(name, *half, pose), fin(half) && half.iter().all(|h| *h > 0.0) && pose_ok)
+            // a quaternion whose norm overflows or underflows does not normalise to a unit one
+            let pose_ok = fin(center) && within(center) && r.iter().all(|x| x.is_finite()) && (r.norm() - 1.0).abs() <= 1e-6;
+            (w.add_box(name, *half, pose), fin(half) && size(half) && pose_ok)
         }
-        Obstacle::Sphere { radius, center } => (w.add_sphere(name, *radius, *center), fin(center) && radius.is_finite() && *radius > 0.0),
+        Obstacle::Sphere { radius, center } => (w.add_sphere(name, *radius, *center), fin(center) && within(center) && size(&[*radius])),
         Obstacle::Halfspace { normal, offset } => {
-            let n2: f64 = normal.iter().map(|x| x * x).sum();
-            (w.add_halfspace(name, *normal, *offset), fin(normal) && offset.is_finite() && n2.sqrt() > 1e-12)
+            let norm = normal[0].hypot(normal[1]).hypot(normal[2]); // without overflow
+            (w.add_halfspace(name, *normal, *offset), fin(normal) && offset.is_finite() && within(&[*offset]) && norm > 1e-12)
         }
     };
     prop_assert_eq!(result.is_ok(), ok, "add {:?}: {:?}", o, result.err().map(|e| e.to_string()));
@@ -116,19 +111,15 @@ fn configuration(nq: usize) -> BoxedStrategy<Vec<f64>> {
 
 /// Every query on `q` (see the module doc).
 fn check_queries(w: &CollisionWorld, q: &[f64], margin: f64) -> Result<(), TestCaseError> {
-    check_queries_in(w, q, margin, false)
-}
-
-/// [`check_queries`]; `gap`: the world holds an obstacle in a known gap (only the Ok/Err pattern
-/// is checked then).
-fn check_queries_in(w: &CollisionWorld, q: &[f64], margin: f64, gap: bool) -> Result<(), TestCaseError> {
     let m = &w.model;
     let mut malformed = q.len() != m.nq || q.iter().any(|x| !x.is_finite());
     if !malformed && m.floating_base {
         malformed = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt() < 1e-9;
     }
-    // finding URDF-3: components beyond 1e150 overflow (a base quaternion's norm, translations)
-    let huge = q.iter().any(|x| x.abs() > 1e150);
+    // finding URDF-7 (open): a prismatic joint's value beyond 1e150 puts links so far away that
+    // FK's translations and the narrow phase's squared norms overflow. (A free-flyer quaternion
+    // of any finite size is normalised without overflow: URDF-3, fixed.)
+    let huge = m.joints.iter().any(|j| matches!(j.motion, Motion::Prismatic { .. }) && q.get(j.q_index).is_some_and(|x| x.abs() > 1e150));
     let mut poses = Vec::new();
     let fk = m.forward_kinematics(q, &mut poses);
     prop_assert_eq!(fk.is_err(), malformed, "FK on {:?}: {:?}", q, fk.err().map(|e| e.to_string()));
@@ -143,7 +134,7 @@ fn check_queries_in(w: &CollisionWorld, q: &[f64], margin: f64, gap: bool) -> Re
     prop_assert_eq!(d.is_err(), malformed);
     let pairs = w.close_pairs(q, margin);
     prop_assert_eq!(pairs.is_err(), malformed || !margin.is_finite());
-    if malformed || huge || gap {
+    if malformed || huge {
         return Ok(());
     }
     let (hit, exhaustive, d) = (hit.unwrap(), exhaustive.unwrap(), d.unwrap());
@@ -186,9 +177,8 @@ proptest! {
             if !w.obstacles.is_empty() {
                 prop_assert!(w.add_sphere(&w.obstacles[0].name.clone(), 0.1, [0.0; 3]).is_err(), "a second obstacle of the same name");
             }
-            let gap = obstacles.iter().any(Obstacle::in_a_gap);
             for q in &qs {
-                check_queries_in(&w, q, margin, gap)?;
+                check_queries(&w, q, margin)?;
             }
         }
     }
@@ -205,9 +195,8 @@ proptest! {
             for (i, o) in obstacles.iter().enumerate() {
                 add(&mut w, &format!("o{i}"), o)?;
             }
-            let gap = obstacles.iter().any(Obstacle::in_a_gap);
             for q in &qs {
-                check_queries_in(&w, q, margin, gap)?;
+                check_queries(&w, q, margin)?;
             }
         }
     }
@@ -223,27 +212,78 @@ fn min_distance_is_the_deepest_penetration() {
     check_queries(&w, &[0.0, -0.08423396814923613, 0.0, 0.0, 0.0], 0.0).unwrap();
 }
 
-/// COL-2: a half-space normal whose squared norm overflows (`[0, 0, 1e300]`) is normalised to
-/// the zero vector (a zero normal is refused); the world then holds a degenerate half-space:
-/// min_distance answers 0 where the plane z = 0 cuts the base box 0.05 deep (-0.05 with the
-/// normal [0, 0, 1]).
+/// COL-2 (fixed): a half-space normal whose squared norm overflows (`[0, 0, 1e300]`) was
+/// normalised to the zero vector; the world then held a degenerate half-space: min_distance
+/// answered 0 where the plane z = 0 cuts the base box 0.05 deep. Now the norm is computed on the
+/// normal scaled by its largest component: any finite normal longer than 1e-12 is normalised
+/// right, a shorter one is refused as zero.
 #[test]
-#[should_panic(expected = "the normal is not a unit vector")]
-fn finding_col_2_an_overflowing_half_space_normal_becomes_zero() {
-    let mut w = world(false);
-    w.add_halfspace("floor", [0.0, 0.0, 1e300], 0.0).expect("accepted");
-    let d = w.min_distance(&[0.0; 5]).unwrap();
-    assert!((d + 0.05).abs() < 1e-9, "the normal is not a unit vector: min_distance {d}, expected -0.05");
+fn finding_col_2_an_overflowing_half_space_normal_is_normalised() {
+    let distance_with = |normal: [f64; 3], offset: f64| {
+        let mut w = world(false);
+        w.check_self = false; // the base box and l1's cylinder touch
+        w.add_halfspace("floor", normal, offset).expect("accepted");
+        check_queries(&w, &[0.0; 5], 0.1).unwrap();
+        w.min_distance(&[0.0; 5]).unwrap()
+    };
+    for offset in [0.0, 0.02, -0.3] {
+        let unit = distance_with([0.0, 0.0, 1.0], offset);
+        for normal in [[0.0, 0.0, 1e300], [0.0, 0.0, f64::MAX], [0.0, 0.0, 2e-12], [0.0, -0.0, 7.0]] {
+            let d = distance_with(normal, offset);
+            assert!((d - unit).abs() < 1e-12, "normal {normal:?}, offset {offset}: min_distance {d}, with [0, 0, 1]: {unit}");
+        }
+    }
+    let d = distance_with([0.0, 0.0, 1e300], 0.0);
+    assert!((d + 0.05).abs() < 1e-9, "{d}");
+    // a diagonal normal of huge components: (1, 1, 1) / sqrt 3
+    let d = distance_with([f64::MAX, f64::MAX, f64::MAX], 0.0);
+    assert!((d - distance_with([1.0, 1.0, 1.0], 0.0)).abs() < 1e-12);
+    // zero, or too short to have a direction
+    for normal in [[0.0; 3], [0.0, 0.0, 1e-12], [5e-324, 0.0, 0.0], [1e-200, 1e-200, 0.0]] {
+        let e = world(false).add_halfspace("floor", normal, 0.0).unwrap_err();
+        assert_eq!(e.to_string(), "plane 'floor': the normal is zero", "{normal:?}");
+    }
 }
 
-/// COL-3: obstacles whose numbers are finite but absurd (a sphere of radius 1e200 at y = 1e300)
-/// are accepted; squared norms overflow: the exact (exhaustive) check reports a collision with a
-/// sphere 1e300 away, and min_distance answers inf for a 1 m sphere 1e200 away (pairs dropped).
+/// COL-3 (fixed): obstacles whose numbers were finite but absurd (a sphere of radius 1e200 at
+/// y = 1e300) were accepted; squared norms overflowed: the exact (exhaustive) check reported a
+/// collision with a sphere 1e300 away, and min_distance answered inf for a 1 m sphere 1e200
+/// away (pairs dropped). Now sizes and coordinates beyond `MAX_OBSTACLE_EXTENT` (1e6 m) are
+/// refused, naming the obstacle and the field.
 #[test]
-#[should_panic(expected = "the filtered check disagrees with the exhaustive one")]
-fn finding_col_3_absurd_obstacle_magnitudes_break_the_narrow_phase() {
+fn finding_col_3_absurd_obstacle_magnitudes_are_refused() {
     let mut w = world(false);
     w.check_self = false;
-    w.add_sphere("far", 2.5836478361061263e200, [0.0, 1e300, 0.0]).expect("accepted");
-    check_queries(&w, &[0.0; 5], 0.0).unwrap();
+    let refused = |r: genplan_core::Result<()>| r.unwrap_err().to_string();
+    assert_eq!(
+        refused(w.add_sphere("far", 2.5836478361061263e200, [0.0, 1e300, 0.0])),
+        "sphere 'far': radius must be positive and at most 1e6 m, got 2.5836478361061263e200"
+    );
+    assert_eq!(
+        refused(w.add_sphere("far", 1.0, [0.0, 1e200, 0.0])),
+        "sphere 'far': centre must be within 1e6 m of the origin in each coordinate, got [0.0, 1e200, 0.0]"
+    );
+    assert_eq!(
+        refused(w.add_box("slab", [1.0, 2e6, 1.0], Isometry3::identity())),
+        "box 'slab': half extents must be positive and at most 1e6 m, got [1.0, 2000000.0, 1.0]"
+    );
+    assert_eq!(
+        refused(w.add_box("slab", [1.0; 3], Isometry3::translation(0.0, 0.0, -1.5e6))),
+        "box 'slab': centre must be within 1e6 m of the origin in each coordinate, got [0.0, 0.0, -1500000.0]"
+    );
+    let not_unit = Isometry3::from_parts(Translation3::identity(), UnitQuaternion::new_unchecked(Quaternion::new(2.0, 0.0, 0.0, 0.0)));
+    assert_eq!(refused(w.add_box("slab", [1.0; 3], not_unit)), "box 'slab': the pose's rotation is not a unit quaternion (norm 2.0)");
+    assert_eq!(
+        refused(w.add_halfspace("floor", [0.0, 0.0, 1.0], -1e300)),
+        "plane 'floor': offset must be at most 1e6 m in absolute value, got -1e300"
+    );
+    assert!(w.obstacles.is_empty());
+    // at the bounds: accepted, and the answers agree (a ball whose top is 0.95 m below the base
+    // box's bottom face, at z = -0.05; a slab and a wall 1e6 m away)
+    w.add_sphere("ground", 999_999.0, [0.0, 0.0, -1e6]).unwrap();
+    w.add_box("slab", [1e6 - 2.0, 1e6, 1e6], Isometry3::translation(1e6, 0.0, 0.0)).unwrap();
+    w.add_halfspace("wall", [-f64::MAX, 0.0, 0.0], -1e6).unwrap(); // x >= 1e6
+    check_queries(&w, &[0.0; 5], 0.5).unwrap();
+    let d = w.min_distance(&[0.0; 5]).unwrap();
+    assert!((d - 0.95).abs() < 1e-6, "min_distance {d}, expected 0.95 (the ground)");
 }

@@ -1,8 +1,10 @@
 //! Property tests of the planner's settings and of plans made with them: `Settings::validate`
 //! never panics and accepts exactly the documented ranges (`step`, `max_jump`, `goal_tolerance`
-//! positive and finite; `edge_resolution` finite and >= 0; `max_increments`, `max_extensions`,
-//! `sample_batch`, `max_empty_batches` >= 1; any `retries`, flags and index), naming a bad
-//! field; `Planner::new` agrees with it; and a plan with accepted settings, from any start to any
+//! positive, finite and at most `Settings::MAX_LENGTH`; `edge_resolution` 0 or in
+//! [`MIN_EDGE_RESOLUTION`, `MAX_LENGTH`] and at least `step * max_jump / MAX_EDGE_STATES`;
+//! `max_increments`, `max_extensions`, `sample_batch`, `max_empty_batches` >= 1, `sample_batch`
+//! at most `MAX_SAMPLE_BATCH`; any `retries`, flags and index), naming a bad field;
+//! `Planner::new` agrees with it; and a plan with accepted settings, from any start to any
 //! goals, answers `Ok` or `Err`, never a panic, and a success is a path that passes its own
 //! checks (finite, from the start to the goal, every state on the manifold and valid).
 
@@ -22,18 +24,23 @@ use proptest::test_runner::TestCaseError;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 
-/// The documented range of each field: the first field out of range, or None.
+/// The documented range of each field: the fields out of range.
 fn out_of_range(s: &Settings) -> Vec<&'static str> {
-    let pos = |v: f64| v.is_finite() && v > 0.0;
+    let pos = |v: f64| v.is_finite() && v > 0.0 && v <= 1e6;
+    let er = s.edge_resolution;
+    // findings PLAN-1 (fixed): a bounded resolution, at most 2^20 states on a tree edge
+    let er_ok = er == 0.0
+        || (er.is_finite() && (1e-6..=1e6).contains(&er) && !(pos(s.step) && pos(s.max_jump) && s.step * s.max_jump / er > (1 << 20) as f64));
     let mut bad = Vec::new();
     for (field, ok) in [
         ("step", pos(s.step)),
         ("max_jump", pos(s.max_jump)),
         ("goal_tolerance", pos(s.goal_tolerance)),
-        ("edge_resolution", s.edge_resolution.is_finite() && s.edge_resolution >= 0.0),
+        ("edge_resolution", er_ok),
         ("max_increments", s.max_increments >= 1),
         ("max_extensions", s.max_extensions >= 1),
-        ("sample_batch", s.sample_batch >= 1),
+        // finding PLAN-2 (fixed): at most 2^16 samples per batch
+        ("sample_batch", (1..=1 << 16).contains(&s.sample_batch)),
         ("max_empty_batches", s.max_empty_batches >= 1),
     ] {
         if !ok {
@@ -71,25 +78,43 @@ fn settings_of(((step, max_increments, max_jump, goal_tolerance, max_extensions,
     }
 }
 
+/// Any f64, sometimes at a bound of the ranges or just beyond it.
+fn any_length() -> BoxedStrategy<f64> {
+    prop_oneof![4 => any_f64(), 1 => prop::sample::select(vec![1e6, 1e6 * (1.0 + 1e-15), 1e-6, 1e-6 * (1.0 - 1e-15), 1.0, 0.3])].boxed()
+}
+
+/// Any usize, sometimes at the bound of `sample_batch` or just beyond it.
+fn any_count() -> BoxedStrategy<usize> {
+    prop_oneof![4 => any_usize(), 1 => prop::sample::select(vec![1usize << 16, (1 << 16) + 1, 1 << 40])].boxed()
+}
+
 /// Settings with any value in every field.
 fn any_settings() -> impl Strategy<Value = Settings> {
     (
-        (any_f64(), any_usize(), any_f64(), any_f64(), any_usize(), any_usize()),
-        (any::<bool>(), any_usize(), any_f64(), any::<bool>(), any::<bool>(), neighbors(), any_usize()),
+        (any_length(), any_count(), any_length(), any_length(), any_count(), any_usize()),
+        (any::<bool>(), any_count(), any_length(), any::<bool>(), any::<bool>(), neighbors(), any_count()),
     )
         .prop_map(settings_of)
 }
 
 /// Accepted settings with a small budget (so that a plan ends quickly) and numbers of every
-/// magnitude; `edge_resolution` is 0 or at least 1e-4 (finding PLAN-1: smaller ones make a plan
-/// allocate beyond memory).
+/// magnitude the ranges allow (the smallest and largest included).
 fn small_budget_settings() -> impl Strategy<Value = Settings> {
-    let positive = || prop_oneof![finite().prop_map(f64::abs).prop_filter("positive", |x| *x > 0.0), 0.01..2.0f64];
+    let positive = || {
+        prop_oneof![
+            finite().prop_map(f64::abs).prop_filter("in range", |x| *x > 0.0 && *x <= 1e6),
+            0.01..2.0f64,
+            Just(1e6),
+            (-300.0..6.0f64).prop_map(|e| 10f64.powf(e)),
+        ]
+    };
+    let resolution = prop_oneof![Just(0.0), 1e-4..1.0f64, Just(1e-6), Just(1e6), (-6.0..6.0f64).prop_map(|e| 10f64.powf(e))];
     (
         (positive(), 1usize..8, positive(), positive(), 1usize..40, 0usize..3),
-        (any::<bool>(), 1usize..32, prop_oneof![Just(0.0), 1e-4..1.0f64, Just(1e300)], any::<bool>(), any::<bool>(), neighbors(), 1usize..4),
+        (any::<bool>(), prop_oneof![1usize..32, Just(1 << 16)], resolution, any::<bool>(), any::<bool>(), neighbors(), 1usize..4),
     )
         .prop_map(settings_of)
+        .prop_filter("accepted (edge_resolution >= step * max_jump / 2^20)", |s| s.validate().is_ok())
 }
 
 /// OMPL's sphere demo (the unit sphere in R^3, a band blocked but for a door) with `settings`,
@@ -188,25 +213,82 @@ fn the_default_settings_plan_through_the_door() {
     plan_on_the_sphere(Settings::default(), &[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], 0).unwrap();
 }
 
-/// PLAN-1: `validate` accepts any finite `edge_resolution` > 0, but validating an edge
-/// allocates (distance / edge_resolution) states: 1e-300 overflows the state count (a panic,
-/// "attempt to multiply with overflow" here, "capacity overflow" in a release build, i.e. a
-/// PanicException in Python), and 1e-9 asks for tens of GB (an abort when the allocation fails).
-/// The range should be bounded below (or the count checked) with a SettingsError.
-#[test]
-#[should_panic(expected = "overflow")]
-fn finding_plan_1_a_tiny_edge_resolution_overflows_the_edge_states() {
-    let s = Settings { edge_resolution: 1e-300, ..Settings::default() };
-    assert!(s.validate().is_ok());
-    let _ = plan_on_the_sphere(s, &[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], 0);
+/// The refusal of `s`: the field named and the message.
+fn refusal(s: &Settings) -> (&'static str, String) {
+    assert!(Planner::new(Arc::new(EuclideanSpace(3)), s.clone()).is_err(), "Planner::new accepted {s:?}");
+    match s.validate() {
+        Err(e @ PlanError::Settings { .. }) => {
+            let text = e.to_string();
+            let PlanError::Settings { field, .. } = e else { unreachable!() };
+            (field, text)
+        }
+        other => panic!("expected a settings error, got {other:?}"),
+    }
 }
 
-/// PLAN-2: `validate` accepts any `sample_batch` >= 1, but the planner allocates sample_batch x nq
-/// numbers per batch: usize::MAX overflows (a panic), and ~1e12 asks for terabytes (an abort).
+/// PLAN-1 (fixed): `validate` accepted any finite `edge_resolution` > 0, but validating an edge
+/// allocates (distance / edge_resolution) states: 1e-300 overflowed the state count (a panic,
+/// "attempt to multiply with overflow" here, "capacity overflow" in a release build, i.e. a
+/// PanicException in Python), and 1e-9 asked for tens of GB (an abort when the allocation
+/// failed). Now the resolution is 0 or in [1e-6, 1e6], and fine enough for at most 2^20 states
+/// on a tree edge (max_jump * step long), refused with a settings error naming it.
 #[test]
-#[should_panic(expected = "overflow")]
-fn finding_plan_2_a_huge_sample_batch_overflows_the_sample_buffer() {
-    let s = Settings { sample_batch: usize::MAX, ..Settings::default() };
+fn finding_plan_1_a_tiny_edge_resolution_is_refused() {
+    for er in [1e-300, 5e-324, 1e-9, 9.9e-7] {
+        let (field, msg) = refusal(&Settings { edge_resolution: er, ..Settings::default() });
+        assert_eq!(field, "edge_resolution");
+        assert_eq!(msg, format!("settings: edge_resolution must be 0 (no edge validation) or at least 1e-6, got {er:?}"));
+    }
+    for er in [1.000001e6, 1e300, f64::MAX] {
+        let (field, msg) = refusal(&Settings { edge_resolution: er, ..Settings::default() });
+        assert_eq!(field, "edge_resolution");
+        assert_eq!(msg, format!("settings: edge_resolution must be at most 1e6, got {er:?}"));
+    }
+    for er in [-1e-3, f64::NAN, f64::INFINITY] {
+        let (field, msg) = refusal(&Settings { edge_resolution: er, ..Settings::default() });
+        assert_eq!(field, "edge_resolution");
+        assert_eq!(msg, format!("settings: edge_resolution must be >= 0, got {er}"));
+    }
+    // the smallest resolution with the default step and jump: 900000 states on the longest edge
+    let s = Settings { edge_resolution: 1e-6, ..Settings::default() };
     assert!(s.validate().is_ok());
-    let _ = plan_on_the_sphere(s, &[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], 0);
+    // ... but not with longer steps: 3e6 states
+    let (field, msg) = refusal(&Settings { step: 1.0, ..s.clone() });
+    assert_eq!(field, "edge_resolution");
+    assert_eq!(
+        msg,
+        "settings: edge_resolution must be at least step * max_jump / 1048576 = 2.86102294921875e-6 \
+         (at most 1048576 states on a tree edge of up to step * max_jump = 3.0 long), got 1e-6"
+    );
+    // the plan of the finding now answers (0 disables edge validation, as before)
+    plan_on_the_sphere(Settings { edge_resolution: 0.0, ..Settings::default() }, &[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], 0).unwrap();
+}
+
+/// The lengths are bounded too (their products, `step * max_jump`, stay finite).
+#[test]
+fn huge_lengths_are_refused() {
+    for (field, s) in [
+        ("step", Settings { step: 1e300, ..Settings::default() }),
+        ("max_jump", Settings { max_jump: f64::MAX, ..Settings::default() }),
+        ("goal_tolerance", Settings { goal_tolerance: 1.000001e6, ..Settings::default() }),
+    ] {
+        let (f, msg) = refusal(&s);
+        assert_eq!(f, field);
+        assert!(msg.starts_with(&format!("settings: {field} must be at most 1e6, got ")), "{msg}");
+    }
+}
+
+/// PLAN-2 (fixed): `validate` accepted any `sample_batch` >= 1, but the planner allocates
+/// sample_batch x nq numbers per batch: usize::MAX overflowed (a panic), and 2^40 asked for
+/// terabytes (an abort). Now sample_batch is at most 2^16, refused with a settings error.
+#[test]
+fn finding_plan_2_a_huge_sample_batch_is_refused() {
+    for n in [usize::MAX, 1 << 40, (1 << 16) + 1] {
+        let (field, msg) = refusal(&Settings { sample_batch: n, ..Settings::default() });
+        assert_eq!(field, "sample_batch");
+        assert_eq!(msg, format!("settings: sample_batch must be in [1, 65536], got {n}"));
+    }
+    let s = Settings { sample_batch: 1 << 16, max_extensions: 3, ..Settings::default() };
+    assert!(s.validate().is_ok());
+    plan_on_the_sphere(s, &[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], 0).unwrap();
 }

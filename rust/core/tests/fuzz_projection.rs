@@ -1,9 +1,10 @@
 //! Property tests of the projector's settings and solves: `Settings::validate` never panics and
-//! accepts exactly the documented ranges (`mu`, `mu_bar`, `secondary_slack` finite and >= 0;
-//! `armijo_c1`, `backtrack` in (0, 1); any counts and flag), naming a bad field; a projector
-//! built with accepted settings and terms solves from any configuration with `Ok` or `Err`,
-//! never a panic, and an `Ok` is finite, within the limits when clipping, and a success meets
-//! every tolerance.
+//! accepts exactly the documented ranges (`mu`, `mu_bar`, `secondary_slack` in [0, 1e6];
+//! `armijo_c1`, `backtrack` in (0, 1); any counts and flag), naming a bad field; a projector is
+//! built exactly when its settings and terms are in range (weights and tolerances in (0, 1e6],
+//! targets and masks finite and within 1e6, margins in [0, 1e6]); it solves from any
+//! configuration with `Ok` or `Err`, never a panic, and an `Ok` is finite, within the limits
+//! when clipping, and a success meets every tolerance.
 
 #[path = "common/fuzz.rs"]
 mod fuzz;
@@ -12,7 +13,7 @@ use std::sync::Arc;
 
 use fuzz::{any_f64, any_usize, config};
 use genplan_core::kinematics::{KinematicModel, ModelOptions};
-use genplan_core::projection::{Projector, Settings, Term, TermKind};
+use genplan_core::projection::{Projector, Settings, Term, TermKind, MAX_MAGNITUDE};
 use genplan_core::urdf::Urdf;
 use genplan_core::Error;
 use nalgebra::Vector3;
@@ -34,7 +35,7 @@ fn model() -> Arc<KinematicModel> {
 
 /// The documented range of each field: the fields out of range.
 fn out_of_range(s: &Settings) -> Vec<&'static str> {
-    let nonneg = |v: f64| v.is_finite() && v >= 0.0;
+    let nonneg = |v: f64| v.is_finite() && (0.0..=1e6).contains(&v);
     let unit = |v: f64| v > 0.0 && v < 1.0;
     [
         ("mu", nonneg(s.mu)),
@@ -109,6 +110,20 @@ fn check_solve(p: &Projector, q: &[f64], q_nom: Option<&[f64]>) -> Result<(), Te
     Ok(())
 }
 
+/// The documented ranges of the terms' numbers ([`terms`]): weights and tolerances in (0, 1e6],
+/// targets and masks finite and at most 1e6 in absolute value, the margin in [0, 1e6].
+fn terms_in_range(w: [f64; 3], tol: [f64; 2], target: [f64; 3], mask: [f64; 3], margin: f64) -> bool {
+    let positive = |x: &f64| x.is_finite() && *x > 0.0 && *x <= 1e6;
+    let bounded = |x: &f64| x.is_finite() && x.abs() <= 1e6;
+    w.iter().chain(&tol).all(positive) && target.iter().chain(&mask).all(bounded) && bounded(&margin) && margin >= 0.0
+}
+
+/// At the bound on a term's numbers, or just beyond it.
+fn bounds() -> impl Strategy<Value = f64> + Clone {
+    let m = MAX_MAGNITUDE;
+    prop::sample::select(vec![m, -m, m * (1.0 + 1e-15), -m * (1.0 + 1e-15)])
+}
+
 fn config_vector() -> impl Strategy<Value = Vec<f64>> {
     prop_oneof![
         4 => (-3.0..3.0f64, -0.5..0.5f64, -3.2..3.2f64).prop_map(|(a, b, c)| vec![a, b, c.cos(), c.sin()]),
@@ -136,51 +151,112 @@ proptest! {
     #[test]
     fn solves_answer(
         s in settings(0usize..30, prop_oneof![0.01..0.99f64, any_f64()]),
-        w in proptest::array::uniform3(prop_oneof![3 => 0.1..50.0f64, 1 => any_f64()]),
-        tol in proptest::array::uniform2(prop_oneof![3 => 1e-6..1e-2f64, 1 => any_f64()]),
-        target in proptest::array::uniform3(prop_oneof![3 => -1.0..1.0f64, 1 => any_f64()]),
-        mask in proptest::array::uniform3(prop_oneof![Just(1.0), Just(0.0), any_f64()]),
-        margin in prop_oneof![Just(1e-3), any_f64()],
+        w in proptest::array::uniform3(prop_oneof![6 => 0.1..50.0f64, 2 => any_f64(), 1 => bounds()]),
+        tol in proptest::array::uniform2(prop_oneof![6 => 1e-6..1e-2f64, 2 => any_f64(), 1 => bounds()]),
+        target in proptest::array::uniform3(prop_oneof![6 => -1.0..1.0f64, 2 => any_f64(), 1 => bounds()]),
+        mask in proptest::array::uniform3(prop_oneof![Just(1.0), Just(0.0), any_f64(), bounds()]),
+        margin in prop_oneof![Just(1e-3), any_f64(), bounds()],
         q in config_vector(),
         q_nom in proptest::option::of(config_vector()),
     ) {
         let (primary, secondary) = terms(w, tol, target, mask, margin);
-        let terms_ok = w.iter().chain(&tol).all(|x| x.is_finite() && *x > 0.0);
-        let finite_data = target.iter().chain(&mask).chain([&margin]).all(|x| x.is_finite());
-        // finding PROJ-1: targets, masks and margins are not checked; absurd ones give NaN answers
-        let sane_data = target.iter().chain(&mask).chain([&margin]).all(|x| x.abs() <= 1e100);
+        // finding PROJ-1 (fixed): every number of a term is checked
+        let terms_ok = terms_in_range(w, tol, target, mask, margin);
         match Projector::new(model(), primary, secondary, s.clone()) {
-            Err(e) => prop_assert!(!(out_of_range(&s).is_empty() && terms_ok && finite_data), "refused valid settings and terms: {}", e),
+            Err(e) => prop_assert!(!(out_of_range(&s).is_empty() && terms_ok), "refused valid settings and terms: {}", e),
             Ok(p) => {
                 prop_assert!(out_of_range(&s).is_empty() && terms_ok, "accepted bad settings or terms");
-                if sane_data {
-                    check_solve(&p, &q, q_nom.as_deref())?;
-                } else {
-                    let _ = p.solve(&q, q_nom.as_deref()); // answers, whatever it says
-                }
+                check_solve(&p, &q, q_nom.as_deref())?;
             }
         }
     }
 }
 
-/// PROJ-1: a term's target, mask or margin may be NaN, inf or absurd: `Projector::new` checks
-/// weights and tolerances but not these (`Projector::retargeted` does check its target).
-#[test]
-#[should_panic(expected = "accepted a non-finite target")]
-fn finding_proj_1_a_non_finite_target_is_accepted() {
-    let (primary, secondary) = terms([1.0; 3], [1e-3; 2], [f64::NAN, 0.0, 0.5], [1.0; 3], 1e-3);
-    if Projector::new(model(), primary, secondary, Settings::default()).is_ok() {
-        panic!("Projector::new accepted a non-finite target");
+/// The error of building the projector of [`terms`] with these numbers (default settings).
+fn refusal(w: [f64; 3], tol: [f64; 2], target: [f64; 3], mask: [f64; 3], margin: f64) -> String {
+    let (primary, secondary) = terms(w, tol, target, mask, margin);
+    match Projector::new(model(), primary, secondary, Settings::default()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("accepted w {w:?}, tol {tol:?}, target {target:?}, mask {mask:?}, margin {margin}"),
     }
 }
 
-/// PROJ-1: ... and a huge but finite mask (f64::MAX) overflows: the solve answers Ok with an
-/// all-NaN q (found by `solves_answer`, shrunk).
+/// PROJ-1 (fixed): a term's target, mask or margin could be NaN, inf or absurd: `Projector::new`
+/// checked weights and tolerances but not these. Now every number of a term is finite and at
+/// most `MAX_MAGNITUDE` (1e6) in absolute value, refused naming the term and the field.
 #[test]
-#[should_panic(expected = "non-finite answer [NaN, NaN, NaN, NaN]")]
-fn finding_proj_1_a_huge_mask_gives_a_nan_answer() {
-    let (primary, secondary) = terms([0.1; 3], [1e-6; 2], [0.0, 0.0, -0.35], [1.0, 1.0, f64::MAX], 1e-3);
+fn finding_proj_1_a_non_finite_target_is_refused() {
+    let ok = ([1.0; 3], [1e-3; 2], [0.0, 0.0, 0.5], [1.0; 3], 1e-3);
+    assert!(terms_in_range(ok.0, ok.1, ok.2, ok.3, ok.4));
+    let (primary, secondary) = terms(ok.0, ok.1, ok.2, ok.3, ok.4);
+    assert!(Projector::new(model(), primary, secondary, Settings::default()).is_ok());
+    assert_eq!(refusal(ok.0, ok.1, [f64::NAN, 0.0, 0.5], ok.3, ok.4), "term 'tool' target: element 0 is not finite (NaN)");
+    assert_eq!(refusal(ok.0, ok.1, [0.0, f64::INFINITY, 0.5], ok.3, ok.4), "term 'tool' target: element 1 is not finite (inf)");
+    assert_eq!(
+        refusal(ok.0, ok.1, [0.0, 0.0, 1.7976931348623157e308], ok.3, ok.4),
+        "term 'tool': target element 2 is 1.7976931348623157e308, beyond the bound 1e6 on a term's numbers"
+    );
+    assert_eq!(refusal(ok.0, ok.1, ok.2, [1.0, f64::NEG_INFINITY, 1.0], ok.4), "term 'tool' mask: element 1 is not finite (-inf)");
+    assert_eq!(refusal(ok.0, ok.1, ok.2, ok.3, f64::NAN), "term 'limits': margin must be in [0, 1e6], got NaN");
+    assert_eq!(refusal(ok.0, ok.1, ok.2, ok.3, -1e-3), "term 'limits': margin must be in [0, 1e6], got -0.001");
+    assert_eq!(refusal(ok.0, ok.1, ok.2, ok.3, 1e300), "term 'limits': margin must be in [0, 1e6], got 1e300");
+    assert_eq!(refusal([1.0, 1e7, 1.0], ok.1, ok.2, ok.3, ok.4), "term 'limits': weight must be in (0, 1e6], got 10000000.0");
+    assert_eq!(refusal(ok.0, [1e-3, 1e300], ok.2, ok.3, ok.4), "term 'limits': tolerance must be in (0, 1e6], got 1e300");
+    assert_eq!(refusal([1.0, 1.0, -2.0], ok.1, ok.2, ok.3, ok.4), "term 'posture': weight must be in (0, 1e6], got -2.0");
+    // the bounds themselves are accepted
+    let (primary, secondary) = terms([MAX_MAGNITUDE; 3], [MAX_MAGNITUDE; 2], [-MAX_MAGNITUDE; 3], [MAX_MAGNITUDE; 3], MAX_MAGNITUDE);
+    let p = Projector::new(model(), primary, secondary, Settings::default()).unwrap();
+    check_solve(&p, &[0.0, 0.0, 1.0, 0.0], None).unwrap();
+}
+
+/// PROJ-1 (fixed): ... and a huge but finite mask (f64::MAX) overflowed: the solve answered Ok
+/// with an all-NaN q (found by `solves_answer`, shrunk). Now the mask is refused; and the solver
+/// never answers a non-finite q (it stops at the last finite iterate, unsuccessful).
+#[test]
+fn finding_proj_1_a_huge_mask_is_refused() {
+    assert_eq!(
+        refusal([0.1; 3], [1e-6; 2], [0.0, 0.0, -0.35], [1.0, 1.0, f64::MAX], 1e-3),
+        "term 'tool': mask element 2 is 1.7976931348623157e308, beyond the bound 1e6 on a term's numbers"
+    );
+    // the largest mask, with the finding's settings: a finite answer
+    let (primary, secondary) = terms([0.1; 3], [1e-6; 2], [0.0, 0.0, -0.35], [1.0, 1.0, MAX_MAGNITUDE], 1e-3);
     let s = Settings { max_iterations: 1, max_backtracks: 1, clip_to_limits: false, ..Settings::default() };
     let p = Projector::new(model(), primary, secondary, s).expect("accepted");
     check_solve(&p, &[0.0, 0.0, 1.0, 0.0], None).unwrap();
+    // a start whose arithmetic overflows (a prismatic joint at 1e300, not clipped): the solve
+    // stops at once, unsuccessful, with the (finite) start and infinite residuals where the
+    // arithmetic overflowed
+    let (primary, secondary) = terms([1.0; 3], [1e-3; 2], [0.0, 0.0, 0.5], [1.0; 3], 1e-3);
+    let s = Settings { clip_to_limits: false, ..Settings::default() };
+    let p = Projector::new(model(), primary, secondary, s).unwrap();
+    for q0 in [[0.0, 1e300, 1.0, 0.0], [0.0, f64::MAX, 1.0, 0.0], [1e300, -1e300, 1e300, -1e300]] {
+        let out = p.solve(&q0, None).unwrap();
+        assert!(out.q.iter().all(|x| x.is_finite()) && !out.success, "{q0:?}: {out:?}");
+        assert!(out.residuals.iter().all(|r| !r.is_nan()), "{q0:?}: {out:?}");
+        check_solve(&p, &q0, None).unwrap();
+    }
+    // a start and a nominal posture so far apart that a step overflows to NaN (this answered an
+    // all-NaN q before the solver checked its iterates)
+    let (primary, secondary) = terms([1e6, 1.0, 1e6], [1e-3; 2], [1e6, 0.0, 0.5], [1e6, 1.0, 1.0], 0.0);
+    let s = Settings { clip_to_limits: false, mu: 1e6, mu_bar: 0.0, ..Settings::default() };
+    let p = Projector::new(model(), primary, secondary, s).unwrap();
+    let (q0, q_nom) = ([0.0, 1e150, 0.0, 1e150], [-1e300, 1e300, -1e300, 1e300]);
+    let out = p.solve(&q0, Some(&q_nom)).unwrap();
+    assert!(out.q.iter().all(|x| x.is_finite()) && !out.success, "{out:?}");
+    check_solve(&p, &q0, Some(&q_nom)).unwrap();
+}
+
+/// PROJ-1 (fixed), the bindings' `solve_batch(targets=...)`: each row's target goes through
+/// `Projector::retargeted`, which checks it like `new` (1.8e308 gave an all-NaN answer).
+#[test]
+fn finding_proj_1_a_huge_target_row_is_refused() {
+    let (primary, secondary) = terms([1.0; 3], [1e-3; 2], [0.0, 0.0, 0.5], [1.0; 3], 1e-3);
+    let p = Projector::new(model(), primary, secondary, Settings::default()).unwrap();
+    let e = p.retargeted(0, &[1.7976931348623157e308; 3]).unwrap_err();
+    assert!(matches!(e, Error::Invalid(_)));
+    assert_eq!(e.to_string(), "term 'tool': target element 0 is 1.7976931348623157e308, beyond the bound 1e6 on a term's numbers");
+    assert!(matches!(p.retargeted(0, &[0.0, f64::NAN, 0.0]), Err(Error::NonFinite { .. })));
+    let far = p.retargeted(0, &[1e6, -1e6, 1e6]).unwrap();
+    let out = far.solve(&[0.0, 0.0, 1.0, 0.0], None).unwrap();
+    assert!(out.q.iter().all(|x| x.is_finite()) && !out.success);
 }

@@ -18,6 +18,19 @@ use crate::kinematics::KinematicModel;
 use crate::srdf::Srdf;
 use crate::urdf::Urdf;
 
+/// The largest size of an obstacle (a box's half extent, a sphere's radius) and the largest
+/// absolute coordinate of its position (a box's or sphere's centre, a half-space's offset): 1e6 m.
+/// Beyond it the narrow phase's squared norms lose every digit of a robot-sized distance (and
+/// overflow past ~1e154).
+pub const MAX_OBSTACLE_EXTENT: f64 = 1e6;
+
+/// A half-space normal no longer than this (computed without overflow or underflow) is refused
+/// as zero.
+pub const MIN_NORMAL_NORM: f64 = 1e-12;
+
+/// How far the rotation of an obstacle's pose may be from a unit quaternion (| |q| - 1 |).
+pub const QUATERNION_TOLERANCE: f64 = 1e-6;
+
 /// An environment obstacle, fixed in the world.
 #[derive(Clone)]
 pub struct Obstacle {
@@ -104,24 +117,33 @@ impl CollisionWorld {
         Ok(())
     }
 
-    /// Add a box with the given half extents at `pose`.
+    /// Add a box with the given half extents at `pose`: the half extents positive, finite and at
+    /// most [`MAX_OBSTACLE_EXTENT`], the centre finite and within [`MAX_OBSTACLE_EXTENT`] of the
+    /// origin in each coordinate, the rotation a unit quaternion (within
+    /// [`QUATERNION_TOLERANCE`]).
     pub fn add_box(&mut self, name: &str, half_extents: [f64; 3], pose: Isometry3<f64>) -> Result<()> {
-        check_finite(&format!("box '{name}' half extents"), &half_extents)?;
-        if half_extents.iter().any(|&h| h <= 0.0) {
+        let what = format!("box '{name}'");
+        check_finite(&format!("{what} half extents"), &half_extents)?;
+        if half_extents.iter().any(|&h| !(h > 0.0 && h <= MAX_OBSTACLE_EXTENT)) {
             return Err(Error::Invalid(format!(
-                "box '{name}': half extents must be positive, got {half_extents:?}"
+                "{what}: half extents must be positive and at most {MAX_OBSTACLE_EXTENT:e} m, got {half_extents:?}"
             )));
         }
-        check_isometry(name, &pose)?;
+        check_isometry(&what, &pose)?;
         self.add_obstacle(name, pose, SharedShape::new(Cuboid::new(Vector3::from(half_extents))))
     }
 
-    /// Add a sphere.
+    /// Add a sphere: the radius positive, finite and at most [`MAX_OBSTACLE_EXTENT`], the centre
+    /// finite and within [`MAX_OBSTACLE_EXTENT`] of the origin in each coordinate.
     pub fn add_sphere(&mut self, name: &str, radius: f64, center: [f64; 3]) -> Result<()> {
-        check_vector(&format!("sphere '{name}' centre"), &center, 3)?;
-        if !(radius > 0.0 && radius.is_finite()) {
-            return Err(Error::Invalid(format!("sphere '{name}': radius must be positive, got {radius}")));
+        let what = format!("sphere '{name}'");
+        check_vector(&format!("{what} centre"), &center, 3)?;
+        if !(radius > 0.0 && radius <= MAX_OBSTACLE_EXTENT) {
+            return Err(Error::Invalid(format!(
+                "{what}: radius must be positive and at most {MAX_OBSTACLE_EXTENT:e} m, got {radius:?}"
+            )));
         }
+        check_position(&what, "centre", &center)?;
         self.add_obstacle(
             name,
             Isometry3::translation(center[0], center[1], center[2]),
@@ -129,13 +151,20 @@ impl CollisionWorld {
         )
     }
 
-    /// Add the half-space {x : n.x <= offset} (everything below the plane n.x = offset).
+    /// Add the half-space {x : n.x <= offset} (everything below the plane n.x = offset), `n`
+    /// the unit vector along `normal`: `normal` finite and not zero (its norm, computed without
+    /// overflow, above [`MIN_NORMAL_NORM`]; any larger finite length is fine), `offset`
+    /// finite and at most [`MAX_OBSTACLE_EXTENT`] in absolute value.
     pub fn add_halfspace(&mut self, name: &str, normal: [f64; 3], offset: f64) -> Result<()> {
-        check_finite(&format!("plane '{name}' normal"), &normal)?;
-        check_finite(&format!("plane '{name}' offset"), &[offset])?;
-        let n = nalgebra::Unit::try_new(Vector3::from(normal), 1e-12).ok_or_else(|| {
-            Error::Invalid(format!("plane '{name}': the normal is zero"))
-        })?;
+        let what = format!("plane '{name}'");
+        check_finite(&format!("{what} normal"), &normal)?;
+        check_finite(&format!("{what} offset"), &[offset])?;
+        if offset.abs() > MAX_OBSTACLE_EXTENT {
+            return Err(Error::Invalid(format!(
+                "{what}: offset must be at most {MAX_OBSTACLE_EXTENT:e} m in absolute value, got {offset:?}"
+            )));
+        }
+        let n = unit_normal(&normal).ok_or_else(|| Error::Invalid(format!("{what}: the normal is zero")))?;
         let pose = Isometry3::translation(n.x * offset, n.y * offset, n.z * offset);
         self.add_obstacle(name, pose, SharedShape::new(HalfSpace::new(n)))
     }
@@ -318,11 +347,44 @@ pub struct Scratch {
     pub(super) obbs: Vec<Obb>,
 }
 
-fn check_isometry(name: &str, pose: &Isometry3<f64>) -> Result<()> {
+/// An obstacle's pose: finite, its translation within [`MAX_OBSTACLE_EXTENT`] of the origin in
+/// each coordinate, its rotation a unit quaternion. `what`: the obstacle ("box 'crate'").
+fn check_isometry(what: &str, pose: &Isometry3<f64>) -> Result<()> {
     let t = pose.translation.vector;
     let r = pose.rotation.coords;
-    check_finite(
-        &format!("obstacle '{name}' pose"),
-        &[t.x, t.y, t.z, r.x, r.y, r.z, r.w],
-    )
+    check_finite(&format!("{what} pose"), &[t.x, t.y, t.z, r.x, r.y, r.z, r.w])?;
+    check_position(what, "centre", &[t.x, t.y, t.z])?;
+    // |q| without overflow: the components of a finite quaternion far from unit may be huge
+    let m = r.amax();
+    let norm = if m > 0.0 { m * (r / m).norm() } else { 0.0 };
+    if (norm - 1.0).abs() > QUATERNION_TOLERANCE {
+        return Err(Error::Invalid(format!("{what}: the pose's rotation is not a unit quaternion (norm {norm:?})")));
+    }
+    Ok(())
+}
+
+/// Each coordinate of a finite position within [`MAX_OBSTACLE_EXTENT`] of the origin.
+fn check_position(what: &str, field: &str, p: &[f64; 3]) -> Result<()> {
+    if p.iter().any(|x| x.abs() > MAX_OBSTACLE_EXTENT) {
+        return Err(Error::Invalid(format!(
+            "{what}: {field} must be within {MAX_OBSTACLE_EXTENT:e} m of the origin in each coordinate, got {p:?}"
+        )));
+    }
+    Ok(())
+}
+
+/// The unit vector along a finite `v`, or None when its norm is at most [`MIN_NORMAL_NORM`]. The
+/// norm is computed on `v` scaled by its largest absolute component (in [1, sqrt 3] then), so
+/// that it neither overflows (components up to f64::MAX) nor underflows.
+fn unit_normal(v: &[f64; 3]) -> Option<nalgebra::Unit<Vector3<f64>>> {
+    let m = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if m == 0.0 {
+        return None;
+    }
+    let scaled = Vector3::from(*v) / m;
+    let n = scaled.norm();
+    if m * n <= MIN_NORMAL_NORM {
+        return None;
+    }
+    Some(nalgebra::Unit::new_unchecked(scaled / n))
 }

@@ -13,16 +13,29 @@ pub const MAX_SPACING: f64 = 1.25;
 
 /// Planner settings. Defaults: the GAN paper's public code (the values marked "Paper" below),
 /// plus edge validation at 0.025 rad.
+///
+/// The ranges [`validate`](Settings::validate) accepts are closed: every length is at most
+/// [`MAX_LENGTH`](Settings::MAX_LENGTH), a sample batch at most
+/// [`MAX_SAMPLE_BATCH`](Settings::MAX_SAMPLE_BATCH) configurations, and the edge resolution is
+/// 0 or at least [`MIN_EDGE_RESOLUTION`](Settings::MIN_EDGE_RESOLUTION) and fine enough for at
+/// most [`MAX_EDGE_STATES`](Settings::MAX_EDGE_STATES) states on a tree edge: no buffer the
+/// planner allocates and no count it computes can overflow or exhaust memory at once.
+/// (`max_increments`, `max_extensions`, `max_empty_batches` and `retries` are budgets of loops
+/// that allocate nothing up front, and a plan checks for an interrupt at every iteration: any
+/// count >= 1, or >= 0 for `retries`, is accepted.)
 #[derive(Debug, Clone)]
 pub struct Settings {
-    /// Length of one extension step (tangent norm, rad for joint spaces). Paper: 0.3.
+    /// Length of one extension step (tangent norm, rad for joint spaces), in (0, 1e6].
+    /// Paper: 0.3.
     pub step: f64,
     /// Steps per extension (ConstrainedExtend) at most. Paper: 10.
     pub max_increments: usize,
     /// An extension stops when a projected state lands farther than this many steps from the
-    /// previous one (the projection jumped to another branch of the manifold). Paper: 3.
+    /// previous one (the projection jumped to another branch of the manifold), in (0, 1e6].
+    /// Paper: 3.
     pub max_jump: f64,
-    /// A goal is reached when the tree gets within this distance of it. Paper: 1e-3.
+    /// A goal is reached when the tree gets within this distance of it, in (0, 1e6].
+    /// Paper: 1e-3.
     pub goal_tolerance: f64,
     /// Iterations (sample + extension + extension to the goal) per attempt. Paper: 500.
     pub max_extensions: usize,
@@ -30,10 +43,14 @@ pub struct Settings {
     pub retries: usize,
     /// Project each sample onto the manifold before extending towards it (as the authors' code).
     pub project_samples: bool,
-    /// Samples requested from the sampler per call.
+    /// Samples requested from the sampler per call, from 1 to 65536
+    /// ([`MAX_SAMPLE_BATCH`](Settings::MAX_SAMPLE_BATCH)).
     pub sample_batch: usize,
     /// Spacing of the projected, checked states along each tree edge; 0 disables edge
-    /// validation (then only the tree nodes are checked, as in the paper).
+    /// validation (then only the tree nodes are checked, as in the paper). Otherwise between
+    /// 1e-6 and 1e6 inclusive, and at least `step * max_jump / 2^20` (a tree edge, at most
+    /// `max_jump * step` long, then holds at most
+    /// [`MAX_EDGE_STATES`](Settings::MAX_EDGE_STATES) states).
     pub edge_resolution: f64,
     /// Validate edges lazily: only those of a path that reaches a goal (a failing edge prunes its
     /// subtree and the search goes on). Otherwise every edge is validated as it is added.
@@ -68,25 +85,81 @@ impl Default for Settings {
 }
 
 impl Settings {
-    /// Check every value ([`PlanError::Settings`] names the first bad one).
+    /// The largest `step`, `goal_tolerance` and `edge_resolution` (tangent norms: rad for joint
+    /// spaces), and the largest `max_jump` (in steps): 1e6. Products of two of them stay finite.
+    pub const MAX_LENGTH: f64 = 1e6;
+    /// The smallest non-zero `edge_resolution`: 1e-6 (rad for joint spaces).
+    pub const MIN_EDGE_RESOLUTION: f64 = 1e-6;
+    /// The most states validated on one edge: 2^20 (= 1048576). A tree edge is at most
+    /// `max_jump * step` long, so `edge_resolution` must be at least `step * max_jump / 2^20`;
+    /// a longer edge (a shortcut) that would need more states is not taken.
+    pub const MAX_EDGE_STATES: usize = 1 << 20;
+    /// The largest `sample_batch`: 65536 configurations per sampler call (the planner holds
+    /// two buffers of `sample_batch x nq` numbers).
+    pub const MAX_SAMPLE_BATCH: usize = 1 << 16;
+
+    /// Check every value ([`PlanError::Settings`] names the first bad one, its value and the
+    /// bound it breaks):
+    ///
+    /// * `step`, `max_jump`, `goal_tolerance`: positive, finite, at most
+    ///   [`MAX_LENGTH`](Self::MAX_LENGTH);
+    /// * `edge_resolution`: 0, or between [`MIN_EDGE_RESOLUTION`](Self::MIN_EDGE_RESOLUTION)
+    ///   and [`MAX_LENGTH`](Self::MAX_LENGTH) inclusive and at least `step * max_jump /`
+    ///   [`MAX_EDGE_STATES`](Self::MAX_EDGE_STATES);
+    /// * `max_increments`, `max_extensions`, `sample_batch`, `max_empty_batches`: at least 1;
+    ///   `sample_batch` at most [`MAX_SAMPLE_BATCH`](Self::MAX_SAMPLE_BATCH);
+    /// * `retries`, the flags and `neighbors`: any value.
     pub fn validate(&self) -> PlanResult<()> {
         let bad = |field: &'static str, msg: String| Err(PlanError::Settings { field, msg });
-        let pos = |field: &'static str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
+        let max = Self::MAX_LENGTH;
+        let length = |field: &'static str, v: f64| {
+            if !(v.is_finite() && v > 0.0) {
                 bad(field, format!("{field} must be positive and finite, got {v}"))
+            } else if v > max {
+                bad(field, format!("{field} must be at most {max:e}, got {v:?}"))
+            } else {
+                Ok(())
             }
         };
-        pos("step", self.step)?;
-        pos("max_jump", self.max_jump)?;
-        pos("goal_tolerance", self.goal_tolerance)?;
-        if !(self.edge_resolution.is_finite() && self.edge_resolution >= 0.0) {
-            return bad("edge_resolution", format!("edge_resolution must be >= 0, got {}", self.edge_resolution));
+        length("step", self.step)?;
+        length("max_jump", self.max_jump)?;
+        length("goal_tolerance", self.goal_tolerance)?;
+        let (er, min_er) = (self.edge_resolution, Self::MIN_EDGE_RESOLUTION);
+        if !(er.is_finite() && er >= 0.0) {
+            return bad("edge_resolution", format!("edge_resolution must be >= 0, got {er}"));
+        }
+        if er > 0.0 && er < min_er {
+            return bad(
+                "edge_resolution",
+                format!("edge_resolution must be 0 (no edge validation) or at least {min_er:e}, got {er:?}"),
+            );
+        }
+        if er > max {
+            return bad("edge_resolution", format!("edge_resolution must be at most {max:e}, got {er:?}"));
+        }
+        // a tree edge is at most max_jump * step long (Run::extend): its state count is bounded
+        let longest = self.step * self.max_jump;
+        if er > 0.0 && longest / er > Self::MAX_EDGE_STATES as f64 {
+            return bad(
+                "edge_resolution",
+                format!(
+                    "edge_resolution must be at least step * max_jump / {} = {:e} (at most {} states on a tree edge of up to step * max_jump = {:?} long), got {er:?}",
+                    Self::MAX_EDGE_STATES,
+                    longest / Self::MAX_EDGE_STATES as f64,
+                    Self::MAX_EDGE_STATES,
+                    longest
+                ),
+            );
         }
         let counts = [("max_increments", self.max_increments), ("max_extensions", self.max_extensions), ("sample_batch", self.sample_batch), ("max_empty_batches", self.max_empty_batches)];
         if let Some(&(field, _)) = counts.iter().find(|&&(_, n)| n == 0) {
             return bad(field, "max_increments, max_extensions, sample_batch and max_empty_batches must be >= 1".into());
+        }
+        if self.sample_batch > Self::MAX_SAMPLE_BATCH {
+            return bad(
+                "sample_batch",
+                format!("sample_batch must be in [1, {}], got {}", Self::MAX_SAMPLE_BATCH, self.sample_batch),
+            );
         }
         Ok(())
     }
@@ -674,13 +747,20 @@ impl Run<'_, '_> {
     /// Check the edge from `a` to `b` (and `b` itself when `check_end`): interpolate at
     /// `edge_resolution`, project each intermediate state (posture around its interpolation),
     /// check every state. Returns the projected intermediate states (rows), or None when the edge
-    /// is not valid.
+    /// is not valid (or would need more than [`Settings::MAX_EDGE_STATES`] states: only a
+    /// shortcut can, never a tree edge).
     fn validate_edge(&mut self, a: &[f64], b: &[f64], check_end: bool) -> PlanResult<Option<Vec<f64>>> {
         let space = self.space;
         let nq = space.nq();
         let dist = space.distance(a, b);
         let n_mid = if self.st.edge_resolution > 0.0 {
-            ((dist / self.st.edge_resolution).ceil() as usize).saturating_sub(1)
+            // intervals at the resolution; a tree edge needs at most Settings::MAX_EDGE_STATES
+            // (Settings::validate), a longer edge (a shortcut) that needs more is not taken
+            let intervals = (dist / self.st.edge_resolution).ceil();
+            if intervals.is_nan() || intervals > Settings::MAX_EDGE_STATES as f64 {
+                return Ok(None);
+            }
+            (intervals as usize).saturating_sub(1)
         } else {
             0
         };
@@ -743,6 +823,49 @@ mod tests {
         assert!(internal(&[0.0, 0.0, 0.9, 0.0]).ends_with("it ends 0.100 from the goal (goal_tolerance 0.001)"));
         assert!(internal(&[0.0, 0.0, f64::NAN, 0.0]).ends_with("not whole rows of finite numbers"));
         assert!(internal(&[]).ends_with("not whole rows of finite numbers"));
+    }
+
+    /// The identity projector (R^n is its own manifold).
+    struct Identity;
+
+    impl crate::planning::Projector for Identity {
+        fn project(&mut self, qs: &[f64], _q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+            out.copy_from_slice(qs);
+            reports.fill(Projection { success: true, iterations: 0 });
+            Ok(())
+        }
+    }
+
+    /// Never called.
+    struct NoSampler;
+
+    impl crate::planning::Sampler for NoSampler {
+        fn sample(&mut self, _n: usize, _out: &mut [f64]) -> PlanResult<()> {
+            Err(PlanError::Sampler("not used".into()))
+        }
+    }
+
+    /// Finding PLAN-1 (fixed): an edge that would need more than Settings::MAX_EDGE_STATES
+    /// states (a shortcut between far waypoints) is not taken; nothing is allocated for it.
+    #[test]
+    fn an_edge_beyond_the_state_cap_is_not_taken() {
+        let st = Settings { edge_resolution: Settings::MIN_EDGE_RESOLUTION, step: 0.3, max_jump: 3.0, ..Settings::default() };
+        st.validate().unwrap();
+        let space = EuclideanSpace(2);
+        let (mut sampler, mut projector, mut checker) = (NoSampler, Identity, crate::planning::AlwaysValid);
+        let mut interrupt = || Ok(());
+        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+        let mut run = Run { space: &space, st: &st, c: &mut c, stats: Stats::default(), samples: VecDeque::new() };
+        // the longest tree edge (max_jump * step = 0.9: 900000 states) is validated
+        let states = run.validate_edge(&[0.0, 0.0], &[0.9, 0.0], true).unwrap().expect("a tree edge is validated");
+        assert!(states.len() % 2 == 0 && (899_999..=900_000).contains(&(states.len() / 2)), "{} states", states.len() / 2);
+        // 2^20 intervals at most, not one more
+        let cap = Settings::MAX_EDGE_STATES as f64 * Settings::MIN_EDGE_RESOLUTION;
+        assert!(run.validate_edge(&[0.0, 0.0], &[cap * 0.9999, 0.0], false).unwrap().is_some());
+        assert!(run.validate_edge(&[0.0, 0.0], &[cap * 1.001, 0.0], false).unwrap().is_none());
+        // 1e12 states would be 16 TB
+        assert!(run.validate_edge(&[0.0, 0.0], &[1e6, 0.0], false).unwrap().is_none());
+        assert!(run.validate_edge(&[-1e300, 0.0], &[1e300, 0.0], false).unwrap().is_none());
     }
 
     #[test]

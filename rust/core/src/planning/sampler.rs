@@ -9,6 +9,7 @@ use rand::{Rng, SeedableRng};
 
 use super::{PlanError, PlanResult};
 use crate::kinematics::{KinematicModel, Motion};
+use crate::lie::unit_quaternion;
 
 /// `Err(PlanError::Input(msg))`: a native sampler's constructor got a bad argument.
 fn input<T>(msg: impl Into<String>) -> PlanResult<T> {
@@ -21,10 +22,24 @@ pub trait Sampler: Send {
     fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()>;
 }
 
-/// True when `lower..=upper` is a box: finite bounds, each lower <= upper (the samplers' target
-/// and base boxes).
+/// True when `lower..=upper` is a box: finite bounds, each lower <= upper, and a finite width
+/// (so that it can be sampled uniformly; -1e308..1e308 cannot) (the samplers' target and base
+/// boxes).
 pub fn valid_box(lower: &[f64; 3], upper: &[f64; 3]) -> bool {
-    (0..3).all(|k| lower[k].is_finite() && upper[k].is_finite() && lower[k] <= upper[k])
+    (0..3).all(|k| sampleable(lower[k], upper[k]))
+}
+
+/// `lower..=upper` can be sampled uniformly: finite, not reversed, of finite width.
+fn sampleable(lower: f64, upper: f64) -> bool {
+    lower.is_finite() && upper.is_finite() && lower <= upper && (upper - lower).is_finite()
+}
+
+/// `out` holds `n` rows of `nq` (the [`Sampler::sample`] contract), as the samplers check it.
+fn check_out(what: &str, n: usize, nq: usize, out: &[f64]) -> PlanResult<()> {
+    match n.checked_mul(nq) {
+        Some(len) if out.len() >= len => Ok(()),
+        _ => input(format!("{what}: {n} rows of {nq} do not fit in an output of {} numbers", out.len())),
+    }
 }
 
 /// Uniform within the joint limits (continuous joints: any angle); a free-flyer base is set to
@@ -40,21 +55,37 @@ pub struct UniformSampler {
 }
 
 impl UniformSampler {
-    /// A sampler for `model` (every revolute or prismatic joint needs finite limits); `base`:
-    /// the free-flyer placement [x, y, z, qx, qy, qz, qw] (default: the identity); `seed` seeds
-    /// its random numbers.
+    /// A sampler for `model` (every revolute or prismatic joint needs finite limits, lower <=
+    /// upper, of finite width; a model without joints, nq = 0, gives empty rows); `base`: the
+    /// free-flyer placement [x, y, z, qx, qy, qz, qw] (default: the identity; its quaternion is
+    /// normalised and must not be zero); `seed` seeds its random numbers.
     pub fn new(model: Arc<KinematicModel>, base: Option<[f64; 7]>, seed: u64) -> PlanResult<UniformSampler> {
         for j in model.joints.iter().filter(|j| j.q_index != usize::MAX) {
-            if matches!(j.motion, Motion::Revolute { .. } | Motion::Prismatic { .. })
-                && !(model.lower[j.q_index].is_finite() && model.upper[j.q_index].is_finite())
-            {
+            if !matches!(j.motion, Motion::Revolute { .. } | Motion::Prismatic { .. }) {
+                continue;
+            }
+            let (Some(&lo), Some(&hi)) = (model.lower.get(j.q_index), model.upper.get(j.q_index)) else {
+                return input(format!("uniform sampler: joint '{}' has no limits in the model", j.name));
+            };
+            if !(lo.is_finite() && hi.is_finite()) {
                 return input(format!("uniform sampler: joint '{}' has no finite limits", j.name));
             }
+            if !sampleable(lo, hi) {
+                return input(format!(
+                    "uniform sampler: joint '{}' has limits [{lo}, {hi}] that cannot be sampled (reversed, or too wide)",
+                    j.name
+                ));
+            }
         }
-        let base = base.unwrap_or([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+        let mut base = base.unwrap_or([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
         if base.iter().any(|x| !x.is_finite()) {
             return input("uniform sampler: base placement is not finite");
         }
+        let Some(rot) = unit_quaternion(base[6], base[3], base[4], base[5], 1e-9) else {
+            return input(format!("uniform sampler: the base placement's quaternion {:?} is zero", &base[3..7]));
+        };
+        let r = rot.coords; // (x, y, z, w)
+        base[3..7].copy_from_slice(&[r.x, r.y, r.z, r.w]);
         Ok(UniformSampler { model, base, base_box: None, rng: StdRng::seed_from_u64(seed) })
     }
 
@@ -65,7 +96,9 @@ impl UniformSampler {
             return input("uniform sampler: a base box needs a free-flyer base");
         }
         if !valid_box(&lower, &upper) {
-            return input(format!("uniform sampler: bad base box {lower:?} .. {upper:?}"));
+            return input(format!(
+                "uniform sampler: bad base box {lower:?} .. {upper:?} (finite, lower <= upper, of finite width)"
+            ));
         }
         self.base_box = Some((lower, upper));
         Ok(self)
@@ -75,6 +108,10 @@ impl UniformSampler {
 impl Sampler for UniformSampler {
     fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
         let m = &self.model;
+        check_out("uniform sampler", n, m.nq, out)?;
+        if m.nq == 0 {
+            return Ok(()); // n empty rows
+        }
         for row in out.chunks_mut(m.nq).take(n) {
             if m.floating_base {
                 row[..7].copy_from_slice(&self.base);
@@ -129,9 +166,13 @@ impl MixtureSampler {
 
 impl Sampler for MixtureSampler {
     fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        let nq = self.nq;
+        check_out("mixture sampler", n, nq, out)?;
+        if nq == 0 {
+            return Ok(()); // n empty rows
+        }
         let pick: Vec<bool> = (0..n).map(|_| self.rng.random::<f64>() < self.p).collect();
         let n1 = pick.iter().filter(|&&b| b).count();
-        let nq = self.nq;
         let mut rows_a = Vec::new();
         let mut rows_b = Vec::new();
         if n1 > 0 {

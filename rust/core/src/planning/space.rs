@@ -2,7 +2,7 @@
 //! chart coordinates, input checks), implemented for a robot's [`KinematicModel`] (Lie-group
 //! joints, free-flyer base) and for R^n ([`EuclideanSpace`]).
 
-use nalgebra::{Matrix3, UnitQuaternion};
+use nalgebra::Matrix3;
 
 use crate::error::check_vector;
 use crate::kinematics::{KinematicModel, Motion};
@@ -59,7 +59,8 @@ impl Space for KinematicModel {
         let mut iv = 0;
         if self.floating_base {
             out[..3].copy_from_slice(&q[..3]);
-            let rot = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]));
+            // the base quaternion normalised without overflow (a huge finite one is valid)
+            let rot = KinematicModel::base_pose(q).rotation;
             let m: Matrix3<f64> = rot.to_rotation_matrix().into_inner();
             let (w, _) = log3(&m);
             out[3..6].copy_from_slice(w.as_slice());
@@ -106,5 +107,32 @@ impl Space for EuclideanSpace {
     }
     fn check(&self, q: &[f64], what: &str) -> Result<(), String> {
         check_vector(what, q, self.0).map_err(|e| e.to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::ModelOptions;
+    use crate::urdf::Urdf;
+
+    /// The chart of a free-flyer base: a quaternion of any finite size is normalised without
+    /// overflow (as `KinematicModel::base_pose` does), so huge components chart like unit ones.
+    #[test]
+    fn a_huge_base_quaternion_charts_like_its_unit_one() {
+        let urdf = Urdf::parse(r#"<robot name="r"><link name="a"/></robot>"#).unwrap();
+        let model = KinematicModel::from_urdf(&urdf, &ModelOptions { floating_base: true, ..Default::default() }).unwrap();
+        let chart = |quat: [f64; 4]| {
+            let q = [1.0, 2.0, 3.0, quat[0], quat[1], quat[2], quat[3]];
+            let mut out = [0.0; 6];
+            model.coordinates(&q, &mut out);
+            out
+        };
+        let unit = chart([0.5, 0.5, 0.5, 0.5]);
+        for big in [1e300, f64::MAX, 1e-300] {
+            let c = chart([big; 4]);
+            assert!(c.iter().zip(&unit).all(|(a, b)| (a - b).abs() < 1e-12), "{big}: {c:?} != {unit:?}");
+        }
+        assert_eq!(&unit[..3], &[1.0, 2.0, 3.0]);
     }
 }
