@@ -5,7 +5,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use genplan_core::robot::{find_robots_dir, RobotSpec};
+use genplan_core::robot::preset;
 use genplan_core::Scratch;
 use nalgebra::Isometry3;
 
@@ -15,9 +15,8 @@ mod kinematics_bench;
 use kinematics_bench::random_configurations;
 
 fn collision(c: &mut Criterion) {
-    let root = find_robots_dir().expect("example-robot-data");
     for name in ["panda", "talos"] {
-        let (model, mut world) = RobotSpec::by_name(name).unwrap().load(&root).unwrap();
+        let (model, mut world) = preset(name).unwrap().load().unwrap();
         // a table in front of the robot, as in the paper's environments
         let table = if name == "panda" { (0.7, 0.0, -0.5) } else { (0.7, 0.0, 0.75) };
         world

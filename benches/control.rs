@@ -12,13 +12,12 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, Criterion};
 use genplan_core::control::{Disturbances, SimConfig, Simulation};
 use genplan_core::dynamics::Dynamics;
-use genplan_core::robot::find_robots_dir;
+use genplan_core::robot::preset;
 use nalgebra::{DMatrix, Isometry3};
 use rand::{rngs::StdRng, Rng, SeedableRng};
 
 fn control(c: &mut Criterion) {
-    let root = find_robots_dir().expect("example-robot-data");
-    let arm = Dynamics::from_robot("ur5", &root).unwrap();
+    let arm = Dynamics::from_description(&preset("ur5").unwrap()).unwrap();
 
     // a smooth periodic trajectory (1 s period) so that cycling through it never jumps
     let k = 1000;

@@ -4,7 +4,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use genplan_core::robot::{find_robots_dir, RobotSpec};
+use genplan_core::robot::preset;
 use rand::{rngs::StdRng, Rng, SeedableRng};
 
 /// Configurations uniform within the joint limits; a free-flyer base at 1 m, upright.
@@ -28,9 +28,8 @@ pub fn random_configurations(model: &genplan_core::KinematicModel, n: usize, see
 }
 
 fn fk(c: &mut Criterion) {
-    let root = find_robots_dir().expect("example-robot-data");
     for name in ["panda", "talos"] {
-        let (model, _) = RobotSpec::by_name(name).unwrap().load(&root).unwrap();
+        let (model, _) = preset(name).unwrap().load().unwrap();
         let qs = random_configurations(&model, 1024, 1);
         let mut out = Vec::new();
         let mut i = 0;

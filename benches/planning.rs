@@ -19,7 +19,7 @@ use genplan_core::planning::{
     CollisionChecker, Components, EuclideanSpace, GaussNewtonProjector, KdForest, LinearNearest, NearestNeighbors, Planner, Sampler,
     Settings, UniformSampler,
 };
-use genplan_core::robot::{find_robots_dir, RobotSpec};
+use genplan_core::robot::preset;
 use rand::{rngs::StdRng, Rng, SeedableRng};
 
 fn nearest(c: &mut Criterion) {
@@ -79,8 +79,7 @@ fn sphere(c: &mut Criterion) {
 }
 
 fn panda(c: &mut Criterion) {
-    let root = find_robots_dir().expect("example-robot-data");
-    let (model, mut world) = RobotSpec::by_name("panda").unwrap().load(&root).unwrap();
+    let (model, mut world) = preset("panda").unwrap().load().unwrap();
     world.add_box("wall", [0.05, 0.05, 0.3], nalgebra::Isometry3::translation(0.45, 0.0, 0.35)).unwrap();
     let world = Arc::new(world);
     let hand = model.link_index("panda_hand").unwrap();

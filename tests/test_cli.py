@@ -105,6 +105,7 @@ OUTPUTS = [
     ("bench adjust", "--method latent", "--out", "file"),
     ("bench adjust", "", "--out-dir", "folder"),
     ("bench adjust", "", "--figures", "folder"),
+    ("bench robots", "--robots panda --samples 10", "--out", "file"),
     ("bench control", "", "--out", "file"),
     ("bench control", "", "--png", "file"),
     ("train gan", "--robot panda", "--out", "file"),

@@ -40,7 +40,7 @@ def test_panda_geometry_and_pairs_match_pinocchio(panda: genplan.Robot) -> None:
     assert not any(tuple(sorted((links[a], links[b]))) in disabled for a, b in world.self_pairs)
 
 
-@pytest.mark.parametrize("name", ["talos", "ur5"])
+@pytest.mark.parametrize("name", ["talos", "ur5", "ur10", "kinova"])  # ur10, kinova: no SRDF, pairs computed
 def test_mesh_robot_pairs_match_pinocchio(name: str) -> None:
     robot = genplan.load(name)
     assert _pair_set(robot.collision_world().self_pairs) == _coal_pairs(robot, robot.collision_model)
@@ -173,6 +173,30 @@ def test_collision_bad_input(panda: genplan.Robot) -> None:
         world.add_halfspace("p", [0, 0, 0], 0.0)
     with pytest.raises(UnknownNameError, match="unknown obstacle 'zz'.*known: b"):
         world.remove_obstacle("zz")
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda w: w.add_sphere("s", "x", [0, 0, 0]), "^sphere 's' radius: cannot be read as a real number"),
+    (lambda w: w.add_sphere("s", [0.1, 0.2], [0, 0, 0]), r"^sphere 's' radius: expected one number"),
+    (lambda w: w.add_sphere("s", 0.1, "abc"), "^sphere 's' center: cannot be read"),
+    (lambda w: w.add_sphere("s", 0.1 + 0j, [0, 0, 0]), "^sphere 's' radius: complex numbers"),
+    (lambda w: w.add_box("b", "abc", [0, 0, 0]), "^box 'b' half_extents: cannot be read"),
+    (lambda w: w.add_box("b", [0.1] * 3, [0, 0, 1j]), "^box 'b' center: complex numbers"),
+    (lambda w: w.add_box("b", [0.1] * 3, [0, 0, 0], np.eye(3) + 0j), "^box 'b' rotation: complex numbers"),
+    (lambda w: w.add_halfspace("p", [0, 0, 1], "x"), "^plane 'p' offset: cannot be read"),
+    (lambda w: w.add_halfspace("p", {"z": 1}, 0.0), "^plane 'p' normal: cannot be read"),
+    (lambda w: w.close_pairs(np.zeros(7), "x"), "^margin: cannot be read"),
+    (lambda w: w.close_pairs(np.zeros(7) + 0j, 0.1), "^q: complex numbers"),
+    (lambda w: w.in_collision(np.zeros((2, 7)) + 1j), "^q: complex numbers"),
+    (lambda w: w.min_distance([None] * 7), "^q: cannot be read"),
+])
+def test_values_that_are_not_real_numbers_name_the_argument(panda: genplan.Robot, call, match) -> None:
+    """Findings PY-2 / PY-4 of tests/test_fuzz_inputs.py: strings leaked numpy's or float()'s
+    ValueError, complex numbers lost their imaginary part, None was read as NaN."""
+    world = panda.collision_world()
+    with pytest.raises(ShapeError, match=match):
+        call(world)
+    assert world.obstacle_names == []
 
 
 def test_collision_world_file_errors(panda: genplan.Robot, tmp_path) -> None:

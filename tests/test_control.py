@@ -141,7 +141,7 @@ def test_bad_configuration_raises():
     with pytest.raises(SettingsError, match="disturbances.coulomb must have length 6, got 2"):
         control.execute(GENTLE, disturbances=control.Disturbances(coulomb=[1.0, 2.0]))
     with pytest.raises(SettingsError, match="unknown key 'kp'"):
-        _core.SpatulaSimulation(str(genplan.robots.robots_dir()), "ur5", {"controller": {"kp": 1.0}})
+        _core.SpatulaSimulation(genplan.load("ur5").description, {"controller": {"kp": 1.0}})
     with pytest.raises(GenplanError, match="6-joint"):
         control.execute(GENTLE, robot="panda")
     with pytest.raises(SettingsError, match="settle"):
@@ -280,3 +280,74 @@ def test_a_gentle_move_is_within_the_limits_strict_or_not(reference_runs):
         warnings.simplefilter("error", control.LimitWarning)
         log = control.execute(GENTLE, settle=0.2, strict=True)
     assert not log.exceeded_limits and log.summary["limit_ticks"] == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# size bounds and inputs (findings CTRL-1 and PY-2 / PY-4 of tests/test_fuzz_inputs.py)
+# ---------------------------------------------------------------------------------------------
+
+SHORT = s_curve([0.0, 0.0, 0.0], [0.01, 0.0, 0.0], K=10)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"tail": 1e9}, r"^tail must be in \[0, 10\] seconds, got 1000000000.0"),
+    ({"tail": 1e300}, r"^tail must be in \[0, 10\] seconds"),
+    ({"tail": math.inf}, r"^tail must be in \[0, 10\] seconds"),
+    ({"tail": -0.1}, r"^tail must be in \[0, 10\] seconds"),
+    ({"tail": math.nan}, r"^tail must be in \[0, 10\] seconds"),
+    ({"tail": "0.1s"}, r"^tail: cannot be read as a real number"),
+    ({"settle": 60.5}, r"^settle must be in \[0, 60\] seconds"),
+    ({"settle": 1e300}, r"^settle must be in \[0, 60\] seconds"),
+    ({"settle": [1.0]}, r"^settle: expected one number"),
+    # within the seconds, over the run's ticks: dt = 1 us makes 10 s of tail 10^7 ticks
+    ({"tail": 10.0, "controller": control.ControllerConfig(dt=1e-6)}, r"^tail: 10.0 s at dt = 1e-06 s is 1e\+07 ticks; "
+                                                                      r"a run is limited to 10000000 ticks"),
+    ({"settle": 30.0, "controller": control.ControllerConfig(dt=1e-6)}, r"^settle: 30.0 s at dt = 1e-06 s is 3e\+07 ticks"),
+])
+def test_run_lengths_are_bounded_before_anything_is_allocated(kwargs, match):
+    """CTRL-1: tail=1e9 asked numpy for 10^12 samples (MemoryError); settle=1e300 overflowed the
+    native config's tick count."""
+    with pytest.raises(SettingsError, match=match):
+        control.execute(SHORT, **{"settle": 0.0, **kwargs})
+
+
+def test_the_tail_bound_is_the_documented_one():
+    assert control.MAX_TAIL_S == 10.0 and control.MAX_SETTLE_S == 60.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", control.LimitWarning)  # no settle phase: a torque peak at the start
+        log = control.execute(SHORT, settle=0.0, tail=control.MAX_TAIL_S)  # the bound itself runs
+    assert len(log.t) == 10 + 10_000 and log.motion_end == 10
+    with pytest.raises(SettingsError, match=r"^duration must be in \[0, 10\] seconds"):
+        control.deceleration_tail(SHORT, 1e9)
+    with pytest.raises(SettingsError, match=r"^duration: 1.0 s at dt = 1e-09 s is 1e\+09 ticks"):
+        control.deceleration_tail(SHORT, 1.0, dt=1e-9)
+
+
+def test_the_run_limit_is_the_native_cores():
+    """control.MAX_TICKS mirrors MAX_TICKS of rust/core/src/control.rs: a settle phase of
+    MAX_TICKS - 1 ticks passes the Python check, and the core refuses it with two trajectory rows
+    (before any allocation); one tick more is refused in Python, naming settle."""
+    dt = 60.0 / (control.MAX_TICKS - 1)  # 60 s of settle: MAX_TICKS - 1 ticks
+    arm = control.SpatulaArm(settle=60.0, controller=control.ControllerConfig(dt=dt))
+    assert arm.config["settle_ticks"] == control.MAX_TICKS - 1
+    with pytest.raises(GenplanError, match=rf"^a run is limited to {control.MAX_TICKS} ticks; got 2 trajectory rows "
+                                           rf"\+ {control.MAX_TICKS - 1} settle ticks"):
+        arm.execute(SHORT[:2])
+    with pytest.raises(SettingsError, match=rf"^settle: 60.0 s at dt = .* ticks; a run is limited to {control.MAX_TICKS}"):
+        control.SpatulaArm(settle=60.0, controller=control.ControllerConfig(dt=60.0 / (control.MAX_TICKS + 1)))
+
+
+@pytest.mark.parametrize("call, error, match", [
+    (lambda: control.execute([["a", "b", "c"]] * 3, settle=0.0), ShapeError, "^trajectory: cannot be read"),
+    (lambda: control.execute(SHORT + 0j, settle=0.0), ShapeError, "^trajectory: complex numbers"),
+    (lambda: control.execute(SHORT, settle="x"), SettingsError, "^settle: cannot be read"),
+    (lambda: control.SpatulaArm(settle=0.0).command_pose("abc"), ShapeError, "^p: cannot be read"),
+    (lambda: control.SpatulaArm(settle=0.0).spatula_pose(np.zeros(6) + 1j), ShapeError, "^q: complex numbers"),
+    (lambda: control.SpatulaArm(settle=0.0).spatula_pose(np.zeros(5)), ShapeError, r"^q: expected shape \(6,\)"),
+    (lambda: control.deceleration_tail(SHORT, "x"), SettingsError, "^duration: cannot be read"),
+    (lambda: control.deceleration_tail(SHORT, 0.1, dt="x"), SettingsError, "^dt: cannot be read"),
+])
+def test_values_that_are_not_real_numbers_name_the_argument(call, error, match):
+    """PY-2 / PY-4: numpy's ValueError or TypeError, or the imaginary part dropped."""
+    with pytest.raises(error, match=match):
+        call()

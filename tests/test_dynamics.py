@@ -17,7 +17,6 @@ import pytest
 import genplan
 from genplan import _core
 from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
-from genplan.robots import robots_dir
 
 TOL = 1e-9
 CASES = [("ur5", "tool0"), ("panda", "panda_hand")]
@@ -48,7 +47,7 @@ OFFSET = pin.SE3(pin.rpy.rpyToMatrix(0.2, -0.3, 0.5), np.array([0.01, -0.02, 0.1
 def case(request):
     name, link = request.param
     robot = genplan.load(name)
-    dyn = _core.Dynamics.from_robot(name, str(robots_dir()))
+    dyn = _core.Dynamics.from_description(genplan.load(name).description)
     return robot, dyn, link
 
 
@@ -107,7 +106,7 @@ def test_dynamics_match_pinocchio_on_random_states(case):
 
 def test_payload_matches_pinocchio(case):
     robot, _, link = case
-    dyn = _core.Dynamics.from_robot(robot.name, str(robots_dir()))
+    dyn = _core.Dynamics.from_description(robot.description)
     mass, com = 0.8, np.array([0.02, -0.01, 0.05])
     inertia = np.array([[0.004, 0.0005, 0.0], [0.0005, 0.003, 0.0002], [0.0, 0.0002, 0.002]])
     dyn.add_inertia(link, mass, com.tolist(), inertia.tolist(), OFFSET.homogeneous.tolist())
@@ -149,7 +148,7 @@ def test_every_joint_kind_and_rotated_inertias_match_pinocchio():
 
 
 def test_gravity_is_settable_and_bad_input_raises():
-    dyn = _core.Dynamics.from_robot("ur5", str(robots_dir()))
+    dyn = _core.Dynamics.from_description(genplan.load("ur5").description)
     q = np.zeros(6)
     assert dyn.gravity == [0.0, 0.0, -9.81]
     dyn.gravity = [0.0, 0.0, 0.0]
@@ -165,7 +164,7 @@ def test_gravity_is_settable_and_bad_input_raises():
     with pytest.raises(GenplanError, match="added mass must be finite and >= 0"):
         dyn.add_inertia("tool0", -1.0, [0, 0, 0], np.eye(3).tolist())
     with pytest.raises(GenplanError, match="floating base"):
-        _core.Dynamics.from_robot("talos", str(robots_dir()))
+        _core.Dynamics.from_description(genplan.load("talos").description)
 
 
 def test_phi_in_rust_matches_eq16():

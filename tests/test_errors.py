@@ -63,7 +63,7 @@ def test_non_finite_error(panda: genplan.Robot) -> None:
 
 
 def test_unknown_name_error(panda: genplan.Robot) -> None:
-    with pytest.raises(UnknownNameError, match=r"unknown robot 'nope' \(known: panda, talos, ur5\)"):
+    with pytest.raises(UnknownNameError, match=r"unknown robot 'nope' \(known: kinova, panda, talos, ur10, ur3, ur5; or a robot file"):
         genplan.load("nope")
     with pytest.raises(UnknownNameError, match="unknown environment 'kitchen'"):
         environment("kitchen")
@@ -100,26 +100,24 @@ def test_generic_genplan_error(panda: genplan.Robot, talos: genplan.Robot) -> No
         make_sampler(talos, "uniform", base_box=box)
 
 
-def _copy_robot(root, tmp_path, urdf_text) -> None:
-    """A robots/ folder in tmp_path with the Panda's files, its URDF replaced by urdf_text."""
-    spec = _core.robot_spec("panda")
-    for key in ("collision_urdf", "srdf"):
-        dst = tmp_path / spec[key]
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy(root / spec[key], dst)
-    (tmp_path / spec["urdf"]).write_text(urdf_text)
+def _copy_robot(tmp_path, urdf_text) -> genplan.Robot:
+    """The Panda's robot file in tmp_path, its URDF replaced by urdf_text, loaded."""
+    panda = genplan.load("panda")
+    (tmp_path / "panda.urdf").write_text(urdf_text)
+    f = tmp_path / "panda.toml"
+    f.write_text(f'urdf = "panda.urdf"\ncollision_urdf = "{panda.collision_urdf_path}"\nsrdf = "{panda.srdf_path}"\n'
+                 'locked_joints = ["panda_finger_joint1", "panda_finger_joint2"]\nreference_state = "default"\n'
+                 '[frames]\nhand = "panda_hand"\ntcp = "panda_hand_tcp"\n')
+    return genplan.load(f)
 
 
 def test_robot_file_error(panda: genplan.Robot, tmp_path) -> None:
     urdf = panda.urdf_path.read_text()
-    root = genplan.robots.robots_dir()
-    # Python front end: a URDF Pinocchio cannot parse, and one without a frame the preset names
-    _copy_robot(root, tmp_path, "<robot name='panda'><link name='a'></robot>")
-    with pytest.raises(RobotFileError, match=r"robot 'panda': cannot read .*panda\.urdf"):
-        genplan.Robot("panda", root=tmp_path)
-    _copy_robot(root, tmp_path, urdf.replace('"panda_hand_tcp"', '"panda_tool"'))
-    with pytest.raises(RobotFileError, match=r"robot 'panda': frame 'panda_hand_tcp' \(tcp\) is not in the URDF"):
-        genplan.Robot("panda", root=tmp_path)
+    # Python front end: a URDF Pinocchio cannot parse, and one without a frame the robot file names
+    with pytest.raises(RobotFileError, match=r"robot file .*panda.toml: cannot read .*panda\.urdf"):
+        _copy_robot(tmp_path, "<robot name='panda'><link name='a'></robot>")
+    with pytest.raises(UnknownNameError, match=r"panda.toml: frame 'tcp' = 'panda_hand_tcp' is not a link"):
+        _copy_robot(tmp_path, urdf.replace('"panda_hand_tcp"', '"panda_tool"'))
     # native core: the Rust URDF parser
     bad = tmp_path / "bad.urdf"
     bad.write_text("<robot name='x'><link name='a'></robot>")

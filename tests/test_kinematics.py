@@ -30,11 +30,11 @@ def test_rust_fk_matches_pinocchio_on_1000_configurations(name: str) -> None:
     assert max_rot <= 1e-9, max_rot
 
 
-@pytest.mark.parametrize("name", ["panda", "talos", "ur5"])
+@pytest.mark.parametrize("name", ["panda", "talos", "ur5", "kinova"])
 def test_rust_default_joint_order_is_pinocchios(name: str) -> None:
     """The pure-Rust loader (used by cargo benches) orders q like Pinocchio does."""
     robot = genplan.load(name)
-    model, _ = _core.load_robot(name, genplan.robots.robots_dir())
+    model, _ = _core.load_robot(robot.source, genplan.robots.default_package_dirs())
     assert model.active_joints == robot.joint_names
     assert model.nq == robot.nq and model.nv == robot.nv
     finite = np.isfinite(robot.lower)

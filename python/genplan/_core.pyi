@@ -11,14 +11,14 @@ from numpy.typing import NDArray
 from genplan import protocols
 
 __all__ = [
-    "__version__", "ROBOT_NAMES", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "Projector",
-    "SolverSettings", "robot_spec", "load_robot", "package_dirs", "Planner", "PlannerSettings", "PlanStats",
+    "__version__", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "Projector",
+    "SolverSettings", "read_robot_file", "robot_description", "load_robot", "srdf_disabled_pairs",
+    "disabled_pairs_srdf", "Planner", "PlannerSettings", "PlanStats",
     "PlanResult", "UniformSampler", "MixtureSampler", "GanSampler", "Dynamics", "SpatulaSimulation",
     "spatula_defaults", "pancake_phi",
 ]
 
 __version__: str
-ROBOT_NAMES: list[str]
 CRATE_VERSIONS: dict[str, str]
 
 _Path = str | PathLike[str]
@@ -60,7 +60,11 @@ class CollisionWorld:
         collision_urdf: _Path,
         package_dirs: list[_Path] = ...,
         srdf_path: _Path | None = None,
+        disabled_pairs: list[tuple[str, str]] | None = None,
     ) -> Self: ...
+    def compute_disabled_pairs(
+        self, q_default: list[float] | NDArray[np.float64], samples: int = 10000, always_fraction: float = 0.95, seed: int = 0
+    ) -> list[tuple[str, str, str]]: ...
     @property
     def model(self) -> KinematicModel: ...
     @property
@@ -154,9 +158,15 @@ class Projector:
     def frame_jacobian_local(self, q: list[float], link: str) -> NDArray[np.float64]: ...
     def center_of_mass(self, q: list[float]) -> tuple[list[float], NDArray[np.float64]]: ...
 
-def robot_spec(name: str) -> dict[str, Any]: ...
-def load_robot(name: str, robots_dir: _Path) -> tuple[KinematicModel, CollisionWorld]: ...
-def package_dirs(robots_dir: _Path) -> list[str]: ...
+def read_robot_file(path: _Path, package_dirs: list[_Path]) -> dict[str, Any]: ...
+def robot_description(
+    fields: dict[str, Any], package_dirs: list[_Path], origin: str, default_name: str, base_dir: _Path | None = None
+) -> dict[str, Any]: ...
+def srdf_disabled_pairs(path: _Path) -> list[tuple[str, str]]: ...
+def disabled_pairs_srdf(
+    robot_name: str, pairs: list[tuple[str, str, str]], default_state: list[tuple[str, float]] | None = None
+) -> str: ...
+def load_robot(path: _Path, package_dirs: list[_Path]) -> tuple[KinematicModel, CollisionWorld]: ...
 
 # --- constrained planning (genplan_core::planning / gan; genplan.planning) ---
 
@@ -349,7 +359,7 @@ class Dynamics:
     Jacobians are LOCAL_WORLD_ALIGNED (rows [v; w] of the frame origin, world axes)."""
 
     @staticmethod
-    def from_robot(name: str, robots_dir: _Path) -> Dynamics: ...
+    def from_description(description: dict[str, Any]) -> Dynamics: ...
     @staticmethod
     def from_urdf(urdf_path: _Path, locked_joints: dict[str, float] | None = None) -> Dynamics: ...
     @property
@@ -384,7 +394,7 @@ class Dynamics:
 class SpatulaSimulation:
     """The seq2seq paper's 1 kHz spatula controller + simulated arm + pancake (see genplan.control)."""
 
-    def __new__(cls, robots_dir: _Path, robot: str = "ur5", config: dict[str, Any] | None = None) -> Self: ...
+    def __new__(cls, robot: dict[str, Any], config: dict[str, Any] | None = None) -> Self: ...
     @property
     def config(self) -> dict[str, Any]: ...
     @property

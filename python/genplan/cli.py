@@ -75,6 +75,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 COMMANDS: list[tuple[str, str, str, str]] = [
     ("", "report", "genplan.experiments.report", "report.md from a folder of benchmark JSON (e.g. benches/results)"),
     ("", "reproduce", "genplan.experiments.reproduce", "the main job: rerun both papers' experiments with the shipped models, write a report"),
+    ("bench", "robots", "genplan.experiments.benchmarks.robots", "any robot through one path: FK vs Pinocchio, collision vs coal, load time"),
     ("bench", "projection", "genplan.experiments.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),
     ("bench", "coverage", "genplan.experiments.benchmarks.coverage", "GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations"),
     ("bench", "plan", "genplan.experiments.benchmarks.plan", "Table II: constrained RRT (uniform / GAN / hybrid) and OMPL"),

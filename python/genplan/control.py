@@ -31,6 +31,11 @@ URDF's ``<limit effort velocity>``, or :class:`JointLimits`). A run over them wa
 it with :class:`genplan.errors.LimitExceededError`. Bad configuration values (``dt <= 0``, a
 negative gain, a payload outside [0, 100] kg, ...) raise :class:`genplan.errors.SettingsError`
 naming the field before anything runs.
+
+Bounds: ``settle`` is at most :data:`MAX_SETTLE_S` seconds and ``tail`` at most
+:data:`MAX_TAIL_S`; a whole run (settle, trajectory and tail) is at most :data:`MAX_TICKS` ticks
+(the native core's limit; its log takes ~600 bytes a tick). Beyond them a
+:class:`~genplan.errors.SettingsError` names the argument before anything is allocated.
 """
 
 from __future__ import annotations
@@ -44,16 +49,41 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
-from genplan._arrays import error_class
+from genplan._arrays import as_configurations, as_float_array, as_real, error_class
 from genplan.errors import LimitExceededError, NonFiniteError, SettingsError, ShapeError
 
 __all__ = [
     "Gains", "ControllerConfig", "Disturbances", "SpatulaSetup", "PancakeConfig", "JointLimits", "ExecutionLog",
-    "LimitWarning", "SpatulaArm", "execute", "deceleration_tail", "as_trajectory", "DT",
+    "LimitWarning", "SpatulaArm", "execute", "deceleration_tail", "as_trajectory", "DT", "MAX_TICKS",
+    "MAX_SETTLE_S", "MAX_TAIL_S",
 ]
 
 #: the paper's control period (s)
 DT = 1e-3
+#: the longest run in ticks (settle + trajectory + tail): the native core's ``MAX_TICKS``
+#: (rust/core/src/control.rs; 2.8 hours at 1 kHz, the log takes ~600 bytes a tick)
+MAX_TICKS = 10_000_000
+#: the longest settle phase (s); the paper's robot waited 25 s
+MAX_SETTLE_S = 60.0
+#: the longest deceleration tail (s): 100 times the paper's 0.1 s
+MAX_TAIL_S = 10.0
+
+
+def _seconds(value: Any, what: str, maximum: float) -> float:
+    """``value`` as a duration in [0, maximum] seconds, else SettingsError naming ``what``."""
+    t = as_real(value, what, error=SettingsError)
+    if not (math.isfinite(t) and 0.0 <= t <= maximum):
+        raise SettingsError(f"{what} must be in [0, {maximum:g}] seconds, got {t}")
+    return t
+
+
+def _ticks(seconds: float, dt: float, what: str, budget: int = MAX_TICKS) -> int:
+    """``round(seconds / dt)``, at most ``budget`` ticks, else SettingsError naming ``what``."""
+    n = seconds / dt  # Python floats: inf on overflow
+    if not (math.isfinite(n) and round(n) <= budget):
+        raise SettingsError(f"{what}: {seconds} s at dt = {dt} s is {n:.3g} ticks; a run is limited to "
+                            f"{MAX_TICKS} ticks ({max(budget, 0)} left for it)")
+    return int(round(n))
 
 
 @dataclass
@@ -260,10 +290,7 @@ class ExecutionLog:
 def as_trajectory(trajectory: ArrayLike, what: str = "trajectory") -> NDArray[np.float64]:
     """``trajectory`` as a C-contiguous float64 (K, 3) array, K >= 2, finite (else ShapeError or
     NonFiniteError naming ``what``)."""
-    try:
-        arr = np.ascontiguousarray(trajectory, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ShapeError(f"{what}: cannot be read as an array of floats ({exc})") from None
+    arr = np.ascontiguousarray(as_float_array(trajectory, what))
     if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] < 2:
         raise ShapeError(f"{what}: expected shape (K, 3) with K >= 2 rows [y, z, theta], got {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -277,13 +304,15 @@ def deceleration_tail(trajectory: ArrayLike, duration: float = 0.1, dt: float = 
     velocity (backward difference) down to rest in ``duration`` seconds (Section 5.3: 0.1 s).
 
     Returns (K + n, 3) with ``n = round(duration / dt)``; the tail travels ``v duration / 2``.
+    ``duration`` is at most :data:`MAX_TAIL_S` and ``K + n`` at most :data:`MAX_TICKS`, else a
+    SettingsError naming it.
     """
     x = as_trajectory(trajectory)
-    if not (math.isfinite(duration) and duration >= 0):
-        raise SettingsError(f"duration must be >= 0, got {duration}")
+    duration = _seconds(duration, "duration", MAX_TAIL_S)
+    dt = as_real(dt, "dt", error=SettingsError)
     if not (math.isfinite(dt) and dt > 0):
         raise SettingsError(f"dt must be > 0, got {dt}")
-    n = int(round(duration / dt))
+    n = _ticks(duration, dt, "duration", MAX_TICKS - x.shape[0])
     if n == 0:
         return x.copy()
     v = (x[-1] - x[-2]) / dt
@@ -317,19 +346,22 @@ class SpatulaArm:
                  disturbances: Disturbances | None = None, setup: SpatulaSetup | None = None,
                  pancake: PancakeConfig | None = None, substeps: int = 1, settle: float = 1.0,
                  limits: JointLimits | None = None) -> None:
-        from genplan.robots import robots_dir
+        from genplan.robots import load
 
         controller = controller or ControllerConfig()
-        if not (math.isfinite(settle) and settle >= 0):
-            raise SettingsError(f"settle must be >= 0 seconds, got {settle}")
+        settle = _seconds(settle, "settle", MAX_SETTLE_S)
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)):
             raise SettingsError(f"substeps must be an integer, got {substeps!r}")
-        dt = controller.dt
         # a bad dt is the core's to refuse (SettingsError naming controller.dt); no ticks then
-        dt_ok = isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0
-        settle_ticks = int(round(settle / dt)) if dt_ok else 0
+        try:
+            dt = as_real(controller.dt, "controller.dt", error=SettingsError)
+        except SettingsError:
+            dt = math.nan
+        dt_ok = not isinstance(controller.dt, bool) and math.isfinite(dt) and dt > 0
+        settle_ticks = _ticks(settle, dt, "settle") if dt_ok else 0
         self.config: dict[str, Any] = _config(controller, disturbances, setup, pancake, substeps, settle_ticks, limits)
-        self._sim = _core.SpatulaSimulation(str(robots_dir()), robot, self.config)
+        arm = robot if hasattr(robot, "description") else load(robot)
+        self._sim = _core.SpatulaSimulation(arm.description, self.config)
         self.robot = robot
         self.dt = float(controller.dt)
 
@@ -344,14 +376,14 @@ class SpatulaArm:
 
     def command_pose(self, p: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """eq. 23: world position (3,) and rotation (3, 3) commanded for a pose [y, z, theta]."""
-        a = np.asarray(p, dtype=np.float64)
+        a = as_float_array(p, "p")
         if a.shape != (3,) or not np.all(np.isfinite(a)):
             raise error_class(a, a.shape == (3,))(f"p must be a finite pose [y, z, theta], got {a.tolist()}")
         return self._sim.command_pose([float(x) for x in a])
 
     def spatula_pose(self, q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """World position and rotation of the spatula frame at joint configuration q."""
-        return self._sim.spatula_pose(np.ascontiguousarray(q, dtype=np.float64))
+        return self._sim.spatula_pose(as_configurations(q, len(self.joint_names), "q"))
 
     def check(self, trajectory: ArrayLike) -> NDArray[np.float64]:
         """Validate a trajectory as :meth:`execute` does (shape, NaN, reachability of every
@@ -362,14 +394,19 @@ class SpatulaArm:
                 strict: bool = False, _stacklevel: int = 2) -> ExecutionLog:
         """Run ``trajectory`` (K, 3); ``tail`` > 0 appends :func:`deceleration_tail` of that many
         seconds (outside the motion window). ``paced``: tick on the wall clock every dt and
-        report the jitter. Bad input raises ValueError before the loop starts.
+        report the jitter. Bad input raises ValueError before the loop starts; ``tail`` is at most
+        :data:`MAX_TAIL_S` seconds and the run (settle, trajectory, tail) at most :data:`MAX_TICKS`
+        ticks, else a SettingsError naming ``tail``.
 
         A run over the joint limits (:attr:`limits`) warns with :class:`LimitWarning` and is
         flagged in the log; with ``strict=True`` the run stops at the first tick over a limit
         and :class:`~genplan.errors.LimitExceededError` names the joint, the time and the limit."""
         x = as_trajectory(trajectory)
         k = x.shape[0]
+        tail = _seconds(tail, "tail", MAX_TAIL_S)
         if tail:
+            budget = MAX_TICKS - int(self.config["settle_ticks"]) - k
+            _ticks(tail, self.dt, "tail", budget)  # before the tail is allocated
             x = deceleration_tail(x, tail, self.dt)
         out = self._sim.run(x, motion_len=k, paced=bool(paced), stop_at_limit=bool(strict))
         summary = out.pop("summary")
@@ -395,8 +432,10 @@ def execute(trajectory: ArrayLike, *, dob: bool = True, disturbances: Disturbanc
     ``dob``: feed the disturbance observer back (overrides ``controller.dob``).
     ``disturbances``: unmodelled plant effects (default none; :meth:`Disturbances.reference` is
     the benchmark's set). ``settle``: seconds holding the first pose before the motion (the DOB
-    converges; the paper's robot waited 25 s). ``tail``: seconds of constant deceleration after
-    the motion (the paper: 0.1). ``paced``: tick on the wall clock and report jitter.
+    converges; the paper's robot waited 25 s; at most :data:`MAX_SETTLE_S`). ``tail``: seconds of
+    constant deceleration after the motion (the paper: 0.1; at most :data:`MAX_TAIL_S`). A run
+    (settle, trajectory, tail) is at most :data:`MAX_TICKS` ticks. ``paced``: tick on the wall
+    clock and report jitter.
     ``substeps``: RK4 steps of the plant per tick. ``limits``: the joint limits every tick is
     checked against (default: the robot model's, from its URDF).
 

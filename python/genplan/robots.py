@@ -1,18 +1,32 @@
-"""Robots from example-robot-data, described once (the Rust core's presets) and loaded twice:
-as a Pinocchio model (projection, IK, dynamics) and as the Rust kinematics and collision world.
+"""Robots as data: a preset name, a robot file (TOML) or a URDF with keywords, described once
+(read by the Rust core, ``genplan_core::robot``) and loaded twice: as a Pinocchio model
+(projection, IK, dynamics) and as the Rust kinematics and collision world.
 
 >>> import genplan
 >>> panda = genplan.robots.load("panda")
 >>> panda.nq, panda.frames["hand"]
 (7, 'panda_hand')
+
+A robot of one's own, from its URDF (see docs/ROBOTS.md for the robot file's keys)::
+
+    arm = genplan.load(urdf="my_arm/urdf/arm.urdf", package_dirs=["my_arm/.."],
+                       frames={"tool": "tool0"})
+    arm = genplan.load("my_arm.toml")   # the same keys in a robot file
+
+The presets are robot files in ``genplan/presets/robots/`` (:data:`ROBOT_NAMES`); their
+``package://example-robot-data/...`` paths resolve in the example-robot-data package.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
 import os
 import site
 import sys
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,11 +36,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
 from genplan._arrays import as_configurations
+from genplan._files import atomic_path, write_text
+from genplan.cache import cache_dir
 from genplan.collision import CollisionWorld
-from genplan.errors import RobotFileError, ShapeError, UnknownNameError
+from genplan.errors import RobotFileError, SettingsError, ShapeError, UnknownNameError
 
-#: Names accepted by :func:`load`.
-ROBOT_NAMES: tuple[str, ...] = tuple(_core.ROBOT_NAMES)
+#: The folder of the preset robot files.
+PRESETS_DIR: Path = Path(__file__).parent / "presets" / "robots"
+
+#: Names accepted by :func:`load` as presets (the robot files in :data:`PRESETS_DIR`).
+ROBOT_NAMES: tuple[str, ...] = tuple(sorted(p.stem for p in PRESETS_DIR.glob("*.toml")))
 
 
 def robots_dir() -> Path:
@@ -49,57 +68,89 @@ def robots_dir() -> Path:
     )
 
 
+def default_package_dirs() -> list[Path]:
+    """Folders searched for ``package://`` URIs after a robot's own: example-robot-data's
+    ``share/`` folder (so ``package://example-robot-data/robots/...`` resolves), if installed."""
+    try:
+        return [robots_dir().parent.parent]
+    except FileNotFoundError:
+        return []
+
+
 class Robot:
     """A robot: Pinocchio model (reduced to the active joints), limits, named frames, and the
     Rust kinematics/collision built from the same files with the same joint order.
 
-    Configurations follow Pinocchio's convention (a free-flyer base is
-    ``[x, y, z, qx, qy, qz, qw]`` followed by the joints).
+    Build one with :func:`load`. Configurations follow Pinocchio's convention: a free-flyer base
+    is ``[x, y, z, qx, qy, qz, qw]`` followed by the joints, and a continuous (unbounded
+    revolute) joint takes two values ``[cos, sin]`` of its angle, which must stay a unit
+    complex number (:meth:`random_configurations` draws them so; :meth:`normalize` fixes a
+    configuration).
     """
 
-    def __init__(self, name: str, root: Path | None = None) -> None:
-        spec = _core.robot_spec(name)  # raises UnknownNameError listing the known robots
-        root = robots_dir() if root is None else Path(root)
-        self.name: str = name
-        self.urdf_path: Path = root / spec["urdf"]
-        self.collision_urdf_path: Path = root / spec["collision_urdf"]
-        self.srdf_path: Path = root / spec["srdf"]
-        self.package_dirs: list[Path] = [Path(p) for p in _core.package_dirs(root)]
-        self.floating_base: bool = spec["floating_base"]
-        for p in (self.urdf_path, self.collision_urdf_path, self.srdf_path):
-            if not p.is_file():
-                raise FileNotFoundError(f"robot '{name}': {p} does not exist (example-robot-data too old?)")
+    def __init__(self, description: Mapping[str, Any]) -> None:
+        d = dict(description)
+        self.description: dict[str, Any] = d
+        self.name: str = d["name"]
+        self.source: Path | None = Path(d["source"]) if d.get("source") else None
+        self.urdf_path: Path = Path(d["urdf"])
+        self.collision_urdf_path: Path = Path(d["collision_urdf"])
+        self.srdf_path: Path | None = Path(d["srdf"]) if d.get("srdf") else None
+        self.package_dirs: list[Path] = [Path(p) for p in d["package_dirs"]]
+        self.floating_base: bool = bool(d["floating_base"])
+        origin = f"robot file {self.source}" if self.source else f"robot '{self.name}'"
 
         try:
             if self.floating_base:
                 full = pin.buildModelFromUrdf(str(self.urdf_path), pin.JointModelFreeFlyer())
             else:
                 full = pin.buildModelFromUrdf(str(self.urdf_path))
-            pin.loadReferenceConfigurations(full, str(self.srdf_path), False)
+            if self.srdf_path is not None:
+                pin.loadReferenceConfigurations(full, str(self.srdf_path), False)
         except (ValueError, RuntimeError) as exc:  # Pinocchio's for a URDF, for an SRDF it cannot parse
             bad = self.urdf_path if isinstance(exc, ValueError) else self.srdf_path
-            raise RobotFileError(f"robot '{name}': cannot read {bad}: {exc}") from None
-        state = spec["reference_state"]
-        if state and state in full.referenceConfigurations:
+            raise RobotFileError(f"{origin}: cannot read {bad}: {exc}") from None
+        state = d.get("reference_state")
+        if state is not None:
+            if state not in full.referenceConfigurations:
+                known = ", ".join(sorted(full.referenceConfigurations.keys()))
+                raise UnknownNameError(f"{origin}: reference_state '{state}' is not in {self.srdf_path} (known: {known})")
             q_ref = np.array(full.referenceConfigurations[state])
         else:
             q_ref = pin.neutral(full)
-        lock_ids = [full.getJointId(j) for j in spec["locked_joints"]]
-        self.locked_joints: dict[str, float] = {
-            j: float(q_ref[full.joints[full.getJointId(j)].idx_q]) for j in spec["locked_joints"]
-        }
+        locked = d.get("locked_joints") or []
+        for j in locked:
+            if not full.existJointName(j):
+                known = ", ".join(list(full.names)[1:])
+                raise UnknownNameError(f"{origin}: locked joint '{j}' is not a joint of {self.urdf_path} (known: {known})")
+        if isinstance(locked, Mapping):  # explicit values
+            for j, v in locked.items():
+                jf = full.joints[full.getJointId(j)]
+                if jf.nq != 1:
+                    raise RobotFileError(f"{origin}: locked joint '{j}' takes {jf.nq} values; lock it by name instead")
+                q_ref[jf.idx_q] = float(v)
+        lock_ids = [full.getJointId(j) for j in locked]
+        self.locked_joints: dict[str, float] = {j: float(q_ref[full.joints[full.getJointId(j)].idx_q]) for j in locked}
         self.model: pin.Model = pin.buildReducedModel(full, lock_ids, q_ref) if lock_ids else full
         self.data: pin.Data = self.model.createData()
         self.q_default: NDArray[np.float64] = self._reduce(full, q_ref)
         self.lower: NDArray[np.float64] = np.array(self.model.lowerPositionLimit)
         self.upper: NDArray[np.float64] = np.array(self.model.upperPositionLimit)
+        #: q indices of the cos value of each continuous joint (its sin follows).
+        self.continuous: list[int] = []
+        for jid in range(1, self.model.njoints):
+            j = self.model.joints[jid]
+            if j.nq == 2 and j.nv == 1:
+                self.continuous.append(int(j.idx_q))
+                self.lower[j.idx_q : j.idx_q + 2] = -np.inf  # any angle: the limits do not apply
+                self.upper[j.idx_q : j.idx_q + 2] = np.inf
         if self.floating_base:  # Pinocchio leaves the free-flyer unbounded (+-max double)
             self.lower[:7] = -np.inf
             self.upper[:7] = np.inf
-        self.frames: dict[str, str] = dict(spec["frames"])
+        self.frames: dict[str, str] = dict(d.get("frames") or [])
         for role, frame in self.frames.items():
             if not self.model.existFrame(frame):
-                raise RobotFileError(f"robot '{name}': frame '{frame}' ({role}) is not in the URDF")
+                raise UnknownNameError(f"{origin}: frame '{role}' = '{frame}' is not a link of {self.urdf_path}")
         self.joint_names: list[str] = [
             n for n in list(self.model.names)[1:] if not (self.floating_base and n == "root_joint")
         ]
@@ -129,7 +180,8 @@ class Robot:
     @functools.cached_property
     def collision_model(self) -> pin.GeometryModel:
         """Pinocchio/coal collision model of the same geometry, with the same pair selection:
-        all pairs on different joints, minus the SRDF's disabled pairs."""
+        all pairs on different joints, minus the SRDF's disabled pairs (or, without an SRDF,
+        minus :attr:`disabled_pairs`)."""
         geom = pin.buildGeomFromUrdf(
             self.model,
             str(self.collision_urdf_path),
@@ -137,8 +189,25 @@ class Robot:
             package_dirs=[str(p) for p in self.package_dirs],
         )
         geom.addAllCollisionPairs()
-        pin.removeCollisionPairs(self.model, geom, str(self.srdf_path), False)
+        if self.srdf_path is not None:
+            pin.removeCollisionPairs(self.model, geom, str(self.srdf_path), False)
+        else:
+            skip = {frozenset(p) for p in self.disabled_pairs}
+            link = [self.model.frames[g.parentFrame].name for g in geom.geometryObjects]
+            pairs = [(int(cp.first), int(cp.second)) for cp in geom.collisionPairs]  # copies: removal shifts
+            for a, b in pairs:
+                if frozenset((link[a], link[b])) in skip:
+                    geom.removeCollisionPair(pin.CollisionPair(a, b))
         return geom
+
+    @functools.cached_property
+    def disabled_pairs(self) -> list[tuple[str, str]]:
+        """Link pairs skipped in self-collision checks: the SRDF's, or without an SRDF the ones
+        computed as MoveIt's setup assistant does (:func:`compute_disabled_pairs`,
+        cached on disk)."""
+        if self.srdf_path is not None:
+            return [(a, b) for a, b in _core.srdf_disabled_pairs(self.srdf_path)]
+        return compute_disabled_pairs(self).pairs
 
     def frame_id(self, frame: str) -> int:
         """Pinocchio frame id of a role ("hand", "right_hand", ...) or of a frame name."""
@@ -146,7 +215,7 @@ class Robot:
         if not self.model.existFrame(name):
             raise UnknownNameError(
                 f"robot '{self.name}' has no frame '{frame}' "
-                f"(roles: {', '.join(self.frames)}; or any URDF link name)"
+                f"(roles: {', '.join(self.frames) or 'none'}; or any URDF link name)"
             )
         return int(self.model.getFrameId(name))
 
@@ -154,6 +223,19 @@ class Robot:
         """q as a float64 array of shape (nq,) or (n, nq); ShapeError on a wrong shape,
         NonFiniteError on NaN or inf (:mod:`genplan.errors`)."""
         return as_configurations(q, self.nq, what)
+
+    def normalize(self, q: Any) -> NDArray[np.float64]:
+        """q (one or a batch) with every free-flyer quaternion and every continuous joint's
+        (cos, sin) scaled to unit norm, as Pinocchio expects."""
+        qa = self.check_configuration(q).copy()
+        rows = qa.reshape(-1, self.nq)
+        groups = [(i, 2) for i in self.continuous] + ([(3, 4)] if self.floating_base else [])
+        for i, k in groups:
+            norm = np.linalg.norm(rows[:, i : i + k], axis=1, keepdims=True)
+            if np.any(norm == 0):
+                raise ShapeError(f"q: the values {i}..{i + k - 1} are all zero: no rotation to normalise")
+            rows[:, i : i + k] /= norm
+        return qa
 
     def link_poses(self, q: Any, links: list[str] | None = None) -> NDArray[np.float64]:
         """World poses (4x4) of links from the Rust kinematics: (L, 4, 4) or (n, L, 4, 4)."""
@@ -169,34 +251,206 @@ class Robot:
         return self.data.oMf[fid].copy()
 
     def random_configurations(self, n: int, rng: np.random.Generator | int | None = None) -> NDArray[np.float64]:
-        """n configurations uniform within the joint limits (a free-flyer base stays at its
-        default placement)."""
-        rng = np.random.default_rng(rng)
-        q = np.repeat(self.q_default[None, :], n, axis=0)
+        """n configurations uniform within the joint limits; a continuous joint's angle uniform
+        in [-pi, pi) (stored as cos, sin); a free-flyer base stays at its default placement."""
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+            raise TypeError(f"n: expected an integer count, got {type(n).__name__}")
+        if n < 0:
+            raise ShapeError(f"n: expected a count >= 0, got {n}")
+        try:
+            rng = np.random.default_rng(rng)
+        except (ValueError, TypeError) as exc:
+            raise SettingsError(f"rng: expected a numpy Generator, a seed >= 0 or None, got {rng!r} ({exc})") from None
+        q = np.repeat(self.q_default[None, :], int(n), axis=0)
         lo, hi = self.lower.copy(), self.upper.copy()
         bounded = np.isfinite(lo) & np.isfinite(hi)
-        q[:, bounded] = rng.uniform(lo[bounded], hi[bounded], size=(n, int(bounded.sum())))
+        q[:, bounded] = rng.uniform(lo[bounded], hi[bounded], size=(int(n), int(bounded.sum())))
+        if self.continuous:
+            angle = rng.uniform(-np.pi, np.pi, size=(int(n), len(self.continuous)))
+            idx = np.asarray(self.continuous)
+            q[:, idx] = np.cos(angle)
+            q[:, idx + 1] = np.sin(angle)
         return q
 
     def collision_world(self, self_collision: bool = True) -> CollisionWorld:
         """A new collision world (no obstacles) for this robot."""
-        native = _core.CollisionWorld(
-            self.kinematics,
-            self.collision_urdf_path,
-            self.package_dirs,
-            self.srdf_path,
-        )
+        if self.srdf_path is not None:
+            native = _core.CollisionWorld(self.kinematics, self.collision_urdf_path, self.package_dirs, self.srdf_path)
+        else:
+            native = _core.CollisionWorld(
+                self.kinematics, self.collision_urdf_path, self.package_dirs, None, self.disabled_pairs
+            )
         native.check_self = self_collision
         return CollisionWorld(native)
+
+    def write_srdf(self, path: str | os.PathLike[str]) -> Path:
+        """Write the robot's disabled self-collision pairs (and its default configuration as the
+        group state "default") as an SRDF, atomically; returns the path."""
+        return write_srdf(self, path)
 
     def __repr__(self) -> str:
         return f"Robot('{self.name}', nq={self.nq}, nv={self.nv}, frames={self.frames})"
 
 
-@functools.lru_cache(maxsize=None)
-def load(name: str) -> Robot:
-    """Load a robot by name ("panda", "talos", "ur5"). Cached: the same object is returned for
-    the same name; an unknown name raises UnknownNameError listing the known ones."""
-    if name not in ROBOT_NAMES:
-        raise UnknownNameError(f"unknown robot '{name}' (known: {', '.join(ROBOT_NAMES)})")
-    return Robot(name)
+# --- self-collision pairs to skip without an SRDF ---------------------------------------------
+
+#: Why a pair is skipped, in MoveIt's words.
+REASONS: tuple[str, ...] = ("Adjacent", "Default", "Always", "Never")
+
+
+@dataclass(frozen=True)
+class DisabledPairs:
+    """Link pairs skipped in self-collision checks, each with its reason."""
+
+    entries: tuple[tuple[str, str, str], ...]
+    samples: int
+    seed: int
+
+    @property
+    def pairs(self) -> list[tuple[str, str]]:
+        return [(a, b) for a, b, _ in self.entries]
+
+    def counts(self) -> dict[str, int]:
+        """How many pairs per reason."""
+        return {r: sum(1 for *_, why in self.entries if why == r) for r in REASONS}
+
+    def report(self) -> str:
+        c = self.counts()
+        return (f"{len(self.entries)} link pairs skipped ({', '.join(f'{k.lower()} {v}' for k, v in c.items())}; "
+                f"{self.samples} random configurations, seed {self.seed})")
+
+
+def _files_digest(robot: Robot) -> str:
+    h = hashlib.sha256()
+    for p in (robot.urdf_path, robot.collision_urdf_path):
+        h.update(Path(p).read_bytes())
+    h.update(json.dumps({"locked": robot.locked_joints, "floating": robot.floating_base,
+                         "q": robot.q_default.tolist(), "version": _core.__version__}, sort_keys=True).encode())
+    return h.hexdigest()[:16]
+
+
+def compute_disabled_pairs(robot: Robot, samples: int = 10_000, seed: int = 0, cache: bool = True) -> DisabledPairs:
+    """The pairs to skip for ``robot`` (ignoring any SRDF it has), from ``samples`` random
+    configurations drawn with ``seed``. Cached in ``$GENPLAN_CACHE/self_collision`` unless
+    ``cache=False``; the cache is keyed by the URDF files' contents and the settings."""
+    if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= 10_000_000:
+        raise SettingsError(f"samples: expected an integer in 1..10000000, got {samples!r}")
+    path = cache_dir() / "self_collision" / f"{robot.name}_{_files_digest(robot)}_{samples}_{seed}.json"
+    if cache and path.is_file():
+        try:
+            data = json.loads(path.read_text())
+            entries = tuple((str(a), str(b), str(r)) for a, b, r in data["pairs"])
+            if all(r in REASONS for *_, r in entries):
+                return DisabledPairs(entries, samples, seed)
+        except (OSError, ValueError, KeyError, TypeError):
+            pass  # a broken cache file is recomputed
+    native = _core.CollisionWorld(robot.kinematics, robot.collision_urdf_path, robot.package_dirs, None)
+    entries = tuple(native.compute_disabled_pairs(robot.q_default, samples=samples, seed=seed))
+    if cache:
+        write_text(path, json.dumps({"robot": robot.name, "samples": samples, "seed": seed,
+                                     "pairs": [list(e) for e in entries]}, indent=1))
+    return DisabledPairs(entries, samples, seed)
+
+
+def write_srdf(robot: Robot, path: str | os.PathLike[str], samples: int = 10_000, seed: int = 0) -> Path:
+    """Write an SRDF with the robot's computed disabled pairs (with MoveIt's reasons) and its
+    default configuration as the group state "default", atomically. Pass it back as
+    ``srdf=`` (or in a robot file) to skip the computation and to edit the pairs by hand."""
+    found = compute_disabled_pairs(robot, samples=samples, seed=seed)
+    state = []
+    for name in robot.joint_names:
+        j = robot.model.joints[robot.model.getJointId(name)]
+        if j.nq == 1:
+            state.append((name, float(robot.q_default[j.idx_q])))
+    text = _core.disabled_pairs_srdf(robot.name, [tuple(e) for e in found.entries], state)
+    with atomic_path(Path(path)) as tmp:
+        tmp.write_text(text)
+    return Path(path)
+
+
+def _is_pathlike(x: Any) -> bool:
+    return isinstance(x, os.PathLike) or (isinstance(x, str) and (os.sep in x or "/" in x or x.endswith((".toml", ".urdf"))))
+
+
+def _file_key(p: Any) -> tuple[str, int]:
+    path = Path(p)
+    try:
+        return str(path.resolve()), path.stat().st_mtime_ns
+    except OSError:
+        return str(path), -1
+
+
+@functools.lru_cache(maxsize=64)
+def _load(key: str) -> Robot:
+    desc = json.loads(key)["description"]
+    return Robot(desc)
+
+
+def clear_cache() -> None:
+    """Forget the robots :func:`load` has cached (the next load reads the files again)."""
+    _load.cache_clear()
+
+
+def _cached(desc: dict[str, Any]) -> Robot:
+    files = [desc["urdf"], desc["collision_urdf"], desc.get("srdf"), desc.get("source")]
+    key = json.dumps({"description": desc, "files": [_file_key(f) for f in files if f]}, sort_keys=True, default=str)
+    return _load(key)
+
+
+def load(
+    robot: str | os.PathLike[str] | None = None,
+    /,
+    *,
+    urdf: str | os.PathLike[str] | None = None,
+    srdf: str | os.PathLike[str] | None = None,
+    collision_urdf: str | os.PathLike[str] | None = None,
+    package_dirs: Iterable[str | os.PathLike[str]] = (),
+    floating_base: bool = False,
+    locked_joints: Iterable[str] | Mapping[str, float] = (),
+    reference_state: str | None = None,
+    frames: Mapping[str, str] | None = None,
+    name: str | None = None,
+) -> Robot:
+    """Load a robot: a preset name (:data:`ROBOT_NAMES`), a robot file (``.toml``), a URDF path,
+    or ``urdf=PATH`` with keywords (the keys of a robot file; see docs/ROBOTS.md).
+
+    Relative paths in a robot file are relative to the file; in keywords, to the current folder.
+    ``package://PKG/...`` resolves against ``package_dirs`` then example-robot-data. Cached: the
+    same description of unchanged files gives the same object. Errors: UnknownNameError for an
+    unknown preset (the known ones listed), RobotFileError naming the file and the key for a
+    bad robot file, a missing file or a URDF Pinocchio cannot read.
+    """
+    keywords = dict(
+        urdf=urdf, srdf=srdf, collision_urdf=collision_urdf, floating_base=floating_base or None,
+        locked_joints=(dict(locked_joints) if isinstance(locked_joints, Mapping) else list(locked_joints)) or None,
+        reference_state=reference_state, frames=dict(frames) if frames else None, name=name,
+        package_dirs=[str(p) for p in package_dirs] or None,
+    )
+    given = sorted(k for k, v in keywords.items() if v is not None)
+    defaults = default_package_dirs()
+    if robot is not None and isinstance(robot, (str, os.PathLike)) and str(robot).endswith(".urdf"):
+        if urdf is not None:
+            raise TypeError("load(): give the URDF either as the first argument or as urdf=, not both")
+        keywords["urdf"], robot, given = str(robot), None, sorted({*given, "urdf"})
+    if robot is not None:
+        if given:
+            raise TypeError(f"load(): a preset or robot file takes no keywords (got {', '.join(given)}); "
+                            "put them in a robot file, or give urdf= with keywords")
+        if not isinstance(robot, (str, os.PathLike)):
+            raise TypeError(f"load(): expected a preset name or a path, got {type(robot).__name__}")
+        if _is_pathlike(robot):
+            path = Path(robot)
+            if not path.is_file():
+                raise FileNotFoundError(f"robot file {path} does not exist")
+            return _cached(_core.read_robot_file(path, defaults))
+        if str(robot) not in ROBOT_NAMES:
+            raise UnknownNameError(
+                f"unknown robot '{robot}' (known: {', '.join(ROBOT_NAMES)}; or a robot file .toml, or urdf=PATH)"
+            )
+        return _cached(_core.read_robot_file(PRESETS_DIR / f"{robot}.toml", defaults))
+    if urdf is None and keywords["urdf"] is None:
+        raise TypeError("load(): give a preset name, a robot file, or urdf=PATH")
+    fields = {k: v for k, v in keywords.items() if v is not None}
+    default_name = Path(str(fields["urdf"])).stem
+    desc = _core.robot_description(fields, defaults, f"robot '{name or default_name}'", default_name, Path.cwd())
+    return _cached(desc)

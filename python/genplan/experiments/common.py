@@ -6,13 +6,12 @@ from __future__ import annotations
 import json
 import os
 import platform
-import secrets
 import subprocess
-from collections.abc import Iterator
-from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
+
+from genplan._files import atomic_path, write_text
 
 
 def machine() -> dict[str, Any]:
@@ -41,28 +40,6 @@ def _git_rev() -> str:
                               cwd=Path(__file__).parent, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
-
-
-@contextmanager
-def atomic_path(path: Path) -> Iterator[Path]:
-    """A temporary name beside ``path`` (same suffix) to write to; renamed to ``path`` when the
-    block ends without an error, removed otherwise. A reader never sees half a file, and a failed
-    write leaves the old file in place. The folder is created if missing."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}-{secrets.token_hex(4)}.tmp{path.suffix}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def write_text(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` atomically (:func:`atomic_path`)."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
-    return Path(path)
 
 
 def save_figure(fig: Any, path: Path, **savefig: Any) -> Path:

@@ -20,15 +20,13 @@
 //! Every public method checks its input and returns an error on bad shapes or non-finite
 //! values; the `*_unchecked` variants are for the 1 kHz loop, which checks once up front.
 
-use std::path::Path;
 
 use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 
 use crate::error::{check_vector, unknown, Error, Result};
 use crate::kinematics::{KinematicModel, ModelOptions, Motion};
 use crate::lie::skew;
-use crate::robot::RobotSpec;
-use crate::srdf::Srdf;
+use crate::robot::RobotDescription;
 use crate::urdf::Urdf;
 
 /// Standard gravity used by Pinocchio's default model (m/s^2).
@@ -349,23 +347,18 @@ impl Dynamics {
         Dynamics::from_model(&model, urdf)
     }
 
-    /// A fixed-base preset of [`RobotSpec`] (e.g. "ur5", "panda") from example-robot-data's
-    /// `robots/` folder, with its locked joints held at their reference values.
-    pub fn from_robot(name: &str, robots_dir: &Path) -> Result<Dynamics> {
-        let spec = RobotSpec::by_name(name)?;
-        if spec.floating_base {
+    /// The dynamics of a fixed-base robot description (e.g. the "ur5" or "panda" preset), with
+    /// its locked joints held at their reference values.
+    pub fn from_description(robot: &RobotDescription) -> Result<Dynamics> {
+        if robot.floating_base {
             return Err(Error::Invalid(format!(
-                "dynamics: robot '{name}' has a floating base; only fixed-base arms are supported"
+                "dynamics: robot '{}' has a floating base; only fixed-base arms are supported",
+                robot.name
             )));
         }
-        let urdf = Urdf::from_file(robots_dir.join(spec.urdf))?;
-        let locked = if spec.locked_joints.is_empty() {
-            Default::default()
-        } else {
-            spec.locked_values(&Srdf::from_file(robots_dir.join(spec.srdf))?)
-        };
-        let options = ModelOptions { floating_base: false, locked_joints: locked, joint_order: None };
-        Dynamics::from_urdf(&urdf, &options)
+        let urdf = Urdf::from_file(&robot.urdf)?;
+        let srdf = if robot.locked_joints.is_empty() { None } else { robot.read_srdf()? };
+        Dynamics::from_urdf(&urdf, &robot.model_options(srdf.as_ref())?)
     }
 
     fn check_bodies(&self) -> Result<()> {

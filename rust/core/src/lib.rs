@@ -6,7 +6,7 @@
 //! * [`collision`]: parry collision world (self-collision with SRDF filtering, obstacles),
 //!   answering "in collision?" and signed minimum distance; one file each for the geometry,
 //!   the broad phase and the world.
-//! * [`robot`]: loading a robot (URDF + SRDF + options) into both, in one call.
+//! * [`robot`]: robot descriptions as data (robot files: URDF + SRDF + options), loaded into both.
 //! * [`projection`]: damped Gauss-Newton projection / IK with a null-space posture task.
 //! * [`gan`]: native inference of a trained GAN generator, as a planner sampler.
 //! * [`planning`]: the constrained RRT, one file per concept (errors, space, samplers,
@@ -25,6 +25,7 @@ pub mod error;
 pub mod gan;
 pub mod kinematics;
 pub mod lie;
+pub mod mesh;
 pub mod planning;
 pub mod projection;
 pub mod robot;
@@ -34,4 +35,4 @@ pub mod urdf;
 pub use collision::{CollisionWorld, Scratch};
 pub use error::{Error, Result};
 pub use kinematics::{KinematicModel, ModelOptions};
-pub use robot::RobotSpec;
+pub use robot::RobotDescription;

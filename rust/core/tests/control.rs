@@ -12,7 +12,7 @@ use genplan_core::control::{
 };
 use genplan_core::Error;
 use genplan_core::dynamics::Dynamics;
-use genplan_core::robot::find_robots_dir;
+use genplan_core::robot::preset;
 use nalgebra::Vector3;
 use rand::{rngs::StdRng, Rng, SeedableRng};
 
@@ -146,7 +146,7 @@ fn at_the_spatula_point_the_pancake_sticks_exactly_inside_the_papers_cone() {
 // ------------------------------------------------------------------------------------- UR5
 
 fn ur5() -> Dynamics {
-    Dynamics::from_robot("ur5", &find_robots_dir().unwrap()).unwrap()
+    Dynamics::from_description(&preset("ur5").unwrap()).unwrap()
 }
 
 fn sim(config: SimConfig) -> Simulation {
@@ -220,7 +220,7 @@ fn bad_trajectories_are_refused_before_the_loop() {
     let mut c = SimConfig::new(6);
     c.disturbances.coulomb = vec![1.0; 5];
     assert!(Simulation::new(&ur5(), c).err().unwrap().to_string().contains("disturbances.coulomb"));
-    let panda = Dynamics::from_robot("panda", &find_robots_dir().unwrap()).unwrap();
+    let panda = Dynamics::from_description(&preset("panda").unwrap()).unwrap();
     assert!(Simulation::new(&panda, SimConfig::new(7)).err().unwrap().to_string().contains("6-joint"));
 }
 

@@ -6,7 +6,7 @@
 
 use genplan_core::dynamics::{cholesky_in_place, Dynamics, Frame};
 use genplan_core::kinematics::{KinematicModel, ModelOptions};
-use genplan_core::robot::find_robots_dir;
+use genplan_core::robot::{find_robots_dir, preset};
 use genplan_core::urdf::Urdf;
 use genplan_core::Error;
 use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
@@ -339,10 +339,9 @@ fn bad_input_is_an_error_not_a_panic() {
 }
 
 fn presets() -> Vec<(&'static str, Dynamics, &'static str)> {
-    let root = find_robots_dir().unwrap();
     vec![
-        ("ur5", Dynamics::from_robot("ur5", &root).unwrap(), "tool0"),
-        ("panda", Dynamics::from_robot("panda", &root).unwrap(), "panda_hand"),
+        ("ur5", Dynamics::from_description(&preset("ur5").unwrap()).unwrap(), "tool0"),
+        ("panda", Dynamics::from_description(&preset("panda").unwrap()).unwrap(), "panda_hand"),
     ]
 }
 
@@ -375,11 +374,11 @@ fn presets_are_consistent() {
 #[ignore = "needs example-robot-data (scripts/test runs it)"]
 fn ur5_masses_and_locked_panda_fingers() {
     let root = find_robots_dir().unwrap();
-    let ur5 = Dynamics::from_robot("ur5", &root).unwrap();
+    let ur5 = Dynamics::from_description(&preset("ur5").unwrap()).unwrap();
     // shoulder 3.7 + upper arm 8.393 + forearm 2.275 + wrists 3 x (1.219, 1.219, 0.1879); the
     // base (4 kg) is fixed to the world
     assert!((ur5.moving_mass() - (3.7 + 8.393 + 2.275 + 1.219 + 1.219 + 0.1879)).abs() < 1e-12);
-    let panda = Dynamics::from_robot("panda", &root).unwrap();
+    let panda = Dynamics::from_description(&preset("panda").unwrap()).unwrap();
     assert_eq!(panda.nv, 7);
     // locked fingers are lumped into the hand body
     let urdf = Urdf::from_file(root.join("panda_description/urdf/panda.urdf")).unwrap();

@@ -1,8 +1,8 @@
 //! Property tests of the SRDF reader and of what genplan builds from what it accepts: any text,
 //! bytes or mutation of a valid SRDF is read as `Ok` or `Err`, never a panic; an `Ok` SRDF's
-//! numbers are finite; its disabled pairs are exactly the self-collision pairs the collision
-//! world leaves out; and a robot whose locked joints take their values from its group state is
-//! usable ([`fuzz::check_robot`]).
+//! numbers are finite and within `urdf::MAX_JOINT_POSITION`; its disabled pairs are exactly the
+//! self-collision pairs the collision world leaves out; and a robot whose locked joints take
+//! their values from its group state is built and usable ([`fuzz::check_robot`]).
 
 #[path = "common/fuzz.rs"]
 mod fuzz;
@@ -13,9 +13,9 @@ use std::sync::Arc;
 use fuzz::{check_robot, config, El, Gaps};
 use genplan_core::collision::CollisionWorld;
 use genplan_core::kinematics::{KinematicModel, ModelOptions};
-use genplan_core::robot::RobotSpec;
+use genplan_core::robot::{LockedJoints, RobotDescription};
 use genplan_core::srdf::Srdf;
-use genplan_core::urdf::Urdf;
+use genplan_core::urdf::{Urdf, MAX_JOINT_POSITION};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 
@@ -44,24 +44,29 @@ const SEED: &str = r#"<robot name="shapes">
 </robot>"#;
 
 /// The robot of `SHAPES` with j2 locked at the SRDF's reference value (as a preset does).
-const SPEC: RobotSpec = RobotSpec {
-    name: "shapes",
-    urdf: "",
-    collision_urdf: "",
-    srdf: "",
-    floating_base: false,
-    locked_joints: &["j2"],
-    reference_state: "default",
-    frames: &[],
-};
+fn spec() -> RobotDescription {
+    RobotDescription {
+        name: "shapes".into(),
+        urdf: "shapes.urdf".into(),
+        collision_urdf: "shapes.urdf".into(),
+        srdf: Some("shapes.srdf".into()),
+        package_dirs: Vec::new(),
+        floating_base: false,
+        locked_joints: LockedJoints::FromReference(vec!["j2".into()]),
+        reference_state: Some("default".into()),
+        frames: Vec::new(),
+        source: None,
+    }
+}
 
-/// What must hold of any text (see the module doc); `strict`: known gaps are not exempted.
-fn check_text(text: &str, strict: bool) -> Result<(), TestCaseError> {
+/// What must hold of any text (see the module doc). No gap is exempted (finding SRDF-1 is
+/// fixed).
+fn check_text(text: &str) -> Result<(), TestCaseError> {
     let Ok(srdf) = Srdf::parse(text) else { return Ok(()) };
     let non_finite = srdf.group_states.values().flat_map(|s| s.values()).flatten().any(|x| !x.is_finite());
-    if strict || !non_finite {
-        prop_assert!(!non_finite, "an SRDF with a non-finite group_state value was accepted: {:?}", srdf.group_states);
-    }
+    prop_assert!(!non_finite, "an SRDF with a non-finite group_state value was accepted: {:?}", srdf.group_states);
+    let huge = srdf.group_states.values().flat_map(|s| s.values()).flatten().any(|x| x.abs() > MAX_JOINT_POSITION);
+    prop_assert!(!huge, "an SRDF with a group_state value beyond the bound was accepted: {:?}", srdf.group_states);
     // the collision world drops exactly the disabled pairs of known links
     let urdf = Urdf::parse(SHAPES).unwrap();
     let model = Arc::new(KinematicModel::from_urdf(&urdf, &ModelOptions::default()).unwrap());
@@ -81,13 +86,15 @@ fn check_text(text: &str, strict: bool) -> Result<(), TestCaseError> {
         prop_assert_eq!(kept.contains(&(i, j)), !disabled.contains(&links), "pair {:?}", world.self_pair_names());
     }
     // the locked joint takes its reference value
-    let locked = SPEC.locked_values(&srdf);
+    // (an SRDF without the "default" state is refused for a robot file naming it; here the
+    // joint is then locked at 0, as a description without a reference state does)
+    let locked = spec()
+        .locked_values(Some(&srdf))
+        .unwrap_or_else(|_| RobotDescription { reference_state: None, ..spec() }.locked_values(None).unwrap());
     let options = ModelOptions { locked_joints: locked.clone(), ..Default::default() };
-    if let Ok(model) = KinematicModel::from_urdf(&urdf, &options) {
-        let values: Vec<f64> = locked.values().copied().collect();
-        let gaps = if strict { Gaps::default() } else { Gaps::of_urdf(&urdf).of_model(&model, &values) };
-        check_robot(&urdf, model, &[0.3, 1.0, 0.0], gaps)?;
-    }
+    let model = KinematicModel::from_urdf(&urdf, &options);
+    prop_assert!(model.is_ok(), "the locked values {:?} of an accepted SRDF were refused: {:?}", locked, model.err());
+    check_robot(&urdf, model.unwrap(), &[0.3, 1.0, 0.0], Gaps::default())?;
     Ok(())
 }
 
@@ -97,13 +104,13 @@ proptest! {
     /// Any bytes (read as UTF-8, invalid sequences replaced).
     #[test]
     fn arbitrary_bytes_are_read_or_refused(bytes in proptest::collection::vec(any::<u8>(), 0..2048)) {
-        check_text(&String::from_utf8_lossy(&bytes), false)?;
+        check_text(&String::from_utf8_lossy(&bytes))?;
     }
 
     /// Any UTF-8 text.
     #[test]
     fn arbitrary_text_is_read_or_refused(text in any::<String>()) {
-        check_text(&text, false)?;
+        check_text(&text)?;
     }
 
     /// Text shaped like an SRDF: disabled pairs of known, unknown and missing links; group
@@ -114,7 +121,7 @@ proptest! {
         "<disable_collisions( link1=\"(base|l1|l2|tool|x|)\")?( link2=\"(base|l1|l2|tool|x|)\")?/>",
         "|<group_state( name=\"(default|other|)\")?>(<joint( name=\"j[1-4]\")?( value=\"(0|1\\.5|-2|1e308|1e999|NaN|nan|inf|-inf|infinity|1 2|1e-400|abc| |)\")?/>){0,4}</group_state>",
         "|<group_state/>|<bogus/>){0,6}</robot>")) {
-        check_text(&text, false)?;
+        check_text(&text)?;
     }
 
     /// Structured mutations of a valid SRDF.
@@ -124,35 +131,64 @@ proptest! {
         for m in &mutations {
             el.apply(m);
         }
-        check_text(&el.write(), false)?;
+        check_text(&el.write())?;
     }
 }
 
 #[test]
 fn the_seed_srdf_is_usable() {
-    check_text(SEED, true).unwrap();
+    check_text(SEED).unwrap();
     let srdf = Srdf::parse(SEED).unwrap();
     assert_eq!(srdf.disabled_pairs.len(), 3);
-    assert_eq!(SPEC.locked_values(&srdf)["j2"], 0.2);
+    assert_eq!(spec().locked_values(Some(&srdf)).unwrap()["j2"], 0.2);
 }
 
-/// SRDF-1: a group state value that is not finite (`NaN`, `inf`, or `1e999`, which overflows)
-/// is accepted; a preset locks its joints at these values, and forward kinematics then answers
-/// Ok with NaN poses (neither the SRDF reader nor `KinematicModel::from_urdf` checks them).
+/// SRDF-1 (fixed): a group state value that is not finite (`NaN`, `inf`, or `1e999`, which
+/// overflows) was accepted; a preset locked its joints at these values, and forward kinematics
+/// then answered Ok with NaN poses. The reader now refuses a value that is not finite, or beyond
+/// `urdf::MAX_JOINT_POSITION` (1e16), naming the group state and the joint.
 #[test]
-#[should_panic(expected = "an SRDF with a non-finite group_state value was accepted")]
-fn finding_srdf_1_non_finite_group_state_values_are_accepted() {
-    check_text(r#"<robot name="shapes"><group_state name="default"><joint name="j2" value="NaN"/></group_state></robot>"#, true)
-        .unwrap();
+fn srdf_1_non_finite_group_state_values_are_refused() {
+    for (value, problem) in [
+        ("NaN", "value NaN is not finite"),
+        ("inf", "value inf is not finite"),
+        ("-infinity", "value -inf is not finite"),
+        ("1e999", "value inf is not finite"),
+        ("1e308", "value 1e308 is too large (at most 1e16 in magnitude)"),
+        ("0 0 1 0 0 0 -1e17", "value -1e17 is too large"),
+    ] {
+        let text = format!(r#"<robot name="shapes"><group_state name="default"><joint name="j2" value="{value}"/></group_state></robot>"#);
+        let e = Srdf::parse(&text).unwrap_err().to_string();
+        assert!(e.contains(&format!("group_state 'default', joint 'j2': {problem}")), "{e}");
+        check_text(&text).unwrap();
+    }
+    // read from a file, the error names it
+    let dir = std::env::temp_dir().join(format!("genplan-fuzz-srdf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("nan.srdf");
+    std::fs::write(&path, r#"<robot><group_state name="s"><joint name="j" value="nan"/></group_state></robot>"#).unwrap();
+    let e = Srdf::from_file(&path).unwrap_err().to_string();
+    assert!(e.starts_with(&format!("cannot parse SRDF {}: group_state 's', joint 'j'", path.display())), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// SRDF-1, downstream: the locked joint at NaN gives NaN poses with no error.
+/// SRDF-1, downstream (fixed): a joint locked at a value that is not finite gave NaN poses with
+/// no error; the model now refuses a locked value that is not finite, or beyond
+/// `urdf::MAX_JOINT_POSITION`, naming the joint (whichever way the value came).
 #[test]
-#[should_panic(expected = "FK at the default configuration: pose 2 is not finite")]
-fn finding_srdf_1_a_joint_locked_at_nan_gives_nan_poses() {
+fn srdf_1_a_joint_locked_at_nan_is_refused() {
     let urdf = Urdf::parse(SHAPES).unwrap();
-    let srdf = Srdf::parse(r#"<robot><group_state name="default"><joint name="j2" value="1e999"/></group_state></robot>"#).unwrap();
-    let options = ModelOptions { locked_joints: SPEC.locked_values(&srdf), ..Default::default() };
-    let model = KinematicModel::from_urdf(&urdf, &options).expect("accepted");
+    for (value, problem) in [
+        (f64::NAN, "locked joint 'j2' value: element 0 is not finite (NaN)"),
+        (f64::INFINITY, "locked joint 'j2' value: element 0 is not finite (inf)"),
+        (1e300, "locked joint 'j2': value 1e300 is too large (at most 1e16 in magnitude)"),
+    ] {
+        let options = ModelOptions { locked_joints: [("j2".to_string(), value)].into(), ..Default::default() };
+        let e = KinematicModel::from_urdf(&urdf, &options).unwrap_err().to_string();
+        assert_eq!(e, problem);
+    }
+    // at the bound: accepted and usable
+    let options = ModelOptions { locked_joints: [("j1".to_string(), -1e16)].into(), ..Default::default() };
+    let model = KinematicModel::from_urdf(&urdf, &options).unwrap();
     check_robot(&urdf, model, &[0.0], Gaps::default()).unwrap();
 }

@@ -12,7 +12,7 @@ use genplan_core::planning::{
     Components, EuclideanSpace, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner, Projection,
     Projector, Sampler, Settings, Space, UniformSampler, ValidityChecker,
 };
-use genplan_core::robot::{find_robots_dir, RobotSpec};
+use genplan_core::robot::preset;
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 
@@ -232,8 +232,7 @@ fn component_errors_come_back_intact() {
 #[test]
 #[ignore = "needs example-robot-data (scripts/test runs it)"]
 fn panda_keeps_its_gripper_horizontal_around_a_box() {
-    let root = find_robots_dir().unwrap();
-    let (model, mut world) = RobotSpec::by_name("panda").unwrap().load(&root).unwrap();
+    let (model, mut world) = preset("panda").unwrap().load().unwrap();
     // a box between the two sides of the robot
     world
         .add_box("wall", [0.05, 0.05, 0.3], nalgebra::Isometry3::translation(0.45, 0.0, 0.35))
@@ -287,8 +286,7 @@ fn panda_keeps_its_gripper_horizontal_around_a_box() {
 
 #[test]
 fn uniform_sampler_draws_a_free_flyer_base_in_its_box() {
-    let root = find_robots_dir().unwrap();
-    let (talos, _) = RobotSpec::by_name("talos").unwrap().load(&root).unwrap();
+    let (talos, _) = preset("talos").unwrap().load().unwrap();
     let base = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
     let (lo, hi) = ([-0.1, -0.1, 0.6], [0.1, 0.1, 1.1]);
     let mut s = UniformSampler::new(talos.clone(), Some(base), 5).unwrap().with_base_box(lo, hi).unwrap();
@@ -318,7 +316,7 @@ fn uniform_sampler_draws_a_free_flyer_base_in_its_box() {
 
     let bad = UniformSampler::new(talos.clone(), None, 5).unwrap().with_base_box([0.0, 0.0, 1.0], [0.1, 0.1, 0.9]);
     assert!(matches!(bad, Err(PlanError::Input(m)) if m.contains("bad base box")));
-    let (panda, _) = RobotSpec::by_name("panda").unwrap().load(&root).unwrap();
+    let (panda, _) = preset("panda").unwrap().load().unwrap();
     let fixed_base = UniformSampler::new(panda, None, 5).unwrap().with_base_box(lo, hi);
     assert!(matches!(fixed_base, Err(PlanError::Input(m)) if m.contains("free-flyer")));
 }

@@ -75,10 +75,12 @@ impl PyDynamics {
 
 #[pymethods]
 impl PyDynamics {
-    /// A fixed-base preset ("ur5", "panda") from example-robot-data's robots/ folder.
+    /// A fixed-base robot from its description (`genplan.Robot.description`: the dict of
+    /// `read_robot_file` / `robot_description`).
     #[staticmethod]
-    fn from_robot(name: &str, robots_dir: PathBuf) -> PyResult<Self> {
-        Ok(Self { inner: Dynamics::from_robot(name, &robots_dir).map_err(to_py)? })
+    fn from_description(description: &Bound<'_, PyDict>) -> PyResult<Self> {
+        let robot = crate::description_from_py(description)?;
+        Ok(Self { inner: Dynamics::from_description(&robot).map_err(to_py)? })
     }
 
     /// From a URDF file (fixed base), optionally with locked joints.
@@ -390,12 +392,13 @@ pub(crate) struct PySpatulaSimulation {
 
 #[pymethods]
 impl PySpatulaSimulation {
-    /// `robot`: a fixed-base 6-joint preset ("ur5"); `config`: nested dict of overrides (see
-    /// `spatula_defaults()`).
+    /// `robot`: a fixed-base 6-joint robot's description (`genplan.Robot.description`, e.g. the
+    /// "ur5" preset's); `config`: nested dict of overrides (see `spatula_defaults()`).
     #[new]
-    #[pyo3(signature = (robots_dir, robot="ur5", config=None))]
-    fn new(robots_dir: PathBuf, robot: &str, config: Option<Bound<'_, PyDict>>) -> PyResult<Self> {
-        let arm = Dynamics::from_robot(robot, &robots_dir).map_err(to_py)?;
+    #[pyo3(signature = (robot, config=None))]
+    fn new(robot: &Bound<'_, PyDict>, config: Option<Bound<'_, PyDict>>) -> PyResult<Self> {
+        let robot = crate::description_from_py(robot)?;
+        let arm = Dynamics::from_description(&robot).map_err(to_py)?;
         let cfg = config_from_dict(arm.nv, config)?;
         Ok(Self { inner: Simulation::new(&arm, cfg).map_err(to_py)? })
     }

@@ -18,10 +18,10 @@ use pyo3::IntoPyObjectExt;
 use pyo3::types::{PyAnyMethods, PyDict};
 use rayon::prelude::*;
 
-use genplan_core::collision::CollisionWorld;
+use genplan_core::collision::{allowed, CollisionWorld};
 use genplan_core::projection::{Projector, Settings, Term, TermKind};
 use genplan_core::kinematics::{KinematicModel, ModelOptions};
-use genplan_core::robot::{package_dirs_for, RobotSpec, ROBOT_NAMES};
+use genplan_core::robot::{LockedJoints, RobotDescription};
 use genplan_core::srdf::Srdf;
 use genplan_core::urdf::Urdf;
 use genplan_core::Scratch;
@@ -305,23 +305,53 @@ impl PyCollisionWorld {
 #[pymethods]
 impl PyCollisionWorld {
     /// Build from the model, the URDF that holds the collision geometry, the package dirs
-    /// for `package://` meshes and an optional SRDF (its disabled pairs are not checked).
+    /// for `package://` meshes, an optional SRDF (its disabled pairs are not checked) and more
+    /// link pairs not to check (`disabled_pairs`, e.g. computed by `compute_disabled_pairs`).
     #[new]
-    #[pyo3(signature = (model, collision_urdf, package_dirs=Vec::new(), srdf_path=None))]
+    #[pyo3(signature = (model, collision_urdf, package_dirs=Vec::new(), srdf_path=None, disabled_pairs=None))]
     fn new(
+        py: Python<'_>,
         model: &PyKinematicModel,
         collision_urdf: PathBuf,
         package_dirs: Vec<PathBuf>,
         srdf_path: Option<PathBuf>,
+        disabled_pairs: Option<Vec<(String, String)>>,
     ) -> PyResult<Self> {
         let urdf = Urdf::from_file(&collision_urdf).map_err(to_py)?;
-        let srdf = match srdf_path {
+        let mut srdf = match srdf_path {
             Some(p) => Some(Srdf::from_file(&p).map_err(to_py)?),
             None => None,
         };
-        let inner = CollisionWorld::from_urdf(model.inner.clone(), &urdf, &package_dirs, srdf.as_ref())
+        if let Some(extra) = disabled_pairs {
+            for (a, b) in &extra {
+                for l in [a, b] {
+                    model.inner.link_index(l).map_err(|e| to_py_in("disabled_pairs", e))?;
+                }
+            }
+            srdf.get_or_insert_with(Srdf::default).disabled_pairs.extend(extra);
+        }
+        let model = model.inner.clone();
+        let inner = py
+            .detach(|| CollisionWorld::from_urdf(model, &urdf, &package_dirs, srdf.as_ref()))
             .map_err(to_py)?;
         Ok(Self { inner })
+    }
+
+    /// The link pairs to skip in self-collision checks, computed as MoveIt's setup assistant
+    /// does (`genplan_core::collision::allowed`): a list of (link_a, link_b, reason) with reason
+    /// "Adjacent", "Default", "Always" or "Never". Independent of the pairs this world skips.
+    #[pyo3(signature = (q_default, samples=10_000, always_fraction=0.95, seed=0))]
+    fn compute_disabled_pairs(
+        &self,
+        py: Python<'_>,
+        q_default: Vec<f64>,
+        samples: usize,
+        always_fraction: f64,
+        seed: u64,
+    ) -> PyResult<Vec<(String, String, &'static str)>> {
+        let options = allowed::Options { samples, always_fraction, seed };
+        let pairs = py.detach(|| allowed::disabled_pairs(&self.inner, &q_default, &options)).map_err(to_py)?;
+        Ok(pairs.into_iter().map(|p| (p.a, p.b, p.reason.as_str())).collect())
     }
 
     #[getter]
@@ -556,9 +586,9 @@ impl PyProjector {
                     return Err(err(Kind::Shape, format!("targets: expected {n} rows, got shape {:?}", arr.shape())));
                 }
                 let k: usize = arr.shape()[1..].iter().product();
-                solver.retargeted(ti, &vec![0.0; k]).map_err(|e| to_py_in("targets", e))?;
+                // every row as the solver takes it (length, finite, bounded, a rotation), before any work
                 for (i, row) in tdata.chunks(k.max(1)).enumerate() {
-                    genplan_core::error::check_finite("target", row).map_err(|e| to_py_in(&format!("targets[{i}]"), e))?;
+                    solver.retargeted(ti, row).map_err(|e| to_py_in(&format!("targets[{i}]"), e))?;
                 }
                 Some((ti, tdata, k))
             }
@@ -616,40 +646,163 @@ fn dmatrix_to_py<'py>(py: Python<'py>, j: &nalgebra::DMatrix<f64>) -> PyResult<B
         .into_pyarray(py))
 }
 
-/// The preset of a robot as a dict (files relative to example-robot-data's robots/ folder).
-#[pyfunction]
-fn robot_spec<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
-    let s = RobotSpec::by_name(name).map_err(to_py)?;
+/// A Python value (str, bool, int, float, list, dict) as a TOML value, for
+/// [`RobotDescription::from_table`]; `key` names it in errors.
+fn toml_value(v: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
+    use pyo3::types::{PyBool, PyFloat, PyInt, PyList, PyString, PyTuple};
+    if v.is_instance_of::<PyBool>() {
+        return Ok(toml::Value::Boolean(v.extract()?));
+    }
+    if v.is_instance_of::<PyInt>() {
+        return Ok(toml::Value::Integer(v.extract()?));
+    }
+    if v.is_instance_of::<PyFloat>() {
+        return Ok(toml::Value::Float(v.extract()?));
+    }
+    if v.is_instance_of::<PyString>() {
+        return Ok(toml::Value::String(v.extract()?));
+    }
+    if let Ok(d) = v.cast::<PyDict>() {
+        return Ok(toml::Value::Table(toml_table(d, key)?));
+    }
+    if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
+        let items: Vec<Bound<'_, PyAny>> = v.try_iter()?.collect::<PyResult<_>>()?;
+        return items.iter().map(|x| toml_value(x, key)).collect::<PyResult<Vec<_>>>().map(toml::Value::Array);
+    }
+    if let Ok(p) = v.extract::<PathBuf>() {
+        return Ok(toml::Value::String(p.to_string_lossy().into_owned()));
+    }
+    Err(pyo3::exceptions::PyTypeError::new_err(format!(
+        "{key}: expected a string, number, boolean, list or dict, got {}",
+        v.get_type().name()?
+    )))
+}
+
+fn toml_table(d: &Bound<'_, PyDict>, key: &str) -> PyResult<toml::Table> {
+    let mut t = toml::Table::new();
+    for (k, v) in d.iter() {
+        let k: String = k.extract().map_err(|_| {
+            pyo3::exceptions::PyTypeError::new_err(format!("{key}: keys must be strings"))
+        })?;
+        if v.is_none() {
+            continue;
+        }
+        let sub = if key.is_empty() { k.clone() } else { format!("{key}.{k}") };
+        t.insert(k, toml_value(&v, &sub)?);
+    }
+    Ok(t)
+}
+
+fn description_to_py<'py>(py: Python<'py>, r: &RobotDescription) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("name", s.name)?;
-    d.set_item("urdf", s.urdf)?;
-    d.set_item("collision_urdf", s.collision_urdf)?;
-    d.set_item("srdf", s.srdf)?;
-    d.set_item("floating_base", s.floating_base)?;
-    d.set_item("locked_joints", s.locked_joints.to_vec())?;
-    d.set_item("reference_state", s.reference_state)?;
-    d.set_item("frames", s.frames.iter().map(|(a, b)| (*a, *b)).collect::<Vec<_>>())?;
+    d.set_item("name", &r.name)?;
+    d.set_item("urdf", &r.urdf)?;
+    d.set_item("collision_urdf", &r.collision_urdf)?;
+    d.set_item("srdf", &r.srdf)?;
+    d.set_item("package_dirs", &r.package_dirs)?;
+    d.set_item("floating_base", r.floating_base)?;
+    match &r.locked_joints {
+        LockedJoints::FromReference(names) => d.set_item("locked_joints", names)?,
+        LockedJoints::Values(v) => d.set_item("locked_joints", v.iter().cloned().collect::<std::collections::BTreeMap<_, _>>())?,
+    }
+    d.set_item("reference_state", &r.reference_state)?;
+    let frames = PyDict::new(py);
+    for (role, link) in &r.frames {
+        frames.set_item(role, link)?;
+    }
+    d.set_item("frames", frames)?;
+    d.set_item("source", &r.source)?;
     Ok(d)
 }
 
-/// Load a preset robot from example-robot-data's robots/ folder: (KinematicModel, CollisionWorld).
-#[pyfunction]
-fn load_robot(py: Python<'_>, name: &str, robots_dir: PathBuf) -> PyResult<(PyKinematicModel, PyCollisionWorld)> {
-    let spec = RobotSpec::by_name(name).map_err(to_py)?;
-    let (model, world) = py.detach(|| spec.load(&robots_dir)).map_err(to_py)?;
-    Ok((PyKinematicModel { inner: model }, PyCollisionWorld { inner: world }))
+/// A description dict (as [`description_to_py`] makes it: absolute paths) back to Rust.
+pub(crate) fn description_from_py(d: &Bound<'_, PyDict>) -> PyResult<RobotDescription> {
+    let fields = d.copy()?;
+    let source: Option<PathBuf> = match fields.get_item("source")? {
+        Some(v) if !v.is_none() => Some(v.extract()?),
+        _ => None,
+    };
+    if fields.contains("source")? {
+        fields.del_item("source")?;
+    }
+    let name: String = fields.get_item("name")?.map(|v| v.extract()).transpose()?.unwrap_or_default();
+    let table = toml_table(&fields, "")?;
+    let origin = source.as_ref().map(|p| format!("robot file {}", p.display())).unwrap_or_else(|| format!("robot '{name}'"));
+    let mut r = RobotDescription::from_table(&table, None, &[], &origin, &name).map_err(to_py)?;
+    r.source = source;
+    Ok(r)
 }
 
-/// package dirs for `package://example-robot-data/...` given the robots/ folder.
+/// Read a robot file (TOML): its description as a dict with absolute paths
+/// (`genplan_core::robot::RobotDescription`). `package_dirs` are searched after the file's own.
 #[pyfunction]
-fn package_dirs(robots_dir: PathBuf) -> Vec<PathBuf> {
-    package_dirs_for(&robots_dir)
+fn read_robot_file<'py>(py: Python<'py>, path: PathBuf, package_dirs: Vec<PathBuf>) -> PyResult<Bound<'py, PyDict>> {
+    let r = RobotDescription::from_file(&path, &package_dirs).map_err(to_py)?;
+    description_to_py(py, &r)
+}
+
+/// A robot description from the keys of a robot file given as a dict (relative paths against
+/// `base_dir`); `origin` names the input in errors, `default_name` is used without `name`.
+#[pyfunction]
+#[pyo3(signature = (fields, package_dirs, origin, default_name, base_dir=None))]
+fn robot_description<'py>(
+    py: Python<'py>,
+    fields: &Bound<'py, PyDict>,
+    package_dirs: Vec<PathBuf>,
+    origin: &str,
+    default_name: &str,
+    base_dir: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let table = toml_table(fields, "")?;
+    let r = RobotDescription::from_table(&table, base_dir.as_deref(), &package_dirs, origin, default_name).map_err(to_py)?;
+    description_to_py(py, &r)
+}
+
+/// The `<disable_collisions>` link pairs of an SRDF file.
+#[pyfunction]
+fn srdf_disabled_pairs(path: PathBuf) -> PyResult<Vec<(String, String)>> {
+    Ok(Srdf::from_file(&path).map_err(to_py)?.disabled_pairs)
+}
+
+/// SRDF text holding `pairs` (link_a, link_b, reason) as `<disable_collisions>` and, if given,
+/// the group state "default" (joint name, value).
+#[pyfunction]
+#[pyo3(signature = (robot_name, pairs, default_state=None))]
+fn disabled_pairs_srdf(
+    robot_name: &str,
+    pairs: Vec<(String, String, String)>,
+    default_state: Option<Vec<(String, f64)>>,
+) -> PyResult<String> {
+    let pairs = pairs
+        .into_iter()
+        .map(|(a, b, r)| {
+            let reason = match r.as_str() {
+                "Adjacent" => allowed::Reason::Adjacent,
+                "Default" => allowed::Reason::Default,
+                "Always" => allowed::Reason::Always,
+                "Never" => allowed::Reason::Never,
+                other => return Err(err(Kind::UnknownName, format!(
+                    "pairs: unknown reason '{other}' (known: Adjacent, Default, Always, Never)"
+                ))),
+            };
+            Ok(allowed::DisabledPair { a, b, reason })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    Ok(allowed::srdf_text(robot_name, &pairs, default_state.as_deref()))
+}
+
+/// Load a robot file with the Rust core alone: (KinematicModel, CollisionWorld) (for tests).
+#[pyfunction]
+fn load_robot(py: Python<'_>, path: PathBuf, package_dirs: Vec<PathBuf>) -> PyResult<(PyKinematicModel, PyCollisionWorld)> {
+    let (model, world) = py
+        .detach(|| RobotDescription::from_file(&path, &package_dirs).and_then(|r| r.load()))
+        .map_err(to_py)?;
+    Ok((PyKinematicModel { inner: model }, PyCollisionWorld { inner: world }))
 }
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("ROBOT_NAMES", ROBOT_NAMES.to_vec())?;
     let crates: Vec<(String, String)> = env!("GENPLAN_CRATE_VERSIONS")
         .split(',')
         .filter_map(|kv| kv.split_once('=').map(|(k, v)| (k.to_string(), v.to_string())))
@@ -659,9 +812,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCollisionWorld>()?;
     m.add_class::<PyProjector>()?;
     m.add_class::<PySolverSettings>()?;
-    m.add_function(wrap_pyfunction!(robot_spec, m)?)?;
+    m.add_function(wrap_pyfunction!(read_robot_file, m)?)?;
+    m.add_function(wrap_pyfunction!(robot_description, m)?)?;
     m.add_function(wrap_pyfunction!(load_robot, m)?)?;
-    m.add_function(wrap_pyfunction!(package_dirs, m)?)?;
+    m.add_function(wrap_pyfunction!(srdf_disabled_pairs, m)?)?;
+    m.add_function(wrap_pyfunction!(disabled_pairs_srdf, m)?)?;
     planning::register(m)?;
     control::register(m)?;
     Ok(())

@@ -1,10 +1,8 @@
 //! Robot collision geometry from the URDF's `<collision>` elements: primitives become parry
-//! shapes, STL meshes the convex hull of their vertices ([`load_stl_vertices`]); each piece is a
+//! shapes, meshes (STL, OBJ, Collada) the convex hull of their vertices ([`load_mesh_vertices`]); each piece is a
 //! [`RobotGeometry`] with the bounding volumes the broad phase uses.
 
 use std::collections::HashMap;
-use std::fs::File;
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -39,27 +37,12 @@ pub(super) fn bounding_sphere(shape: &SharedShape) -> (Point3<f64>, f64) {
     (s.center, s.radius)
 }
 
-/// Load the vertices of an STL file (binary or ASCII), scaled.
-pub fn load_stl_vertices(path: &Path, scale: &Vector3<f64>) -> Result<Vec<Point3<f64>>> {
-    let file = File::open(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mesh = stl_io::read_stl(&mut BufReader::new(file)).map_err(|e| Error::Mesh {
-        path: path.to_path_buf(),
-        msg: e.to_string(),
-    })?;
-    let points: Vec<Point3<f64>> = mesh
-        .vertices
-        .iter()
-        .map(|v| {
-            Point3::new(
-                v[0] as f64 * scale.x,
-                v[1] as f64 * scale.y,
-                v[2] as f64 * scale.z,
-            )
-        })
-        .collect();
+/// The vertices of a mesh file (STL, OBJ or Collada, read by [`crate::mesh::read_mesh`]), scaled;
+/// at least 4 finite ones (a convex hull needs them).
+pub fn load_mesh_vertices(path: &Path, scale: &Vector3<f64>) -> Result<Vec<Point3<f64>>> {
+    let mesh = crate::mesh::read_mesh(path)?;
+    let points: Vec<Point3<f64>> =
+        mesh.vertices.iter().map(|v| Point3::new(v.x * scale.x, v.y * scale.y, v.z * scale.z)).collect();
     if points.len() < 4 || points.iter().any(|p| !p.coords.iter().all(|c| c.is_finite())) {
         return Err(Error::Mesh {
             path: path.to_path_buf(),
@@ -126,17 +109,7 @@ fn shape_of(
             if let Some(s) = hull_cache.get(&key) {
                 return Ok((s.clone(), Isometry3::identity()));
             }
-            let ext = path
-                .extension()
-                .map(|e| e.to_string_lossy().to_lowercase())
-                .unwrap_or_default();
-            if ext != "stl" {
-                return Err(Error::Mesh {
-                    path,
-                    msg: "only STL collision meshes are supported".into(),
-                });
-            }
-            let points = load_stl_vertices(&path, scale)?;
+            let points = load_mesh_vertices(&path, scale)?;
             let hull = SharedShape::convex_hull(&points).ok_or_else(|| Error::Mesh {
                 path: path.clone(),
                 msg: "convex hull failed (degenerate mesh?)".into(),

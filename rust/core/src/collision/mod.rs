@@ -1,7 +1,8 @@
 //! Collision world in parry: the robot's collision geometry, self-collision pairs, obstacles.
 //!
 //! Robot geometry comes from the URDF's `<collision>` elements: boxes, spheres, cylinders and
-//! capsules become parry primitives; meshes become the convex hull of their vertices. Self-
+//! capsules become parry primitives; meshes (STL, OBJ, Collada: [`crate::mesh`]) become the convex
+//! hull of their vertices. Self-
 //! collision pairs are all pairs of geometries on different rigid bodies (links joined by fixed
 //! or locked joints form one body, as in Pinocchio's `addAllCollisionPairs`), minus the SRDF's
 //! disabled link pairs.
@@ -11,9 +12,10 @@
 //! exact test), `world` ([`CollisionWorld`]: obstacles and the queries). Everything is
 //! re-exported here: the paths are `genplan_core::collision::X`.
 
+pub mod allowed;
 mod broad_phase;
 mod geometry;
 mod world;
 
-pub use geometry::{load_stl_vertices, RobotGeometry};
-pub use world::{CollisionWorld, Obstacle, PairDistance, Scratch};
+pub use geometry::{load_mesh_vertices, RobotGeometry};
+pub use world::{CollisionWorld, Obstacle, PairDistance, Scratch, MAX_OBSTACLE_EXTENT, MIN_NORMAL_NORM, QUATERNION_TOLERANCE};

@@ -1,0 +1,239 @@
+//! The self-collision pairs to skip for a robot without an SRDF, computed the way MoveIt's setup
+//! assistant builds its "disabled collisions" (the allowed collision matrix):
+//!
+//! 1. **adjacent**: links joined by a joint (through links without collision geometry);
+//! 2. **default**: pairs in collision at the default configuration;
+//! 3. **always**: pairs in collision in at least `always_fraction` of the random configurations;
+//! 4. **never**: pairs in collision in none of the random configurations.
+//!
+//! Pairs on one rigid body are never checked anyway (see `broad_phase::self_pairs`). The random
+//! configurations are uniform within the joint limits (continuous joints: any angle; a free-flyer
+//! base at its default placement), from a seeded generator: the result is reproducible.
+
+use std::collections::BTreeMap;
+
+use nalgebra::Isometry3;
+use parry3d_f64::query;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+use super::CollisionWorld;
+use crate::error::{Error, Result};
+use crate::kinematics::Motion;
+
+/// Why a link pair is skipped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Reason {
+    /// The links are joined by a joint.
+    Adjacent,
+    /// The pair collides at the default configuration.
+    Default,
+    /// The pair collides (almost) always.
+    Always,
+    /// The pair never collided over the random configurations.
+    Never,
+}
+
+impl Reason {
+    /// MoveIt's word for the reason (written in the SRDF's `reason` attribute).
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Reason::Adjacent => "Adjacent",
+            Reason::Default => "Default",
+            Reason::Always => "Always",
+            Reason::Never => "Never",
+        }
+    }
+}
+
+/// Settings of [`disabled_pairs`].
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Random configurations sampled (MoveIt's default: 10,000).
+    pub samples: usize,
+    /// A pair colliding in at least this share of the samples is "always" in collision.
+    pub always_fraction: f64,
+    /// Seed of the random configurations.
+    pub seed: u64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options { samples: 10_000, always_fraction: 0.95, seed: 0 }
+    }
+}
+
+/// One skipped pair: the two link names (sorted) and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DisabledPair {
+    /// First link (the smaller name).
+    pub a: String,
+    /// Second link.
+    pub b: String,
+    /// Why it is skipped.
+    pub reason: Reason,
+}
+
+/// The link pairs to skip, sorted by (reason, a, b): see the module's documentation. `world` is
+/// a world built without pair filtering (no SRDF); `q_default` the default configuration.
+pub fn disabled_pairs(world: &CollisionWorld, q_default: &[f64], options: &Options) -> Result<Vec<DisabledPair>> {
+    let model = &*world.model;
+    model.check_configuration(q_default)?;
+    if options.samples == 0 || options.samples > 10_000_000 {
+        return Err(Error::Invalid(format!("disabled pairs: samples must be in 1..=10000000, got {}", options.samples)));
+    }
+    if !(options.always_fraction > 0.0 && options.always_fraction <= 1.0) {
+        return Err(Error::Invalid(format!(
+            "disabled pairs: always_fraction must be in (0, 1], got {}",
+            options.always_fraction
+        )));
+    }
+    // Link pairs with geometry on different bodies, and the geometry pairs of each.
+    let mut pairs: BTreeMap<(usize, usize), Vec<(usize, usize)>> = BTreeMap::new();
+    for (i, gi) in world.geometries.iter().enumerate() {
+        for (j, gj) in world.geometries.iter().enumerate().skip(i + 1) {
+            let (la, lb) = (gi.link.min(gj.link), gi.link.max(gj.link));
+            if model.body_of_link[la] == model.body_of_link[lb] {
+                continue;
+            }
+            pairs.entry((la, lb)).or_default().push((i, j));
+        }
+    }
+    let mut reason: BTreeMap<(usize, usize), Reason> = BTreeMap::new();
+
+    // 1. adjacent: each link with geometry and its nearest ancestor with geometry.
+    let has_geometry: Vec<bool> =
+        (0..model.n_links()).map(|l| world.geometries.iter().any(|g| g.link == l)).collect();
+    for l in 0..model.n_links() {
+        if !has_geometry[l] {
+            continue;
+        }
+        let mut p = model.parent_link[l];
+        while let Some(a) = p {
+            if has_geometry[a] {
+                reason.insert((a.min(l), a.max(l)), Reason::Adjacent);
+                break;
+            }
+            p = model.parent_link[a];
+        }
+    }
+
+    let keys: Vec<(usize, usize)> = pairs.keys().copied().filter(|k| !reason.contains_key(k)).collect();
+    let colliding = |q: &[f64], poses: &mut Vec<Isometry3<f64>>| -> Vec<bool> {
+        model.forward_kinematics_unchecked(q, poses);
+        keys.iter()
+            .map(|k| {
+                pairs[k].iter().any(|&(i, j)| {
+                    let (gi, gj) = (&world.geometries[i], &world.geometries[j]);
+                    let pi = poses[gi.link] * gi.offset;
+                    let pj = poses[gj.link] * gj.offset;
+                    query::intersection_test(&pi, gi.shape.as_ref(), &pj, gj.shape.as_ref()).unwrap_or(true)
+                })
+            })
+            .collect()
+    };
+
+    // 2. default
+    let mut poses = Vec::new();
+    for (k, hit) in keys.iter().zip(colliding(q_default, &mut poses)) {
+        if hit {
+            reason.insert(*k, Reason::Default);
+        }
+    }
+
+    // 3-4. over random configurations, in parallel chunks with per-chunk seeds (reproducible
+    // whatever the number of threads).
+    let chunk = 256usize;
+    let n_chunks = options.samples.div_ceil(chunk);
+    let counts: Vec<u32> = (0..n_chunks)
+        .into_par_iter()
+        .map(|c| {
+            let mut rng = StdRng::seed_from_u64(options.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(c as u64));
+            let mut poses = Vec::new();
+            let mut q = q_default.to_vec();
+            let mut counts = vec![0u32; keys.len()];
+            let n = chunk.min(options.samples - c * chunk);
+            for _ in 0..n {
+                random_configuration(model, q_default, &mut rng, &mut q);
+                for (c, hit) in counts.iter_mut().zip(colliding(&q, &mut poses)) {
+                    *c += hit as u32;
+                }
+            }
+            counts
+        })
+        .reduce(|| vec![0u32; keys.len()], |a, b| a.iter().zip(&b).map(|(x, y)| x + y).collect());
+    for (k, &c) in keys.iter().zip(&counts) {
+        if reason.contains_key(k) {
+            continue;
+        }
+        if c == 0 {
+            reason.insert(*k, Reason::Never);
+        } else if c as f64 >= options.always_fraction * options.samples as f64 {
+            reason.insert(*k, Reason::Always);
+        }
+    }
+
+    let mut out: Vec<DisabledPair> = reason
+        .into_iter()
+        .map(|((a, b), r)| {
+            let (na, nb) = (&model.link_names[a], &model.link_names[b]);
+            let (a, b) = if na <= nb { (na, nb) } else { (nb, na) };
+            DisabledPair { a: a.clone(), b: b.clone(), reason: r }
+        })
+        .collect();
+    out.sort_by(|x, y| (x.reason, &x.a, &x.b).cmp(&(y.reason, &y.a, &y.b)));
+    Ok(out)
+}
+
+/// Uniform within the limits; continuous joints any angle; the base (free-flyer) as in `q_default`.
+fn random_configuration(model: &crate::kinematics::KinematicModel, q_default: &[f64], rng: &mut StdRng, q: &mut [f64]) {
+    q.copy_from_slice(q_default);
+    for j in &model.joints {
+        if j.q_index == usize::MAX {
+            continue;
+        }
+        let i = j.q_index;
+        match j.motion {
+            Motion::Continuous { .. } => {
+                let a: f64 = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+                q[i] = a.cos();
+                q[i + 1] = a.sin();
+            }
+            Motion::Revolute { .. } | Motion::Prismatic { .. } => {
+                let (lo, hi) = (model.lower[i], model.upper[i]);
+                if lo.is_finite() && hi.is_finite() && lo < hi {
+                    q[i] = rng.random_range(lo..=hi);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// An SRDF holding `pairs` as `<disable_collisions>` (MoveIt's format) and, if given, one group
+/// state "default" with the joint values.
+pub fn srdf_text(robot_name: &str, pairs: &[DisabledPair], default_state: Option<&[(String, f64)]>) -> String {
+    let esc = |s: &str| s.replace('&', "&amp;").replace('"', "&quot;").replace('<', "&lt;");
+    let mut s = format!(
+        "<?xml version=\"1.0\" ?>\n<!-- written by genplan (genplan_core::collision::allowed): the self-collision pairs to skip -->\n<robot name=\"{}\">\n",
+        esc(robot_name)
+    );
+    if let Some(state) = default_state {
+        s.push_str("  <group_state name=\"default\" group=\"all\">\n");
+        for (j, v) in state {
+            s.push_str(&format!("    <joint name=\"{}\" value=\"{v:?}\"/>\n", esc(j)));
+        }
+        s.push_str("  </group_state>\n");
+    }
+    for p in pairs {
+        s.push_str(&format!(
+            "  <disable_collisions link1=\"{}\" link2=\"{}\" reason=\"{}\"/>\n",
+            esc(&p.a),
+            esc(&p.b),
+            p.reason.as_str()
+        ));
+    }
+    s.push_str("</robot>\n");
+    s
+}
