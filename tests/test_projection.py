@@ -9,7 +9,7 @@ import pytest
 
 import genplan
 from genplan import projection as P
-from genplan.errors import GenplanError, NonFiniteError, ShapeError, UnknownNameError
+from genplan.errors import GenplanError, NonFiniteError, ShapeError, TaskFileError, UnknownNameError
 from tests.conftest import random_configurations
 from tests.interrupt import MAX_LATENCY_S, ctrl_c_latency
 
@@ -232,10 +232,25 @@ def test_bad_input(panda: genplan.Robot) -> None:
         ik.solve_batch(np.zeros((2, 7)), targets={"hand_position": np.zeros((3, 3))})
     with pytest.raises(UnknownNameError, match="unknown target term 'foot'"):
         ik.solve_batch(np.zeros((2, 7)), targets={"foot": np.zeros((2, 3))})
-    with pytest.raises(GenplanError, match="weight must be positive"):
+    with pytest.raises(GenplanError, match=r"weight must be in \(0, 1e6\]"):
         P.GaussNewtonProjector(panda, P.Task(primary=[P.JointLimits(weight=-1.0)]))
     with pytest.raises(GenplanError, match="at least one primary term"):
         P.GaussNewtonProjector(panda, P.Task(primary=[]))
+
+
+@pytest.mark.parametrize("backend", P.BACKENDS)
+def test_targets_that_are_not_real_numbers_name_themselves(panda: genplan.Robot, backend: str) -> None:
+    """Findings PY-2 / PY-4 of tests/test_fuzz_inputs.py: a string leaked numpy's ValueError, a
+    complex array lost its imaginary part."""
+    ik = P.GaussNewtonProjector(panda, P.panda_task("ik"), backend=backend)
+    with pytest.raises(ShapeError, match=r"^targets\['hand_position'\]: cannot be read"):
+        ik.solve_batch(np.zeros((2, 7)), targets={"hand_position": "ab"})
+    with pytest.raises(ShapeError, match=r"^targets\['hand_position'\]: complex numbers"):
+        ik.solve_batch(np.zeros((2, 7)), targets={"hand_position": np.zeros((2, 3)) + 1j})
+    with pytest.raises(ShapeError, match=r"^q0s: complex numbers"):
+        ik.solve_batch(np.zeros((2, 7)) + 0j)
+    with pytest.raises(ShapeError, match=r"^FramePosition\(hand\).target: cannot be read"):
+        P.GaussNewtonProjector(panda, P.panda_task("ik", target="abc"), backend=backend)
 
 
 def test_settings_and_result(panda: genplan.Robot) -> None:
@@ -246,3 +261,70 @@ def test_settings_and_result(panda: genplan.Robot) -> None:
     solver = P.GaussNewtonProjector(panda, P.panda_task())
     qs, ok = solver.project(panda.random_configurations(8, 4), panda.random_configurations(8, 5))
     assert qs.shape == (8, 7) and ok.shape == (8,) and ok.dtype == bool
+
+
+# --- tasks as data: task files ---------------------------------------------------------------
+
+
+def test_every_shipped_task_round_trips_through_a_file(tmp_path, panda: genplan.Robot, talos: genplan.Robot) -> None:
+    assert set(P.task_names()) >= {"panda_projection", "panda_ik", "talos_projection", "talos_ik"}
+    for name in P.task_names():
+        robot = talos if name.startswith("talos") else panda
+        task = P.load_task(name, robot)
+        again = P.Task.from_file(task.to_file(tmp_path / f"{name}.toml"), robot)
+        assert again.to_dict() == task.to_dict()
+    ik = P.paper_task(panda, "ik")
+    assert ik.condition == P.Condition("hand_position", tuple(P.PANDA_IK_BOX[0]), tuple(P.PANDA_IK_BOX[1]))
+    # "default" values resolve on the robot: the soles where they are at the default configuration
+    sole = next(t for t in P.paper_task(talos).primary if t.name == "left_sole")
+    np.testing.assert_allclose(sole.target.homogeneous, talos.frame_placement(talos.q_default, "left_sole").homogeneous)
+    arm = next(t for t in P.paper_task(talos).primary if t.name == "left_arm")
+    assert int(arm.joint_weights.sum()) == 7  # joint_weights = { "arm_left_*" = 1.0 }
+
+
+def test_every_built_in_term_round_trips(tmp_path, panda: genplan.Robot) -> None:
+    rng = np.random.default_rng(0)
+    target = pin.SE3(pin.utils.rpyToMatrix(*rng.normal(size=3)), rng.normal(size=3))
+    task = P.Task(
+        name="all_terms",
+        primary=[
+            P.FramePose(name="pose", frame="hand", target=target, components=(1, 1, 1, 0, 0, 1), weight=3.0),
+            P.FramePosition(name="pos", frame="panda_link5", target=[0.1, 0.2, 0.3], axes=(1, 0, 1), tolerance=1e-4),
+            P.FrameOrientation(name="ori", frame="hand", target=pin.utils.rotate("x", 0.3), offset=P.PANDA_HAND_OFFSET),
+            P.JointLimits(margin=0.01),
+            P.ComBox(lower=(-1, -1, 0), upper=(1, 1, 1)),
+            P.Posture(name="p", q_nom=panda.q_default, joint_weights=np.arange(7.0), overrides={"panda_joint1": 0.5}),
+        ],
+        secondary=[P.Posture(name="posture")],
+        condition=P.Condition("pos", (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+    )
+    again = P.Task.from_file(task.to_file(tmp_path / "t.toml"), panda)
+    assert again.to_dict() == task.to_dict()
+    q0 = panda.random_configurations(3, 1)
+    a = P.GaussNewtonProjector(panda, task).solve_batch(q0)
+    b = P.GaussNewtonProjector(panda, again).solve_batch(q0)
+    np.testing.assert_array_equal(a.q, b.q)
+
+
+def test_task_file_errors_name_the_file_the_table_and_the_key(tmp_path, panda: genplan.Robot) -> None:
+    f = tmp_path / "bad.toml"
+    cases = [
+        ('[[primary]]\nkind = "Elbow"\n', TaskFileError, r"bad.toml: \[\[primary\]\] 1: unknown term kind 'Elbow' \(known: FramePose"),
+        ('[[primary]]\nkind = "JointLimits"\nmargn = 1\n', TaskFileError, r"\[\[primary\]\] 1: JointLimits has no field 'margn'"),
+        ('name = "x"\n', TaskFileError, r"needs at least one \[\[primary\]\] term"),
+        ('colour = 1\n[[primary]]\nkind = "JointLimits"\n', TaskFileError, r"unknown key 'colour'"),
+        ('[[primary]]\nkind = "JointLimits"\n[condition]\nterm = "hand"\nlow = [0]\nhigh = [1]\n', UnknownNameError,
+         r"\[condition\] term 'hand' is not a primary term"),
+        ('[[primary]]\nkind = "FramePose"\nframe = "hand"\ntarget = "default"\n', TaskFileError, r"'default' needs the robot"),
+        ('[[primary\n', TaskFileError, r"bad.toml: "),
+    ]
+    for text, error, message in cases:
+        f.write_text(text)
+        with pytest.raises(error, match=message):
+            P.Task.from_file(f)
+    with pytest.raises(FileNotFoundError, match="nope.toml does not exist"):
+        P.Task.from_file(tmp_path / "nope.toml")
+    with pytest.raises(UnknownNameError, match=r"unknown task 'kitchen' \(shipped: panda_ik, panda_projection"):
+        P.load_task("kitchen")
+    with pytest.raises(UnknownNameError, match="no shipped task 'ur5_projection'"):
+        P.paper_task(genplan.load("ur5"))

@@ -28,6 +28,7 @@ __all__ = [
     "RobotFileError",
     "SettingsError",
     "ShapeError",
+    "TaskFileError",
     "UnknownNameError",
 ]
 
@@ -55,6 +56,11 @@ class SettingsError(GenplanError):
 
 class RobotFileError(GenplanError):
     """A robot description (URDF, SRDF, mesh) that exists but cannot be read into a model."""
+
+
+class TaskFileError(GenplanError):
+    """A task description (task file or its data) that cannot be read: bad TOML, an unknown term
+    kind or key, a value of the wrong form."""
 
 
 class ModelFileError(GenplanError):

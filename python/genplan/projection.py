@@ -18,9 +18,14 @@ Tasks are data: a list of terms. The paper's tasks are built by :func:`panda_tas
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
+import json
+import os
 import time
+import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,8 +33,8 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
-from genplan._arrays import as_configurations, error_class
-from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
+from genplan._arrays import as_configurations, as_float_array, error_class
+from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, TaskFileError, UnknownNameError
 from genplan.robots import Robot
 
 Array = NDArray[np.float64]
@@ -138,14 +143,14 @@ class _BoundTerm:
 def _se3(target: Any, what: str) -> pin.SE3:
     if isinstance(target, pin.SE3):
         return target.copy()
-    m = np.asarray(target, dtype=np.float64)
+    m = as_float_array(target, what)
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
         raise error_class(m, m.shape == (4, 4))(f"{what}: expected a pinocchio.SE3 or a finite 4x4 matrix, got shape {m.shape}")
     return pin.SE3(m[:3, :3], m[:3, 3])
 
 
 def _vector(v: Any, n: int, what: str) -> Array:
-    a = np.asarray(v, dtype=np.float64).reshape(-1)
+    a = as_float_array(v, what).reshape(-1)
     if a.shape != (n,):
         raise ShapeError(f"{what}: expected {n} numbers, got shape {np.shape(v)}")
     if not np.all(np.isfinite(a)):
@@ -154,7 +159,7 @@ def _vector(v: Any, n: int, what: str) -> Array:
 
 
 def _rotation(m: Any, what: str) -> Array:
-    r = np.asarray(m, dtype=np.float64)
+    r = as_float_array(m, what)
     if r.shape != (3, 3) or not np.all(np.isfinite(r)) or np.abs(r.T @ r - np.eye(3)).max() > 1e-6:
         raise error_class(r, r.shape == (3, 3))(f"{what}: expected a 3x3 rotation matrix")
     return r
@@ -409,6 +414,46 @@ class Task:
     primary: Sequence[Term]
     secondary: Sequence[Term] = ()
     name: str = "task"
+    #: The term whose target a sampler is conditioned on, and the box its targets are drawn from
+    #: (training data is projected without that term; IK sets its target per query).
+    condition: "Condition | None" = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The task as plain data (the task file's tables; see docs/TASKS.md)."""
+        out: dict[str, Any] = {"name": self.name}
+        out["primary"] = [_term_to_dict(t) for t in self.primary]
+        if self.secondary:
+            out["secondary"] = [_term_to_dict(t) for t in self.secondary]
+        if self.condition is not None:
+            out["condition"] = {"term": self.condition.term, "low": [float(x) for x in self.condition.low],
+                                "high": [float(x) for x in self.condition.high]}
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], robot: Robot | None = None, origin: str = "task") -> "Task":
+        """A task from plain data (:meth:`to_dict`'s form); ``robot`` resolves values given as
+        ``"default"`` (a frame's placement or the posture at the robot's default configuration)
+        and joint-name patterns (``joint_weights = {"arm_left_*" = 1.0}``)."""
+        return _task_from_dict(data, robot, origin)
+
+    def to_file(self, path: str | os.PathLike[str]) -> Path:
+        """Write the task as a task file (TOML), atomically; :meth:`from_file` reads it back."""
+        from genplan._files import write_text
+
+        return write_text(path, _toml(self.to_dict()))
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike[str], robot: Robot | None = None) -> "Task":
+        """Read a task file (TOML); errors name the file, the table and the key."""
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text())
+        except FileNotFoundError:
+            raise FileNotFoundError(f"task file {path} does not exist") from None
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise TaskFileError(f"task file {path}: {exc}") from None
+        data.setdefault("name", path.stem)
+        return _task_from_dict(data, robot, f"task file {path}")
 
     def with_targets(self, **targets: Any) -> "Task":
         """A copy whose terms named in ``targets`` get that ``target`` (e.g. ``hand_position=p``)."""
@@ -430,6 +475,174 @@ class Task:
             raise SettingsError(f"factor must be positive, got {factor}")
         return dataclasses.replace(
             self, primary=tuple(dataclasses.replace(t, tolerance=t.tolerance * factor) for t in self.primary))
+
+
+@dataclass(frozen=True)
+class Condition:
+    """The term a sampler is conditioned on (its ``target`` varies per query) and the box its
+    targets are drawn from (``low``, ``high``: as many numbers as the target)."""
+
+    term: str
+    low: tuple[float, ...]
+    high: tuple[float, ...]
+
+
+#: The built-in term kinds, by the name a task file's ``kind`` gives.
+TERM_KINDS: dict[str, type[Term]] = {c.__name__: c for c in (FramePose, FramePosition, FrameOrientation, Posture,
+                                                            JointLimits, ComBox)}
+#: Presets: the task files shipped with genplan (their stem is the name).
+TASKS_DIR = Path(__file__).parent / "presets" / "tasks"
+
+
+def task_names() -> tuple[str, ...]:
+    """The shipped task files' names (``panda_projection``, ``talos_ik``, ...)."""
+    return tuple(sorted(p.stem for p in TASKS_DIR.glob("*.toml")))
+
+
+def load_task(task: "str | os.PathLike[str] | Task", robot: Robot | None = None) -> Task:
+    """A task: a :class:`Task` as is, a shipped task's name (:func:`task_names`) or a task file."""
+    if isinstance(task, Task):
+        return task
+    if isinstance(task, str) and task in task_names():
+        return Task.from_file(TASKS_DIR / f"{task}.toml", robot)
+    path = Path(task)
+    if path.suffix != ".toml" and not path.exists():
+        raise UnknownNameError(f"unknown task '{task}' (shipped: {', '.join(task_names())}; or a task file .toml)")
+    return Task.from_file(path, robot)
+
+
+def _plain(v: Any) -> Any:
+    """A term field as TOML-able data (None stays None: the field is left out)."""
+    if isinstance(v, pin.SE3):
+        return v.homogeneous.tolist()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (tuple, list)):
+        return [_plain(x) for x in v]
+    if isinstance(v, Mapping):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    return v
+
+
+def _term_to_dict(t: Term) -> dict[str, Any]:
+    kind = type(t).__name__
+    if TERM_KINDS.get(kind) is not type(t):
+        raise TaskFileError(f"term '{t.label()}': {kind} is not a built-in term kind (known: {', '.join(TERM_KINDS)})")
+    out: dict[str, Any] = {"kind": kind}
+    for f in dataclasses.fields(t):
+        v = _plain(getattr(t, f.name))
+        if v is None or v == {} or (f.name == "name" and v == ""):
+            continue
+        out[f.name] = v
+    return out
+
+
+def _default_placement(robot: Robot | None, frame: str, where: str) -> pin.SE3:
+    if robot is None:
+        raise TaskFileError(f"{where}: 'default' needs the robot (pass robot= when reading the task)")
+    return robot.frame_placement(robot.q_default, frame)
+
+
+def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str) -> Term:
+    if not isinstance(d, Mapping):
+        raise TaskFileError(f"{where}: expected a table, got {type(d).__name__}")
+    kind = d.get("kind")
+    cls = TERM_KINDS.get(kind) if isinstance(kind, str) else None
+    if cls is None:
+        raise TaskFileError(f"{where}: unknown term kind {kind!r} (known: {', '.join(TERM_KINDS)})")
+    names = [f.name for f in dataclasses.fields(cls)]
+    fields: dict[str, Any] = {}
+    for key, v in d.items():
+        if key == "kind":
+            continue
+        if key not in names:
+            raise TaskFileError(f"{where}: {kind} has no field '{key}' (fields: {', '.join(names)})")
+        if v == "default" and key in ("target", "q_nom"):
+            if key == "q_nom":
+                if robot is None:
+                    raise TaskFileError(f"{where}: 'default' needs the robot (pass robot= when reading the task)")
+                v = robot.q_default.copy()
+            else:
+                m = _default_placement(robot, str(d.get("frame", "")), f"{where} target")
+                v = m.translation.copy() if cls is FramePosition else m.rotation.copy() if cls is FrameOrientation else m
+        elif key == "joint_weights" and isinstance(v, Mapping):  # joint-name patterns -> nv weights
+            if robot is None:
+                raise TaskFileError(f"{where}: joint_weights by joint name needs the robot (pass robot=)")
+            w = np.zeros(robot.nv)
+            for pattern, weight in v.items():
+                hit = [j for j in robot.joint_names if fnmatch.fnmatchcase(j, pattern)]
+                if not hit:
+                    raise UnknownNameError(f"{where}: joint_weights pattern '{pattern}' matches no joint of robot '{robot.name}'")
+                for j in hit:
+                    w[robot.model.joints[robot.model.getJointId(j)].idx_v] = float(weight)
+            v = w
+        elif key in ("axes", "components") and isinstance(v, list):
+            v = tuple(float(x) for x in v)
+        elif isinstance(v, list):
+            v = np.asarray(as_float_array(v, f"{where} {key}"), dtype=float)
+        fields[key] = v
+    try:
+        return cls(**fields)
+    except TypeError as exc:
+        raise TaskFileError(f"{where}: {exc}") from None
+
+
+def _task_from_dict(data: Mapping[str, Any], robot: Robot | None, origin: str) -> Task:
+    known = ("name", "primary", "secondary", "condition")
+    for key in data:
+        if key not in known:
+            raise TaskFileError(f"{origin}: unknown key '{key}' (known: {', '.join(known)})")
+    primary = data.get("primary")
+    if not isinstance(primary, list) or not primary:
+        raise TaskFileError(f"{origin}: needs at least one [[primary]] term")
+    secondary = data.get("secondary", [])
+    if not isinstance(secondary, list):
+        raise TaskFileError(f"{origin}: 'secondary' must be a list of [[secondary]] tables")
+    terms = [tuple(_term_from_dict(t, robot, f"{origin}: [[{group}]] {i + 1}") for i, t in enumerate(items))
+             for group, items in (("primary", primary), ("secondary", secondary))]
+    condition = None
+    if "condition" in data:
+        c = data["condition"]
+        if not isinstance(c, Mapping) or set(c) != {"term", "low", "high"}:
+            raise TaskFileError(f"{origin}: [condition] needs exactly the keys term, low, high")
+        names = [t.name for t in terms[0]]
+        if c["term"] not in names:
+            raise UnknownNameError(f"{origin}: [condition] term '{c['term']}' is not a primary term (terms: {', '.join(names)})")
+        low = as_float_array(c["low"], f"{origin}: [condition] low").ravel()
+        high = as_float_array(c["high"], f"{origin}: [condition] high").ravel()
+        if low.shape != high.shape or np.any(low > high) or not np.all(np.isfinite(low) & np.isfinite(high)):
+            raise TaskFileError(f"{origin}: [condition] low and high must be finite, of one length, low <= high")
+        condition = Condition(str(c["term"]), tuple(map(float, low)), tuple(map(float, high)))
+    return Task(primary=terms[0], secondary=terms[1], name=str(data.get("name", "task")), condition=condition)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(v) if np.isfinite(v) else ("nan" if np.isnan(v) else ("inf" if v > 0 else "-inf"))
+    if isinstance(v, str):
+        return json.dumps(v)  # a JSON string is a TOML basic string
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, Mapping):
+        return "{ " + ", ".join(f"{json.dumps(str(k))} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    raise TaskFileError(f"cannot write {type(v).__name__} to a task file")
+
+
+def _toml(data: Mapping[str, Any]) -> str:
+    """The TOML text of a task's plain data (:meth:`Task.to_dict`)."""
+    lines = [f"name = {_toml_value(data['name'])}"]
+    if "condition" in data:
+        lines += ["", "[condition]"] + [f"{k} = {_toml_value(v)}" for k, v in data["condition"].items()]
+    for group in ("primary", "secondary"):
+        for t in data.get(group, []):
+            lines += ["", f"[[{group}]]"] + [f"{k} = {_toml_value(v)}" for k, v in t.items()]
+    return "\n".join(lines) + "\n"
 
 
 #: Damped Gauss-Newton settings, defined once in the Rust core (``projection::Settings``):
@@ -624,10 +837,15 @@ class GaussNewtonProjector:
             if len(targets) != 1:
                 raise GenplanError(f"targets: give per-row targets for one term, got {sorted(targets)}")
             term_name, raw = next(iter(targets.items()))
-            target_rows = np.ascontiguousarray(raw, dtype=np.float64)
+            target_rows = np.ascontiguousarray(as_float_array(raw, f"targets['{term_name}']"))
             if target_rows.shape[0] != len(qs) or not np.all(np.isfinite(target_rows)):
                 raise error_class(target_rows, target_rows.shape[0] == len(qs))(
                     f"targets['{term_name}']: expected {len(qs)} finite rows, got shape {target_rows.shape}")
+            term = next((t for t in self.task.primary if t.name == term_name), None)
+            row_shape = {FramePosition: (3,), FrameOrientation: (3, 3), FramePose: (4, 4)}.get(type(term))
+            if row_shape is not None and target_rows.shape[1:] != row_shape:
+                raise ShapeError(f"targets['{term_name}']: expected shape ({len(qs)}, "
+                                 f"{', '.join(map(str, row_shape))}), got {target_rows.shape}")
         if self._native is not None:
             if target_rows is not None:
                 # one row of numbers per configuration (a FramePose's (4, 4) flattened); zero rows too
@@ -671,70 +889,61 @@ def _stack(results: list[ProjectionResult], labels: list[str], nq: int) -> Batch
 # The paper's tasks
 # --------------------------------------------------------------------------------------------
 
+# The paper's constants, read from the shipped task files (their one definition).
+
+
+def _preset_table(task: str, term: str) -> dict[str, Any]:
+    data = tomllib.loads((TASKS_DIR / f"{task}.toml").read_text())
+    return data["condition"] if term == "[condition]" else next(t for t in data["primary"] if t["name"] == term)
+
+
 #: Panda: hand frame rotated -pi/2 about y must be a pure rotation about the world z axis.
-PANDA_HAND_OFFSET = pin.utils.rotate("y", -np.pi / 2)
+PANDA_HAND_OFFSET = np.array(_preset_table("panda_projection", "hand_orientation")["offset"])
 #: IK targets for the Panda benchmark (hand position box, m).
-PANDA_IK_BOX = np.array([[0.4, -0.5, 0.5], [0.7, 0.5, 0.8]])
+PANDA_IK_BOX = np.array([_preset_table("panda_ik", "[condition]")[k] for k in ("low", "high")])
 #: IK targets for the Talos benchmark (right-hand position box, m): in front of and to the
 #: right of the robot, 96 % reachable with the feet fixed.
-TALOS_IK_BOX = np.array([[0.3, -0.5, 0.7], [0.7, 0.0, 1.2]])
+TALOS_IK_BOX = np.array([_preset_table("talos_ik", "[condition]")[k] for k in ("low", "high")])
 #: Talos centre-of-mass box (static stability), m.
-TALOS_COM_BOX = np.array([[-0.1, -0.1, 0.6], [0.1, 0.1, 1.1]])
+TALOS_COM_BOX = np.array([_preset_table("talos_projection", "com")[k] for k in ("lower", "upper")])
 
 TASK_KINDS = ("projection", "ik")
 
 
+def paper_task(robot: Robot, kind: str = "projection", target: ArrayLike | None = None) -> Task:
+    """The paper's task for ``robot``: the shipped task file ``<robot>_<kind>`` (``panda_ik``,
+    ``talos_projection``, ...; see :func:`task_names`); ``target`` sets the IK task's condition
+    term (the hand position)."""
+    _check_kind(kind)
+    name = f"{robot.name}_{kind}"
+    if name not in task_names():
+        raise UnknownNameError(f"no shipped task '{name}' (shipped: {', '.join(task_names())}); "
+                               "give a task of your own (a Task, or a task file: Task.from_file)")
+    task = load_task(name, robot)
+    if target is None:
+        return task
+    if task.condition is None:
+        raise GenplanError(f"task '{name}' has no condition term to set a target on")
+    return task.with_targets(**{task.condition.term: target})
+
+
 def panda_task(kind: str = "projection", target: ArrayLike | None = None) -> Task:
     """Panda with the gripper horizontal (yaw free) and within its limits; ``ik`` adds the hand
-    position (weights and tolerances of the paper's public code)."""
+    position (weights and tolerances of the paper's public code): the shipped task files
+    ``panda_projection`` / ``panda_ik``."""
     _check_kind(kind)
-    if kind == "projection":
-        primary: list[Term] = [
-            FrameOrientation(name="hand_orientation", frame="hand", axes=(1, 1, 0), offset=PANDA_HAND_OFFSET, weight=20, tolerance=1e-4),
-            JointLimits(name="joint_limits", weight=20, tolerance=1e-3),
-        ]
-    else:
-        primary = [
-            FramePosition(name="hand_position", frame="hand", target=(0.55, 0.0, 0.65) if target is None else target, weight=50, tolerance=1e-3),
-            FrameOrientation(name="hand_orientation", frame="hand", axes=(1, 1, 0), offset=PANDA_HAND_OFFSET, weight=30, tolerance=1e-3),
-            JointLimits(name="joint_limits", weight=30, tolerance=1e-3),
-        ]
-    return Task(primary=primary, secondary=[Posture(name="posture")], name=f"panda_{kind}")
+    task = load_task(f"panda_{kind}")
+    return task if target is None else task.with_targets(hand_position=target)
 
 
 def talos_task(robot: Robot, kind: str = "projection", target: ArrayLike | None = None) -> Task:
     """Talos with both soles fixed at their half-sitting placement (full SE(3)), the centre of
     mass in :data:`TALOS_COM_BOX`, within joint limits and the left arm held at its default
     posture; ``ik`` adds the right-hand position. The secondary task keeps the rest of the
-    posture near the initial guess."""
+    posture near the initial guess. The shipped task files ``talos_projection`` / ``talos_ik``."""
     _check_kind(kind)
-    left = robot.frame_placement(robot.q_default, "left_sole")
-    right = robot.frame_placement(robot.q_default, "right_sole")
-    left_arm_mask = np.zeros(robot.nv)
-    for j in robot.joint_names:
-        if j.startswith("arm_left"):
-            left_arm_mask[robot.model.joints[robot.model.getJointId(j)].idx_v] = 1.0
-    primary: list[Term] = [
-        FramePose(name="left_sole", frame="left_sole", target=left, weight=20, tolerance=1e-4),
-        FramePose(name="right_sole", frame="right_sole", target=right, weight=20, tolerance=1e-4),
-        ComBox(name="com", lower=TALOS_COM_BOX[0], upper=TALOS_COM_BOX[1], weight=20, tolerance=1e-3),
-        JointLimits(name="joint_limits", weight=20, tolerance=1e-3),
-        Posture(name="left_arm", q_nom=robot.q_default, joint_weights=left_arm_mask, weight=10, tolerance=1e-3),
-    ]
-    if kind == "ik":
-        default_hand = robot.frame_placement(robot.q_default, "right_hand").translation
-        primary.insert(0, FramePosition(name="right_hand_position", frame="right_hand",
-                                        target=default_hand if target is None else target, weight=50, tolerance=1e-3))
-    return Task(primary=primary, secondary=[Posture(name="posture")], name=f"talos_{kind}")
-
-
-def paper_task(robot: Robot, kind: str = "projection", target: ArrayLike | None = None) -> Task:
-    """The paper's task for ``robot`` ("panda" or "talos")."""
-    if robot.name == "panda":
-        return panda_task(kind, target)
-    if robot.name == "talos":
-        return talos_task(robot, kind, target)
-    raise UnknownNameError(f"the paper defines tasks for panda and talos, not '{robot.name}'")
+    task = load_task(f"talos_{kind}", robot)
+    return task if target is None else task.with_targets(right_hand_position=target)
 
 
 def _check_kind(kind: str) -> None:

@@ -39,7 +39,10 @@ INITS = ("uniform", "gan")
 
 
 def ik_box(robot: genplan.Robot) -> NDArray[np.float64]:
-    return P.PANDA_IK_BOX if robot.name == "panda" else P.TALOS_IK_BOX
+    """The box the IK targets are drawn from: the paper's IK task's [condition]."""
+    condition = P.paper_task(robot, "ik").condition
+    assert condition is not None, "the shipped IK tasks have a [condition]"
+    return np.array([condition.low, condition.high])
 
 
 def make_problems(robot: genplan.Robot, n: int, seed: int, init: str = "uniform",
