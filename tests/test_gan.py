@@ -344,3 +344,15 @@ def test_native_generator_matches_torch(name: str) -> None:
         model.native_sampler(box=[[0, 0, 0], [-1, 1, 1]])
     with pytest.raises(GenplanError, match="member 99 out of range"):
         native.generate([99], noise[:1], targets[:1])
+
+
+def test_gan_targets_refuse_complex_strings_and_none(panda: genplan.Robot) -> None:
+    """GanModel.check_targets reads targets through genplan._arrays: no silent drop of an
+    imaginary part, no NaN from None (issue [hardening], kind 2)."""
+    from genplan.errors import ShapeError
+    from genplan.gan.model import load_model, models_dir
+
+    model = load_model(panda, models_dir() / "panda_gan.safetensors")
+    for bad, message in [(np.zeros((2, 3)) + 1j, "complex"), ("abc", "cannot be read"), (None, "None is not a number")]:
+        with pytest.raises(ShapeError, match=f"targets: .*{message}"):
+            model.check_targets(bad)

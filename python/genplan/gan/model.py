@@ -28,7 +28,7 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
-from genplan._arrays import as_box, as_configurations, error_class
+from genplan._arrays import as_box, as_configurations, as_float_array, error_class
 from genplan import projection as P
 from genplan._threads import torch_threads, uses_torch
 from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
@@ -267,10 +267,7 @@ class GanModel:
     def check_targets(self, targets: Any, what: str = "targets") -> NDArray[np.float64]:
         """``targets`` as finite positions (n, 3) inside :meth:`target_limits`, else ShapeError,
         NonFiniteError or GenplanError naming the first bad row."""
-        try:
-            t = np.asarray(targets, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise error_class(None, False)(f"{what}: cannot be read as positions of shape (n, 3) ({exc})") from None
+        t = as_float_array(targets, what)  # strings, None, complex: refused naming `what`
         shape_ok = t.ndim == 2 and t.shape[1] == 3
         if not shape_ok or not np.all(np.isfinite(t)):
             row = "" if not shape_ok else f" (row {int(np.argwhere(~np.isfinite(t))[0, 0])} is not)"

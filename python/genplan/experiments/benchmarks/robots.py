@@ -15,6 +15,8 @@ complex numbers):
   the queries before it (``coal_history_flips_*`` counts the answers that changed);
 * ``agreement_meshes``: the same against coal on the raw meshes (genplan collides hulls, so
   this measures the cost of that choice), with its largest disagreement distance;
+* ``contacts_missed_*``: configurations coal finds in collision and genplan free (a hull contains
+  its mesh, so 0 on raw meshes means the hulls only ever err on the safe side);
 * ``load_ms``: time of a fresh :func:`genplan.load` plus the first collision world (self-
   collision pairs computed for a robot without an SRDF, cache disabled).
 """
@@ -119,7 +121,7 @@ def agreement(robot: Any, qs: NDArray[np.float64], hulls: bool) -> dict[str, flo
     disagree = ours != ref
     dist = float(np.max(np.abs(world.min_distance(qs[disagree])))) if disagree.any() else 0.0
     return {"agreement": float(1.0 - disagree.mean()), "max_distance": dist, "rate": float(ref.mean()),
-            "coal_history_flips": flips}
+            "coal_history_flips": flips, "missed": int(np.sum(ref & ~ours))}
 
 
 @contextlib.contextmanager
@@ -158,6 +160,7 @@ def check_robot(name: str, samples: int, seed: int, fresh: bool = True) -> dict[
         "coal_history_flips_hulls": h["coal_history_flips"],
         "agreement_meshes": m["agreement"], "disagree_max_distance_meshes": m["max_distance"],
         "coal_history_flips_meshes": m["coal_history_flips"],
+        "contacts_missed_hulls": h["missed"], "contacts_missed_meshes": m["missed"],
     }
 
 
