@@ -136,13 +136,20 @@ def reals(x: Any) -> np.ndarray | None:
         return None
 
 
+#: rust/core/src/urdf.rs: the bound on a revolute or prismatic joint's value (finding URDF-7)
+MAX_JOINT_POSITION = 1e16
+
+
 def read_configurations(x: Any, nq: int, floating_base: bool = False) -> np.ndarray | None:
     """The oracle: ``x`` as valid configurations, (nq,) or (n, nq) finite floats (a free-flyer
-    quaternion not zero), or None."""
+    quaternion not zero; each joint value at most 1e16 in magnitude, the robots fuzzed here
+    having only revolute joints besides the base: finding URDF-7), or None."""
     a = reals(x)
     if a is None:
         return None
     if a.ndim not in (1, 2) or a.shape[-1] != nq or not np.all(np.isfinite(a)):
+        return None
+    if np.any(np.abs(a[..., 7:] if floating_base else a) > MAX_JOINT_POSITION):
         return None
     with np.errstate(over="ignore"):
         if floating_base and np.any(np.linalg.norm(a[..., 3:7], axis=-1) < 1e-9):
@@ -672,7 +679,9 @@ def test_plan_inputs(panda: genplan.Robot, shelf: Any, data: Any) -> None:
     s, g = read_configurations(start, panda.nq), read_configurations(goals, panda.nq)
     if s is None or s.ndim != 1 or g is None or g.size == 0:
         assert exc is not None, f"plan accepted start {start!r}, goals {goals!r}"
-        assert isinstance(exc, (ShapeError, NonFiniteError)), f"{type(exc).__name__} for malformed input: {exc}"
+        # a joint value beyond 1e16 is an invalid start or goal (finding URDF-7), named as such
+        beyond = isinstance(exc, (InvalidStartError, InvalidGoalError)) and "beyond 1e16" in str(exc)
+        assert beyond or isinstance(exc, (ShapeError, NonFiniteError)), f"{type(exc).__name__} for malformed input: {exc}"
         return
     if exc is not None:
         assert isinstance(exc, (InvalidStartError, InvalidGoalError)), f"{type(exc).__name__}: {exc}"

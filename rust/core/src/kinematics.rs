@@ -451,8 +451,12 @@ impl KinematicModel {
         })
     }
 
-    /// Check a configuration: length nq, finite, and a free-flyer quaternion that is not zero
-    /// (norm below 1e-9; any larger finite norm is normalised, without overflow).
+    /// Check a configuration: length nq, finite, a free-flyer quaternion that is not zero
+    /// (norm below 1e-9; any larger finite norm is normalised, without overflow), and each
+    /// revolute or prismatic joint's value at most [`MAX_JOINT_POSITION`] (1e16, the bound of
+    /// its limits) in magnitude: beyond it a chain of prismatic joints can put a link past what
+    /// an f64 holds. A continuous joint's (cos, sin) and the free-flyer base take any finite
+    /// values.
     pub fn check_configuration(&self, q: &[f64]) -> Result<()> {
         check_vector("configuration q", q, self.nq)?;
         if self.floating_base {
@@ -462,6 +466,14 @@ impl KinematicModel {
                     "configuration q: the base quaternion q[3..7] is zero".into(),
                 ));
             }
+        }
+        let one_value = |j: &&Joint| matches!(j.motion, Motion::Revolute { .. } | Motion::Prismatic { .. });
+        let beyond = |j: &&Joint| q.get(j.q_index).is_some_and(|x| x.abs() > MAX_JOINT_POSITION);
+        if let Some(j) = self.joints.iter().filter(one_value).find(beyond) {
+            return Err(Error::Invalid(format!(
+                "configuration q: joint '{}' (q[{}]) is at {:?}, beyond {MAX_JOINT_POSITION:e} in magnitude",
+                j.name, j.q_index, q[j.q_index]
+            )));
         }
         Ok(())
     }

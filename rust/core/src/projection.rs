@@ -435,6 +435,8 @@ impl Projector {
         self.model.check_configuration(q0)?;
         if let Some(n) = q_nom {
             check_vector("q_nom", n, self.model.nq)?;
+            // a configuration like q0 (joint values bounded: finding URDF-7)
+            self.model.check_configuration(n).map_err(|e| Error::Invalid(format!("q_nom: {e}")))?;
         }
         Ok(self.solve_unchecked(q0, q_nom))
     }

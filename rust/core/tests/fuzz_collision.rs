@@ -1,7 +1,7 @@
 //! Property tests of the kinematic model and the collision world on random configurations and
 //! obstacles, NaN, inf and extreme magnitudes included: every query answers `Ok` or `Err`, never
 //! a panic; `Err` exactly for a malformed input (wrong length, not finite, a zero base
-//! quaternion, a bad obstacle: sizes and coordinates beyond `MAX_OBSTACLE_EXTENT`, a rotation
+//! quaternion, a revolute or prismatic joint beyond `MAX_JOINT_POSITION`, a bad obstacle: sizes and coordinates beyond `MAX_OBSTACLE_EXTENT`, a rotation
 //! that is not a unit quaternion, a zero normal); an `Ok` is finite (poses rigid, distances not
 //! NaN) and the answers agree with each other (the filtered collision check with the exhaustive
 //! one, the signed distance with the collision check, close pairs with the margin), whatever
@@ -15,7 +15,7 @@ use std::sync::Arc;
 use fuzz::{any_f64, config, finite, rigid_and_finite};
 use genplan_core::collision::{CollisionWorld, MAX_OBSTACLE_EXTENT};
 use genplan_core::kinematics::{KinematicModel, ModelOptions, Motion};
-use genplan_core::urdf::Urdf;
+use genplan_core::urdf::{Urdf, MAX_JOINT_POSITION};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -98,11 +98,15 @@ fn add(w: &mut CollisionWorld, name: &str, o: &Obstacle) -> Result<(), TestCaseE
     Ok(())
 }
 
-/// A configuration for the world: in range, any numbers, huge, or malformed.
+/// A configuration for the world: in range, any numbers, huge, at `MAX_JOINT_POSITION` or just
+/// beyond it, or malformed.
 fn configuration(nq: usize) -> BoxedStrategy<Vec<f64>> {
+    let m = MAX_JOINT_POSITION;
+    let at_bound = prop_oneof![3 => -3.0..3.0f64, 1 => prop::sample::select(vec![m, -m, m * (1.0 + 1e-15), -m * (1.0 + 1e-15)])];
     prop_oneof![
         4 => proptest::collection::vec(-3.0..3.0f64, nq),
         2 => proptest::collection::vec(finite(), nq),
+        1 => proptest::collection::vec(at_bound, nq),
         2 => proptest::collection::vec(any_f64(), nq),
         1 => proptest::collection::vec(any_f64(), 0..nq + 3),
     ]
@@ -116,14 +120,17 @@ fn check_queries(w: &CollisionWorld, q: &[f64], margin: f64) -> Result<(), TestC
     if !malformed && m.floating_base {
         malformed = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt() < 1e-9;
     }
-    // finding URDF-7 (open): a prismatic joint's value beyond 1e150 puts links so far away that
-    // FK's translations and the narrow phase's squared norms overflow. (A free-flyer quaternion
-    // of any finite size is normalised without overflow: URDF-3, fixed.)
-    let huge = m.joints.iter().any(|j| matches!(j.motion, Motion::Prismatic { .. }) && q.get(j.q_index).is_some_and(|x| x.abs() > 1e150));
+    // a revolute or prismatic joint's value beyond MAX_JOINT_POSITION (finding URDF-7, fixed: a
+    // prismatic one put links past what an f64 holds); a continuous joint's (cos, sin) and the
+    // free-flyer base take any finite values (a huge base quaternion is normalised: URDF-3)
+    malformed |= m.joints.iter().any(|j| {
+        matches!(j.motion, Motion::Revolute { .. } | Motion::Prismatic { .. })
+            && q.get(j.q_index).is_some_and(|x| x.abs() > MAX_JOINT_POSITION)
+    });
     let mut poses = Vec::new();
     let fk = m.forward_kinematics(q, &mut poses);
     prop_assert_eq!(fk.is_err(), malformed, "FK on {:?}: {:?}", q, fk.err().map(|e| e.to_string()));
-    if fk.is_ok() && !huge {
+    if fk.is_ok() {
         rigid_and_finite(&poses).map_err(|e| TestCaseError::fail(format!("FK at {q:?}: {e}")))?;
     }
     let hit = w.in_collision(q);
@@ -134,7 +141,7 @@ fn check_queries(w: &CollisionWorld, q: &[f64], margin: f64) -> Result<(), TestC
     prop_assert_eq!(d.is_err(), malformed);
     let pairs = w.close_pairs(q, margin);
     prop_assert_eq!(pairs.is_err(), malformed || !margin.is_finite());
-    if malformed || huge {
+    if malformed {
         return Ok(());
     }
     let (hit, exhaustive, d) = (hit.unwrap(), exhaustive.unwrap(), d.unwrap());

@@ -12,9 +12,9 @@ mod fuzz;
 use std::sync::Arc;
 
 use fuzz::{any_f64, any_usize, config};
-use genplan_core::kinematics::{KinematicModel, ModelOptions};
+use genplan_core::kinematics::{KinematicModel, ModelOptions, Motion};
 use genplan_core::projection::{Projector, Settings, Term, TermKind, MAX_MAGNITUDE};
-use genplan_core::urdf::Urdf;
+use genplan_core::urdf::{Urdf, MAX_JOINT_POSITION};
 use genplan_core::Error;
 use nalgebra::Vector3;
 use proptest::prelude::*;
@@ -88,7 +88,17 @@ fn terms(w: [f64; 3], tol: [f64; 2], target: [f64; 3], mask: [f64; 3], margin: f
 /// honest about success.
 fn check_solve(p: &Projector, q: &[f64], q_nom: Option<&[f64]>) -> Result<(), TestCaseError> {
     let nq = p.model.nq;
-    let malformed = q.len() != nq || q.iter().any(|x| !x.is_finite()) || q_nom.is_some_and(|n| n.len() != nq || n.iter().any(|x| !x.is_finite()));
+    // a revolute or prismatic value beyond MAX_JOINT_POSITION is refused (finding URDF-7)
+    let beyond = |q: &[f64]| {
+        p.model.joints.iter().any(|j| {
+            matches!(j.motion, Motion::Revolute { .. } | Motion::Prismatic { .. })
+                && q.get(j.q_index).is_some_and(|x| x.abs() > MAX_JOINT_POSITION)
+        })
+    };
+    let malformed = q.len() != nq
+        || q.iter().any(|x| !x.is_finite())
+        || beyond(q)
+        || q_nom.is_some_and(|n| n.len() != nq || n.iter().any(|x| !x.is_finite()) || beyond(n));
     match p.solve(q, q_nom) {
         Err(e) => prop_assert!(malformed, "a well-formed q {:?} was refused: {}", q, e),
         Ok(out) => {
@@ -223,13 +233,18 @@ fn finding_proj_1_a_huge_mask_is_refused() {
     let s = Settings { max_iterations: 1, max_backtracks: 1, clip_to_limits: false, ..Settings::default() };
     let p = Projector::new(model(), primary, secondary, s).expect("accepted");
     check_solve(&p, &[0.0, 0.0, 1.0, 0.0], None).unwrap();
-    // a start whose arithmetic overflows (a prismatic joint at 1e300, not clipped): the solve
-    // stops at once, unsuccessful, with the (finite) start and infinite residuals where the
-    // arithmetic overflowed
+    // a start whose arithmetic would overflow (a prismatic joint at 1e300, not clipped) is
+    // refused since finding URDF-7 (joint values at most MAX_JOINT_POSITION); at the bound the
+    // solve answers finitely
     let (primary, secondary) = terms([1.0; 3], [1e-3; 2], [0.0, 0.0, 0.5], [1.0; 3], 1e-3);
     let s = Settings { clip_to_limits: false, ..Settings::default() };
     let p = Projector::new(model(), primary, secondary, s).unwrap();
     for q0 in [[0.0, 1e300, 1.0, 0.0], [0.0, f64::MAX, 1.0, 0.0], [1e300, -1e300, 1e300, -1e300]] {
+        let e = p.solve(&q0, None).unwrap_err().to_string();
+        assert!(e.contains("beyond 1e16 in magnitude"), "{q0:?}: {e}");
+        check_solve(&p, &q0, None).unwrap();
+    }
+    for q0 in [[0.0, MAX_JOINT_POSITION, 1.0, 0.0], [-MAX_JOINT_POSITION, -MAX_JOINT_POSITION, 0.6, 0.8]] {
         let out = p.solve(&q0, None).unwrap();
         assert!(out.q.iter().all(|x| x.is_finite()) && !out.success, "{q0:?}: {out:?}");
         assert!(out.residuals.iter().all(|r| !r.is_nan()), "{q0:?}: {out:?}");
@@ -240,7 +255,7 @@ fn finding_proj_1_a_huge_mask_is_refused() {
     let (primary, secondary) = terms([1e6, 1.0, 1e6], [1e-3; 2], [1e6, 0.0, 0.5], [1e6, 1.0, 1.0], 0.0);
     let s = Settings { clip_to_limits: false, mu: 1e6, mu_bar: 0.0, ..Settings::default() };
     let p = Projector::new(model(), primary, secondary, s).unwrap();
-    let (q0, q_nom) = ([0.0, 1e150, 0.0, 1e150], [-1e300, 1e300, -1e300, 1e300]);
+    let (q0, q_nom) = ([0.0, MAX_JOINT_POSITION, 0.0, 1e150], [-MAX_JOINT_POSITION, MAX_JOINT_POSITION, -1e300, 1e300]);
     let out = p.solve(&q0, Some(&q_nom)).unwrap();
     assert!(out.q.iter().all(|x| x.is_finite()) && !out.success, "{out:?}");
     check_solve(&p, &q0, Some(&q_nom)).unwrap();

@@ -8,7 +8,7 @@
 mod fuzz;
 
 use fuzz::{any_f64, check_robot, config, El, Gaps, ABSURD, ABSURD_TRIPLES};
-use genplan_core::kinematics::{KinematicModel, ModelOptions, Motion};
+use genplan_core::kinematics::{KinematicModel, ModelOptions};
 use genplan_core::planning::{MixtureSampler, Sampler, UniformSampler};
 use genplan_core::urdf::Urdf;
 use proptest::prelude::*;
@@ -33,16 +33,14 @@ const SHAPES: &str = r#"<robot name="shapes">
 
 /// What must hold of any text: the reader answers, and what it accepts is usable
 /// ([`fuzz::check_robot`]) at the default configuration and at `q`, with or without a
-/// free-flyer base. `strict`: the one open gap (finding URDF-7: a configuration beyond 1e150
-/// on a model with a prismatic joint) is not exempted either; the other findings are fixed and
-/// never exempted.
-fn check_text(text: &str, q: &[f64], strict: bool) -> Result<(), TestCaseError> {
+/// free-flyer base. Every finding is fixed (the last, URDF-7: a configuration beyond 1e150 on a
+/// model with a prismatic joint), so no gap is exempted.
+fn check_text(text: &str, q: &[f64]) -> Result<(), TestCaseError> {
     let Ok(urdf) = Urdf::parse(text) else { return Ok(()) };
     for floating_base in [false, true] {
         let options = ModelOptions { floating_base, ..Default::default() };
         if let Ok(model) = KinematicModel::from_urdf(&urdf, &options) {
-            let prismatic = model.joints.iter().any(|j| matches!(j.motion, Motion::Prismatic { .. }));
-            check_robot(&urdf, model, q, Gaps { huge_configuration: prismatic && !strict })?;
+            check_robot(&urdf, model, q, Gaps::default())?;
         }
     }
     Ok(())
@@ -138,13 +136,13 @@ proptest! {
     /// Any bytes (read as UTF-8, invalid sequences replaced).
     #[test]
     fn arbitrary_bytes_are_read_or_refused(bytes in proptest::collection::vec(any::<u8>(), 0..2048)) {
-        check_text(&String::from_utf8_lossy(&bytes), &[0.0], false)?;
+        check_text(&String::from_utf8_lossy(&bytes), &[0.0])?;
     }
 
     /// Any UTF-8 text.
     #[test]
     fn arbitrary_text_is_read_or_refused(text in any::<String>()) {
-        check_text(&text, &[0.0], false)?;
+        check_text(&text, &[0.0])?;
     }
 
     /// Text shaped like a URDF: links and joints with names from a small set, so that unknown
@@ -155,7 +153,7 @@ proptest! {
         "(<link name=\"[a-d]\"/>|<link name=\"[a-d]\"><collision><geometry><(box size=\"[-0-9. ]{0,8}\"|sphere radius=\"[-0-9.e]{0,5}\")/></geometry></collision></link>",
         "|<joint name=\"[j-l]\" type=\"(fixed|revolute|continuous|prismatic|floating)\"><parent link=\"[a-e]\"/><child link=\"[a-e]\"/>(<axis xyz=\"[-01 ]{0,7}\"/>)?(<limit lower=\"[-0-9]{0,2}\" upper=\"[-0-9]{0,2}\"/>)?</joint>",
         "|<bogus/>|<link/>|<joint/>){0,8}</robot>"), q in configuration()) {
-        check_text(&text, &q, false)?;
+        check_text(&text, &q)?;
     }
 
     /// Small generated robots, mostly trees, with absurd origins, axes, limits, masses and radii,
@@ -167,7 +165,7 @@ proptest! {
         joints in joint_specs(),
         q in configuration(),
     ) {
-        check_text(&small_urdf(radius, mass, &joints), &q, false)?;
+        check_text(&small_urdf(radius, mass, &joints), &q)?;
     }
 
     /// Structured mutations of valid URDFs: elements and attributes dropped, duplicated, moved,
@@ -182,7 +180,7 @@ proptest! {
         for m in &mutations {
             el.apply(m);
         }
-        check_text(&el.write(), &q, false)?;
+        check_text(&el.write(), &q)?;
     }
 }
 
@@ -209,21 +207,21 @@ fn non_utf8_files_are_refused() {
 #[test]
 fn deep_nesting_and_entities_are_read_or_refused() {
     let deep = format!("<robot>{}<link name=\"a\"/>{}</robot>", "<g>".repeat(20_000), "</g>".repeat(20_000));
-    check_text(&deep, &[0.0], true).unwrap();
+    check_text(&deep, &[0.0]).unwrap();
     let mut laughs = String::from("<!DOCTYPE robot [<!ENTITY l0 \"lol\">");
     for i in 1..10 {
         laughs += &format!("<!ENTITY l{i} \"{}\">", format!("&l{};", i - 1).repeat(10));
     }
     laughs += "]><robot name=\"&l9;\"><link name=\"a\"/></robot>";
-    check_text(&laughs, &[0.0], true).unwrap();
+    check_text(&laughs, &[0.0]).unwrap();
 }
 
 // ---------------------------------------------------------------------------------------------
 // Findings: gaps the properties above found, each kept as a test of its minimal input. URDF-1 to
 // URDF-6 are fixed: each test asserts the fix (the URDF reader or the model refuses the input
 // with an error that names the element and the problem, or the input now works), and the
-// properties above no longer exempt them. URDF-7 is open: its test asserts the property as it
-// should hold and is expected to fail (`should_panic`) until the gap is closed.
+// properties above no longer exempt them. URDF-7 is fixed too: a configuration beyond
+// `urdf::MAX_JOINT_POSITION` on a revolute or prismatic joint is refused.
 // ---------------------------------------------------------------------------------------------
 
 /// URDF-1 (fixed): a cycle in the joint graph off the root was accepted and its links (and
@@ -334,9 +332,9 @@ fn joint(name: &str, kind: &str, parent: &str, child: &str, more: &str) -> Strin
     format!(r#"<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>{more}</joint>"#)
 }
 
-/// [`check_text`] with no gap exempted; panics with the broken property.
+/// [`check_text`]; panics with the broken property.
 fn strict(text: &str, q: &[f64]) {
-    check_text(text, q, true).unwrap();
+    check_text(text, q).unwrap();
 }
 
 fn model_of(text: &str) -> std::sync::Arc<KinematicModel> {
@@ -503,18 +501,43 @@ fn urdf_6_the_samplers_work_without_joints() {
     assert!(out.iter().all(|x| x.is_finite()));
 }
 
-/// URDF-7 (open): a prismatic joint far beyond its limits (f64::MAX, twice along a chain) makes
+/// URDF-7 (fixed): a prismatic joint far beyond its limits (f64::MAX, twice along a chain) made
 /// forward kinematics answer Ok with an infinite translation: the position is beyond what an
-/// f64 holds. The limits are bounded (URDF-5), but FK does not check q against them, and the
-/// property of `common/fuzz.rs` wants every finite q of the right length accepted on a fixed
-/// base; closing it needs FK to refuse such a q (a prismatic value beyond
-/// `urdf::MAX_JOINT_POSITION`, or a pose that overflows), and that property to allow it.
-/// Revolute and continuous joints and a free-flyer base take any finite value (tested above).
+/// f64 holds. The limits are bounded (URDF-5); now the configuration check
+/// (`KinematicModel::check_configuration`) bounds a revolute or prismatic joint's value the same
+/// way, by `urdf::MAX_JOINT_POSITION` (1e16), naming the joint; the property of
+/// `common/fuzz.rs` allows exactly that refusal. A continuous joint's (cos, sin) and a
+/// free-flyer base take any finite values (a huge base quaternion is normalised: URDF-3).
 #[test]
-#[should_panic(expected = "pose 2 is not finite")]
 fn finding_urdf_7_prismatic_joints_far_beyond_their_limits_overflow_fk() {
     let x = r#"<axis xyz="1 0 0"/><limit lower="-1" upper="1"/>"#;
-    strict(&three_links(&[joint("x", "prismatic", "r", "a", x), joint("y", "prismatic", "a", "b", x)]), &[f64::MAX]);
+    let chain = three_links(&[joint("x", "prismatic", "r", "a", x), joint("y", "prismatic", "a", "b", x)]);
+    strict(&chain, &[f64::MAX]);
+    let model = model_of(&chain);
+    let mut poses = Vec::new();
+    let e = model.forward_kinematics(&[0.0, f64::MAX], &mut poses).unwrap_err().to_string();
+    assert!(e.contains("configuration q: joint 'y' (q[1]) is at 1.7976931348623157e308, beyond 1e16 in magnitude"), "{e}");
+    let e = model.forward_kinematics(&[-1.0000000000000002e16, 0.0], &mut poses).unwrap_err().to_string();
+    assert!(e.contains("joint 'x'"), "{e}");
+    // at the bound, both joints along the chain: finite, rigid
+    let m = genplan_core::urdf::MAX_JOINT_POSITION;
+    for q in [[m, m], [-m, m]] {
+        model.forward_kinematics(&q, &mut poses).unwrap();
+        fuzz::rigid_and_finite(&poses).unwrap();
+        strict(&chain, &q);
+    }
+    // a revolute joint likewise; a continuous one and a free-flyer base take any finite values
+    let revolute = three_links(&[joint("x", "revolute", "r", "a", x), joint("y", "continuous", "a", "b", x)]);
+    let model = model_of(&revolute);
+    let e = model.forward_kinematics(&[1e300, 1.0, 0.0], &mut poses).unwrap_err().to_string();
+    assert!(e.contains("joint 'x'"), "{e}");
+    model.forward_kinematics(&[m, f64::MAX, -f64::MAX], &mut poses).unwrap();
+    fuzz::rigid_and_finite(&poses).unwrap();
+    strict(&revolute, &[1e300, f64::MAX]);
+    let urdf = Urdf::parse(&chain).unwrap();
+    let floating = KinematicModel::from_urdf(&urdf, &ModelOptions { floating_base: true, ..Default::default() }).unwrap();
+    floating.forward_kinematics(&[1e300, -1e300, 1e300, 1e300, 1e300, 1e300, 1e300, 0.5, 0.5], &mut poses).unwrap();
+    fuzz::rigid_and_finite(&poses).unwrap();
 }
 
 /// The uniform sampler's base placement: finite, its quaternion not zero (it is normalised,

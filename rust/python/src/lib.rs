@@ -563,7 +563,7 @@ impl PyProjector {
                 if nb.lead != b.lead {
                     return Err(err(Kind::Shape, format!("q_nom: expected {} rows like q0, got {:?}", b.lead.first().copied().unwrap_or(1), nb.lead)));
                 }
-                genplan_core::error::check_finite("q_nom", nb.data).map_err(to_py)?;
+                check_rows(m, &nb, "q_nom")?; // configurations like q0 (finite, joint values bounded)
                 Some(nb.data)
             }
             None => None,
