@@ -38,6 +38,7 @@ def test_talos_has_the_28_joints_of_the_paper(talos: genplan.Robot) -> None:
     assert talos.q_default[2] == pytest.approx(1.01927)
     knee = 7 + talos.joint_names.index("leg_left_4_joint")
     assert talos.q_default[knee] == pytest.approx(0.859395)
+    assert list(talos.frames) == ["left_sole", "right_sole", "right_hand", "left_hand"]  # the file's order
     for role in ("left_sole", "right_sole", "right_hand"):
         talos.frame_id(role)
     # feet on the ground at half-sitting

@@ -380,21 +380,22 @@ def _file_key(p: Any) -> tuple[str, int]:
         return str(path), -1
 
 
-@functools.lru_cache(maxsize=64)
-def _load(key: str) -> Robot:
-    desc = json.loads(key)["description"]
-    return Robot(desc)
+#: load's cache: (description, file keys) as JSON -> the robot.
+_LOADED: dict[str, Robot] = {}
 
 
 def clear_cache() -> None:
     """Forget the robots :func:`load` has cached (the next load reads the files again)."""
-    _load.cache_clear()
+    _LOADED.clear()
 
 
 def _cached(desc: dict[str, Any]) -> Robot:
     files = [desc["urdf"], desc["collision_urdf"], desc.get("srdf"), desc.get("source")]
     key = json.dumps({"description": desc, "files": [_file_key(f) for f in files if f]}, sort_keys=True, default=str)
-    return _load(key)
+    robot = _LOADED.get(key)
+    if robot is None:  # the description as read (its frames in the file's order)
+        robot = _LOADED[key] = Robot(desc)
+    return robot
 
 
 def load(
