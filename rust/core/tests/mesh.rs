@@ -521,3 +521,58 @@ fn every_example_robot_data_mesh_reads() {
         assert!(mesh.vertices.iter().all(|v| v.iter().all(|c| c.is_finite())), "{}", f.display());
     }
 }
+
+// --- fuzz: any bytes in a mesh file give a mesh or an error, never a panic --------------------
+
+mod fuzz {
+    use super::*;
+    use proptest::prelude::*;
+
+    const OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1/1 2/2 4/4\nf -1 -2 -3\nf 1//1 3//3 4//4 2//2\n";
+
+    /// The mesh a reader returns holds finite vertices and triangles indexing them.
+    fn check(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
+        let f = write(name, bytes);
+        let out = std::panic::catch_unwind(|| read_mesh(&f.0));
+        let Ok(result) = out else { return Err(TestCaseError::fail(format!("read_mesh panicked on {name}"))) };
+        if let Ok(mesh) = result {
+            prop_assert!(mesh.vertices.iter().all(|v| v.coords.iter().all(|c| c.is_finite())));
+            let n = mesh.vertices.len() as u32;
+            prop_assert!(mesh.triangles.iter().all(|t| t.iter().all(|&i| i < n)));
+        }
+        Ok(())
+    }
+
+    /// `text` with a byte range cut out and some bytes replaced.
+    fn mutated(text: &'static str) -> impl Strategy<Value = Vec<u8>> {
+        let len = text.len();
+        (0..=len, 0..=len, proptest::collection::vec((0..len.max(1), any::<u8>()), 0..6)).prop_map(move |(a, b, edits)| {
+            let (a, b) = (a.min(b), a.max(b));
+            let mut bytes = text.as_bytes().to_vec();
+            for (i, byte) in edits {
+                bytes[i] = byte;
+            }
+            bytes.drain(a..b);
+            bytes
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 300, failure_persistence: None, ..ProptestConfig::default() })]
+
+        #[test]
+        fn obj_bytes_never_panic(bytes in mutated(OBJ)) {
+            check("fuzz.obj", &bytes)?;
+        }
+
+        #[test]
+        fn dae_bytes_never_panic(bytes in mutated(COMPLEX_DAE)) {
+            check("fuzz.dae", &bytes)?;
+        }
+
+        #[test]
+        fn stl_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
+            check("fuzz.stl", &bytes)?;
+        }
+    }
+}
