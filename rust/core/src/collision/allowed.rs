@@ -7,20 +7,19 @@
 //! 4. **never**: pairs in collision in none of the random configurations.
 //!
 //! Pairs on one rigid body are never checked anyway (see `broad_phase::self_pairs`). The random
-//! configurations are uniform within the joint limits (continuous joints: any angle; a free-flyer
-//! base at its default placement), from a seeded generator: the result is reproducible.
+//! configurations are the planner's [`UniformSampler`]'s (within the joint limits, continuous
+//! joints any angle, a free-flyer base at its default placement), seeded: the result is
+//! reproducible.
 
 use std::collections::BTreeMap;
 
 use nalgebra::Isometry3;
 use parry3d_f64::query;
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
 use super::CollisionWorld;
 use crate::error::{Error, Result};
-use crate::kinematics::Motion;
+use crate::planning::{Sampler, UniformSampler};
 
 /// Why a link pair is skipped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -144,19 +143,28 @@ pub fn disabled_pairs(world: &CollisionWorld, q_default: &[f64], options: &Optio
 
     // 3-4. over random configurations, in parallel chunks with per-chunk seeds (reproducible
     // whatever the number of threads).
+    // The configurations: the planner's uniform sampler (a free-flyer base held at its default
+    // placement), seeded per chunk.
+    let base = model.floating_base.then(|| {
+        let mut b = [0.0; 7];
+        b.copy_from_slice(&q_default[..7]);
+        b
+    });
+    UniformSampler::new(world.model.clone(), base, 0).map_err(|e| Error::Invalid(format!("disabled pairs: {e}")))?;
     let chunk = 256usize;
     let n_chunks = options.samples.div_ceil(chunk);
     let counts: Vec<u32> = (0..n_chunks)
         .into_par_iter()
         .map(|c| {
-            let mut rng = StdRng::seed_from_u64(options.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(c as u64));
-            let mut poses = Vec::new();
-            let mut q = q_default.to_vec();
-            let mut counts = vec![0u32; keys.len()];
+            let seed = options.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(c as u64);
+            let mut sampler = UniformSampler::new(world.model.clone(), base, seed).expect("checked above");
             let n = chunk.min(options.samples - c * chunk);
-            for _ in 0..n {
-                random_configuration(model, q_default, &mut rng, &mut q);
-                for (c, hit) in counts.iter_mut().zip(colliding(&q, &mut poses)) {
+            let mut qs = vec![0.0; n * model.nq];
+            sampler.sample(n, &mut qs).expect("sized for n rows");
+            let mut poses = Vec::new();
+            let mut counts = vec![0u32; keys.len()];
+            for q in qs.chunks(model.nq.max(1)).take(n) {
+                for (c, hit) in counts.iter_mut().zip(colliding(q, &mut poses)) {
                     *c += hit as u32;
                 }
             }
@@ -184,31 +192,6 @@ pub fn disabled_pairs(world: &CollisionWorld, q_default: &[f64], options: &Optio
         .collect();
     out.sort_by(|x, y| (x.reason, &x.a, &x.b).cmp(&(y.reason, &y.a, &y.b)));
     Ok(out)
-}
-
-/// Uniform within the limits; continuous joints any angle; the base (free-flyer) as in `q_default`.
-fn random_configuration(model: &crate::kinematics::KinematicModel, q_default: &[f64], rng: &mut StdRng, q: &mut [f64]) {
-    q.copy_from_slice(q_default);
-    for j in &model.joints {
-        if j.q_index == usize::MAX {
-            continue;
-        }
-        let i = j.q_index;
-        match j.motion {
-            Motion::Continuous { .. } => {
-                let a: f64 = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
-                q[i] = a.cos();
-                q[i + 1] = a.sin();
-            }
-            Motion::Revolute { .. } | Motion::Prismatic { .. } => {
-                let (lo, hi) = (model.lower[i], model.upper[i]);
-                if lo.is_finite() && hi.is_finite() && lo < hi {
-                    q[i] = rng.random_range(lo..=hi);
-                }
-            }
-            _ => {}
-        }
-    }
 }
 
 /// An SRDF holding `pairs` as `<disable_collisions>` (MoveIt's format) and, if given, one group
