@@ -118,9 +118,8 @@ pub fn read_mesh_with(path: &Path, options: &ReadOptions) -> Result<Mesh> {
             } else {
                 format!("extension '.{ext}'")
             };
-            return Err(bad(format!(
-                "unsupported mesh format ({got}); supported: .stl, .obj, .dae"
-            )));
+            let known: Vec<String> = SUPPORTED_EXTENSIONS.iter().map(|e| format!(".{e}")).collect();
+            return Err(bad(format!("unsupported mesh format ({got}); supported: {}", known.join(", "))));
         }
     };
     validate(&mesh).map_err(bad)?;

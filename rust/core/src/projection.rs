@@ -242,14 +242,13 @@ impl Projector {
         Ok(Projector { model, primary, secondary, settings, bounded })
     }
 
-    /// A copy whose primary term `term` aims at `target`: 3 numbers for a FramePosition, a
-    /// row-major 4x4 pose (16 numbers) for a FramePose. The new target is checked like
-    /// [`new`](Self::new) checks terms: finite, a position within [`MAX_MAGNITUDE`], a rotation
-    /// block orthonormal within [`ROTATION_TOLERANCE`].
-    pub fn retargeted(&self, term: usize, target: &[f64]) -> Result<Projector> {
-        let mut out = self.clone();
+    /// Aim primary term `term` at `target`: 3 numbers for a FramePosition, a row-major 4x4 pose
+    /// (16 numbers) for a FramePose. The new target is checked like [`new`](Self::new) checks
+    /// terms: finite, a position within [`MAX_MAGNITUDE`], a rotation block orthonormal within
+    /// [`ROTATION_TOLERANCE`]; on an error the projector is unchanged.
+    pub fn retarget(&mut self, term: usize, target: &[f64]) -> Result<()> {
         check_finite("target", target)?;
-        let t = out.primary.get_mut(term).ok_or_else(|| Error::Invalid(format!("no primary term {term}")))?;
+        let mut t = self.primary.get(term).ok_or_else(|| Error::Invalid(format!("no primary term {term}")))?.clone();
         if target.len() == 16 {
             let r = Matrix3::from_fn(|i, j| target[4 * i + j]);
             check_rotation(&t.name, "target rotation", &r)?;
@@ -271,7 +270,15 @@ impl Projector {
                 )))
             }
         }
-        validate(&out.model, t)?;
+        validate(&self.model, &t)?;
+        self.primary[term] = t;
+        Ok(())
+    }
+
+    /// A copy of this projector with [`retarget`](Self::retarget) applied.
+    pub fn retargeted(&self, term: usize, target: &[f64]) -> Result<Projector> {
+        let mut out = self.clone();
+        out.retarget(term, target)?;
         Ok(out)
     }
 
@@ -629,8 +636,9 @@ fn validate(model: &KinematicModel, t: &Term) -> Result<()> {
             bounded(name, "target translation", target.translation.vector.as_slice())?;
             let r = target.rotation.coords;
             check_finite(&format!("term '{name}' target rotation"), r.as_slice())?;
-            if (r.norm() - 1.0).abs() > ROTATION_TOLERANCE {
-                return bad(format!("target rotation: not a unit quaternion (norm {:?})", r.norm()));
+            let norm = crate::lie::stable_norm(r.as_slice()); // huge components do not overflow
+            if (norm - 1.0).abs() > ROTATION_TOLERANCE {
+                return bad(format!("target rotation: not a unit quaternion (norm {norm:?})"));
             }
             bounded(name, "mask", mask)
         }

@@ -32,7 +32,7 @@ use crate::collision::CollisionWorld;
 use crate::error::{Error, Result};
 use crate::kinematics::{KinematicModel, ModelOptions};
 use crate::srdf::Srdf;
-use crate::urdf::Urdf;
+use crate::urdf::{resolve_uri, Urdf};
 
 /// The keys a robot file may hold.
 pub const ROBOT_KEYS: [&str; 9] = [
@@ -57,14 +57,6 @@ pub enum LockedJoints {
 }
 
 impl LockedJoints {
-    /// The locked joints' names, in the order given.
-    pub fn names(&self) -> Vec<&str> {
-        match self {
-            LockedJoints::FromReference(n) => n.iter().map(String::as_str).collect(),
-            LockedJoints::Values(v) => v.iter().map(|(n, _)| n.as_str()).collect(),
-        }
-    }
-
     /// True when no joint is locked.
     pub fn is_empty(&self) -> bool {
         match self {
@@ -118,25 +110,15 @@ fn strings(origin: &str, key: &str, v: &toml::Value) -> Result<Vec<String>> {
     arr.iter().map(|x| string(origin, key, x)).collect()
 }
 
-/// Resolve a path value: `package://PKG/rest` against `package_dirs`, else relative to `base`.
+/// Resolve a path value: `package://PKG/rest` against `package_dirs` (the first that exists),
+/// else relative to `base` ([`crate::urdf::resolve_uri`]).
 pub fn resolve_path(value: &str, base: Option<&Path>, package_dirs: &[PathBuf]) -> Result<PathBuf> {
-    if let Some(rest) = value.strip_prefix("package://") {
-        for dir in package_dirs {
-            let p = dir.join(rest);
-            if p.exists() {
-                return Ok(p);
-            }
-        }
+    resolve_uri(value, base, package_dirs, Path::exists).ok_or_else(|| {
         let dirs: Vec<String> = package_dirs.iter().map(|d| d.display().to_string()).collect();
-        return Err(Error::Invalid(format!(
+        Error::Invalid(format!(
             "'{value}' is not under any package folder (searched: {})",
             if dirs.is_empty() { "none given".to_string() } else { dirs.join(", ") }
-        )));
-    }
-    let p = PathBuf::from(value.strip_prefix("file://").unwrap_or(value));
-    Ok(match base {
-        Some(b) if p.is_relative() => b.join(p),
-        _ => p,
+        ))
     })
 }
 

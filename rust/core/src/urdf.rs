@@ -493,32 +493,13 @@ impl Urdf {
     /// Resolve a mesh filename: `package://pkg/rest` is looked up as `<dir>/pkg/rest` in each
     /// package dir; `file://` and relative paths are taken from the URDF's folder.
     pub fn resolve_mesh(&self, filename: &str, package_dirs: &[PathBuf]) -> Result<PathBuf> {
-        if let Some(rest) = filename.strip_prefix("package://") {
-            for dir in package_dirs {
-                let p = dir.join(rest);
-                if p.is_file() {
-                    return Ok(p);
-                }
-            }
-            return Err(Error::Mesh {
-                path: PathBuf::from(filename),
-                msg: format!(
-                    "not found in package dirs [{}]",
-                    package_dirs
-                        .iter()
-                        .map(|d| d.display().to_string())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            });
-        }
-        let raw = filename.strip_prefix("file://").unwrap_or(filename);
-        let p = PathBuf::from(raw);
-        let p = if p.is_absolute() {
-            p
-        } else {
-            self.dir.clone().unwrap_or_default().join(p)
-        };
+        let p = resolve_uri(filename, self.dir.as_deref(), package_dirs, Path::is_file).ok_or_else(|| Error::Mesh {
+            path: PathBuf::from(filename),
+            msg: format!(
+                "not found in package dirs [{}]",
+                package_dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(", ")
+            ),
+        })?;
         if p.is_file() {
             Ok(p)
         } else {
@@ -614,5 +595,20 @@ fn parse_joint(node: roxmltree::Node) -> Result<Joint> {
         upper,
         effort,
         velocity,
+    })
+}
+
+/// Where a file URI of a robot description points: `package://PKG/rest` is the first
+/// `<dir>/PKG/rest` of `package_dirs` that satisfies `found` (None when none does); `file://`
+/// and plain paths are taken as they are when absolute, else relative to `base` (the current
+/// folder when None). The one resolution of URDF meshes and robot files' paths.
+pub fn resolve_uri(value: &str, base: Option<&Path>, package_dirs: &[PathBuf], found: impl Fn(&Path) -> bool) -> Option<PathBuf> {
+    if let Some(rest) = value.strip_prefix("package://") {
+        return package_dirs.iter().map(|d| d.join(rest)).find(|p| found(p));
+    }
+    let p = PathBuf::from(value.strip_prefix("file://").unwrap_or(value));
+    Some(match base {
+        Some(b) if p.is_relative() => b.join(p),
+        _ => p,
     })
 }

@@ -573,8 +573,8 @@ impl PyProjector {
         let data = b.data;
         let solver = &self.inner;
         // per-row targets of one primary term: checked up front (the term, the numbers per row,
-        // finite values), so that errors surface before any work; each row's solver is built
-        // where the row is solved
+        // finite values), so that errors surface before any work; each worker retargets its own
+        // copy of the solver row by row
         let retarget: Option<(usize, &[f64], usize)> = match (&target_term, &targets) {
             (None, None) => None,
             (Some(name), Some(arr)) => {
@@ -587,18 +587,20 @@ impl PyProjector {
                 }
                 let k: usize = arr.shape()[1..].iter().product();
                 // every row as the solver takes it (length, finite, bounded, a rotation), before any work
-                for (i, row) in tdata.chunks(k.max(1)).enumerate() {
-                    solver.retargeted(ti, row).map_err(|e| to_py_in(&format!("targets[{i}]"), e))?;
+                let mut probe = solver.clone();
+                for i in 0..n {
+                    probe.retarget(ti, &tdata[i * k..(i + 1) * k]).map_err(|e| to_py_in(&format!("targets[{i}]"), e))?;
                 }
                 Some((ti, tdata, k))
             }
             _ => return Err(err(Kind::Generic, "give both target_term and targets, or neither")),
         };
-        let outs = chunked(py, n, parallel, || (), |_, i| {
+        // one retargeted copy of the solver per worker (not per row)
+        let outs = chunked(py, n, parallel, || retarget.map(|_| solver.clone()), |own, i| {
             let (q, nom) = (&data[i * nq..(i + 1) * nq], noms.map(|d| &d[i * nq..(i + 1) * nq]));
-            match retarget {
-                None => Ok(solver.solve_unchecked(q, nom)),
-                Some((ti, t, k)) => solver.retargeted(ti, &t[i * k..(i + 1) * k]).map(|s| s.solve_unchecked(q, nom)),
+            match (own, retarget) {
+                (Some(p), Some((ti, t, k))) => p.retarget(ti, &t[i * k..(i + 1) * k]).map(|()| p.solve_unchecked(q, nom)),
+                _ => Ok(solver.solve_unchecked(q, nom)),
             }
         })?;
         let outs: Vec<genplan_core::projection::Outcome> = outs.into_iter().collect::<Result<_, _>>().map_err(to_py)?;
@@ -776,15 +778,10 @@ fn disabled_pairs_srdf(
     let pairs = pairs
         .into_iter()
         .map(|(a, b, r)| {
-            let reason = match r.as_str() {
-                "Adjacent" => allowed::Reason::Adjacent,
-                "Default" => allowed::Reason::Default,
-                "Always" => allowed::Reason::Always,
-                "Never" => allowed::Reason::Never,
-                other => return Err(err(Kind::UnknownName, format!(
-                    "pairs: unknown reason '{other}' (known: Adjacent, Default, Always, Never)"
-                ))),
-            };
+            let reason = allowed::Reason::parse(&r).ok_or_else(|| {
+                let known: Vec<&str> = allowed::Reason::ALL.iter().map(|r| r.as_str()).collect();
+                err(Kind::UnknownName, format!("pairs: unknown reason '{r}' (known: {})", known.join(", ")))
+            })?;
             Ok(allowed::DisabledPair { a, b, reason })
         })
         .collect::<PyResult<Vec<_>>>()?;

@@ -17,6 +17,7 @@ use nalgebra::Isometry3;
 use parry3d_f64::query;
 use rayon::prelude::*;
 
+use super::broad_phase::self_pairs;
 use super::CollisionWorld;
 use crate::error::{Error, Result};
 use crate::planning::{Sampler, UniformSampler};
@@ -35,6 +36,14 @@ pub enum Reason {
 }
 
 impl Reason {
+    /// Every reason, in order.
+    pub const ALL: [Reason; 4] = [Reason::Adjacent, Reason::Default, Reason::Always, Reason::Never];
+
+    /// The reason whose [`as_str`](Self::as_str) is `word`.
+    pub fn parse(word: &str) -> Option<Reason> {
+        Reason::ALL.into_iter().find(|r| r.as_str() == word)
+    }
+
     /// MoveIt's word for the reason (written in the SRDF's `reason` attribute).
     pub fn as_str(&self) -> &'static str {
         match self {
@@ -88,16 +97,12 @@ pub fn disabled_pairs(world: &CollisionWorld, q_default: &[f64], options: &Optio
             options.always_fraction
         )));
     }
-    // Link pairs with geometry on different bodies, and the geometry pairs of each.
+    // Link pairs with geometry on different bodies (every self-collision pair, no SRDF), and
+    // the geometry pairs of each.
     let mut pairs: BTreeMap<(usize, usize), Vec<(usize, usize)>> = BTreeMap::new();
-    for (i, gi) in world.geometries.iter().enumerate() {
-        for (j, gj) in world.geometries.iter().enumerate().skip(i + 1) {
-            let (la, lb) = (gi.link.min(gj.link), gi.link.max(gj.link));
-            if model.body_of_link[la] == model.body_of_link[lb] {
-                continue;
-            }
-            pairs.entry((la, lb)).or_default().push((i, j));
-        }
+    for (i, j) in self_pairs(model, &world.geometries, None) {
+        let (a, b) = (world.geometries[i].link, world.geometries[j].link);
+        pairs.entry((a.min(b), a.max(b))).or_default().push((i, j));
     }
     let mut reason: BTreeMap<(usize, usize), Reason> = BTreeMap::new();
 

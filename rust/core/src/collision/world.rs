@@ -14,6 +14,7 @@ use super::broad_phase::{self_pairs, Obb};
 use super::geometry::{bounding_sphere, robot_geometries};
 use super::RobotGeometry;
 use crate::error::{check_finite, check_vector, unknown, Error, Result};
+use crate::lie::{stable_norm, unit_vector};
 use crate::kinematics::KinematicModel;
 use crate::srdf::Srdf;
 use crate::urdf::Urdf;
@@ -355,8 +356,7 @@ fn check_isometry(what: &str, pose: &Isometry3<f64>) -> Result<()> {
     check_finite(&format!("{what} pose"), &[t.x, t.y, t.z, r.x, r.y, r.z, r.w])?;
     check_position(what, "centre", &[t.x, t.y, t.z])?;
     // |q| without overflow: the components of a finite quaternion far from unit may be huge
-    let m = r.amax();
-    let norm = if m > 0.0 { m * (r / m).norm() } else { 0.0 };
+    let norm = stable_norm(r.as_slice());
     if (norm - 1.0).abs() > QUATERNION_TOLERANCE {
         return Err(Error::Invalid(format!("{what}: the pose's rotation is not a unit quaternion (norm {norm:?})")));
     }
@@ -373,18 +373,11 @@ fn check_position(what: &str, field: &str, p: &[f64; 3]) -> Result<()> {
     Ok(())
 }
 
-/// The unit vector along a finite `v`, or None when its norm is at most [`MIN_NORMAL_NORM`]. The
-/// norm is computed on `v` scaled by its largest absolute component (in [1, sqrt 3] then), so
-/// that it neither overflows (components up to f64::MAX) nor underflows.
+/// The unit vector along a finite `v`, or None when its norm is at most [`MIN_NORMAL_NORM`]
+/// (both computed without overflow or underflow by `crate::lie`).
 fn unit_normal(v: &[f64; 3]) -> Option<nalgebra::Unit<Vector3<f64>>> {
-    let m = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    if m == 0.0 {
+    if stable_norm(v) <= MIN_NORMAL_NORM {
         return None;
     }
-    let scaled = Vector3::from(*v) / m;
-    let n = scaled.norm();
-    if m * n <= MIN_NORMAL_NORM {
-        return None;
-    }
-    Some(nalgebra::Unit::new_unchecked(scaled / n))
+    unit_vector(&Vector3::from(*v), 0.0)
 }
