@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import DTypeLike, NDArray
 
+from genplan._files import atomic_path
+
 __all__ = ["cache_dir", "load_array", "save_array"]
 
 
@@ -35,7 +37,5 @@ def load_array(path: Path, shape: tuple[int, ...], dtype: DTypeLike | None = Non
 
 def save_array(path: Path, data: NDArray) -> None:
     """Write ``data`` to ``path`` atomically (a temporary file beside it, then a rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.npy")
-    np.save(tmp, data)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:  # the suffix stays .npy: np.save adds none
+        np.save(tmp, data)

@@ -216,9 +216,7 @@ def read_config(card: dict[str, Any], path: Path, kind: str, cls: type[T]) -> T:
         parts = ([f"unknown key(s) {unknown}"] if unknown else []) + ([f"missing key(s) {missing}"] if missing else [])
         raise ModelFileError(f"{bad}: {'; '.join(parts)}")
     try:
-        cfg = cls(**{n: _as_type(config[n], hints[n], n) for n in names})
-        if hasattr(cfg, "validate"):
-            cfg.validate()
+        cfg = cls(**{n: _as_type(config[n], hints[n], n) for n in names})  # validates (__post_init__)
     except (TypeError, GenplanError) as exc:
         raise ModelFileError(f"{bad}: {exc}") from None
     return cfg

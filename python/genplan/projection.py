@@ -539,10 +539,11 @@ def _term_to_dict(t: Term) -> dict[str, Any]:
     return out
 
 
-def _default_placement(robot: Robot | None, frame: str, where: str) -> pin.SE3:
+def _need_robot(robot: Robot | None, where: str, what: str) -> Robot:
+    """``robot``, or TaskFileError: ``what`` (a robot-relative value) cannot be read without it."""
     if robot is None:
-        raise TaskFileError(f"{where}: 'default' needs the robot (pass robot= when reading the task)")
-    return robot.frame_placement(robot.q_default, frame)
+        raise TaskFileError(f"{where}: {what} needs the robot (pass robot= when reading the task)")
+    return robot
 
 
 def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str) -> Term:
@@ -560,16 +561,14 @@ def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str) -> Te
         if key not in names:
             raise TaskFileError(f"{where}: {kind} has no field '{key}' (fields: {', '.join(names)})")
         if v == "default" and key in ("target", "q_nom"):
+            r = _need_robot(robot, where if key == "q_nom" else f"{where} target", "'default'")
             if key == "q_nom":
-                if robot is None:
-                    raise TaskFileError(f"{where}: 'default' needs the robot (pass robot= when reading the task)")
-                v = robot.q_default.copy()
+                v = r.q_default.copy()
             else:
-                m = _default_placement(robot, str(d.get("frame", "")), f"{where} target")
+                m = r.frame_placement(r.q_default, str(d.get("frame", "")))
                 v = m.translation.copy() if cls is FramePosition else m.rotation.copy() if cls is FrameOrientation else m
         elif key == "joint_weights" and isinstance(v, Mapping):  # joint-name patterns -> nv weights
-            if robot is None:
-                raise TaskFileError(f"{where}: joint_weights by joint name needs the robot (pass robot=)")
+            robot = _need_robot(robot, where, "joint_weights by joint name")
             w = np.zeros(robot.nv)
             for pattern, weight in v.items():
                 hit = [j for j in robot.joint_names if fnmatch.fnmatchcase(j, pattern)]
@@ -581,7 +580,7 @@ def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str) -> Te
         elif key in ("axes", "components") and isinstance(v, list):
             v = tuple(float(x) for x in v)
         elif isinstance(v, list):
-            v = np.asarray(as_float_array(v, f"{where} {key}"), dtype=float)
+            v = as_float_array(v, f"{where} {key}")
         fields[key] = v
     try:
         return cls(**fields)
@@ -915,9 +914,9 @@ def paper_task(robot: Robot, kind: str = "projection", target: ArrayLike | None 
     ``talos_projection``, ...; see :func:`task_names`); ``target`` sets the IK task's condition
     term (the hand position)."""
     _check_kind(kind)
-    name = f"{robot.name}_{kind}"
-    if name not in task_names():
-        raise UnknownNameError(f"no shipped task '{name}' (shipped: {', '.join(task_names())}); "
+    name, shipped = f"{robot.name}_{kind}", task_names()
+    if name not in shipped:
+        raise UnknownNameError(f"no shipped task '{name}' (shipped: {', '.join(shipped)}); "
                                "give a task of your own (a Task, or a task file: Task.from_file)")
     task = load_task(name, robot)
     if target is None:

@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
 from genplan._arrays import as_configurations
-from genplan._files import atomic_path, write_text
+from genplan._files import write_text
 from genplan.cache import cache_dir
 from genplan.collision import CollisionWorld
 from genplan.errors import RobotFileError, SettingsError, ShapeError, UnknownNameError
@@ -274,12 +274,10 @@ class Robot:
 
     def collision_world(self, self_collision: bool = True) -> CollisionWorld:
         """A new collision world (no obstacles) for this robot."""
-        if self.srdf_path is not None:
-            native = _core.CollisionWorld(self.kinematics, self.collision_urdf_path, self.package_dirs, self.srdf_path)
-        else:
-            native = _core.CollisionWorld(
-                self.kinematics, self.collision_urdf_path, self.package_dirs, None, self.disabled_pairs
-            )
+        native = _core.CollisionWorld(  # the SRDF's pairs, or the computed ones without an SRDF
+            self.kinematics, self.collision_urdf_path, self.package_dirs, self.srdf_path,
+            None if self.srdf_path is not None else self.disabled_pairs,
+        )
         native.check_self = self_collision
         return CollisionWorld(native)
 
@@ -362,14 +360,7 @@ def write_srdf(robot: Robot, path: str | os.PathLike[str], samples: int = 10_000
         j = robot.model.joints[robot.model.getJointId(name)]
         if j.nq == 1:
             state.append((name, float(robot.q_default[j.idx_q])))
-    text = _core.disabled_pairs_srdf(robot.name, [tuple(e) for e in found.entries], state)
-    with atomic_path(Path(path)) as tmp:
-        tmp.write_text(text)
-    return Path(path)
-
-
-def _is_pathlike(x: Any) -> bool:
-    return isinstance(x, os.PathLike) or (isinstance(x, str) and (os.sep in x or "/" in x or x.endswith((".toml", ".urdf"))))
+    return write_text(path, _core.disabled_pairs_srdf(robot.name, [tuple(e) for e in found.entries], state))
 
 
 def _file_key(p: Any) -> tuple[str, int]:
@@ -432,14 +423,14 @@ def load(
     if robot is not None and isinstance(robot, (str, os.PathLike)) and str(robot).endswith(".urdf"):
         if urdf is not None:
             raise TypeError("load(): give the URDF either as the first argument or as urdf=, not both")
-        keywords["urdf"], robot, given = str(robot), None, sorted({*given, "urdf"})
+        keywords["urdf"], robot = str(robot), None
     if robot is not None:
         if given:
             raise TypeError(f"load(): a preset or robot file takes no keywords (got {', '.join(given)}); "
                             "put them in a robot file, or give urdf= with keywords")
         if not isinstance(robot, (str, os.PathLike)):
             raise TypeError(f"load(): expected a preset name or a path, got {type(robot).__name__}")
-        if _is_pathlike(robot):
+        if isinstance(robot, os.PathLike) or "/" in robot or os.sep in robot or robot.endswith(".toml"):
             path = Path(robot)
             if not path.is_file():
                 raise FileNotFoundError(f"robot file {path} does not exist")
@@ -449,7 +440,7 @@ def load(
                 f"unknown robot '{robot}' (known: {', '.join(ROBOT_NAMES)}; or a robot file .toml, or urdf=PATH)"
             )
         return _cached(_core.read_robot_file(PRESETS_DIR / f"{robot}.toml", defaults))
-    if urdf is None and keywords["urdf"] is None:
+    if keywords["urdf"] is None:
         raise TypeError("load(): give a preset name, a robot file, or urdf=PATH")
     fields = {k: v for k, v in keywords.items() if v is not None}
     default_name = Path(str(fields["urdf"])).stem

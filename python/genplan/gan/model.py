@@ -282,13 +282,18 @@ class GanModel:
                 f"outside); clip the targets into it to sample anyway")
         return t
 
-    def _check_output(self, q: NDArray[np.float64], targets: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``q`` (n_net, n, nq) if finite, else NonFiniteError naming the first target row."""
+    @torch.no_grad()
+    def generate(self, z: NDArray[np.float64], targets: NDArray[np.float64], offset: int = 0) -> NDArray[np.float64]:
+        """Every member's configurations for noise ``z`` (n_net, n, noise_dim) and checked targets
+        (n, 3): (n_net, n, nq), finite, else NonFiniteError naming the first target row (counted
+        from ``offset``, for callers that generate in chunks)."""
+        x = torch.tensor(targets, dtype=torch.float32).expand(self.config.n_net, len(targets), 3)
+        q = self.codec.decode(self.generator(torch.cat([torch.tensor(z, dtype=torch.float32), x], -1))).double().numpy()
         bad = ~np.isfinite(q).all(-1)
         if bad.any():
             m, i = (int(v) for v in np.argwhere(bad)[0])
-            raise NonFiniteError(f"GAN sample for target row {i} {targets[i].tolist()} is not finite (member {m}): "
-                                 "the generator overflows there")
+            raise NonFiniteError(f"GAN sample for target row {offset + i} {targets[i].tolist()} is not finite "
+                                 f"(member {m}): the generator overflows there")
         return q
 
     @torch.no_grad()
@@ -303,11 +308,7 @@ class GanModel:
         t = self.check_targets(targets)
         rng = np.random.default_rng(rng)
         with torch_threads("small", threads):
-            n = len(t)
-            z = torch.tensor(rng.standard_normal((self.config.n_net, n, self.config.noise_dim)), dtype=torch.float32)
-            x = torch.tensor(t, dtype=torch.float32).expand(self.config.n_net, n, 3)
-            q = self.codec.decode(self.generator(torch.cat([z, x], -1))).double().numpy()
-        return self._check_output(q, t)
+            return self.generate(rng.standard_normal((self.config.n_net, len(t), self.config.noise_dim)), t)
 
     def sample(self, targets: ArrayLike, rng: np.random.Generator | int | None = None, *,
                threads: int | None = None) -> NDArray[np.float64]:
@@ -437,8 +438,7 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
     genplan._threads; the card records the count used)."""
     from genplan.gan.data import cache_path, valid_configurations
 
-    cfg.validate()
-    robot = load(cfg.robot)
+    robot = load(cfg.robot)  # cfg is valid: a frozen GanConfig validates when it is made
     if data is not None:
         data = as_configurations(data, robot.nq, "data")
         if data.ndim != 2:

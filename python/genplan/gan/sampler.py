@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan._arrays import as_box, as_float_array
 from genplan._threads import resolve, torch_threads
-from genplan.errors import ModelFileError, NonFiniteError, SettingsError, ShapeError
+from genplan.errors import ModelFileError, SettingsError, ShapeError
 from genplan.gan.model import GanModel, load_model
 from genplan.robots import Robot
 
@@ -114,14 +114,7 @@ class GanSampler:
         with torch_threads("small", self.threads):
             for s, e in _chunks(n):
                 m = e - s
-                z = torch.tensor(np.stack([g.standard_normal((m, nd)) for g in members]), dtype=torch.float32)
-                x = torch.tensor(t[s:s + m], dtype=torch.float32).expand(n_net, m, 3)
-                q = model.codec.decode(model.generator(torch.cat([z, x], -1))).double().numpy()
-                bad = ~np.isfinite(q).all(-1)
-                if bad.any():
-                    k, i = (int(v) for v in np.argwhere(bad)[0])
-                    raise NonFiniteError(f"GAN sample for target row {s + i} {t[s + i].tolist()} is not finite "
-                                         f"(member {k}): the generator overflows there")
+                q = model.generate(np.stack([g.standard_normal((m, nd)) for g in members]), t[s:e], offset=s)
                 out[s:s + m] = q[pick[s:s + m], np.arange(m)]
         return out
 

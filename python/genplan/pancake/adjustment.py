@@ -393,7 +393,7 @@ def adjust(x_in: ArrayLike, objective: Objective = "j1", method: Method = "laten
             raise SettingsError(f"max_step must be a positive finite number, got {max_step!r}")
     seed = as_count(seed, "seed", maximum=2**64 - 1)
     keep = {as_count(s, "snapshots") for s in snapshots}
-    if any(s < 0 or s > updates for s in keep):
+    if any(s > updates for s in keep):  # as_count refused negatives
         raise SettingsError(f"snapshots must lie in [0, {updates}], got {sorted(keep)}")
     if b == 0:
         return _empty_result(model, method, step, float(lr), updates, keep)

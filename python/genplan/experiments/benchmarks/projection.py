@@ -88,7 +88,9 @@ def summarize(success: NDArray[np.bool_], times_s: NDArray[np.float64], steps: N
 
 
 def target_term(task: P.Task) -> str:
-    return task.primary[0].name  # the paper's IK tasks put the hand position first
+    """The IK task's per-query term: its [condition]'s."""
+    assert task.condition is not None, "the shipped IK tasks have a [condition]"
+    return task.condition.term
 
 
 def run_gauss_newton(robot: genplan.Robot, problems: dict[str, Any], backend: str) -> dict[str, Any]:
