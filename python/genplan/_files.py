@@ -1,5 +1,6 @@
 """Files written whole or not at all: a temporary name beside the target, then a rename (the
-library's and the experiments' one definition of an atomic write)."""
+library's and the experiments' one definition of an atomic write); and the data files (robot,
+task, scene: TOML) read with errors that name the file."""
 
 from __future__ import annotations
 
@@ -8,8 +9,9 @@ import secrets
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
-__all__ = ["atomic_path", "write_text"]
+__all__ = ["atomic_path", "read_toml", "write_text"]
 
 
 @contextmanager
@@ -32,3 +34,20 @@ def write_text(path: str | os.PathLike[str], text: str) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_text(text)
     return Path(path)
+
+
+def read_toml(path: str | os.PathLike[str], kind: str, error: type[Exception]) -> dict[str, Any]:
+    """A ``kind`` file (e.g. "task", "scene") as TOML data, its ``name`` defaulting to the file's
+    stem: FileNotFoundError when it does not exist, ``error`` naming the file when it is not
+    TOML (or not text)."""
+    import tomllib
+
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{kind} file {path} does not exist") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise error(f"{kind} file {path}: {exc}") from None
+    data.setdefault("name", path.stem)
+    return data

@@ -1,12 +1,14 @@
 """Collision world: the robot's collision geometry (parry, in Rust) plus environment obstacles.
 
 Self-collision pairs are every pair of geometries on different rigid bodies, minus the SRDF's
-disabled pairs; obstacles are boxes, spheres and half-spaces. Batched queries release the GIL and
-run on all cores.
+disabled pairs; obstacles are boxes, spheres, cylinders, capsules, meshes (their convex hulls)
+and half-spaces, added one by one or as a scene (:meth:`CollisionWorld.add_scene`, a scene file:
+docs/SCENES.md). Batched queries release the GIL and run on all cores.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from typing import Any, overload
 
@@ -15,7 +17,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
 from genplan._arrays import as_configurations, as_float_array, as_real
-from genplan.errors import ShapeError
+from genplan.errors import GenplanError, SceneFileError, ShapeError
+from genplan.scene import Box, Capsule, Cylinder, HalfSpace, Mesh, Obstacle, Scene, Sphere, load_scene
 
 
 class CollisionWorld:
@@ -70,6 +73,80 @@ class CollisionWorld:
         """Add a sphere of ``radius`` (m) at ``center``."""
         self._native.add_sphere(name, as_real(radius, f"sphere '{name}' radius"), _vec3(center, f"sphere '{name}' center"))
 
+    def add_cylinder(
+        self,
+        name: str,
+        radius: float,
+        half_height: float,
+        center: ArrayLike,
+        rotation: ArrayLike | None = None,
+    ) -> None:
+        """Add a solid cylinder of ``radius`` (m) whose axis is the local z axis (as in URDF),
+        spanning ``half_height`` either side of ``center``; optional 3x3 ``rotation``."""
+        rot = None if rotation is None else _matrix3(rotation, f"cylinder '{name}' rotation")
+        self._native.add_cylinder(name, as_real(radius, f"cylinder '{name}' radius"),
+                                  as_real(half_height, f"cylinder '{name}' half_height"),
+                                  _vec3(center, f"cylinder '{name}' center"), rot)
+
+    def add_capsule(
+        self,
+        name: str,
+        radius: float,
+        half_length: float,
+        center: ArrayLike,
+        rotation: ArrayLike | None = None,
+    ) -> None:
+        """Add a capsule: the points within ``radius`` (m) of a segment along the local z axis from
+        ``-half_length`` to ``+half_length`` about ``center``; optional 3x3 ``rotation``."""
+        rot = None if rotation is None else _matrix3(rotation, f"capsule '{name}' rotation")
+        self._native.add_capsule(name, as_real(radius, f"capsule '{name}' radius"),
+                                 as_real(half_length, f"capsule '{name}' half_length"),
+                                 _vec3(center, f"capsule '{name}' center"), rot)
+
+    def add_mesh(
+        self,
+        name: str,
+        path: str | os.PathLike[str],
+        scale: ArrayLike | float = 1.0,
+        center: ArrayLike = (0.0, 0.0, 0.0),
+        rotation: ArrayLike | None = None,
+    ) -> None:
+        """Add the **convex hull** of a mesh file's vertices (STL, OBJ or Collada, as the robot's
+        meshes), scaled per axis by ``scale`` (one number or three) in the file's frame, then placed
+        at ``center`` with optional 3x3 ``rotation``. A missing file raises FileNotFoundError, a
+        malformed one RobotFileError; both name the file."""
+        rot = None if rotation is None else _matrix3(rotation, f"mesh '{name}' rotation")
+        sc = as_float_array(scale, f"mesh '{name}' scale")
+        if sc.ndim == 0:
+            sc = np.full(3, float(sc))
+        self._native.add_mesh(name, os.fspath(path), _vec3(sc, f"mesh '{name}' scale"),
+                              _vec3(center, f"mesh '{name}' center"), rot)
+
+    def add_scene(self, scene: Scene | str | os.PathLike[str]) -> list[str]:
+        """Add every obstacle of a scene: a :class:`~genplan.scene.Scene`, a shipped scene's name
+        (:func:`genplan.scene.scene_names`) or a scene file (docs/SCENES.md). All or nothing: the
+        scene is checked first (a name already in the world, a missing mesh file:
+        :class:`~genplan.errors.SceneFileError`), and if the native world refuses an obstacle part
+        way (e.g. a malformed mesh) the ones already added are removed before the error, a
+        SceneFileError naming the scene and the obstacle, is raised. Returns the names added."""
+        s = load_scene(scene)
+        s.check_files()
+        where = s._origin()
+        existing = set(self.obstacle_names)
+        for o in s.obstacles:
+            if o.name in existing:
+                raise SceneFileError(f"{where}: {o.kind} '{o.name}': an obstacle of that name is already in the world")
+        added: list[str] = []
+        try:
+            for o in s.obstacles:
+                _add(self, o)
+                added.append(o.name)
+        except (GenplanError, OSError) as exc:
+            for name in reversed(added):
+                self._native.remove_obstacle(name)
+            raise SceneFileError(f"{where}: {o.kind} '{o.name}': {exc}") from exc
+        return added
+
     def add_halfspace(self, name: str, normal: ArrayLike, offset: float) -> None:
         """Add the solid half-space below the plane ``normal . x = offset``."""
         self._native.add_halfspace(name, _vec3(normal, f"plane '{name}' normal"), as_real(offset, f"plane '{name}' offset"))
@@ -101,6 +178,27 @@ class CollisionWorld:
 
     def __repr__(self) -> str:
         return repr(self._native)
+
+
+def _add(world: CollisionWorld, o: Obstacle) -> None:
+    """Add one scene obstacle (checked when it was built) to ``world``."""
+    if isinstance(o, HalfSpace):
+        world.add_halfspace(o.name, o.normal, o.offset)
+        return
+    pose = o.pose
+    rot = pose.matrix() if pose.rotated else None
+    if isinstance(o, Box):
+        world.add_box(o.name, o.half_extents, pose.position, rot)
+    elif isinstance(o, Sphere):
+        world.add_sphere(o.name, o.radius, pose.position)
+    elif isinstance(o, Cylinder):
+        world.add_cylinder(o.name, o.radius, o.length / 2, pose.position, rot)
+    elif isinstance(o, Capsule):
+        world.add_capsule(o.name, o.radius, o.length / 2, pose.position, rot)
+    elif isinstance(o, Mesh):
+        world.add_mesh(o.name, o.path, o.scale, pose.position, rot)
+    else:  # Scene refuses anything else
+        raise SceneFileError(f"{o!r} is not an obstacle")
 
 
 def _vec3(v: ArrayLike, what: str) -> tuple[float, float, float]:

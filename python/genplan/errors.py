@@ -11,8 +11,8 @@ Every class is a subclass of :class:`GenplanError`, itself a subclass of :class:
 
 The native core raises the same classes (``genplan._core`` looks them up here), so an error has
 one type whichever layer found it. A file that does not exist raises the standard
-:class:`FileNotFoundError`; a file that exists but cannot be used raises :class:`RobotFileError`
-or :class:`ModelFileError`. See docs/ARCHITECTURE.md ("Errors").
+:class:`FileNotFoundError`; a file that exists but cannot be used raises :class:`RobotFileError`,
+:class:`TaskFileError`, :class:`SceneFileError` or :class:`ModelFileError`. See docs/ARCHITECTURE.md ("Errors").
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ __all__ = [
     "ModelFileError",
     "NonFiniteError",
     "RobotFileError",
+    "SceneFileError",
     "SettingsError",
     "ShapeError",
     "TaskFileError",
@@ -61,6 +62,13 @@ class RobotFileError(GenplanError):
 class TaskFileError(GenplanError):
     """A task description (task file or its data) that cannot be read: bad TOML, an unknown term
     kind or key, a value of the wrong form."""
+
+
+class SceneFileError(GenplanError):
+    """A scene (scene file or its data, docs/SCENES.md) that cannot be used: bad TOML, an unknown
+    key or shape table, a missing field, a value of the wrong length, not finite or not positive,
+    a missing mesh file, a duplicate obstacle name; the message names the file (or scene), the
+    table and the field."""
 
 
 class ModelFileError(GenplanError):

@@ -1,18 +1,19 @@
 """The planning environments of the GAN paper (Fig. 5, Table II) as data, and their queries.
 
-Geometry and queries follow the authors' public code (the notes below):
+Each environment is a scene file in ``genplan/presets/scenes/`` (docs/SCENES.md: the obstacles)
+whose ``[queries]`` table says how start and goal targets are drawn:
 
-* ``panda_shelf``: the Panda on its stand, a table in front (table top x in [0.2, 1.2], y in
-  [-0.75, 0.75], z in [0.075, 0.125]) and a bookshelf to its left (five 0.75 x 0.4 x 0.02 boards
-  and two 0.02 x 0.4 x 1.4 side panels; x in [-0.59, 0.16], y in [0.6, 1.0]), the floor at
-  z = -0.5. Starts: the hand at one of (0.5 | 0.7, -0.25 | 0.25, 0.2) pointing along +x; goals: the
-  hand at one of (-0.4 | -0.02, 0.65, 0.2 | 0.54) pointing into the shelf (+y); both with the
-  gripper horizontal. The authors' stand (a box under the robot's base) is left out: only the base
-  link touches it, and the base never moves.
-* ``talos_task1..3``: Talos with both feet fixed, static stability; boxes as tables, a bar and
-  posts in front of it. Starts: the right hand in a box above the table; goals: the right hand in a
-  box below it. Task 3's rear legs (x = 0.9), which the authors created but did not check, are
-  included: a table has four legs.
+* ``robot``: the robot it is for (``"panda"``, ``"talos"``);
+* ``start_targets`` / ``goal_targets``: lists of hand positions, one drawn uniformly per query
+  (the Panda), or ``start_box`` / ``goal_box``: ``[[low], [high]]``, a position drawn uniformly
+  inside (Talos's right hand); exactly one of the two forms for the start and for the goal;
+* ``start_yaw`` / ``goal_yaw`` (rad, default 0): the yaw of the Panda's horizontal gripper.
+
+Geometry and queries follow the authors' public code (the notes are in the files):
+``panda_shelf`` (the Panda, a table in front and a bookshelf to its left, the floor) and
+``talos_task1..3`` (Talos with both feet fixed, static stability; boxes as tables, a wall, a bar
+on posts). Any scene file with a ``[queries]`` table is an environment too
+(:func:`environment` takes a path).
 
 A query is a start configuration and K goal configurations (default 10), solved by IK from
 uniform initial guesses with the paper's IK tasks and kept only when collision-free; the same
@@ -21,13 +22,19 @@ seed gives the same queries, whatever sampler is planned with.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+import tomllib
 from numpy.typing import NDArray
 
+from genplan import scene as S
 from genplan.collision import CollisionWorld
-from genplan.errors import GenplanError, UnknownNameError
+from genplan.errors import GenplanError, SceneFileError, UnknownNameError
 from genplan.robots import Robot
 
 __all__ = ["ENVIRONMENT_NAMES", "Box", "Environment", "Query", "environment"]
@@ -55,33 +62,62 @@ class Query:
 
 @dataclass(frozen=True)
 class Environment:
-    """Obstacles plus how start and goal targets are drawn for one robot."""
+    """A scene (the obstacles) plus how start and goal targets are drawn for one robot."""
 
     name: str
     robot: str
-    boxes: tuple[Box, ...]
-    #: half-spaces (name, outward normal, offset): points x with normal . x <= offset are inside
-    halfspaces: tuple[tuple[str, tuple[float, float, float], float], ...] = ()
+    scene: S.Scene
     #: Panda: the discrete start / goal hand positions; Talos: boxes [[lo], [hi]] for the right hand
     start_targets: tuple[tuple[float, float, float], ...] = ()
     goal_targets: tuple[tuple[float, float, float], ...] = ()
     start_box: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     goal_box: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     description: str = ""
-    #: yaw of the Panda's horizontal gripper at the start / goal (rad)
+    #: the IK task of the queries (a shipped task's name or a task file; its [condition] term is
+    #: aimed at the start / goal targets); None: the robot's shipped ``<robot>_ik``
+    task: str | None = None
+    #: a term of that task (FrameOrientation or FramePose) whose target rotation is a yaw about the
+    #: vertical, ``start_yaw`` at the start and ``goal_yaw`` at the goals (rad); None: no yaw
+    yaw_term: str | None = None
     start_yaw: float = 0.0
     goal_yaw: float = 0.0
     notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def boxes(self) -> tuple[Box, ...]:
+        """The scene's boxes as (name, half extents, centre); a box's rotation, if any, is not
+        carried (the paper's are axis-aligned)."""
+        return tuple(Box(o.name, o.half_extents, o.pose.position) for o in self.scene.obstacles
+                     if isinstance(o, S.Box))
+
+    @property
+    def halfspaces(self) -> tuple[tuple[str, tuple[float, float, float], float], ...]:
+        """The scene's half-spaces (name, outward normal, offset): x with normal . x <= offset inside."""
+        return tuple((o.name, o.normal, o.offset) for o in self.scene.obstacles if isinstance(o, S.HalfSpace))
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike[str]) -> Environment:
+        """An environment from a scene file with a ``[queries]`` table (see the module's notes)."""
+        from genplan._files import read_toml
+
+        path = Path(path)
+        origin = f"scene file {path}"
+        data = read_toml(path, "scene", SceneFileError)
+        scene = S.Scene.from_dict(data, base_dir=Path(os.path.abspath(path)).parent, origin=origin, source=path)
+        if "queries" not in data:
+            raise SceneFileError(f"{origin}: missing table [queries] (an environment says how its queries are drawn)")
+        fields = _queries(data["queries"], f"{origin}: [queries]")
+        task = fields.get("task")
+        if task is not None and task.endswith(".toml") and not Path(task).is_absolute():
+            fields["task"] = str(Path(os.path.abspath(path)).parent / task)  # a task file: relative to the scene file
+        return cls(name=scene.name, scene=scene, description=scene.description, **fields)
 
     def world(self, robot: Robot, self_collision: bool = True) -> CollisionWorld:
         """The robot's collision world with this environment's obstacles."""
         if robot.name != self.robot:
             raise GenplanError(f"environment '{self.name}' is for {self.robot}, not {robot.name}")
         w = robot.collision_world(self_collision=self_collision)
-        for b in self.boxes:
-            w.add_box(b.name, half_extents=b.half_extents, center=b.center)
-        for name, normal, offset in self.halfspaces:
-            w.add_halfspace(name, normal, offset)
+        w.add_scene(self.scene)
         return w
 
     def queries(self, robot: Robot, n: int, seed: int = 0, k: int = 10, progress: bool = False,
@@ -92,67 +128,69 @@ class Environment:
         return make_queries(self, robot, n, seed=seed, k=k, progress=progress, max_tries=max_tries)
 
 
-def _shelf() -> tuple[Box, ...]:
-    boards = [Box(f"shelf_board_{i}", (0.375, 0.2, 0.01), (-0.215, 0.8, z))
-              for i, z in enumerate((-0.3675, -0.0075, 0.3425, 0.6925, 1.0425))]
-    panels = [Box(f"shelf_side_{i}", (0.01, 0.2, 0.7), (x, 0.8, 0.3325)) for i, x in enumerate((-0.58, 0.15))]
-    return (*boards, *panels)
+_QUERY_KEYS = ("robot", "task", "yaw_term", "start_targets", "goal_targets", "start_box", "goal_box", "start_yaw",
+               "goal_yaw")
 
 
-_ENVIRONMENTS: dict[str, Environment] = {
-    "panda_shelf": Environment(
-        name="panda_shelf",
-        robot="panda",
-        boxes=(Box("table_top", (0.5, 0.75, 0.025), (0.7, 0.0, 0.1)), *_shelf()),
-        halfspaces=(("floor", (0.0, 0.0, 1.0), -0.5),),
-        start_targets=tuple((x, y, 0.2) for x in (0.5, 0.7) for y in (-0.25, 0.25)),
-        goal_targets=tuple((x, 0.65, z) for x in (-0.4, -0.02) for z in (0.2, 0.54)),
-        start_yaw=0.0,
-        goal_yaw=np.pi / 2,
-        description="Panda, gripper horizontal: from above the table into the bookshelf (Table II, Fig. 5a)",
-    ),
-    "talos_task1": Environment(
-        name="talos_task1",
-        robot="talos",
-        boxes=(Box("table", (0.25, 0.4, 0.03), (0.7, 0.0, 0.95)),),
-        start_box=((0.55, -0.25, 1.1), (0.85, 0.25, 1.3)),
-        goal_box=((0.55, -0.25, 0.4), (0.85, 0.25, 0.8)),
-        description="Talos, feet fixed, static stability: the right hand from above a table to below it (Fig. 5b)",
-    ),
-    "talos_task2": Environment(
-        name="talos_task2",
-        robot="talos",
-        boxes=(Box("table", (0.25, 0.4, 0.03), (0.55, 0.0, 0.8)), Box("wall", (0.03, 0.4, 0.12), (0.33, 0.0, 0.95))),
-        start_box=((0.3, -0.25, 1.0), (0.7, 0.25, 1.3)),
-        goal_box=((0.3, -0.25, 0.4), (0.7, 0.25, 0.8)),
-        description="Talos: a lower table with a low wall at its near edge (Fig. 5c)",
-    ),
-    "talos_task3": Environment(
-        name="talos_task3",
-        robot="talos",
-        boxes=(
-            Box("table", (0.25, 0.4, 0.03), (0.7, 0.0, 0.75)),
-            Box("bar", (0.03, 0.4, 0.03), (0.5, 0.0, 1.22)),
-            Box("post_left", (0.03, 0.03, 0.25), (0.5, 0.3, 1.0)),
-            Box("post_right", (0.03, 0.03, 0.25), (0.5, -0.3, 1.0)),
-            Box("leg_front_left", (0.03, 0.03, 0.35), (0.5, 0.3, 0.4)),
-            Box("leg_front_right", (0.03, 0.03, 0.35), (0.5, -0.3, 0.4)),
-            Box("leg_rear_left", (0.03, 0.03, 0.35), (0.9, 0.3, 0.4)),
-            Box("leg_rear_right", (0.03, 0.03, 0.35), (0.9, -0.3, 0.4)),
-        ),
-        start_box=((0.55, -0.2, 0.8), (0.7, 0.2, 1.1)),
-        goal_box=((0.55, -0.2, 0.4), (0.7, 0.2, 0.6)),
-        description="Talos: a table under a frame (bar on posts): reach from inside the frame to under the table (Fig. 5d)",
-    ),
-}
-
-#: Names accepted by :func:`environment`.
-ENVIRONMENT_NAMES: tuple[str, ...] = tuple(_ENVIRONMENTS)
+def _queries(q: Any, where: str) -> dict[str, Any]:
+    """The Environment fields a ``[queries]`` table gives, checked (SceneFileError naming the key)."""
+    if not isinstance(q, Mapping):
+        raise SceneFileError(f"{where}: expected a table, got {type(q).__name__}")
+    for key in q:
+        if key not in _QUERY_KEYS:
+            raise SceneFileError(f"{where}: unknown key '{key}' (known: {', '.join(_QUERY_KEYS)})")
+    if not isinstance(q.get("robot"), str) or not q["robot"]:
+        raise SceneFileError(f"{where}: robot: expected the robot's name, got {q.get('robot')!r}")
+    out: dict[str, Any] = {"robot": q["robot"]}
+    for key in ("task", "yaw_term"):
+        if key in q:
+            if not isinstance(q[key], str) or not q[key]:
+                raise SceneFileError(f"{where}: {key}: expected a name, got {q[key]!r}")
+            out[key] = q[key]
+    if ("start_yaw" in q or "goal_yaw" in q) and "yaw_term" not in q:
+        raise SceneFileError(f"{where}: start_yaw / goal_yaw need yaw_term (the task's orientation term they set)")
+    for end in ("start", "goal"):
+        targets, box = f"{end}_targets", f"{end}_box"
+        if (targets in q) == (box in q):
+            raise SceneFileError(f"{where}: give exactly one of {targets} and {box}")
+        try:
+            if targets in q:
+                rows = q[targets]
+                if not isinstance(rows, list) or not rows:
+                    raise SceneFileError(f"{targets}: expected a non-empty list of positions")
+                out[targets] = tuple(S._vector(r, 3, f"{targets}[{i}]") for i, r in enumerate(rows))
+            else:
+                b = q[box]
+                if not isinstance(b, list) or len(b) != 2:
+                    raise SceneFileError(f"{box}: expected [[low], [high]]")
+                lo, hi = S._vector(b[0], 3, f"{box} low"), S._vector(b[1], 3, f"{box} high")
+                if any(a > c for a, c in zip(lo, hi)):
+                    raise SceneFileError(f"{box}: low must not exceed high, got {list(lo)} and {list(hi)}")
+                out[box] = (lo, hi)
+            yaw = f"{end}_yaw"
+            out[yaw] = S._real(q.get(yaw, 0.0), yaw)
+        except SceneFileError as exc:
+            raise SceneFileError(f"{where}: {exc}") from None
+    return out
 
 
-def environment(name: str) -> Environment:
-    """One of the paper's environments: "panda_shelf", "talos_task1", "talos_task2", "talos_task3"."""
-    try:
-        return _ENVIRONMENTS[name]
-    except KeyError:
-        raise UnknownNameError(f"unknown environment '{name}' (known: {', '.join(ENVIRONMENT_NAMES)})") from None
+def _shipped() -> tuple[str, ...]:
+    """The shipped scenes that are environments (have a [queries] table)."""
+    return tuple(n for n in S.scene_names() if "queries" in tomllib.loads((S.SCENES_DIR / f"{n}.toml").read_text()))
+
+
+#: Names accepted by :func:`environment`: the shipped scenes with a ``[queries]`` table.
+ENVIRONMENT_NAMES: tuple[str, ...] = _shipped()
+_CACHE: dict[str, Environment] = {}
+
+
+def environment(name: str | os.PathLike[str]) -> Environment:
+    """One of the paper's environments ("panda_shelf", "talos_task1", "talos_task2",
+    "talos_task3": :data:`ENVIRONMENT_NAMES`), or a scene file with a ``[queries]`` table."""
+    if isinstance(name, str) and name in ENVIRONMENT_NAMES:
+        if name not in _CACHE:
+            _CACHE[name] = Environment.from_file(S.SCENES_DIR / f"{name}.toml")
+        return _CACHE[name]
+    if isinstance(name, (str, os.PathLike)) and Path(name).suffix == ".toml":
+        return Environment.from_file(name)
+    raise UnknownNameError(f"unknown environment '{name}' (known: {', '.join(ENVIRONMENT_NAMES)}; or a scene file .toml)")

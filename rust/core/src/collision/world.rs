@@ -2,16 +2,16 @@
 //! ([`CollisionWorld`]), and the queries on it (in collision?, signed minimum distance, close
 //! pairs), with their reusable buffers ([`Scratch`]).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use parry3d_f64::bounding_volume::Aabb;
 use parry3d_f64::query;
-use parry3d_f64::shape::{Ball, Cuboid, HalfSpace, SharedShape};
+use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, HalfSpace, SharedShape};
 
 use super::broad_phase::{self_pairs, Obb};
-use super::geometry::{bounding_sphere, robot_geometries};
+use super::geometry::{bounding_sphere, load_mesh_vertices, robot_geometries};
 use super::RobotGeometry;
 use crate::error::{check_finite, check_vector, unknown, Error, Result};
 use crate::lie::{stable_norm, unit_vector};
@@ -19,8 +19,10 @@ use crate::kinematics::KinematicModel;
 use crate::srdf::Srdf;
 use crate::urdf::Urdf;
 
-/// The largest size of an obstacle (a box's half extent, a sphere's radius) and the largest
-/// absolute coordinate of its position (a box's or sphere's centre, a half-space's offset): 1e6 m.
+/// The largest size of an obstacle (a box's half extent, a sphere's, cylinder's or capsule's
+/// radius, a cylinder's half height, a capsule's half length, a mesh's scale and the largest
+/// coordinate of its scaled vertices) and the largest absolute coordinate of its position (a
+/// shape's centre, a half-space's offset): 1e6 m.
 /// Beyond it the narrow phase's squared norms lose every digit of a robot-sized distance (and
 /// overflow past ~1e154).
 pub const MAX_OBSTACLE_EXTENT: f64 = 1e6;
@@ -37,7 +39,9 @@ pub const QUATERNION_TOLERANCE: f64 = 1e-6;
 pub struct Obstacle {
     /// Its unique name in the world.
     pub name: String,
-    /// Pose of the shape in the world.
+    /// Pose of the parry shape in the world. For a cylinder this is the pose it was added with
+    /// composed with the rotation that takes parry's cylinder axis (local y) to the caller's
+    /// local z ([`CollisionWorld::add_cylinder`]); for every other shape it is the pose given.
     pub pose: Isometry3<f64>,
     /// The parry shape, in its own frame.
     pub shape: SharedShape,
@@ -150,6 +154,65 @@ impl CollisionWorld {
             Isometry3::translation(center[0], center[1], center[2]),
             SharedShape::new(Ball::new(radius)),
         )
+    }
+
+    /// Add a solid cylinder of `radius` whose axis is the local z axis of `pose` (as in URDF and
+    /// coal), spanning z in [-half_height, half_height] about the pose's origin. parry's cylinder
+    /// runs along its local y, so the stored [`Obstacle::pose`] is `pose` composed with the
+    /// rotation Rx(+90 deg) that maps y to z (the same change `geometry.rs` makes for URDF
+    /// cylinders). Radius and half height positive, finite and at most [`MAX_OBSTACLE_EXTENT`];
+    /// the pose checked as [`add_box`](Self::add_box)'s.
+    pub fn add_cylinder(&mut self, name: &str, radius: f64, half_height: f64, pose: Isometry3<f64>) -> Result<()> {
+        let what = format!("cylinder '{name}'");
+        check_sizes(&what, &[("radius", radius), ("half height", half_height)])?;
+        check_isometry(&what, &pose)?;
+        self.add_obstacle(name, pose * y_to_z(), SharedShape::new(Cylinder::new(half_height, radius)))
+    }
+
+    /// Add a capsule (the points within `radius` of a segment) whose segment runs along the local
+    /// z axis of `pose` from z = -half_length to z = +half_length (as in URDF and coal; parry's
+    /// `Capsule::new_z`, so the stored pose is `pose` itself). Radius and half length positive,
+    /// finite and at most [`MAX_OBSTACLE_EXTENT`]; the pose checked as [`add_box`](Self::add_box)'s.
+    pub fn add_capsule(&mut self, name: &str, radius: f64, half_length: f64, pose: Isometry3<f64>) -> Result<()> {
+        let what = format!("capsule '{name}'");
+        check_sizes(&what, &[("radius", radius), ("half length", half_length)])?;
+        check_isometry(&what, &pose)?;
+        self.add_obstacle(name, pose, SharedShape::new(Capsule::new_z(half_length, radius)))
+    }
+
+    /// Add the **convex hull** of a mesh file's vertices (STL, OBJ or Collada, read by
+    /// [`crate::mesh::read_mesh`] through [`load_mesh_vertices`], as the robot's mesh geometry is:
+    /// a concave mesh is filled in), each vertex scaled per axis by `scale` in the file's frame,
+    /// then placed at `pose`. The scale positive, finite and at most [`MAX_OBSTACLE_EXTENT`]; the
+    /// scaled vertices within [`MAX_OBSTACLE_EXTENT`] of the file's origin in each coordinate;
+    /// the pose checked as [`add_box`](Self::add_box)'s. A file that cannot be read gives
+    /// [`Error::Io`], one that is malformed or has fewer than 4 vertices
+    /// [`Error::Mesh`]; both name the file. A flat mesh gives a plate of zero thickness.
+    pub fn add_mesh(&mut self, name: &str, path: &Path, scale: [f64; 3], pose: Isometry3<f64>) -> Result<()> {
+        let what = format!("mesh '{name}'");
+        check_finite(&format!("{what} scale"), &scale)?;
+        if scale.iter().any(|&s| !(s > 0.0 && s <= MAX_OBSTACLE_EXTENT)) {
+            return Err(Error::Invalid(format!(
+                "{what}: scale must be positive and at most {MAX_OBSTACLE_EXTENT:e}, got {scale:?}"
+            )));
+        }
+        check_isometry(&what, &pose)?;
+        if self.obstacles.iter().any(|o| o.name == name) {
+            // refused before the (possibly slow) file read; add_obstacle checks again
+            return Err(Error::Invalid(format!("an obstacle named '{name}' already exists")));
+        }
+        let points = load_mesh_vertices(path, &Vector3::from(scale))?;
+        if let Some(p) = points.iter().find(|p| p.coords.amax() > MAX_OBSTACLE_EXTENT) {
+            return Err(Error::Mesh {
+                path: path.to_path_buf(),
+                msg: format!("{what}: a scaled vertex {:?} lies beyond {MAX_OBSTACLE_EXTENT:e} m", p.coords.as_slice()),
+            });
+        }
+        let hull = SharedShape::convex_hull(&points).ok_or_else(|| Error::Mesh {
+            path: path.to_path_buf(),
+            msg: format!("{what}: convex hull failed (flat or degenerate mesh?)"),
+        })?;
+        self.add_obstacle(name, pose, hull)
     }
 
     /// Add the half-space {x : n.x <= offset} (everything below the plane n.x = offset), `n`
@@ -361,6 +424,28 @@ fn check_isometry(what: &str, pose: &Isometry3<f64>) -> Result<()> {
         return Err(Error::Invalid(format!("{what}: the pose's rotation is not a unit quaternion (norm {norm:?})")));
     }
     Ok(())
+}
+
+/// Named sizes of an obstacle (radius, half height, ...), each positive, finite and at most
+/// [`MAX_OBSTACLE_EXTENT`].
+fn check_sizes(what: &str, sizes: &[(&str, f64)]) -> Result<()> {
+    for &(field, v) in sizes {
+        check_finite(&format!("{what} {field}"), &[v])?;
+        if !(v > 0.0 && v <= MAX_OBSTACLE_EXTENT) {
+            return Err(Error::Invalid(format!(
+                "{what}: {field} must be positive and at most {MAX_OBSTACLE_EXTENT:e} m, got {v:?}"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Rx(+90 deg): maps a shape's local y axis (parry's cylinder axis) to z (URDF's and coal's).
+fn y_to_z() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_euler_angles(std::f64::consts::FRAC_PI_2, 0.0, 0.0),
+    )
 }
 
 /// Each coordinate of a finite position within [`MAX_OBSTACLE_EXTENT`] of the origin.
