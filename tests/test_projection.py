@@ -274,7 +274,8 @@ def test_every_shipped_task_round_trips_through_a_file(tmp_path, panda: genplan.
         again = P.Task.from_file(task.to_file(tmp_path / f"{name}.toml"), robot)
         assert again.to_dict() == task.to_dict()
     ik = P.paper_task(panda, "ik")
-    assert ik.condition == P.Condition("hand_position", tuple(P.PANDA_IK_BOX[0]), tuple(P.PANDA_IK_BOX[1]))
+    assert ik.condition == P.Condition("hand_position", tuple(P.PANDA_IK_BOX[0]), tuple(P.PANDA_IK_BOX[1]),
+                                       (-0.6, -0.6, -0.1), (0.6, 0.6, 1.0), "panda_projection")
     # "default" values resolve on the robot: the soles where they are at the default configuration
     sole = next(t for t in P.paper_task(talos).primary if t.name == "left_sole")
     np.testing.assert_allclose(sole.target.homogeneous, talos.frame_placement(talos.q_default, "left_sole").homogeneous)
@@ -296,7 +297,7 @@ def test_every_built_in_term_round_trips(tmp_path, panda: genplan.Robot) -> None
             P.Posture(name="p", q_nom=panda.q_default, joint_weights=np.arange(7.0), overrides={"panda_joint1": 0.5}),
         ],
         secondary=[P.Posture(name="posture")],
-        condition=P.Condition("pos", (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+        condition=P.Condition("pos", (0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (0.1, 0.1, 0.1), (0.9, 0.9, 0.9), "panda_projection"),
     )
     again = P.Task.from_file(task.to_file(tmp_path / "t.toml"), panda)
     assert again.to_dict() == task.to_dict()

@@ -84,6 +84,30 @@ class CollisionWorld:
         rotation: list[list[float]] | None = None,
     ) -> None: ...
     def add_sphere(self, name: str, radius: float, center: tuple[float, float, float]) -> None: ...
+    def add_cylinder(
+        self,
+        name: str,
+        radius: float,
+        half_height: float,
+        center: tuple[float, float, float],
+        rotation: list[list[float]] | None = None,
+    ) -> None: ...
+    def add_capsule(
+        self,
+        name: str,
+        radius: float,
+        half_length: float,
+        center: tuple[float, float, float],
+        rotation: list[list[float]] | None = None,
+    ) -> None: ...
+    def add_mesh(
+        self,
+        name: str,
+        path: _Path,
+        scale: tuple[float, float, float],
+        center: tuple[float, float, float],
+        rotation: list[list[float]] | None = None,
+    ) -> None: ...
     def add_halfspace(self, name: str, normal: tuple[float, float, float], offset: float) -> None: ...
     def remove_obstacle(self, name: str) -> None: ...
     def clear_obstacles(self) -> None: ...
@@ -134,7 +158,10 @@ class SolverSettings:
 
 @final
 class Projector:
-    """Native damped Gauss-Newton projector; terms are dicts (see genplan.projection)."""
+    """Native damped Gauss-Newton projector; terms are dicts (see genplan.projection). A dict of
+    type "custom" holds a Python term under "term" (genplan.projection.CustomTerm: dim,
+    residual(q), jacobian(q) on batches), called back with the GIL per call; an exception it
+    raises propagates unchanged out of solve_batch and primary_residuals."""
 
     def __new__(
         cls,
@@ -155,6 +182,9 @@ class Projector:
     ) -> tuple[
         NDArray[np.float64], NDArray[np.bool_], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]
     ]: ...
+    def primary_residuals(
+        self, q: NDArray[np.float64], jacobian: bool = True
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]: ...
     def frame_jacobian_local(self, q: list[float], link: str) -> NDArray[np.float64]: ...
     def center_of_mass(self, q: list[float]) -> tuple[list[float], NDArray[np.float64]]: ...
 

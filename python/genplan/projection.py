@@ -401,6 +401,99 @@ class _ComBoxBound(_BoundTerm):
         return near[:, None] * s.com_jacobian()
 
 
+@dataclass(frozen=True)
+class CustomTerm(Term):
+    """A term of your own, run inside the native solver (and by ``backend="pinocchio"`` alike).
+
+    Subclass it as a frozen dataclass (its fields are the term's parameters, e.g. the robot and a
+    frame) and give it:
+
+    - ``dim``: the residual's length (a class attribute, a field or a property; at least 1);
+    - ``residual(q)``: q of shape (n, nq) -> (n, dim), the unweighted residual of each row;
+    - ``jacobian(q)``: q of shape (n, nq) -> (n, dim, nv), d residual / d v in the tangent space
+      (the same ``v`` as the built-in terms and ``pinocchio.integrate``: for a free-flyer base,
+      its twist in its own frame);
+    - optionally ``residual_and_jacobian(q)`` returning both, when they share work (the solver
+      calls it where it needs both; the default calls the two methods).
+
+    ``weight``, ``tolerance`` and ``name`` work as for the built-in terms. The native solver calls
+    the methods with one configuration at a time (n = 1), each call holding the GIL, and solves
+    the rows of a batch one after the other (faster than threads contending for the GIL); outputs of
+    another shape raise :class:`~genplan.errors.ShapeError`, non-finite ones
+    :class:`~genplan.errors.NonFiniteError` (both naming the term), and an exception the methods
+    raise reaches the caller of ``solve`` / ``solve_batch`` unchanged. A task holding such a term
+    cannot be written to a task file (it is Python code): build it in Python. See docs/TASKS.md.
+    """
+
+    @property
+    def dim(self) -> int:
+        """The residual's length; a subclass sets it."""
+        raise NotImplementedError(f"custom term '{self.label()}' ({type(self).__name__}): set dim, the residual's length")
+
+    def residual(self, q: Array) -> Array:
+        """The unweighted residual of each row of ``q`` (n, nq): shape (n, dim)."""
+        raise NotImplementedError(f"custom term '{self.label()}' ({type(self).__name__}): define residual(q)")
+
+    def jacobian(self, q: Array) -> Array:
+        """The residual's Jacobian at each row of ``q`` (n, nq): shape (n, dim, nv), tangent space."""
+        raise NotImplementedError(f"custom term '{self.label()}' ({type(self).__name__}): define jacobian(q)")
+
+    def residual_and_jacobian(self, q: Array) -> tuple[Array, Array]:
+        """``(residual(q), jacobian(q))``; override when the two share work."""
+        return self.residual(q), self.jacobian(q)
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _CustomBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        _custom_dim(self)
+        # one call for both where the subclass computes them together; else the two methods
+        combined = type(self).residual_and_jacobian is not CustomTerm.residual_and_jacobian
+        return self._native("custom", term=self, combined=combined)
+
+
+def _custom_dim(term: CustomTerm) -> int:
+    dim = term.dim
+    if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
+        raise GenplanError(f"custom term '{term.label()}': dim must be a positive int, got {dim!r}")
+    return int(dim)
+
+
+def _custom_output(term: CustomTerm, call: str, value: Any, shape: tuple[int, ...], nq: int) -> Array:
+    """A custom term's output checked as the native adapter checks it (rust/python/src/lib.rs,
+    ``PyCustomTerm``): float64 numbers of ``shape``, finite; errors name the term."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ShapeError(f"term '{term.label()}': {call} must return an array of shape {shape} for q of shape "
+                         f"(1, {nq}), got {type(value).__name__} ({exc})") from None
+    if a.shape != shape:
+        raise ShapeError(f"term '{term.label()}': {call} must return an array of shape {shape} for q of shape "
+                         f"(1, {nq}), got shape {a.shape}")
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        what = "residual" if len(shape) == 2 else "Jacobian (row-major)"
+        raise NonFiniteError(f"term '{term.label()}' {what}: element {bad[0]} is not finite ({a.reshape(-1)[bad[0]]})")
+    return a
+
+
+class _CustomBound(_BoundTerm):
+    """A :class:`CustomTerm` in the Python solver: called with n = 1, like the native adapter."""
+
+    def __init__(self, term: CustomTerm, robot: Robot) -> None:
+        self.term: CustomTerm = term
+        self.dim = _custom_dim(term)
+        self.nq, self.nv = robot.nq, robot.nv
+
+    def residual(self, s: _State) -> Array:
+        r = self.term.residual(s.q[None].copy())
+        return _custom_output(self.term, "residual(q)", r, (1, self.dim), self.nq)[0]
+
+    def jacobian(self, s: _State) -> Array:
+        j = self.term.jacobian(s.q[None].copy())
+        return _custom_output(self.term, "jacobian(q)", j, (1, self.dim, self.nv), self.nq)[0]
+
+
 # --------------------------------------------------------------------------------------------
 # Tasks and the solver
 # --------------------------------------------------------------------------------------------
@@ -425,8 +518,13 @@ class Task:
         if self.secondary:
             out["secondary"] = [_term_to_dict(t) for t in self.secondary]
         if self.condition is not None:
-            out["condition"] = {"term": self.condition.term, "low": [float(x) for x in self.condition.low],
-                                "high": [float(x) for x in self.condition.high]}
+            c = self.condition
+            out["condition"] = {"term": c.term, "low": [float(x) for x in c.low], "high": [float(x) for x in c.high]}
+            if c.sample_low is not None and c.sample_high is not None:
+                out["condition"]["sample_low"] = [float(x) for x in c.sample_low]
+                out["condition"]["sample_high"] = [float(x) for x in c.sample_high]
+            if c.manifold is not None:
+                out["condition"]["manifold"] = c.manifold
         return out
 
     @classmethod
@@ -445,15 +543,16 @@ class Task:
     @classmethod
     def from_file(cls, path: str | os.PathLike[str], robot: Robot | None = None) -> "Task":
         """Read a task file (TOML); errors name the file, the table and the key."""
+        from genplan._files import read_toml
+
         path = Path(path)
-        try:
-            data = tomllib.loads(path.read_text())
-        except FileNotFoundError:
-            raise FileNotFoundError(f"task file {path} does not exist") from None
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise TaskFileError(f"task file {path}: {exc}") from None
-        data.setdefault("name", path.stem)
-        return _task_from_dict(data, robot, f"task file {path}")
+        data = read_toml(path, "task", TaskFileError)
+        task = _task_from_dict(data, robot, f"task file {path}")
+        c = task.condition
+        if c is not None and c.manifold is not None and c.manifold not in task_names() and not Path(c.manifold).is_absolute():
+            # a manifold task given as a file: relative to this task file
+            task = dataclasses.replace(task, condition=dataclasses.replace(c, manifold=str(path.parent / c.manifold)))
+        return task
 
     def with_targets(self, **targets: Any) -> "Task":
         """A copy whose terms named in ``targets`` get that ``target`` (e.g. ``hand_position=p``)."""
@@ -485,6 +584,13 @@ class Condition:
     term: str
     low: tuple[float, ...]
     high: tuple[float, ...]
+    #: where a sampler draws targets when a planner asks for configurations without one (default:
+    #: ``low`` / ``high``)
+    sample_low: tuple[float, ...] | None = None
+    sample_high: tuple[float, ...] | None = None
+    #: the task (shipped name or file, relative to this task file) whose manifold a sampler's
+    #: training data covers; default: this task without the condition term
+    manifold: str | None = None
 
 
 #: The built-in term kinds, by the name a task file's ``kind`` gives.
@@ -511,6 +617,41 @@ def load_task(task: "str | os.PathLike[str] | Task", robot: Robot | None = None)
     return Task.from_file(path, robot)
 
 
+def condition_term(task: Task) -> FramePosition:
+    """The task's condition term, which a sampler is conditioned on: a FramePosition (3 target
+    numbers, the sampler's input), else GenplanError naming the task and the term."""
+    if task.condition is None:
+        raise GenplanError(f"task '{task.name}' has no [condition]: a learned sampler is conditioned on a "
+                           "term's target (e.g. [condition] term = \"hand_position\" with low/high boxes); see "
+                           "docs/TASKS.md")
+    for t in task.primary:
+        if t.name == task.condition.term:
+            if not isinstance(t, FramePosition):
+                raise GenplanError(f"task '{task.name}': its condition term '{t.name}' is a {type(t).__name__}; a "
+                                   "learned sampler is conditioned on a FramePosition (a 3-D target)")
+            if len(task.condition.low) != 3:
+                raise GenplanError(f"task '{task.name}': its condition box needs 3 numbers per corner, got "
+                                   f"{len(task.condition.low)}")
+            return t
+    names = [t.name for t in task.primary]
+    raise UnknownNameError(f"task '{task.name}': condition term '{task.condition.term}' is not one of its primary "
+                           f"terms (known: {names})")
+
+
+def manifold_task(task: Task, robot: Robot | None = None) -> Task:
+    """The manifold a learned sampler covers (its training data is projected onto it): the task
+    named by the condition's ``manifold`` when given (the paper's projection task, whose weights
+    and tolerances differ from its IK task's), else the task without its condition term."""
+    cond = condition_term(task)
+    assert task.condition is not None
+    if task.condition.manifold is not None:
+        return load_task(task.condition.manifold, robot)
+    primary = tuple(t for t in task.primary if t.name != cond.name)
+    if not primary:
+        raise GenplanError(f"task '{task.name}': without its condition term '{cond.name}' no primary term is left")
+    return dataclasses.replace(task, primary=primary, condition=None)
+
+
 def _plain(v: Any) -> Any:
     """A term field as TOML-able data (None stays None: the field is left out)."""
     if isinstance(v, pin.SE3):
@@ -528,6 +669,10 @@ def _plain(v: Any) -> Any:
 
 def _term_to_dict(t: Term) -> dict[str, Any]:
     kind = type(t).__name__
+    if isinstance(t, CustomTerm):
+        raise TaskFileError(f"term '{t.label()}': {kind} is a custom term (Python code), which a task file cannot hold; "
+                            "build this task in Python (a task file holds built-in terms only: "
+                            f"{', '.join(TERM_KINDS)})")
     if TERM_KINDS.get(kind) is not type(t):
         raise TaskFileError(f"term '{t.label()}': {kind} is not a built-in term kind (known: {', '.join(TERM_KINDS)})")
     out: dict[str, Any] = {"kind": kind}
@@ -604,16 +749,34 @@ def _task_from_dict(data: Mapping[str, Any], robot: Robot | None, origin: str) -
     condition = None
     if "condition" in data:
         c = data["condition"]
-        if not isinstance(c, Mapping) or set(c) != {"term", "low", "high"}:
-            raise TaskFileError(f"{origin}: [condition] needs exactly the keys term, low, high")
+        optional = {"sample_low", "sample_high", "manifold"}
+        if not isinstance(c, Mapping) or not {"term", "low", "high"} <= set(c) <= {"term", "low", "high"} | optional:
+            raise TaskFileError(f"{origin}: [condition] needs the keys term, low, high (optional: "
+                                f"{', '.join(sorted(optional))}), got {sorted(c) if isinstance(c, Mapping) else c!r}")
         names = [t.name for t in terms[0]]
         if c["term"] not in names:
             raise UnknownNameError(f"{origin}: [condition] term '{c['term']}' is not a primary term (terms: {', '.join(names)})")
-        low = as_float_array(c["low"], f"{origin}: [condition] low").ravel()
-        high = as_float_array(c["high"], f"{origin}: [condition] high").ravel()
-        if low.shape != high.shape or np.any(low > high) or not np.all(np.isfinite(low) & np.isfinite(high)):
-            raise TaskFileError(f"{origin}: [condition] low and high must be finite, of one length, low <= high")
-        condition = Condition(str(c["term"]), tuple(map(float, low)), tuple(map(float, high)))
+
+        def box(lo_key: str, hi_key: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+            low = as_float_array(c[lo_key], f"{origin}: [condition] {lo_key}").ravel()
+            high = as_float_array(c[hi_key], f"{origin}: [condition] {hi_key}").ravel()
+            if low.shape != high.shape or np.any(low > high) or not np.all(np.isfinite(low) & np.isfinite(high)):
+                raise TaskFileError(f"{origin}: [condition] {lo_key} and {hi_key} must be finite, of one length, "
+                                    f"{lo_key} <= {hi_key}")
+            return tuple(map(float, low)), tuple(map(float, high))
+
+        low, high = box("low", "high")
+        sample_low = sample_high = None
+        if ("sample_low" in c) != ("sample_high" in c):
+            raise TaskFileError(f"{origin}: [condition] give both sample_low and sample_high, or neither")
+        if "sample_low" in c:
+            sample_low, sample_high = box("sample_low", "sample_high")
+            if len(sample_low) != len(low):
+                raise TaskFileError(f"{origin}: [condition] sample_low has {len(sample_low)} numbers, low {len(low)}")
+        manifold = c.get("manifold")
+        if manifold is not None and not isinstance(manifold, str):
+            raise TaskFileError(f"{origin}: [condition] manifold must be a task name or file, got {manifold!r}")
+        condition = Condition(str(c["term"]), low, high, sample_low, sample_high, manifold)
     return Task(primary=terms[0], secondary=terms[1], name=str(data.get("name", "task")), condition=condition)
 
 
@@ -692,9 +855,11 @@ class GaussNewtonProjector:
     ``solve(q0)`` projects one configuration; ``solve_batch(q0s)`` many; ``project(qs, q_noms)``
     is the planner's batched entry point (posture around ``q_noms``).
 
-    ``backend="native"`` (default) runs the Rust solver (built-in terms, GIL released, batches in
-    parallel); ``backend="pinocchio"`` runs the same algorithm in Python on Pinocchio's analytic
-    derivatives, and accepts user-defined :class:`Term` subclasses.
+    ``backend="native"`` (default) runs the Rust solver (built-in terms and :class:`CustomTerm`
+    subclasses, GIL released but for a custom term's calls, batches in parallel);
+    ``backend="pinocchio"`` runs the same algorithm in Python on Pinocchio's analytic derivatives
+    (the test oracle of the native one), and also accepts :class:`Term` subclasses that only
+    define ``bind()``.
     """
 
     def __init__(self, robot: Robot, task: Task, settings: SolverSettings | None = None, backend: str = "native") -> None:
@@ -824,7 +989,9 @@ class GaussNewtonProjector:
         ``targets`` gives one primary term per-row targets, e.g. ``{"hand_position": P}`` with P of
         shape (n, 3) (a FramePose term takes (n, 4, 4)). The native backend runs the rows on all
         cores when ``parallel`` (each row's ``time_s`` is its own solve time); ``parallel=False``
-        runs them one after the other."""
+        runs them one after the other, as it always does for a task with a :class:`CustomTerm`
+        (its calls hold the GIL: threads contending for it were slower, see
+        rust/python/src/lib.rs, ``PyProjector::solve_batch``)."""
         qs = self.robot.check_configuration(q0s, "q0s")
         if qs.ndim != 2:
             raise ShapeError(f"q0s: expected shape (n, {self.robot.nq}), got {qs.shape}")

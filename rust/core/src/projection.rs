@@ -15,7 +15,14 @@
 //! of squares cannot overflow; should an iterate still stop being finite (an extreme start or
 //! nominal configuration), the solve ends there, unsuccessful, with the last finite
 //! configuration ([`Projector::solve_unchecked`]): the answer from a finite start is finite.
+//!
+//! A term of the caller's own ([`CustomTerm`], held by [`TermKind::Custom`]: in the bindings, a
+//! Python object) runs inside the same solver. Its evaluation may fail: the error, kept intact,
+//! stops the solve and is returned by [`Projector::try_solve`] (and
+//! [`Projector::try_solve_unchecked`], [`Projector::try_primary_residuals`]) as a
+//! [`TermFailure`] naming the term; its outputs are checked (finite) after every call.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3};
@@ -32,6 +39,75 @@ pub const MAX_MAGNITUDE: f64 = 1e6;
 /// How far a term's rotation matrix may be from orthonormal (largest entry of `R^T R - I`), as
 /// `genplan.projection` checks it in Python.
 pub const ROTATION_TOLERANCE: f64 = 1e-6;
+
+/// The error a [`CustomTerm`] returns: anything, kept intact (the bindings box a Python
+/// exception and raise it again unchanged).
+pub type TermError = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// A residual term of the caller's own, evaluated inside the solver like the built-in ones.
+///
+/// Its residual has [`dim`](Self::dim) components; its Jacobian is `dim x nv`, row-major, with
+/// respect to the tangent space (the same `v` as the other terms: for a free-flyer base, the
+/// base's twist in its own frame, as [`KinematicModel::integrate`] steps it). The solver weights
+/// both by the term's [`Term::weight`] and checks that every number written is finite.
+pub trait CustomTerm: Send + Sync + std::fmt::Debug {
+    /// Number of residual components (at least 1), the same at every q.
+    fn dim(&self) -> usize;
+    /// Write the unweighted residual at `q` (length nq) to `residual` (length `dim`) and, when
+    /// `jacobian` is given, its Jacobian (length `dim * nv`, row-major). An error stops the solve
+    /// ([`TermFailure`]).
+    fn evaluate(&self, q: &[f64], residual: &mut [f64], jacobian: Option<&mut [f64]>) -> std::result::Result<(), TermError>;
+}
+
+/// A [`CustomTerm`] that failed: its evaluation returned an error, or wrote a number that is not
+/// finite (the source is then an [`Error::NonFinite`] naming the residual or the Jacobian).
+#[derive(Debug, thiserror::Error)]
+#[error("term '{term}': {source}")]
+pub struct TermFailure {
+    /// The term's name.
+    pub term: String,
+    /// What went wrong, as the term returned it.
+    #[source]
+    pub source: TermError,
+}
+
+impl TermFailure {
+    /// The failure as a core [`Error`]: a core error from the term (e.g. a non-finite output)
+    /// keeps its variant, its subject prefixed with the term's name; anything else becomes
+    /// [`Error::Invalid`] with the failure's message.
+    pub fn into_error(self) -> Error {
+        let term = self.term;
+        match self.source.downcast::<Error>() {
+            Ok(e) => match *e {
+                Error::NonFinite { what, index, value } => Error::NonFinite { what: format!("term '{term}' {what}"), index, value },
+                Error::Shape { what, expected, got } => Error::Shape { what: format!("term '{term}' {what}"), expected, got },
+                Error::UnknownName { kind, name, hint } => Error::UnknownName { kind, name, hint },
+                other => Error::Invalid(format!("term '{term}': {other}")),
+            },
+            Err(source) => Error::Invalid(format!("term '{term}': {source}")),
+        }
+    }
+}
+
+/// Why [`Projector::try_solve`] returned no outcome.
+#[derive(Debug, thiserror::Error)]
+pub enum SolveError {
+    /// A bad input (configuration, nominal posture), as [`Projector::solve`] refuses it.
+    #[error(transparent)]
+    Input(#[from] Error),
+    /// A custom term failed during the solve.
+    #[error(transparent)]
+    Term(#[from] TermFailure),
+}
+
+impl From<SolveError> for Error {
+    fn from(e: SolveError) -> Error {
+        match e {
+            SolveError::Input(e) => e,
+            SolveError::Term(f) => f.into_error(),
+        }
+    }
+}
 
 /// What a residual term measures.
 #[derive(Debug, Clone)]
@@ -89,6 +165,8 @@ pub enum TermKind {
         /// (q index, value) pairs that replace the solve's nominal posture there.
         overrides: Vec<(usize, f64)>,
     },
+    /// r = the caller's own ([`CustomTerm::evaluate`]).
+    Custom(Arc<dyn CustomTerm>),
 }
 
 /// A weighted residual term with its tolerance.
@@ -294,10 +372,32 @@ impl Projector {
             TermKind::FramePosition { .. } | TermKind::FrameOrientation { .. } | TermKind::ComBox { .. } => 3,
             TermKind::JointLimits { .. } => self.bounded.len(),
             TermKind::Posture { .. } => self.model.nv,
+            TermKind::Custom(c) => c.dim(),
         }
     }
 
-    /// Unweighted residual of a term.
+    /// A custom term's residual and, when `with_jac`, its Jacobian (dim x nv), checked finite.
+    fn custom(&self, t: &Term, c: &dyn CustomTerm, s: &State, with_jac: bool) -> TermResult<(DVector<f64>, Option<DMatrix<f64>>)> {
+        let (d, nv) = (c.dim(), self.model.nv);
+        let fail = |source: TermError| TermFailure { term: t.name.clone(), source };
+        let mut r = vec![0.0; d];
+        let mut j = if with_jac { vec![0.0; d * nv] } else { Vec::new() };
+        c.evaluate(&s.q, &mut r, if with_jac { Some(&mut j) } else { None }).map_err(fail)?;
+        check_finite("residual", &r).map_err(|e| fail(e.into()))?;
+        check_finite("Jacobian (row-major)", &j).map_err(|e| fail(e.into()))?;
+        Ok((DVector::from_vec(r), with_jac.then(|| DMatrix::from_row_slice(d, nv, &j))))
+    }
+
+    /// Unweighted residual and, when `with_jac`, Jacobian of a term: one evaluation of a custom term.
+    fn eval(&self, t: &Term, s: &State, q_nom: &[f64], with_jac: bool, frame_jac: &mut DMatrix<f64>) -> TermResult<(DVector<f64>, Option<DMatrix<f64>>)> {
+        if let TermKind::Custom(c) = &t.kind {
+            return self.custom(t, c.as_ref(), s, with_jac);
+        }
+        let r = self.residual(t, s, q_nom);
+        Ok((r, with_jac.then(|| self.jacobian(t, s, q_nom, frame_jac))))
+    }
+
+    /// Unweighted residual of a built-in term (a custom one goes through [`eval`](Self::eval)).
     fn residual(&self, t: &Term, s: &State, q_nom: &[f64]) -> DVector<f64> {
         match &t.kind {
             TermKind::FramePose { link, target, mask } => {
@@ -326,10 +426,11 @@ impl Projector {
                 self.model.difference(q_nom, &s.q, &mut d);
                 DVector::from_iterator(self.model.nv, d.iter().zip(weights).map(|(a, w)| a * w))
             }
+            TermKind::Custom(_) => unreachable!("custom terms are evaluated by Projector::custom"),
         }
     }
 
-    /// Jacobian (dim x nv) of a term's unweighted residual.
+    /// Jacobian (dim x nv) of a built-in term's unweighted residual.
     fn jacobian(&self, t: &Term, s: &State, q_nom: &[f64], frame_jac: &mut DMatrix<f64>) -> DMatrix<f64> {
         let nv = self.model.nv;
         match &t.kind {
@@ -382,25 +483,33 @@ impl Projector {
                 }
                 j
             }
+            TermKind::Custom(_) => unreachable!("custom terms are evaluated by Projector::custom"),
         }
     }
 
-    fn stack(&self, terms: &[Term], s: &State, noms: &[Vec<f64>], with_jac: bool) -> (Vec<DVector<f64>>, Option<DMatrix<f64>>) {
-        let raws: Vec<DVector<f64>> = terms.iter().zip(noms).map(|(t, n)| self.residual(t, s, n)).collect();
-        if !with_jac {
-            return (raws, None);
-        }
-        let rows: usize = terms.iter().map(|t| self.dim(t)).sum();
-        let mut j = DMatrix::zeros(rows, self.model.nv);
-        let mut frame_jac = DMatrix::zeros(6, self.model.nv);
-        let mut r0 = 0;
+    /// The terms' unweighted residuals and, when `with_jac`, their weighted Jacobians stacked.
+    fn stack(&self, terms: &[Term], s: &State, noms: &[Vec<f64>], with_jac: bool) -> TermResult<Stacked> {
+        let nv = self.model.nv;
+        let mut frame_jac = DMatrix::zeros(6, nv);
+        let mut raws = Vec::with_capacity(terms.len());
+        let mut jacs = Vec::new();
         for (t, n) in terms.iter().zip(noms) {
-            let jt = self.jacobian(t, s, n, &mut frame_jac);
+            let (r, j) = self.eval(t, s, n, with_jac, &mut frame_jac)?;
+            raws.push(r);
+            jacs.extend(j);
+        }
+        if !with_jac {
+            return Ok((raws, None));
+        }
+        let rows: usize = jacs.iter().map(|j| j.nrows()).sum();
+        let mut j = DMatrix::zeros(rows, nv);
+        let mut r0 = 0;
+        for (t, jt) in terms.iter().zip(jacs) {
             let d = jt.nrows();
-            j.view_mut((r0, 0), (d, self.model.nv)).copy_from(&(jt * t.weight));
+            j.view_mut((r0, 0), (d, nv)).copy_from(&(jt * t.weight));
             r0 += d;
         }
-        (raws, Some(j))
+        Ok((raws, Some(j)))
     }
 
     fn weighted(terms: &[Term], raws: &[DVector<f64>]) -> DVector<f64> {
@@ -436,23 +545,83 @@ impl Projector {
         out
     }
 
+    /// The primary terms' weighted residuals stacked (length [`primary_dim`](Self::primary_dim))
+    /// and, when `with_jacobian`, their weighted Jacobian (rows x nv, tangent space), at `q`
+    /// (checked like [`solve`](Self::solve)); a Posture term's nominal is `q` itself. The costs a
+    /// learned sampler is trained with (`genplan.gan.costs`) are these residuals.
+    /// A failing custom term's error becomes a core [`Error`] ([`TermFailure::into_error`]);
+    /// [`try_primary_residuals`](Self::try_primary_residuals) returns it intact.
+    pub fn primary_residuals(&self, q: &[f64], with_jacobian: bool) -> Result<(DVector<f64>, Option<DMatrix<f64>>)> {
+        self.try_primary_residuals(q, with_jacobian).map_err(Error::from)
+    }
+
+    /// [`primary_residuals`](Self::primary_residuals), a custom term's failure returned intact.
+    pub fn try_primary_residuals(&self, q: &[f64], with_jacobian: bool) -> std::result::Result<(DVector<f64>, Option<DMatrix<f64>>), SolveError> {
+        self.model.check_configuration(q)?;
+        let nominal = nominals(&self.primary, q);
+        let s = self.state(q.to_vec());
+        let (raws, j) = self.stack(&self.primary, &s, &nominal, with_jacobian)?;
+        Ok((Self::weighted(&self.primary, &raws), j))
+    }
+
+    /// The task holds a [`TermKind::Custom`] term (primary or secondary).
+    pub fn has_custom_terms(&self) -> bool {
+        self.primary.iter().chain(&self.secondary).any(|t| matches!(t.kind, TermKind::Custom(_)))
+    }
+
+    /// Rows of [`primary_residuals`](Self::primary_residuals): the primary terms' residual sizes summed.
+    pub fn primary_dim(&self) -> usize {
+        self.primary.iter().map(|t| self.dim(t)).sum()
+    }
+
     /// Project `q0`; the posture task regularises around `q_nom` (default: `q0`). The answer is
-    /// finite ([`solve_unchecked`](Self::solve_unchecked)).
+    /// finite ([`solve_unchecked`](Self::solve_unchecked)). A failing custom term's error becomes
+    /// a core [`Error`] ([`TermFailure::into_error`]); [`try_solve`](Self::try_solve) returns it
+    /// intact.
     pub fn solve(&self, q0: &[f64], q_nom: Option<&[f64]>) -> Result<Outcome> {
+        self.try_solve(q0, q_nom).map_err(Error::from)
+    }
+
+    /// [`solve`](Self::solve), a custom term's failure returned intact ([`SolveError::Term`]).
+    pub fn try_solve(&self, q0: &[f64], q_nom: Option<&[f64]>) -> std::result::Result<Outcome, SolveError> {
         self.model.check_configuration(q0)?;
         if let Some(n) = q_nom {
             check_vector("q_nom", n, self.model.nq)?;
             // a configuration like q0 (joint values bounded: finding URDF-7)
             self.model.check_configuration(n).map_err(|e| Error::Invalid(format!("q_nom: {e}")))?;
         }
-        Ok(self.solve_unchecked(q0, q_nom))
+        Ok(self.try_solve_unchecked(q0, q_nom)?)
     }
 
     /// [`solve`](Self::solve) without input checks. Every iterate is checked: should one not be
     /// finite (the arithmetic overflowed, e.g. from an extreme start or nominal configuration),
     /// the solve stops there and answers the last finite configuration, unsuccessful; a residual
     /// that cannot be computed is reported as +inf. So the answer is finite whenever `q0` is.
+    /// Should a custom term fail, the answer is `q0` (clipped to the limits), unsuccessful, every
+    /// residual +inf, and the error is dropped: a task with custom terms is better solved with
+    /// [`try_solve_unchecked`](Self::try_solve_unchecked).
     pub fn solve_unchecked(&self, q0: &[f64], q_nom: Option<&[f64]>) -> Outcome {
+        let t0 = Instant::now();
+        self.try_solve_unchecked(q0, q_nom).unwrap_or_else(|_| {
+            let mut q = q0.to_vec();
+            if self.settings.clip_to_limits {
+                for &(iq, _, lo, hi) in &self.bounded {
+                    q[iq] = q[iq].clamp(lo, hi);
+                }
+            }
+            Outcome {
+                q,
+                success: false,
+                iterations: 0,
+                residuals: vec![f64::INFINITY; self.primary.len()],
+                time_s: t0.elapsed().as_secs_f64(),
+            }
+        })
+    }
+
+    /// [`solve_unchecked`](Self::solve_unchecked), except that a custom term's failure stops the
+    /// solve and is returned (the first one; no outcome).
+    pub fn try_solve_unchecked(&self, q0: &[f64], q_nom: Option<&[f64]>) -> TermResult<Outcome> {
         let t0 = Instant::now();
         let st = &self.settings;
         let nv = self.model.nv;
@@ -469,10 +638,11 @@ impl Projector {
         let mut s = self.state(q.clone());
         // Residuals first: a configuration already on the manifold (most states along a planner's
         // edge) costs one forward kinematics, no Jacobian.
-        let (mut raws, _) = self.stack(&self.primary, &s, &primary_nominal, false);
+        let (mut raws, _) = self.stack(&self.primary, &s, &primary_nominal, false)?;
+        let mut frame_jac = DMatrix::zeros(6, nv);
         while !self.satisfied(&raws) && iterations < st.max_iterations {
-            let (_, j1) = self.stack(&self.primary, &s, &primary_nominal, true);
-            let j1_full = j1.expect("jacobian computed");
+            let (_, j1) = self.stack(&self.primary, &s, &primary_nominal, true)?;
+            let Some(j1_full) = j1 else { unreachable!("stack with_jac returns a Jacobian") };
             let r1_full = Self::weighted(&self.primary, &raws);
             // Rows with a zero residual and a zero Jacobian (inactive limits, CoM inside its box)
             // change nothing in the step: drop them to keep the linear algebra small.
@@ -492,7 +662,7 @@ impl Projector {
             for _ in 0..st.max_backtracks {
                 q_new = self.step(&q, &dq1, alpha);
                 let sn = self.state(q_new.clone());
-                let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false);
+                let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false)?;
                 c = self.cost(&rn);
                 if c <= c0 - st.armijo_c1 * alpha * slope {
                     break;
@@ -502,10 +672,11 @@ impl Projector {
             if !self.secondary.is_empty() {
                 let mut r2_parts = Vec::new();
                 let mut j2 = DMatrix::zeros(0, nv);
-                let mut frame_jac = DMatrix::zeros(6, nv);
                 for (t, nom) in self.secondary.iter().zip(&secondary_nominal) {
-                    r2_parts.push(self.residual(t, &s, nom) * t.weight);
-                    let jt = self.jacobian(t, &s, nom, &mut frame_jac) * t.weight;
+                    let (r, jt) = self.eval(t, &s, nom, true, &mut frame_jac)?;
+                    r2_parts.push(r * t.weight);
+                    let Some(jt) = jt else { unreachable!("eval with_jac returns a Jacobian") };
+                    let jt = jt * t.weight;
                     let rows = j2.nrows();
                     j2 = j2.insert_rows(rows, jt.nrows(), 0.0);
                     j2.view_mut((rows, 0), (jt.nrows(), nv)).copy_from(&jt);
@@ -522,7 +693,7 @@ impl Projector {
                 for _ in 0..st.secondary_backtracks {
                     let q_try = self.step(&q_new, &dq2, alpha2);
                     let sn = self.state(q_try.clone());
-                    let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false);
+                    let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false)?;
                     if self.cost(&rn) <= c + st.secondary_slack {
                         q_new = q_try;
                         break;
@@ -537,7 +708,7 @@ impl Projector {
             }
             q = q_new;
             s = self.state(q.clone());
-            raws = self.stack(&self.primary, &s, &primary_nominal, false).0;
+            raws = self.stack(&self.primary, &s, &primary_nominal, false)?.0;
         }
         let residuals = raws
             .iter()
@@ -547,15 +718,21 @@ impl Projector {
                 _ => r.amax(),
             })
             .collect();
-        Outcome {
+        Ok(Outcome {
             success: self.satisfied(&raws),
             q,
             iterations,
             residuals,
             time_s: t0.elapsed().as_secs_f64(),
-        }
+        })
     }
 }
+
+/// The result of a step that evaluates terms: a custom term may fail.
+pub type TermResult<T> = std::result::Result<T, TermFailure>;
+
+/// Terms' unweighted residuals, and their weighted Jacobians stacked when asked for.
+type Stacked = (Vec<DVector<f64>>, Option<DMatrix<f64>>);
 
 /// The nominal posture of each term: a Posture's own `q_nom`, else the solve's nominal with
 /// the term's overrides applied.
@@ -677,8 +854,16 @@ fn validate(model: &KinematicModel, t: &Term) -> Result<()> {
             }
             Ok(())
         }
+        TermKind::Custom(c) => match c.dim() {
+            0 => bad("a custom term needs at least one residual component (dim >= 1)".into()),
+            d if d > MAX_CUSTOM_DIM => bad(format!("dim {d} exceeds {MAX_CUSTOM_DIM}")),
+            _ => Ok(()),
+        },
     }
 }
+
+/// The largest residual size of a [`CustomTerm`] (its Jacobian is `dim x nv` numbers per call).
+pub const MAX_CUSTOM_DIM: usize = 10_000;
 
 /// Every element of `values` (field `field` of term `term`) finite (else [`Error::NonFinite`])
 /// and at most [`MAX_MAGNITUDE`] in absolute value (else [`Error::Invalid`]).

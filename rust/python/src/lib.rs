@@ -397,6 +397,36 @@ impl PyCollisionWorld {
     fn add_sphere(&mut self, name: &str, radius: f64, center: [f64; 3]) -> PyResult<()> {
         self.inner.add_sphere(name, radius, center).map_err(to_py)
     }
+    /// Add a cylinder obstacle whose axis is its local z (radius, half height, centre, optional
+    /// 3x3 rotation).
+    #[pyo3(signature = (name, radius, half_height, center, rotation=None))]
+    fn add_cylinder(&mut self, name: &str, radius: f64, half_height: f64, center: [f64; 3], rotation: Option<[[f64; 3]; 3]>) -> PyResult<()> {
+        let pose = pose_from(center, rotation, &format!("cylinder '{name}'"))?;
+        self.inner.add_cylinder(name, radius, half_height, pose).map_err(to_py)
+    }
+    /// Add a capsule obstacle whose segment runs along its local z (radius, half length of the
+    /// segment, centre, optional 3x3 rotation).
+    #[pyo3(signature = (name, radius, half_length, center, rotation=None))]
+    fn add_capsule(&mut self, name: &str, radius: f64, half_length: f64, center: [f64; 3], rotation: Option<[[f64; 3]; 3]>) -> PyResult<()> {
+        let pose = pose_from(center, rotation, &format!("capsule '{name}'"))?;
+        self.inner.add_capsule(name, radius, half_length, pose).map_err(to_py)
+    }
+    /// Add the convex hull of a mesh file (STL, OBJ, DAE) scaled per axis, at centre and
+    /// optional 3x3 rotation. The file is read without the GIL.
+    #[pyo3(signature = (name, path, scale, center, rotation=None))]
+    fn add_mesh(
+        &mut self,
+        py: Python<'_>,
+        name: &str,
+        path: PathBuf,
+        scale: [f64; 3],
+        center: [f64; 3],
+        rotation: Option<[[f64; 3]; 3]>,
+    ) -> PyResult<()> {
+        let pose = pose_from(center, rotation, &format!("mesh '{name}'"))?;
+        let inner = &mut self.inner;
+        py.detach(|| inner.add_mesh(name, &path, scale, pose)).map_err(to_py)
+    }
     /// Add the half-space below the plane normal . x = offset.
     fn add_halfspace(&mut self, name: &str, normal: [f64; 3], offset: f64) -> PyResult<()> {
         self.inner.add_halfspace(name, normal, offset).map_err(to_py)
@@ -450,6 +480,131 @@ pub(crate) fn get_or<'py, T: pyo3::conversion::FromPyObjectOwned<'py>>(d: &Bound
     }
 }
 
+/// A Python term behind the core's `projection::CustomTerm` (docs/TASKS.md, "Terms of your
+/// own"): an object with `dim` (int), `residual(q)` ((n, nq) -> (n, dim)) and `jacobian(q)`
+/// ((n, nq) -> (n, dim, nv)), and optionally `residual_and_jacobian(q)` returning both, called
+/// where the solver needs both (unless the term dict's "combined" is false: what
+/// `genplan.projection.CustomTerm` passes when a subclass keeps the default). The solver asks for one configuration at a time, so
+/// each call passes a batch of one row (q of shape (1, nq)); each call takes the GIL for its own
+/// duration only. Outputs of another shape raise ShapeError naming the term; non-finite ones are
+/// refused by the core (NonFiniteError naming the term); an exception the object raises is
+/// carried through the core's `TermFailure` and raised again unchanged ([`solve_error_to_py`]).
+#[derive(Debug)]
+struct PyCustomTerm {
+    obj: Py<PyAny>,
+    name: String,
+    dim: usize,
+    nq: usize,
+    nv: usize,
+    /// The object has `residual_and_jacobian`: one call where the solver needs both.
+    combined: bool,
+}
+
+impl PyCustomTerm {
+    /// `combined`: call `residual_and_jacobian` where both are needed (None: when the object has it).
+    fn new(obj: &Bound<'_, PyAny>, name: &str, nq: usize, nv: usize, combined: Option<bool>) -> PyResult<Self> {
+        let what = format!("custom term '{name}'");
+        let dim = obj.getattr("dim").map_err(|e| err(Kind::Generic, format!("{what}: needs an attribute dim (int): {e}")))?;
+        let dim: usize = dim
+            .extract()
+            .map_err(|_| err(Kind::Generic, format!("{what}: dim must be a positive int, got {}", dim.repr().map(|r| r.to_string()).unwrap_or_default())))?;
+        let callable = |m: &str| obj.getattr(m).map(|a| a.is_callable()).unwrap_or(false);
+        let combined = combined.unwrap_or(true) && callable("residual_and_jacobian");
+        if !callable("residual") || !(combined || callable("jacobian")) {
+            return Err(err(Kind::Generic, format!("{what}: needs methods residual(q) and jacobian(q) on batches (q of shape (n, nq))")));
+        }
+        Ok(PyCustomTerm { obj: obj.clone().unbind(), name: name.to_string(), dim, nq, nv, combined })
+    }
+
+    /// `value` as float64 numbers of shape `shape`, copied to `out` (row-major); `call` names the
+    /// method in errors.
+    fn copy_out(&self, py: Python<'_>, value: &Bound<'_, PyAny>, call: &str, shape: &[usize], out: &mut [f64]) -> PyResult<()> {
+        // as Python prints a shape: (2,) (1, 2)
+        let shown = |s: &[usize]| match s {
+            [one] => format!("({one},)"),
+            _ => format!("({})", s.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")),
+        };
+        let bad = |got: String| {
+            err(Kind::Shape, format!(
+                "term '{}': {call} must return an array of shape {} for q of shape (1, {}), got {got}",
+                self.name,
+                shown(shape),
+                self.nq
+            ))
+        };
+        let arr = match value.extract::<PyReadonlyArrayDyn<'_, f64>>() {
+            Ok(a) => a,
+            Err(_) => py
+                .import("numpy")?
+                .call_method1("asarray", (value, "float64"))
+                .and_then(|a| a.extract::<PyReadonlyArrayDyn<'_, f64>>())
+                .map_err(|e| bad(format!("{} ({e})", value.get_type().name().map(|n| n.to_string()).unwrap_or_default())))?,
+        };
+        if arr.shape() != shape {
+            return Err(bad(format!("shape {}", shown(arr.shape()))));
+        }
+        for (o, v) in out.iter_mut().zip(arr.as_array().iter()) {
+            *o = *v;
+        }
+        Ok(())
+    }
+}
+
+impl genplan_core::projection::CustomTerm for PyCustomTerm {
+    fn dim(&self) -> usize {
+        self.dim
+    }
+
+    fn evaluate(&self, q: &[f64], residual: &mut [f64], jacobian: Option<&mut [f64]>) -> Result<(), genplan_core::projection::TermError> {
+        Python::attach(|py| -> PyResult<()> {
+            let obj = self.obj.bind(py);
+            let qa = Array::from_shape_vec(IxDyn(&[1, self.nq]), q.to_vec())
+                .map_err(|e| PyValueError::new_err(e.to_string()))?
+                .into_pyarray(py);
+            let (d, nv) = (self.dim, self.nv);
+            match jacobian {
+                None => {
+                    let r = obj.call_method1("residual", (qa,))?;
+                    self.copy_out(py, &r, "residual(q)", &[1, d], residual)
+                }
+                Some(jac) => {
+                    let (r, j) = if self.combined {
+                        let both = obj.call_method1("residual_and_jacobian", (qa,))?;
+                        let pair: (Bound<'_, PyAny>, Bound<'_, PyAny>) = both.extract().map_err(|_| {
+                            err(Kind::Shape, format!("term '{}': residual_and_jacobian(q) must return a pair (residual, jacobian)", self.name))
+                        })?;
+                        pair
+                    } else {
+                        (obj.call_method1("residual", (qa.clone(),))?, obj.call_method1("jacobian", (qa,))?)
+                    };
+                    let what = if self.combined { ["residual_and_jacobian(q)[0]", "residual_and_jacobian(q)[1]"] } else { ["residual(q)", "jacobian(q)"] };
+                    self.copy_out(py, &r, what[0], &[1, d], residual)?;
+                    self.copy_out(py, &j, what[1], &[1, d, nv], jac)
+                }
+            }
+        })
+        .map_err(|e| Box::new(e) as genplan_core::projection::TermError)
+    }
+}
+
+/// The projector holds a custom term (in these bindings, a Python one: [`PyCustomTerm`]).
+fn has_python_terms(p: &Projector) -> bool {
+    p.has_custom_terms()
+}
+
+/// The Python error of a failed solve: a custom term's own exception unchanged, a core error as
+/// its `genplan.errors` class.
+fn solve_error_to_py(e: genplan_core::projection::SolveError) -> PyErr {
+    use genplan_core::projection::{SolveError, TermFailure};
+    match e {
+        SolveError::Input(e) => to_py(e),
+        SolveError::Term(TermFailure { term, source }) => match source.downcast::<PyErr>() {
+            Ok(py_err) => *py_err,
+            Err(source) => to_py(TermFailure { term, source }.into_error()),
+        },
+    }
+}
+
 fn term_from_dict(model: &genplan_core::KinematicModel, d: &Bound<'_, PyDict>) -> PyResult<Term> {
     let kind_name: String = get(d, "type", "term")?;
     let name: String = get_or(d, "name", kind_name.clone(), "term")?;
@@ -491,9 +646,14 @@ fn term_from_dict(model: &genplan_core::KinematicModel, d: &Bound<'_, PyDict>) -
             weights: get_or(d, "weights", vec![1.0; model.nv], &what)?,
             overrides: get_or(d, "overrides", Vec::<(usize, f64)>::new(), &what)?,
         },
+        "custom" => {
+            let obj = d.get_item("term")?.ok_or_else(|| err(Kind::Settings, format!("{what}: missing 'term' (the Python object)")))?;
+            let combined: Option<bool> = get_or(d, "combined", None, &what)?;
+            TermKind::Custom(Arc::new(PyCustomTerm::new(&obj, &name, model.nq, model.nv, combined)?))
+        }
         other => {
             return Err(err(Kind::UnknownName, format!(
-                "unknown term type '{other}' (known: frame_pose, frame_position, frame_orientation, joint_limits, com_box, posture)"
+                "unknown term type '{other}' (known: frame_pose, frame_position, frame_orientation, joint_limits, com_box, posture, custom)"
             )))
         }
     };
@@ -536,7 +696,8 @@ impl PyProjector {
 
     /// Solve from each row of q0 ((n, nq)); q_nom likewise or None. Returns
     /// (q (n, nq), success (n,), iterations (n,), residuals (n, terms), time_s (n,)).
-    /// The rows run in parallel (GIL released) when `parallel`.
+    /// The rows run in parallel (GIL released) when `parallel`, unless a term is a Python one
+    /// (then one after the other: see the comment in the body).
     #[pyo3(signature = (q0, q_nom=None, parallel=true, target_term=None, targets=None))]
     #[allow(clippy::type_complexity, clippy::too_many_arguments)]
     fn solve_batch<'py>(
@@ -595,15 +756,37 @@ impl PyProjector {
             }
             _ => return Err(err(Kind::Generic, "give both target_term and targets, or neither")),
         };
-        // one retargeted copy of the solver per worker (not per row)
+        // with a Python term the rows run one after the other: its calls serialise on the GIL, and
+        // threads contending for it made batches slower, not faster (2 cores: 200 Panda rows with
+        // a numpy-only term 0.12 s sequential vs 0.46 s parallel; with a Pinocchio-based term
+        // 1.3-2.1 s vs 2.5-2.6 s). One retargeted copy of the solver per worker (not per row).
+        // A custom term's failure
+        // stops the batch: the rows after it are skipped (None) and its error is raised
+        let failed = std::sync::atomic::AtomicBool::new(false);
+        let parallel = parallel && !has_python_terms(solver);
         let outs = chunked(py, n, parallel, || retarget.map(|_| solver.clone()), |own, i| {
-            let (q, nom) = (&data[i * nq..(i + 1) * nq], noms.map(|d| &d[i * nq..(i + 1) * nq]));
-            match (own, retarget) {
-                (Some(p), Some((ti, t, k))) => p.retarget(ti, &t[i * k..(i + 1) * k]).map(|()| p.solve_unchecked(q, nom)),
-                _ => Ok(solver.solve_unchecked(q, nom)),
+            use genplan_core::projection::SolveError;
+            if failed.load(std::sync::atomic::Ordering::Relaxed) {
+                return None;
             }
+            let (q, nom) = (&data[i * nq..(i + 1) * nq], noms.map(|d| &d[i * nq..(i + 1) * nq]));
+            let out = match (own, retarget) {
+                (Some(p), Some((ti, t, k))) => p
+                    .retarget(ti, &t[i * k..(i + 1) * k])
+                    .map_err(SolveError::from)
+                    .and_then(|()| p.try_solve_unchecked(q, nom).map_err(SolveError::from)),
+                _ => solver.try_solve_unchecked(q, nom).map_err(SolveError::from),
+            };
+            if out.is_err() {
+                failed.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+            Some(out)
         })?;
-        let outs: Vec<genplan_core::projection::Outcome> = outs.into_iter().collect::<Result<_, _>>().map_err(to_py)?;
+        if let Some(e) = outs.iter().position(|o| matches!(o, Some(Err(_)))) {
+            let Some(Some(Err(e))) = outs.into_iter().nth(e) else { unreachable!("position found an error") };
+            return Err(solve_error_to_py(e));
+        }
+        let outs: Vec<genplan_core::projection::Outcome> = outs.into_iter().flatten().flatten().collect();
         let nt = solver.primary.len();
         let q = Array::from_shape_vec(IxDyn(&[n, nq]), outs.iter().flat_map(|o| o.q.iter().copied()).collect())
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
@@ -616,6 +799,45 @@ impl PyProjector {
             res.into_pyarray(py),
             outs.iter().map(|o| o.time_s).collect::<Vec<_>>().into_pyarray(py),
         ))
+    }
+
+    /// The primary terms' weighted residuals stacked, at each row of q ((n, nq)): r (n, m) and,
+    /// when `jacobian`, their Jacobians J (n, m, nv) in the tangent space (a Posture term's
+    /// nominal is the row itself). Rows run in parallel, GIL released (one after the other with a
+    /// Python term, as in `solve_batch`).
+    #[pyo3(signature = (q, jacobian=true))]
+    #[allow(clippy::type_complexity)]
+    fn primary_residuals<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        jacobian: bool,
+    ) -> PyResult<(Bound<'py, numpy::PyArrayDyn<f64>>, Option<Bound<'py, numpy::PyArrayDyn<f64>>>)> {
+        let m = &*self.inner.model;
+        let b = batch(&q, m.nq, "q")?;
+        check_rows(m, &b, "q")?;
+        let (nq, nv, dim) = (m.nq, m.nv, self.inner.primary_dim());
+        let n = b.data.len() / nq.max(1);
+        let data = b.data;
+        let solver = &self.inner;
+        let parallel = !has_python_terms(solver); // as in solve_batch
+        let outs = chunked(py, n, parallel, || (), |_, i| solver.try_primary_residuals(&data[i * nq..(i + 1) * nq], jacobian))?;
+        let outs = outs.into_iter().collect::<Result<Vec<_>, _>>().map_err(solve_error_to_py)?;
+        let r = Array::from_shape_vec(IxDyn(&[n, dim]), outs.iter().flat_map(|(r, _)| r.iter().copied()).collect())
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let j = if jacobian {
+            let flat: Vec<f64> = outs
+                .iter()
+                .flat_map(|(_, j)| {
+                    let j = j.as_ref().expect("jacobian computed");
+                    (0..dim).flat_map(move |a| (0..nv).map(move |c| j[(a, c)]))
+                })
+                .collect();
+            Some(Array::from_shape_vec(IxDyn(&[n, dim, nv]), flat).map_err(|e| PyValueError::new_err(e.to_string()))?.into_pyarray(py))
+        } else {
+            None
+        };
+        Ok((r.into_pyarray(py), j))
     }
 
     /// Frame Jacobian in the frame's own axes (6 x nv) at q: for cross-checks.

@@ -45,7 +45,10 @@ fn plan_error_to_py(e: PlanError) -> PyErr {
         PlanError::Component(b) => {
             return match b.downcast::<PyErr>() {
                 Ok(py_err) => *py_err,
-                Err(other) => PyRuntimeError::new_err(other.to_string()),
+                Err(other) => match other.downcast::<genplan_core::error::Error>() {
+                    Ok(core) => to_py(*core), // a custom term's bad output: typed, naming the term
+                    Err(other) => PyRuntimeError::new_err(other.to_string()),
+                },
             }
         }
         PlanError::Settings { .. } => Kind::Settings,

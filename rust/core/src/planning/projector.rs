@@ -7,7 +7,8 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use super::PlanResult;
+use super::{PlanError, PlanResult};
+use crate::projection::TermFailure;
 
 /// What one projection did.
 #[derive(Debug, Clone, Copy, Default)]
@@ -34,21 +35,49 @@ pub struct GaussNewtonProjector {
 }
 
 impl Projector for GaussNewtonProjector {
+    /// A custom term's failure ends the batch: the first one is returned as
+    /// [`PlanError::Component`] holding the term's own error (e.g. a Python exception, which the
+    /// bindings give back unchanged), or the core error naming the term (a non-finite or
+    /// misshapen output). A task with a custom term is solved one row after the other (a custom
+    /// term may call back into an interpreter that runs one call at a time).
     fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
         let nq = self.inner.model.nq;
         let solve = |(q, nom): (&[f64], &[f64])| {
-            let o = self.inner.solve_unchecked(q, Some(nom));
-            (o.q, Projection { success: o.success, iterations: o.iterations })
+            self.inner
+                .try_solve_unchecked(q, Some(nom))
+                .map(|o| (o.q, Projection { success: o.success, iterations: o.iterations }))
         };
-        let results: Vec<(Vec<f64>, Projection)> = if self.parallel && reports.len() > 1 {
+        let custom = self.inner.has_custom_terms();
+        let results: Vec<Result<(Vec<f64>, Projection), TermFailure>> = if self.parallel && !custom && reports.len() > 1 {
             qs.par_chunks(nq).zip(q_noms.par_chunks(nq)).map(solve).collect()
         } else {
-            qs.chunks(nq).zip(q_noms.chunks(nq)).map(solve).collect()
+            // sequential: stop at the first failure
+            let mut v = Vec::with_capacity(reports.len());
+            for pair in qs.chunks(nq).zip(q_noms.chunks(nq)) {
+                let r = solve(pair);
+                let failed = r.is_err();
+                v.push(r);
+                if failed {
+                    break;
+                }
+            }
+            v
         };
-        for ((q, rep), (row, slot)) in results.into_iter().zip(out.chunks_mut(nq).zip(reports.iter_mut())) {
+        for (r, (row, slot)) in results.into_iter().zip(out.chunks_mut(nq).zip(reports.iter_mut())) {
+            let (q, rep) = r.map_err(term_failure)?;
             row.copy_from_slice(&q);
             *slot = rep;
         }
         Ok(())
+    }
+}
+
+/// A custom term's failure as the planner's component error: the term's own error unchanged,
+/// or (for a core error such as a non-finite output) the core error naming the term.
+fn term_failure(f: TermFailure) -> PlanError {
+    if f.source.is::<crate::error::Error>() {
+        PlanError::Component(Box::new(f.into_error()))
+    } else {
+        PlanError::Component(f.source)
     }
 }
