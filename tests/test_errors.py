@@ -145,7 +145,7 @@ def test_model_file_error(panda: genplan.Robot, talos: genplan.Robot, tmp_path) 
         load_model(panda, weights)
     # the model of another robot
     shutil.copy(models_dir() / "panda_gan.json", card)
-    with pytest.raises(ModelFileError, match=r"panda_gan\.safetensors is a GAN for 'panda', not 'talos'"):
+    with pytest.raises(ModelFileError, match=r"panda_gan\.safetensors is a GAN for robot 'panda', not 'talos'"):
         load_model(talos, weights)
 
 

@@ -74,7 +74,7 @@ def test_model_file_errors(tiny_panda_model, panda: genplan.Robot, talos: genpla
     with pytest.raises(FileNotFoundError, match="genplan train gan --robot panda"):
         load_model(panda, tmp_path / "missing.safetensors")
     weights, card = tiny_panda_model.save(tmp_path / "m.safetensors")
-    with pytest.raises(ModelFileError, match="is a GAN for 'panda', not 'talos'"):
+    with pytest.raises(ModelFileError, match="is a GAN for robot 'panda', not 'talos'"):
         load_model(talos, weights)
     weights.write_bytes(weights.read_bytes()[:-10])  # truncated
     with pytest.raises(ModelFileError, match="does not match its card"):
@@ -93,7 +93,7 @@ def test_model_file_errors(tiny_panda_model, panda: genplan.Robot, talos: genpla
 
 
 GAN_CASES = common_cases("generator.weight.0") + [
-    ("other_robot", lambda c: c["config"].update(robot="talos"), None, True, "is a GAN for 'talos', not 'panda'"),
+    ("other_robot", lambda c: c["config"].update(robot="talos"), None, True, "is a GAN for robot 'talos', not 'panda'"),
     ("card_robot", lambda c: c.update(robot="talos"), None, True, "metadata says robot 'panda', its card 'talos'"),
     ("missing_config_key", lambda c: c["config"].pop("n_net"), None, True, r"missing key\(s\) \['n_net'\]"),
     ("config_type", lambda c: c["config"].update(n_net="3"), None, True, "n_net must be int, got '3'"),
@@ -289,8 +289,15 @@ def test_train_command(tmp_path, monkeypatch, capsys) -> None:
     assert main(["train", "gan", "--robot", "panda", "--seed", "1", "--iterations", "5", "--data-size", "300",
                  "--n-net", "2", "--out", str(out)]) == 0
     card = json.loads(out.with_suffix(".json").read_text())
-    assert card["config"]["n_net"] == 2 and card["config"]["seed"] == 1
-    assert "projection_from_samples" in card["evaluation"]
+    assert card["config"]["n_net"] == 2 and card["config"]["seed"] == 1 and card["config"]["task"] == "panda_ik"
+    assert card["command"] == "genplan train gan --robot panda --seed 1 --iterations 5 --n-net 2 --data-size 300"
+    ev = card["evaluation"]
+    for init in ("gan", "uniform"):
+        for kind in ("projection", "ik"):
+            assert 0 <= ev[init][kind]["success_rate"] <= 100
+    # uniform starts on the Panda's projection manifold: the solver succeeds (Table I: 100 %)
+    assert ev["uniform"]["projection"]["success_rate"] >= 95 and ev["uniform"]["projection"]["steps_star"] > 1
+    assert card["task"]["name"] == "panda_ik"
     assert "wrote" in capsys.readouterr().out
 
 

@@ -203,7 +203,8 @@ def _as_type(value: Any, hint: Any, where: str) -> Any:
 def read_config(card: dict[str, Any], path: Path, kind: str, cls: type[T]) -> T:
     """The card's ``config`` as the dataclass ``cls``: exactly its fields (none missing, none
     unknown), each of its type and finite, and accepted by ``cls.validate()`` if it has one;
-    anything else raises ModelFileError naming the card and the field."""
+    anything else raises ModelFileError naming the card and the field. Fields named in the
+    class's ``ADDED_FIELDS`` (added after cards were shipped) may be missing: their default."""
     card_path = path.with_suffix(".json")
     config = card.get("config")
     bad = f"{kind} model card {card_path} has a bad config"
@@ -211,12 +212,13 @@ def read_config(card: dict[str, Any], path: Path, kind: str, cls: type[T]) -> T:
         raise ModelFileError(f"{bad}: expected an object of {cls.__name__} fields, got {type(config).__name__}")
     hints = typing.get_type_hints(cls)
     names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
-    unknown, missing = sorted(set(config) - set(names)), [n for n in names if n not in config]
+    added = getattr(cls, "ADDED_FIELDS", frozenset())
+    unknown, missing = sorted(set(config) - set(names)), [n for n in names if n not in config and n not in added]
     if unknown or missing:
         parts = ([f"unknown key(s) {unknown}"] if unknown else []) + ([f"missing key(s) {missing}"] if missing else [])
         raise ModelFileError(f"{bad}: {'; '.join(parts)}")
     try:
-        cfg = cls(**{n: _as_type(config[n], hints[n], n) for n in names})  # validates (__post_init__)
+        cfg = cls(**{n: _as_type(config[n], hints[n], n) for n in names if n in config})  # validates (__post_init__)
     except (TypeError, GenplanError) as exc:
         raise ModelFileError(f"{bad}: {exc}") from None
     return cfg

@@ -20,7 +20,7 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -32,13 +32,13 @@ from genplan._arrays import as_box, as_configurations, as_float_array, error_cla
 from genplan import projection as P
 from genplan._threads import torch_threads, uses_torch
 from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
-from genplan.robots import Robot, load
+from genplan.robots import PRESETS_DIR, Robot, load
 from genplan.torch_kinematics import TorchKinematics
 
 FORMAT = "genplan-gan/1"
 #: the descriptive keys a GAN card may hold (besides format, config and weights_sha256)
 CARD_KEYS = frozenset({"robot", "genplan_version", "data", "training", "command", "discriminator_features",
-                       "evaluation", "notes"})
+                       "evaluation", "notes", "task", "robot_source"})
 #: targets are accepted up to this far (m) outside the model's target box (:meth:`GanModel.target_limits`).
 #: The targets a GAN is trained on, end-effector positions of valid configurations, reach 0.25 m
 #: (Panda) and 0.67 m (Talos) beyond the shipped boxes (3,000 valid configurations each); farther
@@ -77,6 +77,16 @@ class GanConfig:
     data_size: int = 25_000
     data_seed: int = 0
     seed: int = 0
+    #: the task (its name) the GAN samples for; "" in cards written before tasks were files: the
+    #: robot's shipped ``<robot>_ik``
+    task: str = ""
+
+    #: fields a card written before they existed may lack (model_files.read_config)
+    ADDED_FIELDS: ClassVar[frozenset[str]] = frozenset({"task"})
+
+    @property
+    def task_name(self) -> str:
+        return self.task or f"{self.robot}_ik"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -106,33 +116,49 @@ class GanConfig:
             raise SettingsError(str(exc)) from None
 
 
-def default_config(robot: str, **overrides: Any) -> GanConfig:
-    """The paper's configuration for "panda" or "talos", with optional overrides."""
-    if robot == "panda":
+def default_config(robot: "str | Robot", task: "str | os.PathLike[str] | P.Task | None" = None,
+                   **overrides: Any) -> GanConfig:
+    """The GAN for ``robot`` (a :class:`~genplan.robots.Robot` or what :func:`genplan.load` takes)
+    and ``task`` (a task with a [condition], default the robot's shipped ``<robot>_ik``), sized
+    from the dimensions, with optional overrides.
+
+    The sizes are the paper's two (its public code): a configuration of at most
+    :data:`SMALL_DIM` features (an arm: Panda's 7) gets 10 noise dimensions, 10 members, a 2 x 20
+    discriminator and the Panda's loss weights; a larger one (a humanoid: Talos' 34) 30 noise
+    dimensions, 5 members, a 2 x 40 discriminator, the Talos learning rates and weights. The
+    targets are the condition term's frame; the sampling box is the condition's ``sample_low`` /
+    ``sample_high`` (else its ``low`` / ``high``).
+    """
+    from genplan.gan.costs import condition_term, default_task_name, sampling_box
+
+    rob = robot if isinstance(robot, Robot) else load(robot)
+    t = P.load_task(default_task_name(rob) if task is None else task, rob)
+    cond = condition_term(t)
+    frame = next((role for role, link in rob.frames.items() if role == cond.frame or link == cond.frame), cond.frame)
+    box = sampling_box(t)
+    common = {"robot": rob.name, "task": t.name, "target_frame": frame,
+              "target_box": (tuple(map(float, box[0])), tuple(map(float, box[1])))}
+    if feature_dim(rob) <= SMALL_DIM:
         # The authors' relative weight of the target term: lambda = 0.1 on a Gaussian
         # log-likelihood with a 5 cm deviation, 0.1 / (2 * 0.05^2) = 20 per m^2 against the
         # adversarial term. Weighted 50x more (1000), the generator ignores its noise and collapses
         # onto one configuration per target and member: 3 cm target error, but samples reach
         # held-out valid configurations twice less closely, and the planner fails in the shelf.
-        cfg = GanConfig(robot="panda", target_frame="hand",
-                        target_box=((-0.6, -0.6, -0.1), (0.6, 0.6, 1.0)),
-                        w_target=20.0, w_limits=100.0, w_constraint=100.0)
-    elif robot == "talos":
-        # The region of interest (where sampling targets are drawn; not used in training): the
-        # authors' box for Talos (their talos_footfixed notebook). Checked on held-out planning
-        # queries (seed 1, 40 per Talos task x 2 sampler seeds, tree nodes checked; Table II uses
-        # seed 0) against three others: uniform / GAN search time 1.72x, 1.35x, 3.79x on tasks 1-3
-        # (geometric mean 2.06x); the hand's reach in front of and beside the robot
-        # ((-0.3, -1.0, 0.3)..(0.9, 0.3, 1.6), used before) 1.67x, 1.44x, 2.29x (1.76x); the union
-        # of the two 1.84x, 1.54x, 1.85x (1.73x); the union widened to y <= 1.0 1.76x, 1.34x,
-        # 1.86x. Earlier, the box in front only ((0, -0.8, 0.4)..(0.8, 0.2, 1.5)) needed 2.4x the
-        # extensions of uniform sampling on task 1.
-        cfg = GanConfig(robot="talos", target_frame="right_hand",
-                        target_box=((-0.6, -0.6, 0.3), (0.8, 0.6, 1.4)),
-                        noise_dim=30, n_net=5, disc_hidden=(40, 40), lr_gen=7e-4, lr_disc=1.4e-3)
+        cfg = GanConfig(**common, w_target=20.0, w_limits=100.0, w_constraint=100.0)  # type: ignore[arg-type]
     else:
-        raise UnknownNameError(f"the GAN is defined for panda and talos, not '{robot}'")
+        cfg = GanConfig(**common, noise_dim=30, n_net=5, disc_hidden=(40, 40),  # type: ignore[arg-type]
+                        lr_gen=7e-4, lr_disc=1.4e-3)
     return dataclasses.replace(cfg, **overrides)
+
+
+#: configurations of at most this many features get the paper's Panda-sized GAN, larger ones its
+#: Talos-sized GAN (:func:`default_config`)
+SMALL_DIM = 12
+
+
+def feature_dim(robot: Robot) -> int:
+    """The generator's output size: nq, less one for a free-flyer's quaternion (a rotation vector)."""
+    return robot.nq - int(robot.floating_base)
 
 
 class Codec:
@@ -203,9 +229,13 @@ def _mlp(dims: list[int]) -> torch.nn.Sequential:
 
 class Constraints:
     """Differentiable costs of a configuration batch: target, limits, the task's constraints,
-    and the discriminator's augmented features."""
+    and the discriminator's augmented features. Any robot and task: the target frame's placement
+    and the centre of mass come from :class:`~genplan.torch_kinematics.TorchKinematics`, the
+    constraint residuals from the native solver (:class:`~genplan.gan.costs.NativeCost`)."""
 
-    def __init__(self, robot: Robot, cfg: GanConfig) -> None:
+    def __init__(self, robot: Robot, cfg: GanConfig, task: P.Task) -> None:
+        from genplan.gan.costs import NativeCost, constraint_terms
+
         self.robot = robot
         self.cfg = cfg
         self.kin = TorchKinematics(robot, dtype=torch.float32)
@@ -214,36 +244,26 @@ class Constraints:
         self.bounded = torch.tensor(np.flatnonzero(bounded))
         self.lo = torch.tensor(lo[bounded], dtype=torch.float32)
         self.hi = torch.tensor(hi[bounded], dtype=torch.float32)
-        if robot.name == "panda":
-            self.hand_offset = torch.tensor(P.PANDA_HAND_OFFSET, dtype=torch.float32)
-        if robot.name == "talos":
-            soles = {}
-            for s in ("left_sole", "right_sole"):
-                m = robot.frame_placement(robot.q_default, s)
-                soles[s] = (torch.tensor(m.rotation, dtype=torch.float32), torch.tensor(m.translation, dtype=torch.float32))
-            self.soles = soles
-            self.com_lo = torch.tensor(P.TALOS_COM_BOX[0], dtype=torch.float32)
-            self.com_hi = torch.tensor(P.TALOS_COM_BOX[1], dtype=torch.float32)
+        # unweighted: each term in its own units (m, rad), as the paper's costs; the solver's
+        # weights balance the terms of a Gauss-Newton step, not a loss
+        self.native = NativeCost(robot, tuple(dataclasses.replace(t, weight=1.0) for t in constraint_terms(task, robot)))
+        # a floating base's balance is part of what the discriminator compares
+        self.with_com = robot.floating_base
 
-    def evaluate(self, q: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Per-sample quantities for q (B, nq): ee position/rotation, limit and constraint costs."""
+    def evaluate(self, q: torch.Tensor, constraint: bool = True) -> dict[str, torch.Tensor]:
+        """Per-sample quantities for q (B, nq): ee position/rotation, limit and (when
+        ``constraint``) constraint costs, and the discriminator's augmented features."""
         joints = self.kin.joint_placements(q)
         rot, pos = self.kin.frame_placement(q, self.cfg.target_frame, joints)
         qb = q[:, self.bounded]
         limits = (torch.relu(self.lo - qb) ** 2 + torch.relu(qb - self.hi) ** 2).sum(-1)
         out = {"ee_pos": pos, "ee_rot": rot, "limits": limits}
-        if self.robot.name == "panda":
-            z = (rot @ self.hand_offset)[:, :, 2]
-            out["constraint"] = ((z - torch.tensor([0.0, 0.0, 1.0])) ** 2).sum(-1)
-            out["augment"] = torch.cat([pos, rot.reshape(-1, 9)], -1)
-        else:
-            com = self.kin.center_of_mass(q, joints)
-            cost = (torch.relu(self.com_lo - com) ** 2 + torch.relu(com - self.com_hi) ** 2).sum(-1)
-            for s, (r_ref, p_ref) in self.soles.items():
-                r, p = self.kin.frame_placement(q, s, joints)
-                cost = cost + ((p - p_ref) ** 2).sum(-1) + ((r - r_ref) ** 2).sum((-1, -2))
-            out["constraint"] = cost
-            out["augment"] = torch.cat([pos, rot.reshape(-1, 9), com], -1)
+        if constraint:
+            out["constraint"] = (self.native(q) ** 2).sum(-1)
+        aug = [pos, rot.reshape(-1, 9)]
+        if self.with_com:
+            aug.append(self.kin.center_of_mass(q, joints))
+        out["augment"] = torch.cat(aug, -1)
         return out
 
 
@@ -394,28 +414,39 @@ def tensor_shapes(cfg: GanConfig, robot: Robot) -> dict[str, tuple[int, ...]]:
     return shapes
 
 
-def load_model(robot: str | Robot, path: str | Path | None = None) -> GanModel:
+def load_model(robot: str | Robot, path: str | Path | None = None,
+               task: "str | os.PathLike[str] | P.Task | None" = None) -> GanModel:
     """Load a GAN (default: the shipped ``models/<robot>_gan.safetensors``).
 
-    A missing file raises FileNotFoundError naming the command that trains it; a file that cannot
-    be vouched for (see :mod:`genplan.model_files`: no or another weights sha256, a bad card or
-    config, NaN weights, missing, extra or misshapen tensors, a GAN for another robot or target
-    frame, a non-positive codec scale) raises :class:`~genplan.errors.ModelFileError` naming the
-    file and the problem, before any sampling.
+    ``task`` (a :class:`~genplan.projection.Task`, a shipped task's name or a task file): the
+    task the caller samples for; a GAN trained for another task is refused naming both (by name,
+    and when the card records the task, by its terms). A missing file raises FileNotFoundError
+    naming the command that trains it; a file that cannot be vouched for (see
+    :mod:`genplan.model_files`: no or another weights sha256, a bad card or config, NaN weights,
+    missing, extra or misshapen tensors, a GAN for another robot or target frame, a non-positive
+    codec scale) raises :class:`~genplan.errors.ModelFileError` naming the file and the problem,
+    before any sampling.
     """
     from genplan.model_files import check_tensors, read_config, read_model
 
     rob = robot if isinstance(robot, Robot) else load(robot)
     path = models_dir() / f"{rob.name}_gan.safetensors" if path is None else Path(path)
-    card, tensors = read_model(path, FORMAT, "GAN", f"genplan train gan --robot {rob.name} --seed 0", CARD_KEYS)
+    card, tensors = read_model(path, FORMAT, "GAN", train_command(rob), CARD_KEYS)
     cfg = read_config(card, path, "GAN", GanConfig)
     if cfg.robot != rob.name or card.get("robot", cfg.robot) != cfg.robot:
-        raise ModelFileError(f"{path} is a GAN for '{cfg.robot}', not '{rob.name}'"
+        raise ModelFileError(f"{path} is a GAN for robot '{cfg.robot}', not '{rob.name}'"
                              + ("" if card.get("robot", cfg.robot) == cfg.robot else
                                 f" (and its card also says '{card['robot']}')"))
-    if cfg.target_frame not in rob.frames:
+    if task is not None:
+        t = P.load_task(task, rob)
+        if t.name != cfg.task_name:
+            raise ModelFileError(f"{path} is a GAN for task '{cfg.task_name}', not '{t.name}' (robot '{rob.name}')")
+        if "task" in card and _comparable(card["task"]) != _comparable(t.to_dict()):
+            raise ModelFileError(f"{path} is a GAN for another task '{cfg.task_name}' than the one given (same name, "
+                                 "other terms: retrain it for this task)")
+    if cfg.target_frame not in rob.frames and not rob.model.existFrame(cfg.target_frame):
         raise ModelFileError(f"{path}: the GAN's target frame '{cfg.target_frame}' is not a frame of "
-                             f"'{rob.name}' (known: {sorted(rob.frames)})")
+                             f"'{rob.name}' (roles: {sorted(rob.frames)}, or any link name)")
     check_tensors(tensors, tensor_shapes(cfg, rob), path, "GAN")
     if not bool((tensors["codec.std"] > 0).all()):
         raise ModelFileError(f"GAN model file {path} is corrupt: tensor codec.std holds a scale <= 0")
@@ -429,16 +460,44 @@ def load_model(robot: str | Robot, path: str | Path | None = None) -> GanModel:
     return GanModel(cfg, rob, gen, codec, card)
 
 
+def _comparable(task: dict[str, Any]) -> str:
+    import json
+
+    return json.dumps(task, sort_keys=True, default=str)
+
+
+def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0) -> str:
+    """The CLI command that trains a GAN for ``robot`` (a Robot: its preset name or robot file;
+    or the --robot argument as given) and ``task`` (the --task argument, None for the default)."""
+    if isinstance(robot, str):
+        target = robot
+    else:
+        target = robot.name if robot.source is None or robot.source.parent == PRESETS_DIR else str(robot.source)
+    return f"genplan train gan --robot {target}" + (f" --task {task}" if task else "") + f" --seed {seed}"
+
+
 @uses_torch("training")
 def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: bool = True,
-          log_every: int = 500, *, threads: int | None = None) -> GanModel:
+          log_every: int = 500, *, robot: Robot | None = None, task: "P.Task | None" = None,
+          threads: int | None = None) -> GanModel:
     """Train a GAN; returns the model with a card holding the loss log and training time.
 
-    ``threads``: torch threads for the call (default: genplan's choice for training, see
-    genplan._threads; the card records the count used)."""
+    ``robot``: the robot (default: ``genplan.load(cfg.robot)``, a preset); ``task``: the task
+    (default: ``cfg.task_name``, a shipped task). ``threads``: torch threads for the call
+    (default: genplan's choice for training, see genplan._threads; the card records the count
+    used)."""
     from genplan.gan.data import cache_path, valid_configurations
 
-    robot = load(cfg.robot)  # cfg is valid: a frozen GanConfig validates when it is made
+    robot = load(cfg.robot) if robot is None else robot  # cfg is valid: a frozen GanConfig validates when made
+    if robot.name != cfg.robot:
+        raise SettingsError(f"GanConfig.robot is '{cfg.robot}', the robot given '{robot.name}'")
+    task = P.load_task(cfg.task_name, robot) if task is None else task
+    if task.name != cfg.task_name:
+        raise SettingsError(f"GanConfig.task is '{cfg.task_name}', the task given '{task.name}'")
+    if robot.continuous:
+        names = [n for n in robot.joint_names if robot.model.joints[robot.model.getJointId(n)].nq == 2]
+        raise SettingsError(f"robot '{robot.name}': the GAN's codec does not handle continuous joints yet "
+                            f"({', '.join(names)}); lock them or give them limits in the URDF")
     if data is not None:
         data = as_configurations(data, robot.nq, "data")
         if data.ndim != 2:
@@ -450,17 +509,17 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
     t_data = time.perf_counter()
     data_source = "given"
     if data is None:
-        data_source = "cache" if cache_path(robot, cfg.data_size, cfg.data_seed).is_file() else "generated"
-        data = valid_configurations(robot, cfg.data_size, cfg.data_seed, progress=progress)
+        data_source = "cache" if cache_path(robot, cfg.data_size, cfg.data_seed, task).is_file() else "generated"
+        data = valid_configurations(robot, cfg.data_size, cfg.data_seed, progress=progress, task=task)
     t_data = time.perf_counter() - t_data
     feats = Codec.features(robot, data)
     # Scales are floored: a feature the constraints pin (Talos' left arm, the Panda hand's axis)
     # has a near-zero spread, and dividing by it would turn any deviation into a huge input.
     mean, std = feats.mean(0), np.maximum(feats.std(0), STD_FLOOR)
     codec = Codec(robot, mean, std)
-    cons = Constraints(robot, cfg)
+    cons = Constraints(robot, cfg, task)
     with torch.no_grad():
-        real_all = cons.evaluate(torch.tensor(data, dtype=torch.float32))
+        real_all = cons.evaluate(torch.tensor(data, dtype=torch.float32), constraint=False)
         real_targets = real_all["ee_pos"].clone()
         real_aug = real_all["augment"].clone()
     real_feats = (torch.tensor(feats, dtype=torch.float32) - codec.mean) / codec.std
@@ -504,13 +563,15 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
     for it in iterator:
         d_loss = torch.tensor(0.0)
         if cfg.use_discriminator:
-            for _ in range(cfg.disc_steps):
-                with torch.no_grad():
-                    out, _ = fake_batch()
-                    pick = torch.from_numpy(rng.integers(0, k * b, size=b))
-                    out = out.reshape(k * b, -1)[pick]
-                    q = codec.decode(out)
-                    fake_in = disc_input(out, cons.evaluate(q)["augment"])
+            # the generator does not change during the discriminator steps: one forward pass
+            # (and one kinematics pass) serves them all, each a batch of b of its k * b samples
+            with torch.no_grad():
+                out, _ = fake_batch()
+                pick = torch.from_numpy(rng.choice(k * b, size=cfg.disc_steps * b, replace=cfg.disc_steps > k))
+                out = out.reshape(k * b, -1)[pick]
+                fakes = disc_input(out, cons.evaluate(codec.decode(out), constraint=False)["augment"])
+            for step in range(cfg.disc_steps):
+                fake_in = fakes[step * b:(step + 1) * b]
                 real_in = real_disc[torch.from_numpy(rng.integers(0, n, size=b))]
                 d_loss = bce(disc(real_in), ones_b) + bce(disc(fake_in), zeros_b)
                 opt_d.zero_grad()
@@ -546,11 +607,13 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
         "robot": cfg.robot,
         "genplan_version": _core.__version__,
         "data": {"size": int(len(data)), "seed": cfg.data_seed, "seconds": t_data, "from": data_source,
-                 "source": "uniform samples in the joint limits projected with the paper's projection task"},
+                 "source": "uniform samples in the joint limits projected onto the task's manifold"},
         "training": {"seconds": train_s, "iterations": cfg.iterations, "seed": cfg.seed,
                      "load_average_1min_start_end": [load_start, os.getloadavg()[0]],
                      "threads": torch.get_num_threads(), "torch": torch.__version__, "loss_log": log},
-        "command": f"genplan train gan --robot {cfg.robot} --seed {cfg.seed}",
+        "command": train_command(robot, None if cfg.task_name == f"{robot.name}_ik" else cfg.task_name, cfg.seed),
+        "task": task.to_dict(),
+        "robot_source": str(robot.source) if robot.source is not None else robot.description.get("urdf"),
         "discriminator_features": {"used": int(disc_keep.sum()), "withheld_pinned": int((~disc_keep).sum())},
     }
     return GanModel(cfg, robot, gen, codec, card)

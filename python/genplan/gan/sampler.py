@@ -56,15 +56,29 @@ class GanSampler:
     """
 
     def __init__(self, robot: Robot, model: GanModel | str | Path | None = None,
-                 box: ArrayLike | None = None, seed: int | None = None, *, threads: int | None = None) -> None:
+                 box: ArrayLike | None = None, seed: int | None = None, *, task: Any = None,
+                 threads: int | None = None) -> None:
         self.robot = robot
-        self.model = model if isinstance(model, GanModel) else load_model(robot, model)
+        self.model = model if isinstance(model, GanModel) else load_model(robot, model, task)
         if self.model.config.robot != robot.name:
             raise ModelFileError(f"the GAN is for '{self.model.config.robot}', not '{robot.name}'")
+        if task is not None and isinstance(model, GanModel):
+            from genplan import projection as P
+
+            name = P.load_task(task, robot).name
+            if name != model.config.task_name:
+                raise ModelFileError(f"the GAN is for task '{model.config.task_name}', not '{name}'")
         self.box = as_box(self.model.config.target_box if box is None else box)
         self.model.check_targets(self.box, "box")
         self.threads = None if threads is None else resolve("small", threads)
         self.rng = np.random.default_rng(seed)
+
+    @classmethod
+    def load(cls, path: str | Path, robot: Robot, task: Any = None, **kwargs: Any) -> "GanSampler":
+        """The sampler of the GAN file ``path`` for ``robot`` (and ``task``: a Task, a shipped
+        task's name or a task file; a GAN trained for another robot or task is refused naming
+        both, see :func:`genplan.gan.load_model`). ``kwargs``: ``box``, ``seed``, ``threads``."""
+        return cls(robot, Path(path), task=task, **kwargs)
 
     def native(self, seed: int | None = None) -> Any:
         """The same sampler run natively (Rust): what the planner uses for ``sampler="gan"``."""

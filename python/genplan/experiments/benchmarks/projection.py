@@ -2,6 +2,11 @@
 
     genplan bench projection --robot panda --init uniform --tasks 500 --seed 0 --out F.json
     genplan bench projection --robot panda --solver scipy ...   # the baseline, same tasks
+    genplan bench projection --robot my_robot.toml --task my_task.toml --init gan --model M.safetensors
+
+With ``--task`` (a task with a [condition], shipped name or file), the projection rows solve its
+manifold (:func:`genplan.gan.costs.manifold_task`) and the IK rows the task itself, its condition
+term aimed at targets drawn in the condition's box; without it, the paper's two tasks of the robot.
 
 The same seed gives the same tasks (initial configurations and IK targets) for every solver, so
 ratios are measured, not guessed. Times are per task, one task after the other on one core.
@@ -38,23 +43,36 @@ SOLVERS = ("gauss-newton", "scipy")
 INITS = ("uniform", "gan")
 
 
-def ik_box(robot: genplan.Robot) -> NDArray[np.float64]:
-    """The box the IK targets are drawn from: the paper's IK task's [condition]."""
-    condition = P.paper_task(robot, "ik").condition
-    assert condition is not None, "the shipped IK tasks have a [condition]"
+def tasks_for(robot: genplan.Robot, task: str | Path | P.Task | None = None) -> dict[str, P.Task]:
+    """The task of each row kind: ``task`` (its manifold for projection, itself for IK), or the
+    paper's projection and IK tasks of the robot when ``task`` is None."""
+    if task is None:
+        return {kind: P.paper_task(robot, kind) for kind in P.TASK_KINDS}
+    from genplan.gan.costs import manifold_task
+
+    t = P.load_task(task, robot)
+    return {"projection": manifold_task(t, robot), "ik": t}
+
+
+def ik_box(tasks: dict[str, P.Task]) -> NDArray[np.float64]:
+    """The box the IK targets are drawn from: the IK task's [condition]."""
+    condition = tasks["ik"].condition
+    assert condition is not None, "an IK task has a [condition] (checked by manifold_task)"
     return np.array([condition.low, condition.high])
 
 
 def make_problems(robot: genplan.Robot, n: int, seed: int, init: str = "uniform",
-                  model_path: Path | None = None) -> dict[str, Any]:
+                  model_path: Path | None = None, tasks: dict[str, P.Task] | None = None) -> dict[str, Any]:
     """Seeded tasks: initial configurations for projection and for IK, and the IK targets.
 
-    ``init="gan"``: the initial configurations come from the shipped GAN (or ``model_path``),
-    conditioned on a random target in the GAN's box for projection and on the IK target for IK;
-    the time to sample them is reported separately (``gan_sample_ms_per_task``).
+    ``init="gan"``: the initial configurations come from the shipped GAN (or ``model_path``; a
+    GAN for another robot or task is refused), conditioned on a random target in the GAN's box
+    for projection and on the IK target for IK; the time to sample them is reported separately
+    (``gan_sample_ms_per_task``).
     """
+    tasks = tasks_for(robot) if tasks is None else tasks
     rng = np.random.default_rng(seed)
-    box = ik_box(robot)
+    box = ik_box(tasks)
     problems: dict[str, Any] = {
         "projection": {"q0": robot.random_configurations(n, rng)},
         "ik": {"q0": robot.random_configurations(n, rng), "targets": rng.uniform(box[0], box[1], size=(n, 3))},
@@ -62,7 +80,7 @@ def make_problems(robot: genplan.Robot, n: int, seed: int, init: str = "uniform"
     if init == "gan":
         from genplan.gan.model import load_model
 
-        model = load_model(robot, model_path)
+        model = load_model(robot, model_path, task=tasks["ik"])
         gbox = np.asarray(model.config.target_box)
         t0 = time.perf_counter()
         problems["projection"]["q0"] = model.sample(rng.uniform(gbox[0], gbox[1], size=(n, 3)), rng)
@@ -93,10 +111,11 @@ def target_term(task: P.Task) -> str:
     return task.condition.term
 
 
-def run_gauss_newton(robot: genplan.Robot, problems: dict[str, Any], backend: str) -> dict[str, Any]:
+def run_gauss_newton(robot: genplan.Robot, problems: dict[str, Any], backend: str,
+                     tasks: dict[str, P.Task]) -> dict[str, Any]:
     out = {}
     for kind in P.TASK_KINDS:
-        task = P.paper_task(robot, kind)
+        task = tasks[kind]
         solver = P.GaussNewtonProjector(robot, task, backend=backend)
         targets = {target_term(task): problems[kind]["targets"]} if kind == "ik" else None
         t0 = time.perf_counter()
@@ -107,14 +126,14 @@ def run_gauss_newton(robot: genplan.Robot, problems: dict[str, Any], backend: st
     return out
 
 
-def run_scipy(robot: genplan.Robot, problems: dict[str, Any]) -> dict[str, Any]:
+def run_scipy(robot: genplan.Robot, problems: dict[str, Any], tasks: dict[str, P.Task]) -> dict[str, Any]:
     from tqdm import tqdm
 
     from genplan.experiments.peers.scipy import scipy_solve
 
     out = {}
     for kind in P.TASK_KINDS:
-        base = P.paper_task(robot, kind)
+        base = tasks[kind]
         q0s = problems[kind]["q0"]
         rows = []
         t0 = time.perf_counter()
@@ -128,27 +147,31 @@ def run_scipy(robot: genplan.Robot, problems: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def task_description(robot: genplan.Robot) -> dict[str, Any]:
+def task_description(tasks: dict[str, P.Task]) -> dict[str, Any]:
     """Weights and thresholds of the tasks that were run."""
     desc = {}
     for kind in P.TASK_KINDS:
-        task = P.paper_task(robot, kind)
+        task = tasks[kind]
         desc[kind] = {t.label(): {"type": type(t).__name__, "weight": t.weight, "tolerance": t.tolerance}
                       for t in [*task.primary, *task.secondary]}
     return desc
 
 
 def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend: str,
-        model_path: Path | None = None) -> dict[str, Any]:
+        model_path: Path | None = None, task: str | Path | None = None) -> dict[str, Any]:
     robot = genplan.load(robot_name)
-    problems = make_problems(robot, tasks, seed, init, model_path)
+    kinds = tasks_for(robot, task)
+    problems = make_problems(robot, tasks, seed, init, model_path, kinds)
     if solver == "gauss-newton":
-        results = run_gauss_newton(robot, problems, backend)
+        results = run_gauss_newton(robot, problems, backend, kinds)
     else:
-        results = run_scipy(robot, problems)
+        results = run_scipy(robot, problems, kinds)
+    paper = task is None and (robot.name, "ik", init) in PAPER_TABLE_I
     payload: dict[str, Any] = {
         "benchmark": "projection",
-        "robot": robot_name,
+        "robot": robot.name,
+        "robot_argument": str(robot_name),
+        "task": None if task is None else kinds["ik"].name,
         "init": init,
         "solver": solver,
         "backend": backend if solver == "gauss-newton" else "scipy.optimize.least_squares(trf)",
@@ -156,14 +179,14 @@ def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend:
         "seed": seed,
         "units": {"success_rate": "percent", "t_*": "milliseconds per task", "steps_star": "solver iterations"
                   + (" (function evaluations for scipy)" if solver == "scipy" else "")},
-        "ik_target_box": ik_box(robot).tolist(),
+        "ik_target_box": ik_box(kinds).tolist(),
         **({k: problems[k] for k in ("gan_sample_ms_per_task", "gan_model") if k in problems}),
         "settings": P.SolverSettings().to_dict(),
-        "task_terms": task_description(robot),
+        "task_terms": task_description(kinds),
         "machine": machine(),
         **results,
         "paper": {kind: dict(zip(("success_rate", "t_ave_ms", "t_star_ave_ms", "steps_star"),
-                                 PAPER_TABLE_I[(robot_name, kind, init)])) for kind in P.TASK_KINDS},
+                                 PAPER_TABLE_I[(robot.name, kind, init)])) for kind in P.TASK_KINDS} if paper else None,
     }
     return payload
 
@@ -171,18 +194,21 @@ def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend:
 def print_table(payload: dict[str, Any]) -> None:
     rows = []
     for kind in P.TASK_KINDS:
-        r, p = payload[kind], payload["paper"][kind]
+        r, p = payload[kind], (payload["paper"] or {}).get(kind)
         rows.append([payload["robot"], kind, f"{payload['init']} ({payload['solver']})",
                      f"{r['success_rate']:.1f}", f"{r['t_ave_ms']:.3f} ± {r['t_std_ms']:.3f}",
                      "-" if r["t_star_ave_ms"] is None else f"{r['t_star_ave_ms']:.3f}",
                      "-" if r["steps_star"] is None else f"{r['steps_star']:.1f}",
-                     f"{p['success_rate']} / {p['t_ave_ms']} / {p['t_star_ave_ms']} / {p['steps_star']}"])
+                     "-" if p is None else f"{p['success_rate']} / {p['t_ave_ms']} / {p['t_star_ave_ms']} / {p['steps_star']}"])
     print(table(["robot", "task", "init (solver)", "success %", "T_ave ms", "T*_ave ms", "steps*",
                  "paper: success / T_ave / T* / steps*"], rows))
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--robot", choices=["panda", "talos"], required=True)
+    p.add_argument("--robot", required=True, help="a preset name or a robot file (.toml)")
+    p.add_argument("--task", default=None,
+                   help="a task with a [condition] (shipped name or task file); default: the paper's two tasks "
+                        "(panda, talos)")
     p.add_argument("--init", choices=INITS, default="uniform", help="initial configurations")
     p.add_argument("--tasks", type=A.positive_int, default=500, help="tasks per kind (projection, IK)")
     p.add_argument("--seed", type=A.seed, default=0)
@@ -194,7 +220,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    payload = run(args.robot, args.init, args.tasks, args.seed, args.solver, args.backend, args.model)
+    payload = run(args.robot, args.init, args.tasks, args.seed, args.solver, args.backend, args.model, args.task)
     print_table(payload)
     write_json(args.out, payload)
     return 0

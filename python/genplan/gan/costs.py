@@ -1,0 +1,130 @@
+"""The costs a learned sampler is trained with, for any robot and task, from the native solver.
+
+A task's constraint cost is the squared norm of its primary terms' weighted residuals (the
+condition term and the joint limits left out: the first is the target cost, the second the
+limits cost), evaluated by the native projector (``_core.Projector.primary_residuals``, Rust,
+all cores) inside a torch autograd function: its backward multiplies the residuals' gradient by
+the native Jacobian (tangent space, nv columns) and by the map from configuration coordinates to
+the tangent space (:func:`tangent_map`). So no robot needs torch code of its own: what a task
+constrains is what the GAN learns, whatever the robot.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import torch
+from numpy.typing import NDArray
+
+from genplan import _core
+from genplan import projection as P
+from genplan.errors import GenplanError, SettingsError, UnknownNameError
+from genplan.projection import condition_term, manifold_task
+from genplan.robots import Robot
+
+__all__ = ["NativeCost", "condition_term", "constraint_terms", "default_task_name", "manifold_task", "sampling_box",
+           "tangent_map"]
+
+
+def default_task_name(robot: Robot) -> str:
+    """The task a GAN of ``robot`` is for when none is named: the shipped ``<robot>_ik``, else a
+    SettingsError asking for one."""
+    name = f"{robot.name}_ik"
+    if name not in P.task_names():
+        raise SettingsError(f"robot '{robot.name}' has no shipped task: give one (a task file with a [condition], "
+                            f"see docs/TASKS.md; shipped tasks: {', '.join(P.task_names())})")
+    return name
+
+
+def constraint_terms(task: P.Task, robot: Robot | None = None) -> tuple[P.Term, ...]:
+    """The manifold task's primary terms a GAN's constraint cost holds (joint limits excluded:
+    the GAN has a limits cost of its own)."""
+    return tuple(t for t in manifold_task(task, robot).primary if not isinstance(t, P.JointLimits))
+
+
+def tangent_map(robot: Robot, q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """d v / d q at each row of ``q`` (n, nq): (n, nv, nq), the linear map from a change of the
+    configuration's coordinates to the tangent (velocity) vector Pinocchio and the native solver
+    differentiate in. Identity for 1-dof joints; a free-flyer's position change is rotated into the
+    base frame (R^T) and its quaternion change maps to 2 vec(conj(q) * dq); a continuous joint's
+    (cos, sin) change to its angle, c ds - s dc. Exact along the configuration manifold."""
+    n = len(q)
+    out = np.zeros((n, robot.nv, robot.nq))
+    model = robot.model
+    for jid in range(1, model.njoints):
+        j = model.joints[jid]
+        iq, iv = int(j.idx_q), int(j.idx_v)
+        if j.nq == j.nv:  # revolute, prismatic (1 dof) and other vector-space joints
+            out[:, np.arange(iv, iv + j.nv), np.arange(iq, iq + j.nq)] = 1.0
+        elif j.shortname() == "JointModelFreeFlyer":
+            quat = q[:, iq + 3 : iq + 7]
+            x, y, z, w = quat.T
+            rot = np.array([pin.Quaternion(w[i], x[i], y[i], z[i]).toRotationMatrix() for i in range(n)])
+            out[:, iv : iv + 3, iq : iq + 3] = np.transpose(rot, (0, 2, 1))
+            u = quat[:, :3]
+            skew = np.zeros((n, 3, 3))
+            skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -u[:, 2], u[:, 1], -u[:, 0]
+            skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = u[:, 2], -u[:, 1], u[:, 0]
+            out[:, iv + 3 : iv + 6, iq + 3 : iq + 6] = 2.0 * (w[:, None, None] * np.eye(3) - skew)
+            out[:, iv + 3 : iv + 6, iq + 6] = -2.0 * u
+        elif j.nq == 2 and j.nv == 1:
+            out[:, iv, iq] = -q[:, iq + 1]
+            out[:, iv, iq + 1] = q[:, iq]
+        else:
+            raise GenplanError(f"joint {model.names[jid]} ({j.shortname()}) has no tangent map")
+    return out
+
+
+class NativeCost:
+    """The constraint residuals of ``terms`` on ``robot`` as a differentiable torch function:
+    ``cost(q)`` (B, nq) float32 or float64 -> residuals (B, m) of the same dtype, whose backward
+    uses the native Jacobians. Rows are computed on all cores (GIL released)."""
+
+    def __init__(self, robot: Robot, terms: tuple[P.Term, ...]) -> None:
+        self.robot = robot
+        self.terms = terms
+        self.dim = 0
+        self._native: _core.Projector | None = None
+        if terms:
+            self._native = _core.Projector(robot.kinematics, [t.to_native(robot) for t in terms])
+
+    def __call__(self, q: torch.Tensor) -> torch.Tensor:
+        if self._native is None:
+            return q.new_zeros((q.shape[0], 0))
+        out: torch.Tensor = _NativeResiduals.apply(q, self)
+        return out
+
+    def evaluate(self, q: NDArray[np.float64], jacobian: bool) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        assert self._native is not None
+        return self._native.primary_residuals(np.ascontiguousarray(q, dtype=np.float64), jacobian)
+
+
+class _NativeResiduals(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx: Any, q: torch.Tensor, cost: NativeCost) -> torch.Tensor:  # type: ignore[override]
+        qn = q.detach().double().numpy()
+        r, jac = cost.evaluate(qn, jacobian=q.requires_grad)
+        if jac is not None:
+            # d r / d q = J (tangent) @ d v / d q, one (m, nq) matrix per row
+            ctx.save_for_backward(torch.from_numpy(np.einsum("bmv,bvq->bmq", jac, tangent_map(cost.robot, qn))))
+        return torch.from_numpy(r).to(q.dtype)
+
+    @staticmethod
+    def backward(ctx: Any, grad: torch.Tensor) -> tuple[torch.Tensor, None]:  # type: ignore[override]
+        (jq,) = ctx.saved_tensors
+        return torch.einsum("bm,bmq->bq", grad.double(), jq).to(grad.dtype), None
+
+
+def sampling_box(task: P.Task) -> NDArray[np.float64]:
+    """Where a sampler draws its targets when a planner asks for configurations without one,
+    [[low], [high]]: the condition's ``sample_low`` / ``sample_high`` when the task gives them
+    (the paper's tuned regions of interest), else its ``low`` / ``high``."""
+    condition_term(task)
+    cond = task.condition
+    assert cond is not None
+    low = cond.low if cond.sample_low is None else cond.sample_low
+    high = cond.high if cond.sample_high is None else cond.sample_high
+    return np.array([low, high], dtype=np.float64)
