@@ -111,6 +111,8 @@ OUTPUTS = [
     ("train gan", "--robot panda", "--out", "file"),
     ("train seq2seq", "", "--out", "file"),
     ("report", "{tmp}", "--out", "file"),
+    ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5", "--out", "file"),
+    ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5 --out {tmp}/p.json", "--html", "file"),
     ("reproduce", "--quick", "--out", "folder"),
 ]
 

@@ -74,6 +74,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 #: imports light (no torch) and defines ``add_arguments(parser)`` and ``main(args) -> int``.
 COMMANDS: list[tuple[str, str, str, str]] = [
     ("", "report", "genplan.experiments.report", "report.md from a folder of benchmark JSON (e.g. benches/results)"),
+    ("", "plan", "genplan.planning.plan_cli", "one constrained plan for any robot, task and scene (JSON, HTML view)"),
     ("", "reproduce", "genplan.experiments.reproduce", "the main job: rerun both papers' experiments with the shipped models, write a report"),
     ("bench", "robots", "genplan.experiments.benchmarks.robots", "any robot through one path: FK vs Pinocchio, collision vs coal, load time"),
     ("bench", "projection", "genplan.experiments.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),

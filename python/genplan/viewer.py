@@ -301,6 +301,45 @@ def _check_halfspaces(halfspaces: Sequence[_HalfSpace]) -> list[tuple[str, NDArr
     return out
 
 
+def _scene_shapes(scene: Any) -> tuple[list[tuple[str, NDArray[np.float64], float]],
+                                        list[tuple[str, NDArray[np.float32], NDArray[np.uint32]]]]:
+    """A scene's half-spaces ``(name, normal, offset)`` and its other obstacles as triangle
+    meshes in the world ``(name, vertices, faces)``."""
+    import trimesh
+    import trimesh.creation as tc
+
+    from genplan.scene import Box, Capsule, Cylinder, HalfSpace, Mesh, Sphere, load_scene
+
+    s = load_scene(scene)
+    planes: list[tuple[str, NDArray[np.float64], float]] = []
+    meshes: list[tuple[str, NDArray[np.float32], NDArray[np.uint32]]] = []
+    for o in s.obstacles:
+        if isinstance(o, HalfSpace):
+            planes.append((o.name, np.asarray(o.normal, dtype=np.float64), float(o.offset)))
+            continue
+        if isinstance(o, Box):
+            m = tc.box(extents=2.0 * np.asarray(o.half_extents))
+        elif isinstance(o, Sphere):
+            m = tc.icosphere(subdivisions=2, radius=float(o.radius))
+        elif isinstance(o, Cylinder):
+            m = tc.cylinder(radius=float(o.radius), height=float(o.length), sections=24)
+        elif isinstance(o, Capsule):
+            m = tc.capsule(height=float(o.length), radius=float(o.radius), count=(16, 16))
+        elif isinstance(o, Mesh):
+            loaded = trimesh.load_mesh(str(o.path))
+            # collision treats a mesh obstacle as its convex hull (docs/SCENES.md): draw that
+            m = loaded.convex_hull
+            m.apply_scale(np.asarray(o.scale, dtype=np.float64))
+        else:  # pragma: no cover - Scene admits only the classes above
+            raise GenplanError(f"scene '{s.name}': cannot draw {type(o).__name__} '{o.name}'")
+        t = np.eye(4)
+        t[:3, :3] = o.pose.matrix()
+        t[:3, 3] = o.pose.position
+        m.apply_transform(t)
+        meshes.append((o.name, np.asarray(m.vertices, dtype=np.float32), np.asarray(m.faces, dtype=np.uint32)))
+    return planes, meshes
+
+
 def _legend(title: str, trail_label: str | None, obstacles: bool) -> str:
     """A small fixed overlay: the title, what the colours mean, how to move the camera."""
     items = []
@@ -348,6 +387,7 @@ def export_html(
     trail_frame: str | None = None,
     ground: bool = True,
     dark_mode: bool = False,
+    scene: Any = None,
 ) -> Path:
     """Write a self-contained HTML viewer of ``robot`` moving along ``path``; returns ``out``.
 
@@ -357,6 +397,9 @@ def export_html(
         out: the HTML file to write (its folder is created).
         boxes: obstacles with ``name``, ``half_extents`` and ``center`` (e.g. ``env.boxes``).
         halfspaces: ``(name, normal, offset)`` planes (e.g. ``env.halfspaces``), drawn as a grid.
+        scene: a :class:`genplan.scene.Scene` (or a shipped scene's name, or a scene file): every
+            obstacle drawn in place (boxes, spheres, cylinders, capsules, meshes; half-spaces as
+            grids), besides ``boxes`` and ``halfspaces``.
         fps: playback rate of the subsampled frames at speed 1x.
         max_frames: at most this many frames are animated (evenly subsampled, first and last
             kept); the trail of ``trail_frame`` uses every state.
@@ -382,6 +425,10 @@ def export_html(
         raise SettingsError(f"fps must be a positive number, got {fps}")
     obstacles = _check_boxes(boxes)
     planes = _check_halfspaces(halfspaces)
+    shapes: list[tuple[str, NDArray[np.float32], NDArray[np.uint32]]] = []
+    if scene is not None:
+        extra_planes, shapes = _scene_shapes(scene)
+        planes += extra_planes
     out_path = _check_out(out)
     frames = q[subsample_path(q, max_frames)]
 
@@ -415,6 +462,8 @@ def export_html(
         cloud.append(trail)
     for b in obstacles:
         cloud.append(np.stack([b.center - b.half_extents, b.center + b.half_extents]))
+    for _, v, _ in shapes:
+        cloud.append(v.astype(np.float64))
     all_pts = np.concatenate(cloud)
     lo, hi = all_pts.min(axis=0), all_pts.max(axis=0)
     center = 0.5 * (lo + hi)
@@ -436,6 +485,8 @@ def export_html(
         for b in obstacles:
             scene.add_box(f"/environment/{b.name}", color=_OBSTACLE_COLOR, dimensions=2.0 * b.half_extents,
                           position=b.center, flat_shading=True)
+        for shape_name, v, f in shapes:
+            scene.add_mesh_simple(f"/environment/{shape_name}", v, f, color=_OBSTACLE_COLOR, flat_shading=True)
         if trail is not None and len(trail) > 1:
             seg = np.stack([trail[:-1], trail[1:]], axis=1).astype(np.float32)
             scene.add_line_segments("/trail/path", seg, _TRAIL_COLOR, thickness=3.0,
@@ -476,7 +527,7 @@ def export_html(
         page = recording.as_html(dark_mode=dark_mode)
 
     page = page.replace("<title>Viser</title>", f"<title>{html.escape(name)}</title>", 1)
-    legend = _legend(name, trail_frame if trail is not None else None, bool(obstacles))
+    legend = _legend(name, trail_frame if trail is not None else None, bool(obstacles or shapes))
     i = page.rfind("</body>")
     page = page[:i] + legend + page[i:] if i >= 0 else page + legend
     tmp = None

@@ -30,6 +30,8 @@ before the search (see :meth:`Planner.plan`).
 from __future__ import annotations
 
 
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,15 +39,18 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
 from genplan.collision import CollisionWorld
-from genplan.errors import ShapeError, UnknownNameError
+from genplan.errors import SettingsError, ShapeError, UnknownNameError
 from genplan.planning.environments import ENVIRONMENT_NAMES, Environment, Query, environment
+from genplan.planning.problem import Outcome, make_query
 from genplan.planning.queries import TOLERANCE_FACTOR
+from genplan import projection as P  # noqa: I001
 from genplan.projection import ComBox, GaussNewtonProjector, Task, paper_task
 from genplan.robots import Robot
 
 __all__ = [
     "ENVIRONMENT_NAMES",
     "Environment",
+    "Outcome",
     "PlanResult",
     "PlanStats",
     "Planner",
@@ -53,7 +58,9 @@ __all__ = [
     "Query",
     "SAMPLERS",
     "environment",
+    "make_query",
     "make_sampler",
+    "plan",
     "uniform_base_box",
 ]
 
@@ -186,3 +193,44 @@ class Planner:
         g = np.ascontiguousarray(g.reshape(-1, self.robot.nq))
         smp = self.sampler if sampler is None else make_sampler(self.robot, sampler, base_box=self.base_box)
         return self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel)
+
+
+def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike[str], scene: Any = None, *,
+         start: ArrayLike | str = "default", goal: ArrayLike | None = None, target: ArrayLike | None = None,
+         sampler: str = "uniform", model: str | os.PathLike[str] | None = None, k: int = 10, seed: int = 0,
+         settings: PlannerSettings | None = None, parallel: bool = True) -> Outcome:
+    """Plan for ``robot`` (a Robot or what :func:`genplan.load` takes) on the manifold of ``task``
+    (a Task, shipped name or task file, with a [condition]) among ``scene`` (a Scene, a shipped
+    scene's name or a scene file; None: no obstacles, self-collision only), from ``start`` to
+    ``goal`` or to IK goals for ``target`` (:func:`make_query`). ``sampler``: "uniform", "gan" or
+    "hybrid" (the GAN of ``model``, which must be trained for this robot and task).
+
+    Not finding a path within the settings' budget is ``outcome.result.success == False``."""
+    from genplan.gan.costs import manifold_task
+    from genplan.robots import load
+
+    rob = robot if isinstance(robot, Robot) else load(robot)
+    t = P.load_task(task, rob)
+    if sampler not in SAMPLERS:
+        raise UnknownNameError(f"unknown sampler '{sampler}' (known: {', '.join(SAMPLERS)})")
+    gan_model = None
+    if sampler != "uniform":
+        if model is None:
+            raise SettingsError(f"sampler '{sampler}' needs a model: a GAN trained for robot '{rob.name}' and task "
+                                f"'{t.name}' (genplan train gan --robot ... --task ...)")
+        from genplan.gan.model import load_model
+
+        gan_model = load_model(rob, Path(model), task=t)  # another robot's or task's GAN: refused, both named
+    world = rob.collision_world()
+    scene_obj = None
+    if scene is not None:
+        from genplan.scene import load_scene
+
+        scene_obj = load_scene(scene)
+        world.add_scene(scene_obj)
+    manifold = manifold_task(t, rob)
+    query = make_query(rob, t, world, start, goal, target, k=k, seed=seed)
+    planner = Planner(rob, world=world, task=manifold, sampler=sampler, gan_model=gan_model, seed=seed,
+                      settings=settings, parallel=parallel)
+    result = planner.plan(query.start, query.goals)
+    return Outcome(rob, t, manifold, world, query, result, sampler, scene_obj)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -22,29 +22,27 @@ TOLERANCE_FACTOR = 0.1
 
 
 def _ik_task(robot: Robot, env: Environment, yaw: float) -> P.Task:
-    if robot.name == "panda":
-        # the authors' query IK: hand position and full orientation (gripper horizontal, pointing
-        # along the given yaw), joint limits
-        return P.Task(
-            primary=[
-                P.FramePosition(name="hand_position", frame="hand", target=(0.5, 0.0, 0.5), weight=50, tolerance=1e-3),
-                P.FrameOrientation(name="hand_orientation", frame="hand", axes=(1, 1, 1), offset=P.PANDA_HAND_OFFSET,
-                                   target=pin.utils.rotate("z", yaw), weight=30, tolerance=1e-3),
-                P.JointLimits(name="joint_limits", weight=30, tolerance=1e-3),
-            ],
-            secondary=[P.Posture(name="posture")],
-            name=f"{env.name}_query_ik",
-        )
-    return P.paper_task(robot, "ik")
+    """The environment's query IK task (its ``task``, default the robot's ``<robot>_ik``), its
+    ``yaw_term`` aimed at a rotation by ``yaw`` about the vertical."""
+    task = P.load_task(env.task if env.task is not None else f"{robot.name}_ik", robot)
+    if env.yaw_term is not None:
+        task = task.with_targets(**{env.yaw_term: pin.utils.rotate("z", yaw)})
+    return task
 
 
-def _solve(robot: Robot, ik: P.GaussNewtonProjector, proj: P.GaussNewtonProjector, world, target: NDArray[np.float64],
-           rng: np.random.Generator, want: int, max_tries: int) -> NDArray[np.float64]:
-    """Up to ``want`` valid configurations reaching ``target``: IK from uniform guesses, then the
-    planning projection (tighter tolerances) around the IK solution; collision-free ones kept."""
+def _target_term(task: P.Task) -> str:
+    if task.condition is None:
+        raise GenplanError(f"query IK task '{task.name}' has no [condition]: which term the targets aim is unknown")
+    return task.condition.term
+
+
+def solve_ik(robot: Robot, ik: P.GaussNewtonProjector, term: str, proj: P.GaussNewtonProjector, world: Any,
+             target: NDArray[np.float64], rng: np.random.Generator, want: int, max_tries: int) -> NDArray[np.float64]:
+    """Up to ``want`` valid configurations reaching ``target`` (the target of ``ik``'s primary term
+    ``term``): IK from uniform guesses, then the planning projection ``proj`` (tighter tolerances)
+    around the IK solution; collision-free ones (``world.in_collision``) kept."""
     found: list[NDArray[np.float64]] = []
     tries = 0
-    term = ik.task.primary[0].label()
     while len(found) < want and tries < max_tries:
         q0 = robot.random_configurations(_BATCH, rng)
         tries += _BATCH
@@ -72,9 +70,10 @@ def make_queries(env: Environment, robot: Robot, n: int, seed: int = 0, k: int =
     rng = np.random.default_rng(seed)
     world = env.world(robot)
     # starts and goals are projected as tightly as the planner projects its states
-    proj = P.GaussNewtonProjector(robot, P.paper_task(robot, "projection").with_tolerances_scaled(TOLERANCE_FACTOR))
     ik_start = P.GaussNewtonProjector(robot, _ik_task(robot, env, env.start_yaw))
     ik_goal = P.GaussNewtonProjector(robot, _ik_task(robot, env, env.goal_yaw))
+    # the manifold the planner plans on: the IK task's (for the paper's tasks, the projection task)
+    proj = P.GaussNewtonProjector(robot, P.manifold_task(ik_start.task, robot).with_tolerances_scaled(TOLERANCE_FACTOR))
 
     def draw(discrete: tuple[tuple[float, float, float], ...], box) -> NDArray[np.float64]:  # type: ignore[no-untyped-def]
         if discrete:
@@ -94,11 +93,11 @@ def make_queries(env: Environment, robot: Robot, n: int, seed: int = 0, k: int =
         if attempts > 20 * n + 20:
             raise RuntimeError(f"{env.name}: could not build {n} queries (IK keeps failing or colliding)")
         start_target = draw(env.start_targets, env.start_box)
-        start = _solve(robot, ik_start, proj, world, start_target, rng, 1, max_tries)
+        start = solve_ik(robot, ik_start, _target_term(ik_start.task), proj, world, start_target, rng, 1, max_tries)
         if len(start) == 0:
             continue
         goal_target = draw(env.goal_targets, env.goal_box)
-        goals = _solve(robot, ik_goal, proj, world, goal_target, rng, k, max_tries)
+        goals = solve_ik(robot, ik_goal, _target_term(ik_goal.task), proj, world, goal_target, rng, k, max_tries)
         if len(goals) < k:
             continue
         out.append(Query(start=start[0], goals=goals, start_target=start_target, goal_target=goal_target))

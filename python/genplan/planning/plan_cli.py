@@ -1,0 +1,75 @@
+"""``genplan plan``: one constrained plan for any robot, task and scene (genplan.planning.plan).
+
+    genplan plan --robot examples/xarm7/xarm7.toml --task examples/xarm7/upright_cup.toml \\
+        --scene examples/xarm7/table_box.toml --start default --target 0.4 -0.3 0.3 \\
+        --sampler gan --model cup.safetensors --out plan.json --html plan.html
+
+The start (``default`` or nq numbers) is projected onto the task's manifold; the goal is a
+configuration (``--goal``, nq numbers) or IK solutions for a target of the task's condition
+(``--target X Y Z``). The JSON holds the query, the path and the planner's statistics; the HTML
+view draws the robot, the scene and the trail of the task's condition frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from genplan import _cli_args as A
+
+
+def _numbers(text: str) -> list[float]:
+    try:
+        values = [float(x) for x in text.replace(",", " ").split()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers separated by spaces or commas, got {text!r}") from None
+    if not values:
+        raise argparse.ArgumentTypeError("expected numbers, got none")
+    return values
+
+
+def _start(text: str) -> str | list[float]:
+    return "default" if text == "default" else _numbers(text)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    from genplan.planning import SAMPLERS
+
+    p.add_argument("--robot", required=True, help="a preset name or a robot file (.toml)")
+    p.add_argument("--task", required=True, help="a task with a [condition]: shipped name or task file (.toml)")
+    p.add_argument("--scene", default=None, help="obstacles: a shipped scene's name or a scene file (.toml)")
+    p.add_argument("--start", type=_start, default="default",
+                   help="'default' (the robot's default configuration) or nq numbers; projected onto the manifold")
+    goal = p.add_mutually_exclusive_group(required=True)
+    goal.add_argument("--goal", type=_numbers, default=None, help="a goal configuration (nq numbers)")
+    goal.add_argument("--target", type=float, nargs=3, metavar=("X", "Y", "Z"), default=None,
+                      help="a target of the task's condition term: goals by IK")
+    p.add_argument("--goals", type=A.positive_int, default=10, help="IK goals for --target (default 10)")
+    p.add_argument("--sampler", choices=SAMPLERS, default="uniform")
+    p.add_argument("--model", type=A.existing_file, default=None, help="the GAN for --sampler gan or hybrid")
+    p.add_argument("--seed", type=A.seed, default=0)
+    p.add_argument("--out", type=A.output_file, required=True, help="the plan as JSON")
+    p.add_argument("--html", type=A.output_file, default=None,
+                   help="a self-contained HTML view of the plan (needs the viewer extra: pip install genplan[viewer])")
+
+
+def main(args: argparse.Namespace) -> int:
+    from genplan._files import write_text
+    from genplan.planning import plan
+
+    outcome = plan(args.robot, args.task, args.scene, start=args.start, goal=args.goal, target=args.target,
+                   sampler=args.sampler, model=args.model, k=args.goals, seed=args.seed)
+    r = outcome.result
+    write_text(args.out, json.dumps(outcome.to_dict(), indent=1) + "\n")
+    print(f"{'found' if r.success else 'no path found'}: {len(r.path)} states, {r.stats.extensions} extensions, "
+          f"{r.time_s * 1e3:.1f} ms ({args.sampler} sampler); wrote {args.out}")
+    if args.html is not None:
+        if not r.success:
+            print("no path: no HTML view written")
+            return 1
+        from genplan.viewer import export_html
+
+        export_html(outcome.robot, r.path, args.html, scene=outcome.scene, trail_frame=outcome.trail_frame,
+                    title=f"genplan plan: {outcome.robot.name}, task {outcome.task.name}, {args.sampler} sampler")
+        print(f"wrote {args.html}")
+    return 0 if r.success else 1
