@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -19,7 +20,7 @@ def run(script: str, *args: str) -> str:
 
 def test_every_example_is_tested() -> None:
     tested = {"01_plan_with_gan_sampler.py", "02_ik_with_a_custom_task.py", "03_adjust_a_trajectory.py",
-              "04_execute_with_the_controller.py"}
+              "04_execute_with_the_controller.py", "05_your_own_robot.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -48,3 +49,19 @@ def test_04_execute_with_the_controller() -> None:
     turn = {line.split("  ")[0]: line for line in lines if line.startswith("turn-over")}
     assert "slipped" in turn["turn-over, unadjusted"] and "slipped" in turn["turn-over, J2"]
     assert "stayed" in turn["turn-over, J2Executable"]
+
+
+def test_05_your_own_robot(tmp_path) -> None:
+    """xArm7 (not a preset), the upright-cup task: a small sampler trained, evaluated against
+    uniform starts, a plan around the box, the HTML view (small sizes: the defaults take minutes)."""
+    out = run("05_your_own_robot.py", "--iterations", "100", "--data-size", "1000", "--eval-targets", "100",
+              "--out-dir", str(tmp_path))
+    assert "xarm7: 7 joints" in out
+    trained = next(line for line in out.splitlines() if line.startswith("trained in"))
+    # projection from GAN samples needs fewer steps than from uniform ones, even after 100 iterations
+    gan, uniform = (float(x.split(" in ")[1].split(" steps")[0]) for x in trained.split("projection: ")[1].split(";")[0].split(", "))
+    assert gan < uniform
+    assert "plan: success True" in out
+    assert (tmp_path / "cup.safetensors").is_file() and (tmp_path / "plan.json").is_file()
+    if importlib.util.find_spec("viser") is not None:
+        assert (tmp_path / "plan.html").stat().st_size > 100_000

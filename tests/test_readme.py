@@ -4,6 +4,7 @@ this stays quick; the slowest line is the 500-update turn-over plan (a few secon
 
 from __future__ import annotations
 
+import os
 import re
 import warnings
 from pathlib import Path
@@ -20,8 +21,17 @@ def test_the_readme_has_python_blocks() -> None:
 
 
 @pytest.fixture(scope="module")
-def namespace() -> dict:
-    return {"__name__": "readme"}
+def namespace(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    """The blocks run in a fresh folder holding ``examples`` (a link to the repository's), as in a
+    checkout: what they write (e.g. ``cup.safetensors``) lands there, not in the repository."""
+    folder = tmp_path_factory.mktemp("readme")
+    (folder / "examples").symlink_to(README.parent / "examples")
+    before = os.getcwd()
+    os.chdir(folder)
+    try:
+        yield {"__name__": "readme"}
+    finally:
+        os.chdir(before)
 
 
 @pytest.mark.parametrize("index", range(len(BLOCKS)), ids=[f"block{i + 1}" for i in range(len(BLOCKS))])
