@@ -313,3 +313,30 @@ def test_the_example_of_docs_tasks_runs_natively() -> None:
     exec(compile(block.group(1), "docs/TASKS.md", "exec"), namespace)
     assert namespace["solver"].native is not None
     assert namespace["res"].success and len(namespace["batch"]) == 8
+
+
+def test_a_plan_on_a_custom_term_and_its_exceptions(panda: genplan.Robot) -> None:
+    """The planner projects with the custom term natively (rust/core/src/planning/projector.rs):
+    a plan on the upright manifold succeeds and every state holds the term; an exception the
+    term raises mid-plan ends the plan and reaches the caller as itself, and a bad output as a
+    typed error naming the term."""
+    from genplan.planning import Planner
+
+    task = _upright_task(panda)
+    solver = P.GaussNewtonProjector(panda, task)
+    ends = solver.solve_batch(_starts(panda, 40, seed=5))
+    free = ~np.asarray(panda.collision_world().in_collision(ends.q)) & ends.success
+    start, goal = ends.q[free][:2]
+    result = Planner(panda, task=task, seed=0).plan(start, goal[None])
+    assert result.success
+    z = panda.link_poses(result.path, [panda.frames["hand"]])[:, 0, :2, 2]
+    assert np.abs(z).max() < 1e-5
+    boom = Boom("mid-plan")
+    faulty = _upright_task(panda, Faulty(robot=panda, name="upright", weight=10.0, tolerance=1e-6, after=40, error=boom))
+    with pytest.raises(Boom) as info:
+        Planner(panda, task=faulty, seed=0).plan(start, goal[None])
+    assert info.value is boom
+    nan_out = _upright_task(panda, Faulty(robot=panda, name="upright", weight=10.0, tolerance=1e-6, after=40,
+                                          output=lambda v: v * np.nan))
+    with pytest.raises(NonFiniteError, match="term 'upright'"):
+        Planner(panda, task=nan_out, seed=0).plan(start, goal[None])
