@@ -82,7 +82,7 @@ def test_queries_are_seeded_valid_and_on_the_manifold(panda, shelf) -> None:
         assert np.all(np.linalg.norm(hands[1:] - q.goal_target, axis=1) < 2e-3)
 
 
-@pytest.mark.parametrize("sampler", ["uniform", "gan", "hybrid"])
+@pytest.mark.parametrize("sampler", ["uniform", "gan", "hybrid", "adaptive"])
 def test_panda_paths_are_valid(panda, shelf, sampler) -> None:
     env, world, queries = shelf
     planner = Planner(panda, world=world, sampler=sampler, seed=2)
@@ -409,3 +409,17 @@ def test_settings_are_typed_records() -> None:
         P.SolverSettings(backtrack=1.5)
     with pytest.raises(SettingsError, match="SolverSettings.clip_to_limits: expected True or False"):
         P.SolverSettings(clip_to_limits=1)
+
+
+def test_the_adaptive_sampler_starts_as_the_gan_and_ends_uniform(panda) -> None:
+    """p = 1 at first, halving every half_life samples of a plan (rust/core/tests/planning.rs
+    checks the shares drawn); a bad half-life is refused naming it."""
+    from genplan.planning import ADAPTIVE_HALF_LIFE
+
+    adaptive = make_sampler(panda, "adaptive", seed=3)
+    assert (adaptive.p, adaptive.half_life) == (1.0, ADAPTIVE_HALF_LIFE)
+    assert make_sampler(panda, "adaptive", seed=3, half_life=10.0).half_life == 10.0
+    with pytest.raises(SettingsError, match="half_life must be a finite number > 0"):
+        make_sampler(panda, "adaptive", half_life=0.0)
+    with pytest.raises(SettingsError, match="half_life must be a finite number > 0"):
+        make_sampler(panda, "adaptive", half_life=float("nan"))

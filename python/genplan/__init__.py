@@ -6,10 +6,25 @@ Public modules:
   and the Rust kinematics / collision world built from the same files.
 * :mod:`genplan.collision` -- :class:`~genplan.collision.CollisionWorld`, batched collision and
   distance queries (parry, GIL released).
+* :func:`solve_ik` (:mod:`genplan.ik`) -- IK for a task's [condition] targets, retried from new
+  warm starts (GAN, then uniform) until success or a time budget.
 """
 
 from genplan._core import CRATE_VERSIONS, __version__
 from genplan.collision import CollisionWorld
 from genplan.robots import Robot, load
 
-__all__ = ["__version__", "CRATE_VERSIONS", "CollisionWorld", "Robot", "load"]
+__all__ = ["__version__", "CRATE_VERSIONS", "CollisionWorld", "IKResult", "Robot", "load", "solve_ik"]
+
+#: Names imported on first use (``genplan.solve_ik``), so that ``import genplan`` stays light.
+_LAZY = {"solve_ik": "genplan.ik", "IKResult": "genplan.ik"}
+
+
+def __getattr__(name: str) -> object:
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'genplan' has no attribute {name!r}")

@@ -234,7 +234,8 @@ class GanSampler:
 
 @final
 class MixtureSampler:
-    """``primary`` with probability ``p``, else ``secondary`` (native samplers or objects with sample(n))."""
+    """``primary`` with probability ``p``, else ``secondary`` (native samplers or objects with
+    sample(n)); with ``half_life``, the probability halves every ``half_life`` rows of a plan."""
 
     def __new__(
         cls,
@@ -242,9 +243,12 @@ class MixtureSampler:
         secondary: UniformSampler | GanSampler | MixtureSampler | protocols.Sampler,
         p: float = 0.8,
         seed: int = 0,
+        half_life: float | None = None,
     ) -> Self: ...
     @property
     def p(self) -> float: ...
+    @property
+    def half_life(self) -> float | None: ...
 
 @final
 class PlannerSettings:

@@ -38,7 +38,7 @@ import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -47,6 +47,9 @@ from numpy.typing import ArrayLike, NDArray
 from genplan._arrays import error_class
 from genplan.errors import GenplanError, RobotFileError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
+
+if TYPE_CHECKING:
+    from genplan.trajectory import Trajectory
 
 __all__ = ["DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "export_html", "export_plan_html", "subsample_path"]
 
@@ -375,7 +378,7 @@ def _check_out(out: str | os.PathLike[str]) -> Path:
 
 def export_html(
     robot: Robot,
-    path: ArrayLike,
+    path: "ArrayLike | Trajectory",
     out: str | os.PathLike[str],
     *,
     boxes: Sequence[Any] = (),
@@ -393,7 +396,10 @@ def export_html(
 
     Args:
         robot: the robot the configurations belong to (:func:`genplan.load`).
-        path: (m, nq) configurations (one (nq,) configuration is a still view), finite.
+        path: (m, nq) configurations (one (nq,) configuration is a still view), finite; or a
+            :class:`genplan.trajectory.Trajectory` (``result.trajectory()``), played in real time:
+            its state at every 1/``fps`` s (fewer frames, evenly timed, when that exceeds
+            ``max_frames``).
         out: the HTML file to write (its folder is created).
         boxes: obstacles with ``name``, ``half_extents`` and ``center`` (e.g. ``env.boxes``).
         halfspaces: ``(name, normal, offset)`` planes (e.g. ``env.halfspaces``), drawn as a grid.
@@ -416,13 +422,26 @@ def export_html(
         OSError: ``out`` cannot be written.
         ImportError: viser is not installed.
     """
-    q = robot.check_configuration(path, "path")
+    from genplan.trajectory import Trajectory
+
+    if not (math.isfinite(fps) and fps > 0):
+        raise SettingsError(f"fps must be a positive number, got {fps}")
+    timed = isinstance(path, Trajectory)
+    q = robot.check_configuration(path.q if timed else path, "path")
     if q.ndim == 1:
         q = q[None, :]
     if len(q) == 0:
         raise ShapeError("path: no configuration (shape (0, nq))")
-    if not (math.isfinite(fps) and fps > 0):
-        raise SettingsError(f"fps must be a positive number, got {fps}")
+    dt = 1.0 / fps
+    if timed:  # played in real time: frames evenly spaced in time, fps of them per second
+        duration = float(path.t[-1])
+        count = int(min(max(max_frames, 2), max(2, math.floor(duration * fps) + 1)))
+        if len(q) > 1 and duration > 0:
+            times = np.linspace(0.0, duration, count)
+            picks = np.minimum(np.searchsorted(path.t, times), len(q) - 1)
+            dt = duration / (count - 1)
+        else:
+            picks = np.zeros(1, dtype=np.intp)
     obstacles = _check_boxes(boxes)
     planes = _check_halfspaces(halfspaces)
     shapes: list[tuple[str, NDArray[np.float32], NDArray[np.uint32]]] = []
@@ -430,7 +449,7 @@ def export_html(
         extra_planes, shapes = _scene_shapes(scene)
         planes += extra_planes
     out_path = _check_out(out)
-    frames = q[subsample_path(q, max_frames)]
+    frames = q[picks] if timed else q[subsample_path(q, max_frames)]
 
     if geometry not in ("visual", "collision"):
         raise UnknownNameError(f"geometry must be 'visual' or 'collision', got {geometry!r}")
@@ -470,7 +489,8 @@ def export_html(
     half_diag = max(0.5 * float(np.linalg.norm(hi - lo)), 0.3)
     grid_size = float(max(2.0, 2.0 * math.ceil(float(np.max(np.abs(np.concatenate([lo[:2], hi[:2]])))) + 0.5)))
 
-    name = title or f"genplan: {robot.name}, {len(q)} states"
+    name = title or (f"genplan: {robot.name}, a {float(path.t[-1]):.2f} s trajectory" if timed
+                     else f"genplan: {robot.name}, {len(q)} states")
     with _viser_server() as server:
         scene = server.scene
         scene.set_up_direction("+z")
@@ -511,7 +531,6 @@ def export_html(
         server.initial_camera.position = center + 1.6 * half_diag * direction / np.linalg.norm(direction)
 
         recording = server.get_scene_serializer()
-        dt = 1.0 / fps
         last = first
         for qi in frames[1:]:
             recording.insert_sleep(dt)

@@ -14,7 +14,9 @@ checker are native; the GIL is released while the planner works. Each part can b
 Python object, called back in batches:
 
 * ``sampler``: ``"uniform"``, ``"gan"`` (the shipped GAN's generator, run natively),
-  ``"hybrid"`` (GAN with probability ``hybrid_p``, default 0.8, else uniform), or any object with
+  ``"hybrid"`` (GAN with probability ``hybrid_p``, default 0.8, else uniform), ``"adaptive"``
+  (GAN at first, its share halving every ``half_life`` samples of a plan: complete, and as fast
+  as the GAN where it covers the query), or any object with
   ``sample(n) -> (n, nq)`` (e.g. :class:`genplan.gan.GanSampler`, which runs torch);
 * ``projector``: a :class:`~genplan.projection.GaussNewtonProjector` (its native solver is used) or
   any object with ``project(qs, q_noms) -> (q, success[, iterations])``;
@@ -65,16 +67,75 @@ __all__ = [
 ]
 
 #: Sampler names accepted by :class:`Planner`.
-SAMPLERS = ("uniform", "gan", "hybrid")
+SAMPLERS = ("uniform", "gan", "hybrid", "adaptive")
+#: The adaptive hybrid's half-life (rows drawn within a plan after which the GAN's share has
+#: halved, ~100 extensions of 16 samples; ``half_life=`` overrides it): see :func:`make_sampler`.
+#: Chosen on tuning queries (seed 1; Table II reports seed 0) by benches/adaptive_half_life.py
+#: (benches/results/adaptive_half_life.json, 20 queries per environment, all at 100 % success):
+#: geometric mean over the four environments of uniform / adaptive plan time, edges checked,
+#: 1.27x (half-life 100), 1.70x (400), 1.92x (1600), 1.40x (6400), against the GAN's 1.66x and
+#: the 0.8 hybrid's 1.37x; tree nodes only 1.42x, 2.13x, 2.39x, 2.59x (GAN 1.80x). Times on a
+#: loaded machine (load 5-6): noisy.
+ADAPTIVE_HALF_LIFE = 1600.0
 
 
 #: Settings of the constrained RRT, defined once in the Rust core (``planning::Settings``):
 #: keyword-only, immutable (``settings.replace(step=0.2)`` makes a changed copy), validated
 #: (:class:`~genplan.errors.SettingsError` names the field). Defaults: the GAN paper's public code.
 PlannerSettings = _core.PlannerSettings
-#: A plan's outcome (``success``, dense ``path``, ``waypoints``, ``goal_index``, ``time_s``,
-#: ``projections``, ``extensions``, ``retries``) and its :class:`PlanStats`.
-PlanResult = _core.PlanResult
+class PlanResult:
+    """A plan's outcome: the native result (``_core.PlanResult``: ``success``, dense ``path``,
+    ``waypoints``, ``goal_index``, ``time_s``, ``projections``, ``extensions``, ``retries`` and its
+    :class:`PlanStats`), whose attributes it delegates, with the robot and the manifold's task it
+    was planned for, so that it can be turned into a trajectory (:meth:`trajectory`)."""
+
+    __slots__ = ("native", "robot", "task")
+
+    def __init__(self, native: _core.PlanResult, robot: Robot, task: Task) -> None:
+        self.native = native
+        self.robot = robot
+        self.task = task
+
+    success = property(lambda self: self.native.success, doc="a path was found")
+    path = property(lambda self: self.native.path, doc="(m, nq) dense path: every state on the manifold and valid")
+    waypoints = property(lambda self: self.native.waypoints, doc="the tree nodes along the path (after shortcuts)")
+    goal_index = property(lambda self: self.native.goal_index, doc="the goal reached (None without a path)")
+    stats = property(lambda self: self.native.stats, doc="what the plan cost (:class:`PlanStats`)")
+    time_s = property(lambda self: self.native.time_s, doc="wall-clock time of the plan (s)")
+    projections = property(lambda self: self.native.projections, doc="optimisation steps of the projections")
+    extensions = property(lambda self: self.native.extensions, doc="iterations of the planner")
+    retries = property(lambda self: self.native.retries, doc="attempts made after the first")
+
+    def __getattr__(self, name: str) -> Any:  # anything else the native result has
+        return getattr(object.__getattribute__(self, "native"), name)
+
+    def __repr__(self) -> str:
+        return repr(self.native)
+
+    def trajectory(self, rate_hz: float = 1000.0, velocity_scale: float = 1.0, acceleration_scale: float = 1.0,
+                   acceleration_limits: ArrayLike | None = None) -> Any:
+        """The path as a time-optimal trajectory (:class:`genplan.trajectory.Trajectory`: ``t``,
+        ``q``, ``qd``, ``qdd`` sampled at ``rate_hz``, at rest at both ends) within the URDF's
+        velocity limits times ``velocity_scale`` and ``acceleration_limits`` (rad/s^2, one number
+        or one per joint; default 2 x the velocity limits, see
+        :data:`genplan.trajectory.DEFAULT_ACCELERATION_FACTOR`) times ``acceleration_scale``,
+        by TOPP-RA (the ``toppra`` package) along a spline through every state of the dense
+        path. The dense path, not the waypoints, is the geometric path: a spline through the
+        waypoints alone would leave the manifold; plan with ``PlannerSettings(simplify=True)``
+        for the shortcut path (fewer corners, a shorter trajectory). Every sample's residual is
+        checked against the task (``traj.residuals``, ``traj.within_tolerance``; a warning when
+        outside). See :func:`genplan.trajectory.parameterize`.
+
+        Raises GenplanError when there is no path (``success`` is False)."""
+        from genplan.errors import GenplanError
+        from genplan.trajectory import parameterize
+
+        if not self.native.success:
+            raise GenplanError("trajectory: the plan found no path (success is False)")
+        return parameterize(self.robot, self.native.path, self.task, rate_hz=rate_hz, velocity_scale=velocity_scale,
+                            acceleration_scale=acceleration_scale, acceleration_limits=acceleration_limits)
+
+
 #: What a plan cost (counts and times), read-only; ``to_dict()`` for JSON.
 PlanStats = _core.PlanStats
 
@@ -89,10 +150,12 @@ def uniform_base_box(robot: Robot, task: Task) -> NDArray[np.float64] | None:
 
 
 def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, gan_model: Any = None,
-                 hybrid_p: float = 0.8, gan_box: ArrayLike | None = None,
+                 hybrid_p: float = 0.8, half_life: float = ADAPTIVE_HALF_LIFE, gan_box: ArrayLike | None = None,
                  base_box: ArrayLike | None = None) -> Any:
-    """A sampler the planner understands: "uniform" (native), "gan", "hybrid", or an object with
-    ``sample(n)`` (returned as is). The GAN conditions on end-effector targets drawn uniformly in
+    """A sampler the planner understands: "uniform" (native), "gan", "hybrid" (the GAN with
+    probability ``hybrid_p``, else uniform), "adaptive" (the GAN with probability 0.5^(k /
+    ``half_life``) for the k-th sample of a plan, else uniform), or an object with ``sample(n)``
+    (returned as is). The GAN conditions on end-effector targets drawn uniformly in
     ``gan_box`` ([[x, y, z] min, max]; default: the model's task-space region of interest). Uniform
     samples hold a free-flyer base at the robot's default placement, its position drawn uniformly
     in ``base_box`` ([[x, y, z] min, max]) when given (the :class:`Planner` passes
@@ -118,6 +181,8 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
     gan = GanSampler(robot, gan_model, box=gan_box, seed=seed).native(seed)
     if kind == "gan":
         return gan
+    if kind == "adaptive":  # the GAN paper's future work: p = 1 at first, decaying towards uniform
+        return _core.MixtureSampler(gan, uniform, 1.0, seed, half_life)
     return _core.MixtureSampler(gan, uniform, hybrid_p, seed)
 
 
@@ -137,14 +202,15 @@ class Planner:
     def __init__(self, robot: Robot, world: CollisionWorld | None = None, task: Task | None = None, *,
                  sampler: str | Any = "uniform", projector: Any = None, checker: Any = None,
                  settings: PlannerSettings | None = None, parallel: bool = False, seed: int = 0,
-                 gan_model: Any = None, hybrid_p: float = 0.8, tolerance_factor: float = TOLERANCE_FACTOR) -> None:
+                 gan_model: Any = None, hybrid_p: float = 0.8, half_life: float = ADAPTIVE_HALF_LIFE,
+                 tolerance_factor: float = TOLERANCE_FACTOR) -> None:
         self.robot = robot
         self.settings = settings or PlannerSettings()
         self.task = task if task is not None else paper_task(robot, "projection")
         self.world = world if world is not None else robot.collision_world()
         self.parallel = bool(parallel)
         self.base_box = uniform_base_box(robot, self.task)
-        self.sampler = make_sampler(robot, sampler, seed=seed, gan_model=gan_model, hybrid_p=hybrid_p,
+        self.sampler = make_sampler(robot, sampler, seed=seed, gan_model=gan_model, hybrid_p=hybrid_p, half_life=half_life,
                                     base_box=self.base_box)
         if projector is None:
             projector = GaussNewtonProjector(robot, self.task.with_tolerances_scaled(tolerance_factor))
@@ -192,7 +258,8 @@ class Planner:
         g = self.robot.check_configuration(goals, "goals")
         g = np.ascontiguousarray(g.reshape(-1, self.robot.nq))
         smp = self.sampler if sampler is None else make_sampler(self.robot, sampler, base_box=self.base_box)
-        return self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel)
+        native = self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel)
+        return PlanResult(native, self.robot, self.task)
 
 
 def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike[str], scene: Any = None, *,

@@ -7,7 +7,9 @@
 The start (``default`` or nq numbers) is projected onto the task's manifold; the goal is a
 configuration (``--goal``, nq numbers) or IK solutions for a target of the task's condition
 (``--target X Y Z``). The JSON holds the query, the path and the planner's statistics; the HTML
-view draws the robot, the scene and the trail of the task's condition frame.
+view draws the robot, the scene and the trail of the task's condition frame. ``--trajectory
+F.npz|.json|.csv`` writes the path time-parameterised at 1 kHz (``PlanResult.trajectory``), which
+the HTML view then plays in real time.
 """
 
 from __future__ import annotations
@@ -51,25 +53,41 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=A.output_file, required=True, help="the plan as JSON")
     p.add_argument("--html", type=A.output_file, default=None,
                    help="a self-contained HTML view of the plan (needs the viewer extra: pip install genplan[viewer])")
+    p.add_argument("--trajectory", type=A.output_file, default=None,
+                   help="the path as a time-optimal trajectory at 1 kHz (TOPP-RA; .npz, .json or .csv by suffix); "
+                        "with --html, the view plays it in real time")
 
 
 def main(args: argparse.Namespace) -> int:
     from genplan._files import write_text
     from genplan.planning import plan
 
+    if args.trajectory is not None and args.trajectory.suffix.lower() not in (".npz", ".json", ".csv"):
+        raise A.UsageError(f"--trajectory {args.trajectory}: expected a .npz, .json or .csv file")
     outcome = plan(args.robot, args.task, args.scene, start=args.start, goal=args.goal, target=args.target,
                    sampler=args.sampler, model=args.model, k=args.goals, seed=args.seed)
     r = outcome.result
     write_text(args.out, json.dumps(outcome.to_dict(), indent=1) + "\n")
     print(f"{'found' if r.success else 'no path found'}: {len(r.path)} states, {r.stats.extensions} extensions, "
           f"{r.time_s * 1e3:.1f} ms ({args.sampler} sampler); wrote {args.out}")
+    traj = None
+    if args.trajectory is not None:
+        if not r.success:
+            print("no path: no trajectory written")
+            return 1
+        traj = r.trajectory()
+        traj.save(args.trajectory)
+        print(f"trajectory: {traj.duration:.3f} s at {traj.rate_hz:g} Hz, max velocity ratio {traj.max_velocity_ratio:.3f}, "
+              f"max residual ratio {traj.max_residual_ratio:.3f}, parameterised in "
+              f"{traj.stats['parameterisation_s'] * 1e3:.1f} ms; wrote {args.trajectory}")
     if args.html is not None:
         if not r.success:
             print("no path: no HTML view written")
             return 1
         from genplan.viewer import export_html
 
-        export_html(outcome.robot, r.path, args.html, scene=outcome.scene, trail_frame=outcome.trail_frame,
+        export_html(outcome.robot, r.path if traj is None else traj, args.html, scene=outcome.scene,
+                    trail_frame=outcome.trail_frame,
                     title=f"genplan plan: {outcome.robot.name}, task {outcome.task.name}, {args.sampler} sampler")
         print(f"wrote {args.html}")
     return 0 if r.success else 1

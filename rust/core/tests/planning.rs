@@ -320,3 +320,52 @@ fn uniform_sampler_draws_a_free_flyer_base_in_its_box() {
     let fixed_base = UniformSampler::new(panda, None, 5).unwrap().with_base_box(lo, hi);
     assert!(matches!(fixed_base, Err(PlanError::Input(m)) if m.contains("free-flyer")));
 }
+
+/// A sampler that fills every row with one value (0 or 1): which sampler a mixture row came from.
+struct Constant(f64);
+
+impl Sampler for Constant {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        out[..n].fill(self.0);
+        Ok(())
+    }
+}
+
+#[test]
+fn an_adaptive_mixture_hands_over_to_the_secondary_sampler() {
+    // p = 1 halving every 100 rows: rows 0..100 ~ 72 % primary (the mean of 0.5^(k/100)),
+    // rows 400..500 ~ 4.5 %, and in the long run none; a constant mixture stays at p
+    let primary_share = |m: &mut MixtureSampler, rows: usize| {
+        let mut out = vec![0.0; rows];
+        for chunk in out.chunks_mut(16) {
+            let n = chunk.len();
+            m.sample(n, chunk).unwrap();
+        }
+        out.iter().sum::<f64>() / rows as f64
+    };
+    let mut shares = Vec::new();
+    for seed in 0..20 {
+        let mut m = MixtureSampler::new(Box::new(Constant(1.0)), Box::new(Constant(0.0)), 1.0, 1, seed)
+            .unwrap()
+            .with_half_life(100.0)
+            .unwrap();
+        assert_eq!(m.p_at(0), 1.0);
+        assert!((m.p_at(100) - 0.5).abs() < 1e-12 && (m.p_at(300) - 0.125).abs() < 1e-12);
+        let first = primary_share(&mut m, 100);
+        let _ = primary_share(&mut m, 300);
+        let fifth = primary_share(&mut m, 100);
+        shares.push((first, fifth));
+    }
+    let mean = |f: &dyn Fn(&(f64, f64)) -> f64| shares.iter().map(f).sum::<f64>() / shares.len() as f64;
+    let (first, fifth) = (mean(&|s| s.0), mean(&|s| s.1));
+    let expect = |a: f64| (0..100).map(|k| 0.5f64.powf((a + k as f64) / 100.0)).sum::<f64>() / 100.0;
+    assert!((first - expect(0.0)).abs() < 0.03, "rows 0..100: {first} vs {}", expect(0.0));
+    assert!((fifth - expect(400.0)).abs() < 0.02, "rows 400..500: {fifth} vs {}", expect(400.0));
+    let mut constant = MixtureSampler::new(Box::new(Constant(1.0)), Box::new(Constant(0.0)), 0.8, 1, 1).unwrap();
+    let _ = primary_share(&mut constant, 400);
+    assert!((primary_share(&mut constant, 2000) - 0.8).abs() < 0.03);
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let m = MixtureSampler::new(Box::new(Constant(1.0)), Box::new(Constant(0.0)), 1.0, 1, 0).unwrap();
+        assert!(m.with_half_life(bad).is_err(), "half_life {bad} accepted");
+    }
+}

@@ -362,23 +362,35 @@ pub(crate) struct PyMixtureSampler {
     primary: Py<PyAny>,
     secondary: Py<PyAny>,
     p: f64,
+    half_life: Option<f64>,
     seed: Mutex<u64>,
 }
 
 #[pymethods]
 impl PyMixtureSampler {
     #[new]
-    #[pyo3(signature = (primary, secondary, p=0.8, seed=0))]
-    fn new(primary: Py<PyAny>, secondary: Py<PyAny>, p: f64, seed: u64) -> PyResult<Self> {
+    #[pyo3(signature = (primary, secondary, p=0.8, seed=0, half_life=None))]
+    fn new(primary: Py<PyAny>, secondary: Py<PyAny>, p: f64, seed: u64, half_life: Option<f64>) -> PyResult<Self> {
         if !(0.0..=1.0).contains(&p) {
             return Err(err(Kind::Settings, format!("p must be in [0, 1], got {p}")));
         }
-        Ok(Self { primary, secondary, p, seed: Mutex::new(seed) })
+        if let Some(h) = half_life {
+            if !(h.is_finite() && h > 0.0) {
+                return Err(err(Kind::Settings, format!("half_life must be a finite number > 0, got {h}")));
+            }
+        }
+        Ok(Self { primary, secondary, p, half_life, seed: Mutex::new(seed) })
     }
 
     #[getter]
     fn p(&self) -> f64 {
         self.p
+    }
+
+    /// Rows after which the probability of the primary sampler has halved (None: constant p).
+    #[getter]
+    fn half_life(&self) -> Option<f64> {
+        self.half_life
     }
 }
 
@@ -406,7 +418,11 @@ fn sampler_from(py: Python<'_>, obj: &Bound<'_, PyAny>, nq: usize) -> PyResult<B
             *s = s.wrapping_add(1);
             *s
         };
-        return Ok(Box::new(MixtureSampler::new(primary, secondary, m.p, nq, seed).map_err(plan_error_to_py)?));
+        let mut mixture = MixtureSampler::new(primary, secondary, m.p, nq, seed).map_err(plan_error_to_py)?;
+        if let Some(h) = m.half_life {
+            mixture = mixture.with_half_life(h).map_err(plan_error_to_py)?;
+        }
+        return Ok(Box::new(mixture));
     }
     if obj.hasattr("sample")? {
         return Ok(Box::new(PySampler { obj: obj.clone().unbind(), nq }));

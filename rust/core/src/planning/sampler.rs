@@ -141,13 +141,22 @@ impl Sampler for UniformSampler {
 /// Draws each configuration from `primary` with probability `p`, else from `secondary`: the
 /// paper's hybrid sampler (GAN with p = 0.8, else uniform) keeps the planner probabilistically
 /// complete. Both are asked for whole batches.
+///
+/// With a `half_life` (the GAN paper's future work, an adaptive hybrid), the probability decays
+/// with the rows drawn so far: row k (counted from 0 since the sampler was made, i.e. within one
+/// plan) comes from `primary` with probability `p * 0.5^(k / half_life)`. A search that the
+/// learned sampler serves well ends while it still dominates; a long one turns into uniform
+/// sampling, which keeps the planner probabilistically complete whatever the learned sampler misses.
 pub struct MixtureSampler {
     /// Drawn from with probability `p` (the paper: the GAN).
     pub primary: Box<dyn Sampler>,
     /// Drawn from otherwise (the paper: uniform).
     pub secondary: Box<dyn Sampler>,
-    /// Probability of drawing from `primary`, in [0, 1].
+    /// Probability of drawing from `primary` (at first, with a `half_life`), in [0, 1].
     pub p: f64,
+    /// Rows after which the probability of `primary` has halved; None: constant.
+    pub half_life: Option<f64>,
+    drawn: u64,
     nq: usize,
     rng: StdRng,
     buf: Vec<f64>,
@@ -160,7 +169,25 @@ impl MixtureSampler {
         if !(0.0..=1.0).contains(&p) {
             return input(format!("mixture sampler: p must be in [0, 1], got {p}"));
         }
-        Ok(MixtureSampler { primary, secondary, p, nq, rng: StdRng::seed_from_u64(seed), buf: Vec::new() })
+        Ok(MixtureSampler { primary, secondary, p, half_life: None, drawn: 0, nq, rng: StdRng::seed_from_u64(seed), buf: Vec::new() })
+    }
+
+    /// The same mixture whose probability of `primary` halves every `half_life` rows drawn
+    /// (a finite number > 0, else an input error).
+    pub fn with_half_life(mut self, half_life: f64) -> PlanResult<MixtureSampler> {
+        if !(half_life.is_finite() && half_life > 0.0) {
+            return input(format!("mixture sampler: half_life must be a finite number > 0, got {half_life}"));
+        }
+        self.half_life = Some(half_life);
+        Ok(self)
+    }
+
+    /// The probability that row `k` (counted since the sampler was made) comes from `primary`.
+    pub fn p_at(&self, k: u64) -> f64 {
+        match self.half_life {
+            None => self.p,
+            Some(h) => self.p * 0.5f64.powf(k as f64 / h),
+        }
     }
 }
 
@@ -171,7 +198,9 @@ impl Sampler for MixtureSampler {
         if nq == 0 {
             return Ok(()); // n empty rows
         }
-        let pick: Vec<bool> = (0..n).map(|_| self.rng.random::<f64>() < self.p).collect();
+        let first = self.drawn;
+        let pick: Vec<bool> = (0..n as u64).map(|i| self.rng.random::<f64>() < self.p_at(first + i)).collect();
+        self.drawn += n as u64;
         let n1 = pick.iter().filter(|&&b| b).count();
         let mut rows_a = Vec::new();
         let mut rows_b = Vec::new();

@@ -1,0 +1,109 @@
+"""genplan.solve_ik (genplan/ik.py): retries raise success, the budget holds, failures are clean,
+bad input is refused with typed errors naming the argument."""
+
+import numpy as np
+import pytest
+
+import genplan
+from genplan.errors import NonFiniteError, SettingsError, ShapeError, UnknownNameError
+from genplan.ik import IKResult, solve_ik
+from genplan.projection import condition_term, load_task
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return genplan.load("panda")
+
+
+@pytest.fixture(scope="module")
+def task(panda):
+    return load_task("panda_ik", panda)
+
+
+@pytest.fixture(scope="module")
+def targets(panda, task):
+    """Reachable hand positions: FK of configurations on the IK task's manifold (seed 2000)."""
+    from genplan.gan.data import valid_configurations
+
+    q = valid_configurations(panda, 300, 2000, progress=False, task=task)
+    frame = condition_term(task).frame
+    return panda.link_poses(q, [panda.frames.get(frame, frame)])[:, 0, :3, 3]
+
+
+def test_exported_lazily_from_genplan() -> None:
+    assert genplan.solve_ik is solve_ik and genplan.IKResult is IKResult
+
+
+def test_solutions_reach_their_targets(panda, task, targets) -> None:
+    res = solve_ik(panda, task, targets[:50], seed=0)
+    assert isinstance(res, IKResult) and res.q.shape == (50, 7) and res.success.all()
+    frame = condition_term(task).frame
+    reached = panda.link_poses(res.q, [panda.frames.get(frame, frame)])[:, 0, :3, 3]
+    assert np.abs(reached - targets[:50]).max() < condition_term(task).tolerance
+    assert (res.attempts >= 1).all() and (res.time_s > 0).all()
+
+
+def test_restarts_raise_success_over_one_attempt_on_hard_targets(panda, task, targets) -> None:
+    once = solve_ik(panda, task, targets, restarts=0, seed=0)
+    hard = targets[~once.success]
+    assert len(hard) >= 3, "the GAN's single attempt fails on a few percent of targets"
+    retried = solve_ik(panda, task, hard, restarts=20, seed=1)
+    assert retried.success.mean() > 0.9 and retried.attempts.max() > 1
+    assert solve_ik(panda, task, targets, restarts=20, seed=0).success.sum() > once.success.sum()
+
+
+def test_uniform_init_and_given_warm_starts(panda, task, targets) -> None:
+    uni = solve_ik(panda, task, targets[:40], init="uniform", restarts=30, seed=0)
+    assert uni.success.mean() >= 0.95
+    given = solve_ik(panda, task, targets[:10], init=uni.q[:10], restarts=0)
+    assert given.success[uni.success[:10]].all()  # started at solutions: solved in the first attempt
+    assert (given.attempts == 1).all()
+
+
+def test_time_budget_stops_retries(panda, task) -> None:
+    far = np.array([[3.0, 0.0, 0.5]] * 4)  # 3 m away: out of reach
+    budget = 0.002
+    res = solve_ik(panda, task, far, restarts=1000, time_budget_s=budget, seed=0)
+    assert not res.success.any()
+    # no new attempt once a target's time reached the budget: at most one attempt past it
+    one_attempt = solve_ik(panda, task, far[:1], restarts=0).time_s[0]
+    assert (res.time_s < budget + 5 * one_attempt + 0.002).all()
+    assert (res.attempts < 1001).all()
+
+
+def test_unreachable_targets_fail_cleanly(panda, task, targets) -> None:
+    mixed = np.vstack([targets[:3], [[3.0, 0.0, 0.5]], [[0.0, 0.0, -2.0]]])
+    res = solve_ik(panda, task, mixed, restarts=3, seed=0)
+    assert res.success.tolist() == [True, True, True, False, False]
+    assert (res.attempts[3:] == 4).all() and np.isfinite(res.q).all()
+    assert all(np.isfinite(v).all() for v in res.residuals.values())
+    lo, hi = panda.lower, panda.upper
+    assert ((res.q >= lo - 1e-9) & (res.q <= hi + 1e-9)).all()
+
+
+def test_one_target_is_a_batch_of_one(panda, task, targets) -> None:
+    res = solve_ik(panda, task, targets[0])
+    assert res.q.shape == (1, 7) and res.success[0]
+
+
+@pytest.mark.parametrize("kwargs, error, words", [
+    ({"targets": np.zeros((4, 2))}, ShapeError, "targets"),
+    ({"targets": np.zeros((2, 3, 1))}, ShapeError, "targets"),
+    ({"targets": [[0.5, 0.0, np.nan]]}, NonFiniteError, "targets"),
+    ({"targets": "abc"}, ShapeError, "targets"),
+    ({"init": "random"}, UnknownNameError, "init"),
+    ({"init": np.zeros((3, 7))}, ShapeError, "init"),
+    ({"restarts": -1}, SettingsError, "restarts"),
+    ({"restarts": 1.5}, SettingsError, "restarts"),
+    ({"time_budget_s": 0.0}, SettingsError, "time_budget_s"),
+    ({"time_budget_s": float("nan")}, SettingsError, "time_budget_s"),
+])
+def test_bad_input_raises_typed_errors_naming_the_argument(panda, task, kwargs, error, words) -> None:
+    args = {"targets": [[0.5, 0.0, 0.6]], **kwargs}
+    with pytest.raises(error, match=words):
+        solve_ik(panda, task, **args)
+
+
+def test_a_task_without_condition_is_refused(panda) -> None:
+    with pytest.raises(genplan.errors.GenplanError, match="condition"):
+        solve_ik(panda, "panda_projection", [[0.5, 0.0, 0.6]], init="uniform")

@@ -1,0 +1,165 @@
+"""PlanResult.trajectory / genplan.trajectory: time-optimal (TOPP-RA) trajectories of plans, within
+the limits and on the manifold at every 1 kHz sample; files; the HTML view; `genplan plan --trajectory`."""
+
+import importlib.util
+import json
+
+import numpy as np
+import pytest
+
+import genplan
+from genplan import _core
+from genplan.errors import GenplanError, SettingsError, ShapeError, UnknownNameError
+from genplan.planning import Planner, PlannerSettings, PlanResult, environment
+from genplan.projection import GaussNewtonProjector, SolverSettings
+from genplan.trajectory import DEFAULT_ACCELERATION_FACTOR, Trajectory, parameterize
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return genplan.load("panda")
+
+
+@pytest.fixture(scope="module")
+def planner(panda):
+    env = environment("panda_shelf")
+    return Planner(panda, world=env.world(panda), sampler="gan", settings=PlannerSettings(simplify=True))
+
+
+@pytest.fixture(scope="module")
+def result(panda, planner):
+    query = environment("panda_shelf").queries(panda, n=1, seed=0)[0]
+    res = planner.plan(query.start, query.goals)
+    assert res.success
+    return res
+
+
+@pytest.fixture(scope="module")
+def traj(result):
+    return result.trajectory()
+
+
+def test_plan_result_wraps_the_native_one(result, planner) -> None:
+    assert isinstance(result, PlanResult) and isinstance(result.native, _core.PlanResult)
+    assert result.path is not None and result.path.shape == result.native.path.shape
+    assert result.stats.nodes == result.native.stats.nodes and result.time_s == result.native.time_s
+    assert result.goal_index == result.native.goal_index and len(result.waypoints) >= 2
+    assert repr(result) == repr(result.native) and result.task is planner.task
+
+
+def test_samples_at_the_rate_from_start_to_goal_at_rest(result, traj) -> None:
+    assert traj.rate_hz == 1000.0 and traj.t[0] == 0.0
+    assert np.allclose(np.diff(traj.t)[:-1], 1e-3) and 0 < traj.t[-1] - traj.t[-2] <= 1e-3 + 1e-12
+    assert traj.q.shape == traj.qd.shape == traj.qdd.shape == (len(traj.t), 7)
+    np.testing.assert_array_equal(traj.q[0], result.path[0])
+    np.testing.assert_array_equal(traj.q[-1], result.path[-1])
+    assert not traj.qd[0].any() and not traj.qd[-1].any()
+
+
+def test_velocities_and_accelerations_within_the_limits(panda, traj) -> None:
+    vlim = np.asarray(panda.model.velocityLimit)
+    np.testing.assert_allclose(traj.velocity_limits, vlim)
+    np.testing.assert_allclose(traj.acceleration_limits, DEFAULT_ACCELERATION_FACTOR * vlim)
+    assert np.abs(traj.qd).max(axis=0) @ np.ones(7) > 0
+    assert (np.abs(traj.qd) <= vlim).all() and traj.max_velocity_ratio <= 1.0
+    assert (np.abs(traj.qdd) <= traj.acceleration_limits).all()
+    assert traj.max_velocity_ratio > 0.7  # time-optimal: some joint near its limit
+
+
+def test_derivatives_are_consistent(traj) -> None:
+    """qd and qdd are the derivatives of q: central differences agree."""
+    h = 1e-3
+    fd_v = (traj.q[2:-1] - traj.q[:-3]) / (2 * h)
+    assert np.abs(fd_v - traj.qd[1:-2]).max() < 0.02 * np.abs(traj.qd).max()
+    fd_a = (traj.qd[2:-1] - traj.qd[:-3]) / (2 * h)
+    assert np.median(np.abs(fd_a - traj.qdd[1:-2])) < 0.01 * np.abs(traj.qdd).max()
+
+
+def test_every_sample_satisfies_the_constraint(panda, planner, traj) -> None:
+    assert set(traj.residuals) == {t.label() for t in planner.task.primary}
+    assert traj.within_tolerance and traj.max_residual_ratio <= 1.0
+    # an independent reading: the Pinocchio backend, no solver step, on every 7th sample
+    check = GaussNewtonProjector(panda, planner.task, SolverSettings(max_iterations=0, clip_to_limits=False),
+                                 backend="pinocchio")
+    res = check.solve_batch(traj.q[::7], parallel=False)
+    for term in planner.task.primary:
+        assert res.residuals[term.label()].max() <= term.tolerance
+        assert res.residuals[term.label()].max() <= traj.residuals[term.label()] + 1e-12
+
+
+def test_scales_and_acceleration_limits(result, traj, panda) -> None:
+    slow = result.trajectory(velocity_scale=0.5, acceleration_scale=0.5, rate_hz=250)
+    vlim = np.asarray(panda.model.velocityLimit)
+    assert (np.abs(slow.qd) <= 0.5 * vlim).all() and slow.duration > 1.5 * traj.duration
+    assert np.allclose(np.diff(slow.t)[:-1], 1 / 250)
+    brisk = result.trajectory(acceleration_limits=10.0)
+    assert (np.abs(brisk.qdd) <= 10.0).all() and brisk.duration < traj.duration
+
+
+@pytest.mark.parametrize("kwargs, error, words", [
+    ({"rate_hz": 0}, SettingsError, "rate_hz"),
+    ({"velocity_scale": -1}, SettingsError, "velocity_scale"),
+    ({"acceleration_scale": float("nan")}, SettingsError, "acceleration_scale"),
+    ({"acceleration_limits": [1.0, 2.0]}, ShapeError, "acceleration_limits"),
+    ({"acceleration_limits": -3.0}, SettingsError, "acceleration_limits"),
+])
+def test_bad_arguments(result, kwargs, error, words) -> None:
+    with pytest.raises(error, match=words):
+        result.trajectory(**kwargs)
+
+
+def test_a_failed_plan_has_no_trajectory(panda, result) -> None:
+    failed = PlanResult(result.native, panda, result.task)
+    object.__setattr__(failed, "native", type("Failed", (), {"success": False, "path": np.zeros((0, 7))})())
+    with pytest.raises(GenplanError, match="no path"):
+        failed.trajectory()
+
+
+def test_a_still_path_is_one_sample(panda) -> None:
+    still = parameterize(panda, np.tile(panda.q_default, (3, 1)))
+    assert len(still) == 1 and still.duration == 0.0 and not still.qd.any()
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".json", ".csv"])
+def test_save_load_round_trip(traj, tmp_path, suffix) -> None:
+    path = traj.save(tmp_path / f"sub/traj{suffix}")
+    assert path.exists() and [p.name for p in path.parent.iterdir()] == [path.name]  # atomic: no temporary left
+    back = Trajectory.load(path)
+    for k in ("t", "q", "qd", "qdd"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(traj, k))
+    assert back.joint_names == traj.joint_names and back.rate_hz == traj.rate_hz
+    if suffix != ".csv":
+        assert back.residuals == traj.residuals and back.tolerances == traj.tolerances
+        np.testing.assert_array_equal(back.velocity_limits, traj.velocity_limits)
+        assert back.stats == json.loads(json.dumps(traj.stats)) and back.robot == "panda"
+
+
+def test_unknown_format_is_refused(traj, tmp_path) -> None:
+    with pytest.raises(UnknownNameError, match=r"\.npz, \.json, \.csv"):
+        traj.save(tmp_path / "traj.txt")
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.skipif(importlib.util.find_spec("viser") is None, reason="viewer extra not installed")
+def test_the_html_view_plays_the_trajectory(panda, traj, tmp_path) -> None:
+    from genplan.viewer import export_html
+
+    out = export_html(panda, traj, tmp_path / "t.html", fps=10, max_frames=500)
+    page = out.read_text()
+    assert f"a {traj.duration:.2f} s trajectory" in page
+
+
+def test_plan_cli_writes_the_trajectory(panda, tmp_path, capsys) -> None:
+    from genplan.cli import main
+
+    start = environment("panda_shelf").queries(panda, n=1, seed=0)[0].start  # the default collides on the manifold
+    argv = ["plan", "--robot", "panda", "--task", "panda_ik", "--scene", "panda_shelf", "--start",
+            " ".join(map(repr, map(float, start))), "--target", "0.5", "-0.25", "0.3", "--goals", "3", "--seed", "2",
+            "--out", str(tmp_path / "p.json"), "--trajectory"]
+    out = tmp_path / "traj.csv"
+    assert main([*argv, str(out)]) == 0, capsys.readouterr()
+    back = Trajectory.load(out)
+    assert len(back) > 10 and "trajectory:" in capsys.readouterr().out
+    assert np.abs(back.qd).max() > 0
+    assert main([*argv, str(tmp_path / "t.txt")]) == 2
+    assert "expected a .npz, .json or .csv file" in capsys.readouterr().err
