@@ -108,11 +108,15 @@ OUTPUTS = [
     ("bench robots", "--robots panda --samples 10", "--out", "file"),
     ("bench control", "", "--out", "file"),
     ("bench control", "", "--png", "file"),
+    ("bench scaling", "", "--out", "file"),
+    ("data", "--robot panda --data-size 10", "--out", "folder"),
     ("train gan", "--robot panda", "--out", "file"),
     ("train seq2seq", "", "--out", "file"),
     ("report", "{tmp}", "--out", "file"),
     ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5", "--out", "file"),
     ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5 --out {tmp}/p.json", "--html", "file"),
+    ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5 --out {tmp}/p.json", "--trajectory", "file"),
+    ("bench ik", "", "--out", "file"),
     ("reproduce", "--quick", "--out", "folder"),
 ]
 

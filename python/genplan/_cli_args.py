@@ -56,6 +56,38 @@ def seed(text: str) -> int:
     return _int(text, f"a seed in 0..{MAX_SEED}", 0, MAX_SEED)
 
 
+def seed_range(text: str) -> range:
+    """Seeds ``A..B`` (both included, A <= B) or one seed ``A``: a range of seeds."""
+    first, sep, last = text.partition("..")
+    what = f"seeds A..B (A <= B, each in 0..{MAX_SEED})"
+    try:
+        lo = _int(first.strip(), what, 0, MAX_SEED)
+        hi = _int(last.strip(), what, 0, MAX_SEED) if sep else lo
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+    if hi < lo:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    return range(lo, hi + 1)
+
+
+def ray_address(text: str) -> str:
+    """``auto`` (the Ray this process joined, else a local one) or a Ray cluster's address
+    (``host:port`` or ``ray://host:port``)."""
+    text = text.strip()
+    if text != "auto" and (not text or any(c.isspace() for c in text) or ":" not in text):
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a Ray address (host:port, ray://host:port), got {text!r}")
+    return text
+
+
+def add_executor_arguments(p: argparse.ArgumentParser, workers_help: str) -> None:
+    """``--workers K`` and ``--ray auto|ADDRESS``: where a command's shards run
+    (:func:`genplan.executor.executor`)."""
+    p.add_argument("--workers", type=positive_int, default=None, help=workers_help)
+    p.add_argument("--ray", type=ray_address, default=None, metavar="auto|ADDRESS",
+                   help="run the shards on Ray: 'auto' (a local Ray with --workers CPUs, or the one already "
+                        "running) or a cluster's address; needs pip install 'genplan[ray]'")
+
+
 def _float(text: str, what: str, ok: Any) -> float:
     try:
         value = float(text)

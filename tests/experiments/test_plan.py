@@ -22,3 +22,25 @@ def test_bench_plan_json_genplan_and_ompl(tmp_path, capsys) -> None:
     assert rows[("genplan", "hybrid")]["success_rate"] == 100.0
     assert data["ratios"]["panda_shelf"]["ompl_over_uniform"] > 0
     assert "uniform_over_gan" in capsys.readouterr().out
+
+
+def test_bench_plan_seed_sweep(tmp_path) -> None:
+    """--seeds A..B: per-seed rows (the same as single-seed runs but for the times) and the median
+    per (env, planner, sampler)."""
+    out = tmp_path / "sweep.json"
+    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "uniform", "--queries", "2", "--seeds", "3..4",
+                 "--workers", "2", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert [r["seed"] for r in data["per_seed"]] == [3, 4] and data["executor"]["workers"] == 2
+    single = tmp_path / "single.json"
+    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "uniform", "--queries", "2", "--seed", "4",
+                 "--out", str(single)]) == 0
+    one = json.loads(single.read_text())["rows"][0]
+    row = data["per_seed"][1]["rows"][0]
+    for key in ("success_rate", "projections", "extensions", "nodes"):
+        assert row[key] == one[key], key
+    (agg,) = data["aggregate"]
+    assert (agg["env"], agg["planner"], agg["sampler"]) == ("panda_shelf", "genplan", "uniform")
+    values = [r["rows"][0]["projections"] for r in data["per_seed"]]
+    assert agg["projections"] == sum(values) / 2  # the median of two
+    assert agg["paper"]["t_ave_s"] == 1.44

@@ -486,6 +486,18 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
     (default: ``cfg.task_name``, a shipped task). ``threads``: torch threads for the call
     (default: genplan's choice for training, see genplan._threads; the card records the count
     used)."""
+    # a saturated discriminator drives activations into denormal floats, which are ~4x slower:
+    # flushed while training, restored after (torch's default), also on an error
+    torch.set_flush_denormal(True)
+    try:
+        return _train(cfg, data, progress, log_every, robot, task)
+    finally:
+        torch.set_flush_denormal(False)
+
+
+def _train(cfg: GanConfig, data: NDArray[np.float64] | None, progress: bool, log_every: int,
+           robot: Robot | None, task: "P.Task | None") -> GanModel:
+    """:func:`train`'s work."""
     from genplan.gan.data import cache_path, valid_configurations
 
     robot = load(cfg.robot) if robot is None else robot  # cfg is valid: a frozen GanConfig validates when made
@@ -502,8 +514,6 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
         data = as_configurations(data, robot.nq, "data")
         if data.ndim != 2:
             raise ShapeError(f"data: expected configurations of shape (n, {robot.nq}), got {data.shape}")
-    # a saturated discriminator drives activations into denormal floats, which are ~4x slower
-    torch.set_flush_denormal(True)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     t_data = time.perf_counter()

@@ -2,6 +2,12 @@
 
     genplan bench plan --env panda_shelf --sampler gan --queries 100 --seed 0 --out F.json
     genplan bench plan --env all --sampler all --planner all --queries 100 --out F.json
+    genplan bench plan --env panda_shelf --sampler gan --seeds 0..4 --out F.json   # per-seed + medians
+
+With ``--seeds A..B`` each seed is a run of its own (its queries and planner seeds; a shard on
+genplan.executor, one after the other unless ``--workers K`` or ``--ray``): the JSON holds every
+seed's rows (``per_seed``) and, per (env, planner, sampler), their median across seeds
+(``aggregate``); see genplan.experiments.sweeps.
 
 Every row of one run plans the same seeded queries (start + K = 10 goal configurations by IK,
 the same for every sampler and planner), on one core, with the same constraint (the paper's
@@ -195,12 +201,55 @@ def print_table(payload: dict[str, Any]) -> None:
             print(f"{env}: " + ", ".join(parts))
 
 
+def run_seed(job: dict[str, Any]) -> dict[str, Any]:
+    """One seed of a sweep (a shard: module-level, so that a process or Ray worker can run it)."""
+    return run(**job, progress=False)
+
+
+def sweep(envs: list[str], samplers: list[str], planners: list[str], args: argparse.Namespace,
+          settings: Any) -> dict[str, Any]:
+    """``--seeds A..B``: :func:`run` per seed on the execution layer; per-seed rows and, per
+    (env, planner, sampler), their median across seeds."""
+    from genplan.experiments.sweeps import median_of, run_seeds
+
+    jobs = [dict(envs=envs, samplers=samplers, planners=planners, n=args.queries, seed=s,
+                 ompl_time_limit=args.ompl_time_limit, settings=settings) for s in args.seeds]
+    # genplan's planner releases the GIL (threads); OMPL's callbacks run in Python (processes)
+    runs, ex = run_seeds(run_seed, jobs, workers=args.workers, ray=args.ray,
+                         kind="process" if "ompl" in planners else "thread", desc="bench plan")
+    keys = [(r["env"], r["planner"], r["sampler"]) for r in runs[0]["rows"]]
+    aggregate = []
+    for key in keys:
+        same = [next(r for r in run_["rows"] if (r["env"], r["planner"], r["sampler"]) == key) for run_ in runs]
+        aggregate.append({**median_of(same), "env": key[0], "planner": key[1], "sampler": key[2],
+                          "paper": same[0]["paper"]})
+    shared = ("benchmark", "queries", "goals_per_query", "settings", "ompl_time_limit_s", "units", "machine")
+    return {**{k: runs[0][k] for k in shared}, "seeds": list(args.seeds), "executor": ex,
+            "per_seed": [{k: v for k, v in r.items() if k not in shared} for r in runs],
+            "aggregate_rule": "median across seeds", "aggregate": aggregate,
+            "aggregate_ratios": {env: median_of([r["ratios"][env] for r in runs]) for env in envs}}
+
+
+def print_sweep(payload: dict[str, Any]) -> None:
+    out = []
+    for r in [*payload["per_seed"], {"seed": "median", "rows": payload["aggregate"]}]:
+        for x in r["rows"]:
+            out.append([r["seed"], x["env"], x["planner"] if x["planner"] == "ompl" else x["sampler"],
+                        f"{x['success_rate']:.1f}", f"{x['t_ave_s']:.3f}", f"{x['projections']:.1f}",
+                        "-" if x.get("extensions") is None else f"{x['extensions']:.1f}"])
+    print(table(["seed", "env", "sampler", "success %", "T_ave s", "Opt. steps", "E"], out))
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", default="all", choices=[*ENVS, "all"])
     p.add_argument("--sampler", default="all", choices=[*SAMPLERS, "all"])
     p.add_argument("--planner", default="genplan", choices=[*PLANNERS, "all"])
     p.add_argument("--queries", type=A.positive_int, default=100, help="queries per environment (the paper: 100)")
     p.add_argument("--seed", type=A.seed, default=0)
+    p.add_argument("--seeds", type=A.seed_range, default=None, metavar="A..B",
+                   help="a sweep: one run per seed A..B (both included), per-seed rows and their median")
+    A.add_executor_arguments(p, "with --seeds: seeds run at once (default 1: one after the other, so that "
+                                "times are not shared)")
     p.add_argument("--ompl-time-limit", type=A.positive_float, default=30.0, help="seconds per OMPL query")
     p.add_argument("--edge-resolution", type=A.non_negative_float, default=None,
                    help="genplan edge validation spacing (0: off)")
@@ -214,6 +263,13 @@ def main(args: argparse.Namespace) -> int:
     samplers = list(SAMPLERS) if args.sampler == "all" else [args.sampler]
     planners = list(PLANNERS) if args.planner == "all" else [args.planner]
     settings = PlannerSettings() if args.edge_resolution is None else PlannerSettings(edge_resolution=args.edge_resolution)
+    if args.seeds is not None:
+        payload = sweep(envs, samplers, planners, args, settings)
+        print_sweep(payload)
+        write_json(args.out, payload)
+        return 0
+    if args.workers is not None or args.ray is not None:
+        raise A.UsageError("--workers/--ray: they run the seeds of --seeds A..B; give --seeds")
     payload = run(envs, samplers, planners, args.queries, args.seed, args.ompl_time_limit, settings)
     print_table(payload)
     write_json(args.out, payload)

@@ -3,6 +3,11 @@
     genplan bench projection --robot panda --init uniform --tasks 500 --seed 0 --out F.json
     genplan bench projection --robot panda --solver scipy ...   # the baseline, same tasks
     genplan bench projection --robot my_robot.toml --task my_task.toml --init gan --model M.safetensors
+    genplan bench projection --robot panda --seeds 0..9 --out F.json   # per-seed rows + medians
+
+With ``--seeds A..B`` each seed is a run of its own (a shard on genplan.executor, one after the
+other unless ``--workers K`` or ``--ray``): the JSON holds every seed's results (``per_seed``) and
+their median across seeds (``aggregate``); see genplan.experiments.sweeps.
 
 With ``--task`` (a task with a [condition], shipped name or file), the projection rows solve its
 manifold (:func:`genplan.gan.costs.manifold_task`) and the IK rows the task itself, its condition
@@ -112,21 +117,22 @@ def target_term(task: P.Task) -> str:
 
 
 def run_gauss_newton(robot: genplan.Robot, problems: dict[str, Any], backend: str,
-                     tasks: dict[str, P.Task]) -> dict[str, Any]:
+                     tasks: dict[str, P.Task], progress: bool = True) -> dict[str, Any]:
     out = {}
     for kind in P.TASK_KINDS:
         task = tasks[kind]
         solver = P.GaussNewtonProjector(robot, task, backend=backend)
         targets = {target_term(task): problems[kind]["targets"]} if kind == "ik" else None
         t0 = time.perf_counter()
-        res = solver.solve_batch(problems[kind]["q0"], targets=targets, parallel=False, progress=True)
+        res = solver.solve_batch(problems[kind]["q0"], targets=targets, parallel=False, progress=progress)
         wall = time.perf_counter() - t0
         out[kind] = summarize(res.success, res.time_s, res.iterations)
         out[kind]["wall_s"] = wall
     return out
 
 
-def run_scipy(robot: genplan.Robot, problems: dict[str, Any], tasks: dict[str, P.Task]) -> dict[str, Any]:
+def run_scipy(robot: genplan.Robot, problems: dict[str, Any], tasks: dict[str, P.Task],
+              progress: bool = True) -> dict[str, Any]:
     from tqdm import tqdm
 
     from genplan.experiments.peers.scipy import scipy_solve
@@ -137,7 +143,7 @@ def run_scipy(robot: genplan.Robot, problems: dict[str, Any], tasks: dict[str, P
         q0s = problems[kind]["q0"]
         rows = []
         t0 = time.perf_counter()
-        for i in tqdm(range(len(q0s)), desc=f"scipy {kind}", unit="task", leave=False):
+        for i in tqdm(range(len(q0s)), desc=f"scipy {kind}", unit="task", leave=False, disable=not progress):
             task = base.with_targets(**{target_term(base): problems[kind]["targets"][i]}) if kind == "ik" else base
             rows.append(scipy_solve(robot, task, q0s[i]))
         wall = time.perf_counter() - t0
@@ -158,14 +164,14 @@ def task_description(tasks: dict[str, P.Task]) -> dict[str, Any]:
 
 
 def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend: str,
-        model_path: Path | None = None, task: str | Path | None = None) -> dict[str, Any]:
+        model_path: Path | None = None, task: str | Path | None = None, progress: bool = True) -> dict[str, Any]:
     robot = genplan.load(robot_name)
     kinds = tasks_for(robot, task)
     problems = make_problems(robot, tasks, seed, init, model_path, kinds)
     if solver == "gauss-newton":
-        results = run_gauss_newton(robot, problems, backend, kinds)
+        results = run_gauss_newton(robot, problems, backend, kinds, progress)
     else:
-        results = run_scipy(robot, problems, kinds)
+        results = run_scipy(robot, problems, kinds, progress)
     paper = task is None and (robot.name, "ik", init) in PAPER_TABLE_I
     payload: dict[str, Any] = {
         "benchmark": "projection",
@@ -212,6 +218,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--init", choices=INITS, default="uniform", help="initial configurations")
     p.add_argument("--tasks", type=A.positive_int, default=500, help="tasks per kind (projection, IK)")
     p.add_argument("--seed", type=A.seed, default=0)
+    p.add_argument("--seeds", type=A.seed_range, default=None, metavar="A..B",
+                   help="a sweep: one run per seed A..B (both included), per-seed rows and their median")
+    A.add_executor_arguments(p, "with --seeds: seeds run at once (default 1: one after the other, so that "
+                                "times are not shared)")
     p.add_argument("--solver", choices=SOLVERS, default="gauss-newton")
     p.add_argument("--backend", choices=P.BACKENDS, default="native", help="Gauss-Newton implementation")
     p.add_argument("--model", type=A.existing_file, default=None,
@@ -219,7 +229,53 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
 
 
+#: what a sweep keeps once (the same for every seed) rather than in each seed's row
+SHARED = ("benchmark", "robot", "robot_argument", "task", "init", "solver", "backend", "tasks", "units",
+          "ik_target_box", "settings", "task_terms", "machine", "paper")
+
+
+def run_seed(job: dict[str, Any]) -> dict[str, Any]:
+    """One seed of a sweep (a shard: module-level, so that a process or Ray worker can run it)."""
+    return run(**job, progress=False)
+
+
+def sweep(args: argparse.Namespace) -> dict[str, Any]:
+    """``--seeds A..B``: :func:`run` per seed on the execution layer, the per-seed results and
+    their median across seeds."""
+    from genplan.experiments.sweeps import median_of, run_seeds
+
+    jobs = [dict(robot_name=args.robot, init=args.init, tasks=args.tasks, seed=s, solver=args.solver,
+                 backend=args.backend, model_path=args.model, task=args.task) for s in args.seeds]
+    # the native Gauss-Newton releases the GIL (threads); scipy and the Python backend hold it
+    kind = "thread" if args.solver == "gauss-newton" and args.backend == "native" else "process"
+    runs, ex = run_seeds(run_seed, jobs, workers=args.workers, ray=args.ray, kind=kind,
+                         desc=f"bench projection ({args.robot})")
+    per_seed = [{k: v for k, v in r.items() if k not in SHARED} for r in runs]
+    return {**{k: runs[0][k] for k in SHARED}, "seeds": list(args.seeds), "executor": ex,
+            "per_seed": per_seed, "aggregate_rule": "median across seeds",
+            "aggregate": {kind: median_of([r[kind] for r in runs]) for kind in P.TASK_KINDS}}
+
+
+def print_sweep(payload: dict[str, Any]) -> None:
+    rows = []
+    for r in [*payload["per_seed"], {"seed": "median", **payload["aggregate"]}]:
+        for kind in P.TASK_KINDS:
+            x = r[kind]
+            rows.append([r["seed"], kind, f"{x['success_rate']:.1f}", f"{x['t_ave_ms']:.3f}",
+                         "-" if x.get("t_star_ave_ms") is None else f"{x['t_star_ave_ms']:.3f}",
+                         "-" if x.get("steps_star") is None else f"{x['steps_star']:.1f}"])
+    print(f"{payload['robot']}, {payload['init']} ({payload['solver']}), {payload['tasks']} tasks per seed")
+    print(table(["seed", "task", "success %", "T_ave ms", "T*_ave ms", "steps*"], rows))
+
+
 def main(args: argparse.Namespace) -> int:
+    if args.seeds is not None:
+        payload = sweep(args)
+        print_sweep(payload)
+        write_json(args.out, payload)
+        return 0
+    if args.workers is not None or args.ray is not None:
+        raise A.UsageError("--workers/--ray: they run the seeds of --seeds A..B; give --seeds")
     payload = run(args.robot, args.init, args.tasks, args.seed, args.solver, args.backend, args.model, args.task)
     print_table(payload)
     write_json(args.out, payload)
