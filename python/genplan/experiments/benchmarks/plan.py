@@ -52,6 +52,9 @@ PAPER_TABLE_II: dict[tuple[str, str], tuple[float, float, float, float]] = {
 
 ENVS = ("panda_shelf", "talos_task1", "talos_task2", "talos_task3")
 SAMPLERS = ("uniform", "gan", "hybrid")
+#: beyond the paper: the adaptive hybrid (genplan.planning.make_sampler); --sampler adaptive, or
+#: --sampler all+ for the paper's three and it
+EXTRA_SAMPLERS = ("adaptive",)
 PLANNERS = ("genplan", "ompl")
 
 
@@ -168,6 +171,9 @@ def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed:
             "ompl_over_hybrid": None if not (o and h) else o["t_ave_s"] / h["t_ave_s"],
             "ompl_over_uniform": None if not (o and u) else o["t_ave_s"] / u["t_ave_s"],
         }
+        a = by.get(("genplan", "adaptive"))
+        if a is not None:
+            ratios[env_name]["uniform_over_adaptive"] = None if not u else u["t_ave_s"] / a["t_ave_s"]
     return {
         "benchmark": "plan",
         "queries": n,
@@ -242,7 +248,8 @@ def print_sweep(payload: dict[str, Any]) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", default="all", choices=[*ENVS, "all"])
-    p.add_argument("--sampler", default="all", choices=[*SAMPLERS, "all"])
+    p.add_argument("--sampler", default="all", choices=[*SAMPLERS, *EXTRA_SAMPLERS, "all", "all+"],
+                   help="all: the paper's uniform, gan and hybrid; all+: those and adaptive (default all)")
     p.add_argument("--planner", default="genplan", choices=[*PLANNERS, "all"])
     p.add_argument("--queries", type=A.positive_int, default=100, help="queries per environment (the paper: 100)")
     p.add_argument("--seed", type=A.seed, default=0)
@@ -260,7 +267,7 @@ def main(args: argparse.Namespace) -> int:
     from genplan.planning import PlannerSettings
 
     envs = list(ENVS) if args.env == "all" else [args.env]
-    samplers = list(SAMPLERS) if args.sampler == "all" else [args.sampler]
+    samplers = {"all": list(SAMPLERS), "all+": [*SAMPLERS, *EXTRA_SAMPLERS]}.get(args.sampler, [args.sampler])
     planners = list(PLANNERS) if args.planner == "all" else [args.planner]
     settings = PlannerSettings() if args.edge_resolution is None else PlannerSettings(edge_resolution=args.edge_resolution)
     if args.seeds is not None:
