@@ -435,7 +435,7 @@ impl PyCollisionWorld {
         self.inner.remove_obstacle(name).map_err(to_py)
     }
     fn clear_obstacles(&mut self) {
-        self.inner.obstacles.clear();
+        self.inner.clear_obstacles();
     }
 
     /// True where a configuration collides: q (nq,) -> bool; q (n, nq) -> bool array (n,).

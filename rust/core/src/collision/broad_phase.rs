@@ -1,6 +1,7 @@
 //! Broad phase: which pairs are checked (the self-collision pairs, every robot geometry against
 //! every obstacle) and the cheap filters that rule a pair out before the exact narrow phase
-//! (world-aligned boxes, oriented boxes).
+//! (world-aligned boxes, oriented boxes). Which obstacles are near a robot shape at all comes
+//! from the hierarchy over the obstacles (`obstacles.rs`).
 
 use std::collections::HashSet;
 
@@ -40,6 +41,14 @@ pub(super) fn self_pairs(model: &KinematicModel, geometries: &[RobotGeometry], s
     self_pairs
 }
 
+/// Distance between two boxes (0 when they overlap): a lower bound on the distance of any
+/// shapes inside them. Monotone: a box containing `b` is no farther from `a`.
+#[inline]
+pub(super) fn box_gap(a: &Aabb, b: &Aabb) -> f64 {
+    let lo = (a.mins - b.maxs).sup(&(b.mins - a.maxs)).sup(&Vector3::zeros());
+    lo.norm()
+}
+
 /// The second member of a pair: a robot geometry or an obstacle.
 #[derive(Clone, Copy)]
 pub(super) enum Target {
@@ -70,12 +79,10 @@ impl CollisionWorld {
     /// the distance of the shapes.
     #[inline]
     pub(super) fn aabb_gap(&self, i: usize, t: Target, s: &Scratch) -> f64 {
-        let a = &s.aabbs[i];
-        let Some(b) = self.target_aabb(t, s) else {
-            return f64::NEG_INFINITY;
-        };
-        let lo = (a.mins - b.maxs).sup(&(b.mins - a.maxs)).sup(&Vector3::zeros());
-        lo.norm()
+        match self.target_aabb(t, s) {
+            Some(b) => box_gap(&s.aabbs[i], b),
+            None => f64::NEG_INFINITY,
+        }
     }
 
     /// Broadphase: can robot geometry `i` touch target `t` (boxes overlap)?

@@ -6,11 +6,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 use parry3d_f64::query;
 use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, HalfSpace, SharedShape};
 
-use super::broad_phase::{self_pairs, Obb};
+use super::broad_phase::{self_pairs, Obb, Target};
+use super::obstacles::Obstacles;
 use super::geometry::{bounding_sphere, load_mesh_vertices, robot_geometries};
 use super::RobotGeometry;
 use crate::error::{check_finite, check_vector, unknown, Error, Result};
@@ -74,8 +75,10 @@ pub struct CollisionWorld {
     pub geometries: Vec<RobotGeometry>,
     /// Self-collision pairs, as indices into `geometries`.
     pub self_pairs: Vec<(usize, usize)>,
-    /// The obstacles, in the order they were added.
-    pub obstacles: Vec<Obstacle>,
+    /// The obstacles, in the order they were added, with the hierarchy over them (read-only:
+    /// they change through `add_*`, [`remove_obstacle`](Self::remove_obstacle) and
+    /// [`clear_obstacles`](Self::clear_obstacles)).
+    pub obstacles: Obstacles,
     /// Check self-collision (default true).
     pub check_self: bool,
 }
@@ -95,7 +98,7 @@ impl CollisionWorld {
             model,
             geometries,
             self_pairs,
-            obstacles: Vec::new(),
+            obstacles: Obstacles::default(),
             check_self: true,
         })
     }
@@ -233,6 +236,11 @@ impl CollisionWorld {
         self.add_obstacle(name, pose, SharedShape::new(HalfSpace::new(n)))
     }
 
+    /// Remove every obstacle.
+    pub fn clear_obstacles(&mut self) {
+        self.obstacles.clear();
+    }
+
     /// Remove an obstacle by name.
     pub fn remove_obstacle(&mut self, name: &str) -> Result<()> {
         match self.obstacles.iter().position(|o| o.name == name) {
@@ -248,18 +256,48 @@ impl CollisionWorld {
     }
 
     /// World poses and bounding boxes of the robot geometries for a checked q.
-    fn geometry_poses(&self, q: &[f64], s: &mut Scratch) {
+    pub(super) fn geometry_poses(&self, q: &[f64], s: &mut Scratch) {
         self.model.forward_kinematics_unchecked(q, &mut s.links);
         s.poses.clear();
         s.aabbs.clear();
         s.obbs.clear();
+        let mut all = Aabb::new_invalid();
         for g in &self.geometries {
             let pose = s.links[g.link] * g.offset;
             let obb = Obb::new(&g.local_aabb, &pose);
-            s.aabbs.push(obb.aabb());
+            let aabb = obb.aabb();
+            all.mins = all.mins.inf(&aabb.mins);
+            all.maxs = all.maxs.sup(&aabb.maxs);
+            s.aabbs.push(aabb);
             s.obbs.push(obb);
             s.poses.push(pose);
         }
+        s.robot_aabb = all;
+    }
+
+    /// Does robot geometry `i` intersect target `t`? The bounding-volume filters (boxes, spheres,
+    /// oriented boxes), then the exact narrow phase.
+    #[inline]
+    pub(super) fn pair_intersects(&self, i: usize, t: Target, s: &Scratch) -> bool {
+        if !self.may_touch(i, t, s, 0.0) {
+            return false;
+        }
+        let g = &self.geometries[i];
+        let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
+        let ca = s.poses[i] * g.center;
+        if rb.is_finite() && (ca - cb).norm() > g.radius + rb {
+            return false;
+        }
+        // The shapes' boxes in their own frames are much tighter than world-aligned boxes on
+        // tilted links: a separating axis between them rules the pair out before GJK.
+        if let Some(b) = self.target_obb(t, s) {
+            if s.obbs[i].separated(b) {
+                return false;
+            }
+        }
+        // Unsupported shape pairs cannot occur with the shapes built here; count them as
+        // colliding to stay on the safe side.
+        query::intersection_test(&s.poses[i], &*g.shape, &pose_b, &**shape_b).unwrap_or(true)
     }
 
     /// True when any checked pair intersects.
@@ -270,32 +308,44 @@ impl CollisionWorld {
     }
 
     /// [`in_collision`](Self::in_collision) without input checks, reusing buffers.
+    ///
+    /// The obstacles looked at are those the hierarchy over them (`obstacles.rs`) finds near the
+    /// robot: first the ones whose box meets the box around the whole robot; when there are more
+    /// than 24 of them (`NEAR_LINEAR_MAX`), each geometry asks the hierarchy for its own. Each
+    /// candidate pair then goes through the same filters and narrow phase as in an exhaustive
+    /// loop, so the answer is the exhaustive loop's.
     pub fn in_collision_unchecked(&self, q: &[f64], s: &mut Scratch) -> bool {
         self.geometry_poses(q, s);
-        for (i, t) in self.pair_iter() {
-            if !self.may_touch(i, t, s, 0.0) {
-                continue;
-            }
-            let g = &self.geometries[i];
-            let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
-            let ca = s.poses[i] * g.center;
-            if rb.is_finite() && (ca - cb).norm() > g.radius + rb {
-                continue;
-            }
-            // The shapes' boxes in their own frames are much tighter than world-aligned boxes on
-            // tilted links: a separating axis between them rules the pair out before GJK.
-            if let Some(b) = self.target_obb(t, s) {
-                if s.obbs[i].separated(b) {
-                    continue;
+        let mut near = std::mem::take(&mut s.near);
+        self.obstacles.overlapping(&s.robot_aabb, &mut near);
+        let mut hit = false;
+        if near.len() <= NEAR_LINEAR_MAX {
+            'outer: for i in 0..self.geometries.len() {
+                for &k in &near {
+                    if self.pair_intersects(i, Target::Obstacle(k), s) {
+                        hit = true;
+                        break 'outer;
+                    }
                 }
             }
-            // Unsupported shape pairs cannot occur with the shapes built here; count them as
-            // colliding to stay on the safe side.
-            if query::intersection_test(&s.poses[i], &*g.shape, &pose_b, &**shape_b).unwrap_or(true) {
-                return true;
+        } else {
+            let mut mine = std::mem::take(&mut s.candidates);
+            'outer2: for i in 0..self.geometries.len() {
+                self.obstacles.overlapping(&s.aabbs[i], &mut mine);
+                for &k in &mine {
+                    if self.pair_intersects(i, Target::Obstacle(k), s) {
+                        hit = true;
+                        break 'outer2;
+                    }
+                }
             }
+            s.candidates = mine;
         }
-        false
+        s.near = near;
+        if hit {
+            return true;
+        }
+        self.check_self && self.self_pairs.iter().any(|&(i, j)| self.pair_intersects(i, Target::Robot(j), s))
     }
 
     /// [`in_collision`](Self::in_collision) with every pair through the exact narrow phase (no
@@ -340,27 +390,63 @@ impl CollisionWorld {
     }
 
     /// [`min_distance`](Self::min_distance) without input checks, reusing buffers.
+    ///
+    /// Pairs are visited in the exhaustive loop's order (each geometry in turn against the
+    /// obstacles in index order, then the self pairs) and skipped by the same tests, so the
+    /// value is the exhaustive loop's; the hierarchy over the obstacles only leaves out, for each
+    /// geometry, the obstacles whose box is already farther than the best distance so far (which
+    /// that loop would skip too). The first geometry's list, asked for before any distance is
+    /// known, is asked for again after the first one.
     pub fn min_distance_unchecked(&self, q: &[f64], s: &mut Scratch) -> f64 {
         self.geometry_poses(q, s);
         let mut best = f64::INFINITY;
-        for (i, t) in self.pair_iter() {
-            let g = &self.geometries[i];
-            let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
-            let ca = s.poses[i] * g.center;
-            // Lower bounds from the bounding spheres and boxes: skip pairs that cannot beat `best`.
-            if rb.is_finite() && (ca - cb).norm() - g.radius - rb >= best {
-                continue;
+        let mut cands = std::mem::take(&mut s.candidates);
+        for i in 0..self.geometries.len() {
+            let mut from = 0;
+            loop {
+                let bound = best;
+                self.obstacles.within(&s.aabbs[i], bound, from, &mut cands);
+                let mut again = false;
+                for &k in &cands {
+                    best = self.pair_min_distance(i, Target::Obstacle(k), s, best);
+                    if bound == f64::INFINITY && best < f64::INFINITY {
+                        from = k + 1;
+                        again = true;
+                        break;
+                    }
+                }
+                if !again {
+                    break;
+                }
             }
-            // The box gap bounds only a separated pair's distance: overlapping boxes (gap 0) may
-            // hide a penetration deeper than `best`, so they are never skipped.
-            let gap = self.aabb_gap(i, t, s);
-            if gap > 0.0 && gap >= best {
-                continue;
+        }
+        s.candidates = cands;
+        if self.check_self {
+            for &(i, j) in &self.self_pairs {
+                best = self.pair_min_distance(i, Target::Robot(j), s, best);
             }
-            let d = Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b);
-            best = best.min(d);
         }
         best
+    }
+
+    /// `best` lowered to the distance of pair (i, t) unless bounds show it cannot beat `best`.
+    #[inline]
+    pub(super) fn pair_min_distance(&self, i: usize, t: Target, s: &Scratch, best: f64) -> f64 {
+        let g = &self.geometries[i];
+        let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
+        let ca = s.poses[i] * g.center;
+        // Lower bounds from the bounding spheres and boxes: skip pairs that cannot beat `best`.
+        if rb.is_finite() && (ca - cb).norm() - g.radius - rb >= best {
+            return best;
+        }
+        // The box gap bounds only a separated pair's distance: overlapping boxes (gap 0) may
+        // hide a penetration deeper than `best`, so they are never skipped.
+        let gap = self.aabb_gap(i, t, s);
+        if gap > 0.0 && gap >= best {
+            return best;
+        }
+        let d = Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b);
+        best.min(d)
     }
 
     /// Every checked pair closer than `margin` (signed distance < margin), with its distance.
@@ -369,8 +455,20 @@ impl CollisionWorld {
         check_finite("margin", &[margin])?;
         let mut s = Scratch::default();
         self.geometry_poses(q, &mut s);
+        // the obstacles whose box meets each geometry's box loosened by the margin (the test of
+        // `may_touch`), then the self pairs: the exhaustive loop's order
+        let mut pairs = Vec::new();
+        let mut near = Vec::new();
+        for i in 0..self.geometries.len() {
+            let b = if margin > 0.0 { s.aabbs[i].loosened(margin) } else { s.aabbs[i] };
+            self.obstacles.overlapping(&b, &mut near);
+            pairs.extend(near.iter().map(|&k| (i, Target::Obstacle(k))));
+        }
+        if self.check_self {
+            pairs.extend(self.self_pairs.iter().map(|&(i, j)| (i, Target::Robot(j))));
+        }
         let mut out = Vec::new();
-        for (i, t) in self.pair_iter() {
+        for (i, t) in pairs {
             if !self.may_touch(i, t, &s, margin) {
                 continue;
             }
@@ -402,13 +500,37 @@ impl CollisionWorld {
     }
 }
 
+/// Above this many obstacles near the whole robot, [`CollisionWorld::in_collision_unchecked`]
+/// asks the hierarchy for each geometry's own instead of testing each geometry against all of
+/// them.
+const NEAR_LINEAR_MAX: usize = 24;
+
 /// Reusable buffers for repeated queries.
-#[derive(Default, Clone)]
+#[derive(Clone)]
 pub struct Scratch {
     links: Vec<Isometry3<f64>>,
     pub(super) poses: Vec<Isometry3<f64>>,
     pub(super) aabbs: Vec<Aabb>,
     pub(super) obbs: Vec<Obb>,
+    /// The box around every robot geometry.
+    pub(super) robot_aabb: Aabb,
+    /// Obstacles near the whole robot, and near one geometry (indices, ascending).
+    near: Vec<usize>,
+    candidates: Vec<usize>,
+}
+
+impl Default for Scratch {
+    fn default() -> Scratch {
+        Scratch {
+            links: Vec::new(),
+            poses: Vec::new(),
+            aabbs: Vec::new(),
+            obbs: Vec::new(),
+            robot_aabb: Aabb::new_invalid(),
+            near: Vec::new(),
+            candidates: Vec::new(),
+        }
+    }
 }
 
 /// An obstacle's pose: finite, its translation within [`MAX_OBSTACLE_EXTENT`] of the origin in
