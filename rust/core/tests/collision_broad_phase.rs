@@ -122,8 +122,10 @@ fn compare(w: &CollisionWorld, qs: &[Vec<f64>]) -> usize {
 fn broad_phase_answers_as_the_exhaustive_check_on_random_scenes() {
     let (model, base) = preset("panda").unwrap().load().unwrap();
     let mut rng = StdRng::seed_from_u64(17);
+    // 48 configurations: every scene is compared four ways, each against an exhaustive parry
+    // check (minutes in a debug build, CI's, with more)
     let qs: Vec<Vec<f64>> =
-        (0..120).map(|_| model.lower.iter().zip(&model.upper).map(|(&l, &u)| rng.random_range(l..=u)).collect()).collect();
+        (0..48).map(|_| model.lower.iter().zip(&model.upper).map(|(&l, &u)| rng.random_range(l..=u)).collect()).collect();
     let (mut hits, mut free) = (0, 0);
     // scenes from empty to cluttered: far and sparse, near and dense
     for (n, spread) in [(0, 1.0), (1, 0.4), (40, 2.0), (150, 1.2), (250, 0.7)] {
@@ -143,7 +145,7 @@ fn broad_phase_answers_as_the_exhaustive_check_on_random_scenes() {
         assert!(w.obstacles.is_empty());
         compare(&w, &qs);
     }
-    assert!(hits > 150 && free > 150, "{hits} in collision, {free} free: both kinds must be met");
+    assert!(hits > 60 && free > 60, "{hits} in collision, {free} free: both kinds must be met");
 }
 
 #[test]
@@ -180,7 +182,7 @@ fn talos_self_collision_as_the_exhaustive_check() {
     let mut rng = StdRng::seed_from_u64(29);
     let mut s = Scratch::default();
     let (mut hits, mut n) = (0, 0);
-    for _ in 0..400 {
+    for _ in 0..150 {
         let mut q: Vec<f64> = model
             .lower
             .iter()
@@ -196,5 +198,5 @@ fn talos_self_collision_as_the_exhaustive_check() {
         hits += want as usize;
         n += 1;
     }
-    assert!(hits > 20 && hits < n - 20, "{hits} of {n} in collision: both kinds must be met");
+    assert!(hits > 10 && hits < n - 10, "{hits} of {n} in collision: both kinds must be met");
 }
