@@ -189,3 +189,13 @@ def check_outputs(args: argparse.Namespace, actions: list[tuple[str, str, Output
         for path in value if isinstance(value, list) else [value]:
             if path is not None:
                 out.check(Path(path), option)
+
+
+def add_robot_and_task(p: argparse.ArgumentParser, task_default: str | None, *, task_required: bool = False) -> None:
+    """``--robot`` and ``--task``, one definition for every command that takes them;
+    ``task_default``: what a missing ``--task`` means (for the help), None when it is required."""
+    p.add_argument("--robot", required=True,
+                   help="a preset name (genplan info lists them), a robot file (.toml) or a URDF")
+    p.add_argument("--task", required=task_required, default=None,
+                   help="a task with a [condition]: a shipped task's name or a task file (.toml)"
+                        + ("" if task_default is None else f"; default: {task_default}"))

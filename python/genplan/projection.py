@@ -617,6 +617,16 @@ def load_task(task: "str | os.PathLike[str] | Task", robot: Robot | None = None)
     return Task.from_file(path, robot)
 
 
+def default_task_name(robot: Robot) -> str:
+    """The task of ``robot`` when none is named (a GAN's, a scene's queries'): the shipped
+    ``<robot>_ik``, else a SettingsError asking for one."""
+    name = f"{robot.name}_ik"
+    if name not in task_names():
+        raise SettingsError(f"robot '{robot.name}' has no shipped task: give one (a task file with a [condition], "
+                            f"see docs/TASKS.md; shipped tasks: {', '.join(task_names())})")
+    return name
+
+
 def condition_term(task: Task) -> FramePosition:
     """The task's condition term, which a sampler is conditioned on: a FramePosition (3 target
     numbers, the sampler's input), else GenplanError naming the task and the term."""

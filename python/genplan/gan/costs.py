@@ -15,28 +15,18 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 import torch
 from numpy.typing import NDArray
 
 from genplan import _core
 from genplan import projection as P
-from genplan.errors import GenplanError, SettingsError, UnknownNameError
-from genplan.projection import condition_term, manifold_task
+from genplan.errors import GenplanError, UnknownNameError
+from genplan.projection import condition_term, default_task_name, manifold_task
 from genplan.robots import Robot
+from genplan.torch_kinematics import quaternion_to_matrix
 
 __all__ = ["NativeCost", "condition_term", "constraint_terms", "default_task_name", "manifold_task", "sampling_box",
            "tangent_map"]
-
-
-def default_task_name(robot: Robot) -> str:
-    """The task a GAN of ``robot`` is for when none is named: the shipped ``<robot>_ik``, else a
-    SettingsError asking for one."""
-    name = f"{robot.name}_ik"
-    if name not in P.task_names():
-        raise SettingsError(f"robot '{robot.name}' has no shipped task: give one (a task file with a [condition], "
-                            f"see docs/TASKS.md; shipped tasks: {', '.join(P.task_names())})")
-    return name
 
 
 def constraint_terms(task: P.Task, robot: Robot | None = None) -> tuple[P.Term, ...]:
@@ -61,8 +51,8 @@ def tangent_map(robot: Robot, q: NDArray[np.float64]) -> NDArray[np.float64]:
             out[:, np.arange(iv, iv + j.nv), np.arange(iq, iq + j.nq)] = 1.0
         elif j.shortname() == "JointModelFreeFlyer":
             quat = q[:, iq + 3 : iq + 7]
-            x, y, z, w = quat.T
-            rot = np.array([pin.Quaternion(w[i], x[i], y[i], z[i]).toRotationMatrix() for i in range(n)])
+            w = quat[:, 3]
+            rot = quaternion_to_matrix(torch.from_numpy(quat)).numpy()  # every row at once: a training step's hot path
             out[:, iv : iv + 3, iq : iq + 3] = np.transpose(rot, (0, 2, 1))
             u = quat[:, :3]
             skew = np.zeros((n, 3, 3))

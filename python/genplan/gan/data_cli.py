@@ -20,11 +20,7 @@ from genplan import _cli_args as A
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from genplan.gan.data import SHARD_SIZE
 
-    p.add_argument("--robot", required=True,
-                   help="a preset name (genplan info lists them) or a robot file (.toml) or a URDF")
-    p.add_argument("--task", default=None,
-                   help="a task with a [condition] (shipped name or task file .toml): the data lie on its "
-                        "manifold; default: the robot's shipped <robot>_ik")
+    A.add_robot_and_task(p, "the robot's shipped <robot>_ik (the data lie on the task's manifold)")
     p.add_argument("--data-size", type=A.positive_int, required=True, help="configurations in the data set")
     p.add_argument("--out", type=A.output_folder, required=True,
                    help="the data set's folder (created; a folder of the same run is resumed)")

@@ -23,11 +23,7 @@ from genplan import _cli_args as A
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--robot", required=True,
-                   help="a preset name (genplan info lists them) or a robot file (.toml) or a URDF")
-    p.add_argument("--task", default=None,
-                   help="a task with a [condition] (shipped name or task file .toml); default: the robot's "
-                        "shipped <robot>_ik")
+    A.add_robot_and_task(p, "the robot's shipped <robot>_ik")
     p.add_argument("--seed", type=A.seed, default=0, help="training seed (torch and numpy)")
     p.add_argument("--seeds", type=A.seed_range, default=None, metavar="A..B",
                    help="train one model per seed A..B (both included); outputs named <out>_seed<S>")

@@ -37,8 +37,7 @@ def _start(text: str) -> str | list[float]:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from genplan.planning import SAMPLERS
 
-    p.add_argument("--robot", required=True, help="a preset name or a robot file (.toml)")
-    p.add_argument("--task", required=True, help="a task with a [condition]: shipped name or task file (.toml)")
+    A.add_robot_and_task(p, None, task_required=True)
     p.add_argument("--scene", default=None, help="obstacles: a shipped scene's name or a scene file (.toml)")
     p.add_argument("--start", type=_start, default="default",
                    help="'default' (the robot's default configuration) or nq numbers; projected onto the manifold")

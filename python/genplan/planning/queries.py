@@ -24,7 +24,7 @@ TOLERANCE_FACTOR = 0.1
 def _ik_task(robot: Robot, env: Environment, yaw: float) -> P.Task:
     """The environment's query IK task (its ``task``, default the robot's ``<robot>_ik``), its
     ``yaw_term`` aimed at a rotation by ``yaw`` about the vertical."""
-    task = P.load_task(env.task if env.task is not None else f"{robot.name}_ik", robot)
+    task = P.load_task(env.task if env.task is not None else P.default_task_name(robot), robot)
     if env.yaw_term is not None:
         task = task.with_targets(**{env.yaw_term: pin.utils.rotate("z", yaw)})
     return task

@@ -211,10 +211,7 @@ def print_table(payload: dict[str, Any]) -> None:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--robot", required=True, help="a preset name or a robot file (.toml)")
-    p.add_argument("--task", default=None,
-                   help="a task with a [condition] (shipped name or task file); default: the paper's two tasks "
-                        "(panda, talos)")
+    A.add_robot_and_task(p, "the paper's two tasks (panda, talos)")
     p.add_argument("--init", choices=INITS, default="uniform", help="initial configurations")
     p.add_argument("--tasks", type=A.positive_int, default=500, help="tasks per kind (projection, IK)")
     p.add_argument("--seed", type=A.seed, default=0)
