@@ -4,8 +4,12 @@
 //! * one ConstrainedExtend and a whole plan on the sphere (OMPL's constrained-planning demo: a
 //!   point of R^3 kept on the unit sphere, a band around the equator blocked but for a door);
 //! * a whole Panda plan (gripper horizontal, native Gauss-Newton projector, parry collision,
-//!   self-collision included) between two fixed configurations around a box; needs
-//!   example-robot-data (GENPLAN_ROBOTS_DIR or the project's .venv).
+//!   self-collision included) between two fixed configurations around a box, with the paper's
+//!   cRRT and with RRT-Connect; needs example-robot-data (GENPLAN_ROBOTS_DIR or the project's
+//!   .venv);
+//! * the Panda's constrained space: one constrained step (0.3 rad, projected, checked) and the
+//!   check of a 0.3 rad edge (11 projected, checked states at 0.025 rad), its states projected
+//!   without the posture step (as the planner does) and with it (as before issue 17).
 
 #[path = "../rust/core/tests/common/fixtures.rs"]
 mod fixtures;
@@ -14,10 +18,10 @@ use std::hint::black_box;
 use std::sync::Arc;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use fixtures::{no_interrupt, panda_horizontal_gripper, Band, CubeSampler, SphereProjector};
+use fixtures::{no_interrupt, panda_horizontal_gripper, Band, CubeSampler, SphereProjector, WithPosture};
 use genplan_core::planning::{
-    CollisionChecker, Components, EuclideanSpace, GaussNewtonProjector, KdForest, LinearNearest, NearestNeighbors, Planner, Sampler,
-    Settings, UniformSampler,
+    Algorithm, CollisionChecker, Components, ConstrainedSpace, EuclideanSpace, GaussNewtonProjector, KdForest, LinearNearest, NearestNeighbors,
+    Planner, Projector, Sampler, Settings, UniformSampler,
 };
 use genplan_core::robot::preset;
 use rand::{rngs::StdRng, Rng, SeedableRng};
@@ -101,21 +105,65 @@ fn panda(c: &mut Criterion) {
         }
     };
     let (start, goal) = (pick(1, false), pick(2, true));
-    let planner = Planner::new(model.clone(), Settings::default()).unwrap();
-    let mut seed = 0;
-    c.bench_function("plan/panda_around_a_box", |b| {
-        b.iter(|| {
-            seed += 1;
-            let mut sampler = UniformSampler::new(model.clone(), None, seed).unwrap();
-            let mut projector = GaussNewtonProjector { inner: gn.clone(), parallel: false };
-            let mut checker = CollisionChecker::new(world.clone(), false);
-            let mut interrupt = no_interrupt;
-            let mut c_ = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
-            let sol = planner.plan(&start, &goal, &mut c_).unwrap();
-            black_box(sol)
-        })
+    for (name, algorithm) in [("plan/panda_around_a_box", Algorithm::Crrt), ("plan/panda_around_a_box_rrt_connect", Algorithm::RrtConnect)] {
+        let planner = Planner::new(model.clone(), Settings { algorithm, ..Settings::default() }).unwrap();
+        let mut seed = 0;
+        c.bench_function(name, |b| {
+            b.iter(|| {
+                seed += 1;
+                let mut sampler = UniformSampler::new(model.clone(), None, seed).unwrap();
+                let mut projector = GaussNewtonProjector::new(gn.clone(), false);
+                let mut checker = CollisionChecker::new(world.clone(), false);
+                let mut interrupt = no_interrupt;
+                let mut c_ = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+                let sol = planner.plan(&start, &goal, &mut c_).unwrap();
+                black_box(sol)
+            })
+        });
+    }
+}
+
+/// The Panda's constrained space (the shelf-free world of `panda` with its box): a step and an
+/// edge check from a valid state on the manifold.
+fn constrained_space(c: &mut Criterion) {
+    let (model, mut world) = preset("panda").unwrap().load().unwrap();
+    world.add_box("wall", [0.05, 0.05, 0.3], nalgebra::Isometry3::translation(0.45, 0.0, 0.35)).unwrap();
+    let world = Arc::new(world);
+    let gn = Arc::new(panda_horizontal_gripper(model.clone(), 1e-5));
+    let settings = Settings::default();
+    let mut checker = CollisionChecker::new(world.clone(), false);
+    let mut projector = GaussNewtonProjector::new(gn.clone(), false);
+    let mut with_posture = WithPosture(GaussNewtonProjector::new(gn.clone(), false));
+    // a valid state on the manifold and a step of 0.3 rad from it towards a random target
+    let mut sampler = UniformSampler::new(model.clone(), None, 4).unwrap();
+    let (a, target, b) = {
+        let mut space = ConstrainedSpace::new(model.as_ref(), &mut projector, &mut checker, &settings);
+        let mut q = vec![0.0; 7];
+        loop {
+            sampler.sample(1, &mut q).unwrap();
+            let o = gn.solve_unchecked(&q, None);
+            let mut ok = [false];
+            space.check(&o.q, &mut ok).unwrap();
+            if !(o.success && ok[0]) {
+                continue;
+            }
+            sampler.sample(1, &mut q).unwrap();
+            let t = q.clone();
+            if let Some(step) = space.step(&o.q, &t, false).unwrap() {
+                if space.geodesic(&o.q, &step.q, false).unwrap().is_some_and(|e| e.len() == 11 * 7) {
+                    break (o.q, t, step.q);
+                }
+            }
+        }
+    };
+    let mut space = ConstrainedSpace::new(model.as_ref(), &mut projector, &mut checker, &settings);
+    c.bench_function("constrained_space/panda_step", |bch| bch.iter(|| black_box(space.step(black_box(&a), &target, false).unwrap())));
+    c.bench_function("constrained_space/panda_edge_check", |bch| bch.iter(|| black_box(space.geodesic(black_box(&a), &b, false).unwrap())));
+    let mut space = ConstrainedSpace::new(model.as_ref(), &mut with_posture as &mut dyn Projector, &mut checker, &settings);
+    c.bench_function("constrained_space/panda_edge_check_with_posture", |bch| {
+        bch.iter(|| black_box(space.geodesic(black_box(&a), &b, false).unwrap()))
     });
 }
 
-criterion_group!(benches, nearest, sphere, panda);
+criterion_group!(benches, nearest, sphere, panda, constrained_space);
 criterion_main!(benches);

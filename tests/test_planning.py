@@ -1,6 +1,7 @@
-"""The constrained RRT from Python: environments and queries, valid paths (dense check of every
-edge: constraint within tolerance, no collision, self-collision included), Python components
-called back from Rust, exceptions and Ctrl-C, bad input."""
+"""The constrained planners (the paper's cRRT, RRT-Connect) from Python: environments and
+queries, valid paths (dense check of every edge: constraint within tolerance, no collision,
+self-collision included), Python components called back from Rust, exceptions and Ctrl-C, bad
+input."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from genplan import _core
 from genplan import projection as P
 from genplan.errors import (CallbackError, GenplanError, InvalidGoalError, InvalidStartError, NonFiniteError, SettingsError,
                             ShapeError, UnknownNameError)
-from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler, uniform_base_box
+from genplan.planning import (ALGORITHMS, ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler,
+                              uniform_base_box)
 from tests.interrupt import MAX_LATENCY_S, ctrl_c_latency
 
 
@@ -93,11 +95,42 @@ def test_panda_paths_are_valid(panda, shelf, sampler) -> None:
         assert len(res.waypoints) >= 2 and res.stats.nodes >= len(res.waypoints)
 
 
-def test_talos_path_is_valid(talos, task1) -> None:
+@pytest.mark.parametrize("sampler", ["uniform", "gan"])
+def test_rrt_connect_paths_are_valid(panda, shelf, sampler) -> None:
+    """RRT-Connect: the same dense re-check as the cRRT's; the goal reached is one of the goals."""
+    env, world, queries = shelf
+    planner = Planner(panda, world=world, sampler=sampler, seed=2, algorithm="rrt_connect")
+    assert planner.settings.algorithm == "rrt_connect"
+    for q in queries:
+        res = planner.plan(q.start, q.goals)
+        assert_path_valid(panda, world, res, q)
+        assert res.projections > 0 and res.extensions > 0 and res.time_s > 0
+        assert len(res.waypoints) >= 2 and res.stats.nodes >= len(res.waypoints)
+        # the waypoints lie on the dense path, in order
+        k = 0
+        for w in res.waypoints:
+            k += int(np.flatnonzero((res.path[k:] == w).all(axis=1))[0])
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_talos_path_is_valid(talos, task1, algorithm) -> None:
     env, world, queries = task1
-    planner = Planner(talos, world=world, sampler="hybrid", seed=0)
+    planner = Planner(talos, world=world, sampler="hybrid", seed=0, algorithm=algorithm)
     res = planner.plan(queries[0].start, queries[0].goals)
     assert_path_valid(talos, world, res, queries[0], sub=4)
+
+
+def test_the_algorithm_is_a_known_name(panda, shelf) -> None:
+    assert ALGORITHMS == ("crrt", "rrt_connect") and PlannerSettings().algorithm == "crrt"
+    with pytest.raises(UnknownNameError, match="unknown algorithm 'rrt' \\(known: crrt, rrt_connect\\)"):
+        Planner(panda, world=shelf[1], algorithm="rrt")
+    with pytest.raises(SettingsError, match="PlannerSettings.algorithm: unknown algorithm 'rrt' \\(known: 'crrt', 'rrt_connect'\\)"):
+        PlannerSettings(algorithm="rrt")
+    with pytest.raises(SettingsError, match="PlannerSettings.algorithm"):
+        PlannerSettings(algorithm=1)
+    # the keyword overrides the settings' algorithm and keeps the rest
+    p = Planner(panda, world=shelf[1], settings=PlannerSettings(step=0.2, algorithm="rrt_connect"), algorithm="crrt")
+    assert (p.settings.algorithm, p.settings.step) == ("crrt", 0.2)
 
 
 class CountingSampler:
@@ -141,10 +174,13 @@ def test_python_components_are_called_back_in_batches(panda, shelf) -> None:
     assert sampler.calls >= 1 and projector.calls >= 1 and checker.calls >= 1
     # batched: several samples per sampler call
     assert res.stats.samples == 8 * sampler.calls
-    # the same plan with native parts gives the same answer (same samples, same projector)
+    # the same plan with native parts gives the same answer (same samples, same projector): the
+    # same tree; the edge states within micro-radians (the native projector drops the posture
+    # step on them, the Python one cannot: rust/core/src/planning/projector.rs)
     native = Planner(panda, world=world, sampler=CountingSampler(panda), settings=PlannerSettings(sample_batch=8))
     again = native.plan(queries[0].start, queries[0].goals)
-    assert again.extensions == res.extensions and np.allclose(again.path, res.path)
+    assert again.extensions == res.extensions and np.array_equal(again.waypoints, res.waypoints)
+    assert again.path.shape == res.path.shape and np.abs(again.path - res.path).max() < 1e-4
 
 
 class Boom(Exception):

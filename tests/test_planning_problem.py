@@ -13,7 +13,7 @@ import pytest
 import genplan
 from genplan import projection as P
 from genplan.cli import main
-from genplan.errors import InvalidGoalError, InvalidStartError, ModelFileError, SettingsError
+from genplan.errors import InvalidGoalError, InvalidStartError, ModelFileError, SettingsError, UnknownNameError
 from genplan.gan.costs import manifold_task
 from genplan.planning import make_query, plan
 
@@ -37,9 +37,11 @@ def _upright(arm: genplan.Robot, q: np.ndarray) -> np.ndarray:
     return arm.link_poses(q.reshape(-1, arm.nq), ["link_eef"])[:, 0, :3, 2]
 
 
-@pytest.mark.parametrize("sampler", ["uniform", "gan", "hybrid"])
-def test_plan_keeps_the_cup_upright_around_the_box(sampler: str, arm: genplan.Robot, cup: P.Task) -> None:
-    out = plan(arm, cup, scene=SCENE, start="default", target=(0.45, -0.3, 0.25), sampler=sampler, model=MODEL, seed=0)
+@pytest.mark.parametrize("sampler,algorithm", [("uniform", "crrt"), ("gan", "crrt"), ("hybrid", "crrt"),
+                                               ("gan", "rrt_connect")])
+def test_plan_keeps_the_cup_upright_around_the_box(sampler: str, algorithm: str, arm: genplan.Robot, cup: P.Task) -> None:
+    out = plan(arm, cup, scene=SCENE, start="default", target=(0.45, -0.3, 0.25), sampler=sampler, model=MODEL, seed=0,
+               algorithm=algorithm)
     r = out.result
     assert r.success
     # every state: the constraint (tool z down within the planner's tolerance), collision-free
@@ -53,6 +55,7 @@ def test_plan_keeps_the_cup_upright_around_the_box(sampler: str, arm: genplan.Ro
     assert np.allclose(r.path[-1], out.query.goals[r.goal_index])
     data = out.to_dict()
     assert data["task"] == "upright_cup" and data["manifold"] == "upright_cup" and data["success"]
+    assert data["algorithm"] == algorithm
     json.dumps(data)  # JSON-able
 
 
@@ -106,15 +109,16 @@ def test_plan_on_a_shipped_robot_and_task() -> None:
 def test_plan_command_writes_json_and_html(tmp_path, capsys) -> None:
     js, page = tmp_path / "plan.json", tmp_path / "plan.html"
     argv = ["plan", "--robot", str(ROBOT), "--task", str(TASK), "--scene", str(SCENE), "--start", "default",
-            "--target", "0.45", "-0.3", "0.25", "--sampler", "hybrid", "--model", str(MODEL), "--out", str(js)]
+            "--target", "0.45", "-0.3", "0.25", "--sampler", "hybrid", "--model", str(MODEL), "--out", str(js),
+            "--algorithm", "rrt_connect"]
     viewer = importlib.util.find_spec("viser") is not None  # the HTML view is an extra
     if viewer:
         argv += ["--html", str(page)]
     assert main(argv) == 0
     data = json.loads(js.read_text())
-    assert data["success"] and data["sampler"] == "hybrid" and len(data["path"]) > 2
+    assert data["success"] and data["sampler"] == "hybrid" and data["algorithm"] == "rrt_connect" and len(data["path"]) > 2
     assert not viewer or page.stat().st_size > 100_000
-    assert "found:" in capsys.readouterr().out
+    assert "found:" in (text := capsys.readouterr().out) and "(rrt_connect, hybrid sampler)" in text
 
 
 def test_plan_command_errors_are_one_line(tmp_path, capsys) -> None:
@@ -126,6 +130,8 @@ def test_plan_command_errors_are_one_line(tmp_path, capsys) -> None:
     assert main(["plan", "--robot", str(ROBOT), "--task", str(TASK), "--start", "1 2", "--target", "0.4", "0", "0.3",
                  "--out", str(out)]) == 2
     assert "start" in capsys.readouterr().err
+    with pytest.raises(UnknownNameError, match="unknown algorithm 'prm' \\(known: crrt, rrt_connect\\)"):
+        plan(ROBOT, TASK, target=(0.4, 0, 0.3), algorithm="prm")
     assert not out.exists()
 
 

@@ -44,3 +44,31 @@ def test_bench_plan_seed_sweep(tmp_path) -> None:
     values = [r["rows"][0]["projections"] for r in data["per_seed"]]
     assert agg["projections"] == sum(values) / 2  # the median of two
     assert agg["paper"]["t_ave_s"] == 1.44
+
+
+def test_bench_plan_both_algorithms(tmp_path, capsys) -> None:
+    """--algorithm all: every sampler's row for each algorithm, on the same queries; the ratios of
+    each algorithm, the first's as ``ratios``."""
+    out = tmp_path / "plan.json"
+    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "all", "--algorithm", "all", "--queries", "2",
+                 "--seed", "3", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["algorithms"] == ["crrt", "rrt_connect"]
+    rows = {(r["algorithm"], r["sampler"]): r for r in data["rows"]}
+    assert set(rows) == {(a, s) for a in ("crrt", "rrt_connect") for s in ("uniform", "gan", "hybrid")}
+    assert all(r["queries"] == 2 and r["success_rate"] == 100.0 for r in rows.values())
+    by = data["ratios_by_algorithm"]
+    assert data["ratios"] == by["crrt"]
+    for alg in ("crrt", "rrt_connect"):
+        u, g = rows[(alg, "uniform")], rows[(alg, "gan")]
+        assert by[alg]["panda_shelf"]["uniform_over_gan"] == u["t_ave_s"] / g["t_ave_s"]
+    text = capsys.readouterr().out
+    assert "rrt_connect panda_shelf: uniform_over_gan" in text
+    # a cRRT-only run plans the same queries to the same counts
+    single = tmp_path / "crrt.json"
+    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "uniform", "--queries", "2", "--seed", "3",
+                 "--out", str(single)]) == 0
+    one = json.loads(single.read_text())["rows"][0]
+    assert one["algorithm"] == "crrt"
+    for key in ("success_rate", "projections", "extensions", "nodes"):
+        assert one[key] == rows[("crrt", "uniform")][key], key

@@ -1,4 +1,5 @@
-"""Constrained motion planning: the GAN paper's constrained RRT (Algorithm 1) in the Rust core.
+"""Constrained motion planning: the GAN paper's constrained RRT (Algorithm 1) and a
+bidirectional constrained RRT-Connect (``algorithm="rrt_connect"``), in the Rust core.
 
 >>> import genplan
 >>> from genplan.planning import Planner, environment
@@ -10,7 +11,11 @@
 >>> result.success, result.path.shape, result.time_s
 
 The tree, nearest-neighbour search, extension logic and (by default) the projector and collision
-checker are native; the GIL is released while the planner works. Each part can be replaced by a
+checker are native; the GIL is released while the planner works. Both algorithms (:data:`ALGORITHMS`)
+run on the same constrained space (steps and edges projected and checked alike) and components:
+``"crrt"`` (default; the paper's, grown from the start towards samples, then greedily towards the
+nearest goal) and ``"rrt_connect"`` (a tree from the start and one rooted at every goal, each
+extended towards samples in turn while the other connects to it). Each part can be replaced by a
 Python object, called back in batches:
 
 * ``sampler``: ``"uniform"``, ``"gan"`` (the shipped GAN's generator, run natively),
@@ -50,6 +55,7 @@ from genplan.projection import ComBox, GaussNewtonProjector, Task, paper_task
 from genplan.robots import Robot
 
 __all__ = [
+    "ALGORITHMS",
     "ENVIRONMENT_NAMES",
     "Environment",
     "Outcome",
@@ -68,6 +74,9 @@ __all__ = [
 
 #: Sampler names accepted by :class:`Planner`.
 SAMPLERS = ("uniform", "gan", "hybrid", "adaptive")
+#: Search algorithms (``PlannerSettings.algorithm``, ``Planner(..., algorithm=)``): the paper's
+#: constrained RRT (default) and the bidirectional constrained RRT-Connect.
+ALGORITHMS = ("crrt", "rrt_connect")
 #: The adaptive hybrid's half-life (rows drawn within a plan after which the GAN's share has
 #: halved, ~100 extensions of 16 samples; ``half_life=`` overrides it): see :func:`make_sampler`.
 #: Chosen on tuning queries (seed 1; Table II reports seed 0) by benches/adaptive_half_life.py
@@ -161,7 +170,7 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
     in ``base_box`` ([[x, y, z] min, max]) when given (the :class:`Planner` passes
     :func:`uniform_base_box` of its task)."""
     if not isinstance(kind, str):
-        if not hasattr(kind, "sample"):
+        if not hasattr(kind, "sample") and not isinstance(kind, _core.MixtureSampler):  # native: no Python sample
             raise TypeError(f"sampler: expected one of {SAMPLERS} or an object with sample(n), got {type(kind).__name__}")
         return kind
     if kind not in SAMPLERS:
@@ -186,8 +195,16 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
     return _core.MixtureSampler(gan, uniform, hybrid_p, seed)
 
 
+def _check_algorithm(algorithm: str) -> str:
+    """``algorithm`` if it is one of :data:`ALGORITHMS`, else UnknownNameError listing them."""
+    if algorithm not in ALGORITHMS:
+        raise UnknownNameError(f"unknown algorithm {algorithm!r} (known: {', '.join(ALGORITHMS)})")
+    return algorithm
+
+
 class Planner:
-    """The constrained RRT for one robot, constraint and world.
+    """The constrained planner for one robot, constraint and world: the paper's constrained RRT,
+    or RRT-Connect with ``algorithm="rrt_connect"`` (which overrides ``settings.algorithm``).
 
     ``task`` (default: the paper's projection task for the robot) defines the manifold; the
     native Gauss-Newton projector solves it unless ``projector`` is given, with every tolerance
@@ -203,9 +220,11 @@ class Planner:
                  sampler: str | Any = "uniform", projector: Any = None, checker: Any = None,
                  settings: PlannerSettings | None = None, parallel: bool = False, seed: int = 0,
                  gan_model: Any = None, hybrid_p: float = 0.8, half_life: float = ADAPTIVE_HALF_LIFE,
-                 tolerance_factor: float = TOLERANCE_FACTOR) -> None:
+                 tolerance_factor: float = TOLERANCE_FACTOR, algorithm: str | None = None) -> None:
         self.robot = robot
         self.settings = settings or PlannerSettings()
+        if algorithm is not None:
+            self.settings = self.settings.replace(algorithm=_check_algorithm(algorithm))
         self.task = task if task is not None else paper_task(robot, "projection")
         self.world = world if world is not None else robot.collision_world()
         self.parallel = bool(parallel)
@@ -265,17 +284,20 @@ class Planner:
 def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike[str], scene: Any = None, *,
          start: ArrayLike | str = "default", goal: ArrayLike | None = None, target: ArrayLike | None = None,
          sampler: str = "uniform", model: str | os.PathLike[str] | None = None, k: int = 10, seed: int = 0,
-         settings: PlannerSettings | None = None, parallel: bool = True) -> Outcome:
+         settings: PlannerSettings | None = None, parallel: bool = True, algorithm: str | None = None) -> Outcome:
     """Plan for ``robot`` (a Robot or what :func:`genplan.load` takes) on the manifold of ``task``
     (a Task, shipped name or task file, with a [condition]) among ``scene`` (a Scene, a shipped
     scene's name or a scene file; None: no obstacles, self-collision only), from ``start`` to
     ``goal`` or to IK goals for ``target`` (:func:`make_query`). ``sampler``: "uniform", "gan" or
-    "hybrid" (the GAN of ``model``, which must be trained for this robot and task).
+    "hybrid" (the GAN of ``model``, which must be trained for this robot and task); ``algorithm``:
+    one of :data:`ALGORITHMS` (default: ``settings.algorithm``, "crrt").
 
     Not finding a path within the settings' budget is ``outcome.result.success == False``."""
     from genplan.gan.costs import manifold_task
     from genplan.robots import load
 
+    if algorithm is not None:
+        _check_algorithm(algorithm)
     rob = robot if isinstance(robot, Robot) else load(robot)
     t = P.load_task(task, rob)
     if sampler not in SAMPLERS:
@@ -298,6 +320,6 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
     manifold = manifold_task(t, rob)
     query = make_query(rob, t, world, start, goal, target, k=k, seed=seed)
     planner = Planner(rob, world=world, task=manifold, sampler=sampler, gan_model=gan_model, seed=seed,
-                      settings=settings, parallel=parallel)
+                      settings=settings, parallel=parallel, algorithm=algorithm)
     result = planner.plan(query.start, query.goals)
-    return Outcome(rob, t, manifold, world, query, result, sampler, scene_obj)
+    return Outcome(rob, t, manifold, world, query, result, sampler, scene_obj, planner.settings.algorithm)

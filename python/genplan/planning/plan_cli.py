@@ -35,7 +35,7 @@ def _start(text: str) -> str | list[float]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from genplan.planning import SAMPLERS
+    from genplan.planning import ALGORITHMS, SAMPLERS
 
     A.add_robot_and_task(p, None, task_required=True)
     p.add_argument("--scene", default=None, help="obstacles: a shipped scene's name or a scene file (.toml)")
@@ -47,6 +47,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                       help="a target of the task's condition term: goals by IK")
     p.add_argument("--goals", type=A.positive_int, default=10, help="IK goals for --target (default 10)")
     p.add_argument("--sampler", choices=SAMPLERS, default="uniform")
+    p.add_argument("--algorithm", choices=ALGORITHMS, default="crrt",
+                   help="crrt: the GAN paper's constrained RRT (default); rrt_connect: bidirectional RRT-Connect")
     p.add_argument("--model", type=A.existing_file, default=None, help="the GAN for --sampler gan or hybrid")
     p.add_argument("--seed", type=A.seed, default=0)
     p.add_argument("--out", type=A.output_file, required=True, help="the plan as JSON")
@@ -64,11 +66,11 @@ def main(args: argparse.Namespace) -> int:
     if args.trajectory is not None and args.trajectory.suffix.lower() not in (".npz", ".json", ".csv"):
         raise A.UsageError(f"--trajectory {args.trajectory}: expected a .npz, .json or .csv file")
     outcome = plan(args.robot, args.task, args.scene, start=args.start, goal=args.goal, target=args.target,
-                   sampler=args.sampler, model=args.model, k=args.goals, seed=args.seed)
+                   sampler=args.sampler, model=args.model, k=args.goals, seed=args.seed, algorithm=args.algorithm)
     r = outcome.result
     write_text(args.out, json.dumps(outcome.to_dict(), indent=1) + "\n")
     print(f"{'found' if r.success else 'no path found'}: {len(r.path)} states, {r.stats.extensions} extensions, "
-          f"{r.time_s * 1e3:.1f} ms ({args.sampler} sampler); wrote {args.out}")
+          f"{r.time_s * 1e3:.1f} ms ({args.algorithm}, {args.sampler} sampler); wrote {args.out}")
     traj = None
     if args.trajectory is not None:
         if not r.success:

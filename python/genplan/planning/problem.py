@@ -46,6 +46,8 @@ class Outcome:
     sampler: str
     #: the obstacles (a genplan.scene.Scene) or None
     scene: Any = None
+    #: the search algorithm (genplan.planning.ALGORITHMS)
+    algorithm: str = "crrt"
 
     @property
     def trail_frame(self) -> str:
@@ -60,6 +62,7 @@ class Outcome:
             "task": self.task.name,
             "manifold": self.manifold.name,
             "sampler": self.sampler,
+            "algorithm": self.algorithm,
             "obstacles": list(self.world.obstacle_names),
             "start": self.query.start.tolist(),
             "goals": self.query.goals.tolist(),

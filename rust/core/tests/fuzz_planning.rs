@@ -18,7 +18,7 @@ use std::sync::Arc;
 
 use fixtures::{no_interrupt, Band, CubeSampler, SphereProjector};
 use fuzz::{any_f64, any_usize, config, finite};
-use genplan_core::planning::{Components, EuclideanSpace, NeighborIndex, PlanError, Planner, Settings};
+use genplan_core::planning::{Algorithm, Components, EuclideanSpace, NeighborIndex, PlanError, Planner, Settings};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 use rand::rngs::StdRng;
@@ -98,7 +98,7 @@ fn any_settings() -> impl Strategy<Value = Settings> {
 }
 
 /// Accepted settings with a small budget (so that a plan ends quickly) and numbers of every
-/// magnitude the ranges allow (the smallest and largest included).
+/// magnitude the ranges allow (the smallest and largest included), for either algorithm.
 fn small_budget_settings() -> impl Strategy<Value = Settings> {
     let positive = || {
         prop_oneof![
@@ -115,6 +115,8 @@ fn small_budget_settings() -> impl Strategy<Value = Settings> {
     )
         .prop_map(settings_of)
         .prop_filter("accepted (edge_resolution >= step * max_jump / 2^20)", |s| s.validate().is_ok())
+        .prop_flat_map(|s| (Just(s), any::<bool>()))
+        .prop_map(|(s, connect)| Settings { algorithm: if connect { Algorithm::RrtConnect } else { Algorithm::Crrt }, ..s })
 }
 
 /// OMPL's sphere demo (the unit sphere in R^3, a band blocked but for a door) with `settings`,

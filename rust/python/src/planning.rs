@@ -25,14 +25,14 @@ use pyo3::prelude::*;
 use pyo3::types::{PyList, PyTuple};
 
 use genplan_core::planning::{
-    self, CollisionChecker, Components, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
+    self, Algorithm, CollisionChecker, Components, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
     Projection, Sampler, Settings, Space, Stats, ValidityChecker,
 };
 
 use genplan_core::gan;
 
 use crate::errors::{err, Kind};
-use crate::settings::{record_class, settings_class};
+use crate::settings::{record_class, settings_class, Field};
 use crate::{for_chunks, to_py, PyCollisionWorld, PyKinematicModel, PyProjector};
 
 fn component_error(e: PyErr) -> PlanError {
@@ -437,15 +437,32 @@ fn sampler_from(py: Python<'_>, obj: &Bound<'_, PyAny>, nq: usize) -> PyResult<B
 // The planner
 // ---------------------------------------------------------------------------------------------
 
+/// The algorithm's name in Python: `"crrt"` or `"rrt_connect"` (anything else is a
+/// SettingsError listing both).
+impl Field for Algorithm {
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        let known = Algorithm::NAMES.iter().map(|(n, _)| format!("'{n}'")).collect::<Vec<_>>().join(", ");
+        let name: Option<String> = v.extract().ok();
+        name.as_deref().and_then(Algorithm::from_name).ok_or_else(|| {
+            let shown = v.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+            err(Kind::Settings, format!("{what}: unknown algorithm {shown} (known: {known})"))
+        })
+    }
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(pyo3::types::PyString::new(py, self.name()).into_any())
+    }
+}
+
 settings_class!(
-    /// Settings of the constrained RRT (defaults: the GAN paper's public code, plus edge
-    /// validation at 0.025 rad). Immutable: `replace(**changes)` makes a changed copy.
+    /// Settings of the constrained planner (defaults: the GAN paper's cRRT and its public code,
+    /// plus edge validation at 0.025 rad; `algorithm="rrt_connect"` for the bidirectional
+    /// RRT-Connect). Immutable: `replace(**changes)` makes a changed copy.
     PyPlannerSettings,
     "PlannerSettings",
     Settings,
     |s: &Settings| s.validate().map_err(plan_error_to_py),
     [step, max_increments, max_jump, goal_tolerance, max_extensions, retries, project_samples, sample_batch,
-     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches]
+     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm]
 );
 
 record_class!(
@@ -515,7 +532,8 @@ impl PyPlanResult {
     }
 }
 
-/// The constrained RRT of the GAN paper (Algorithm 1); see genplan.planning for the front end.
+/// The constrained planner (the GAN paper's cRRT, Algorithm 1, or RRT-Connect: the settings'
+/// `algorithm`); see genplan.planning for the front end.
 #[pyclass(name = "Planner", module = "genplan._core", frozen)]
 pub(crate) struct PyPlanner {
     inner: Planner,
@@ -555,7 +573,7 @@ impl PyPlanner {
             if inner.model.nq != nq {
                 return Err(err(Kind::Generic, "projector: built for another model"));
             }
-            Box::new(GaussNewtonProjector { inner: Arc::new(inner.clone()), parallel })
+            Box::new(GaussNewtonProjector::new(Arc::new(inner.clone()), parallel))
         } else if projector.hasattr("project")? {
             Box::new(PyProjectorAdapter { obj: projector.clone().unbind(), nq })
         } else {

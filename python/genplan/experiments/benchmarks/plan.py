@@ -3,6 +3,12 @@
     genplan bench plan --env panda_shelf --sampler gan --queries 100 --seed 0 --out F.json
     genplan bench plan --env all --sampler all --planner all --queries 100 --out F.json
     genplan bench plan --env panda_shelf --sampler gan --seeds 0..4 --out F.json   # per-seed + medians
+    genplan bench plan --env all --sampler all --algorithm all --queries 100 --out F.json
+
+``--algorithm`` picks genplan's search: ``crrt`` (the paper's constrained RRT, default),
+``rrt_connect`` (bidirectional, on the same constrained space and components) or ``all`` (both,
+on the same queries; each row names its ``algorithm``, and ``ratios_by_algorithm`` holds the
+ratios of each, ``ratios`` those of the first).
 
 With ``--seeds A..B`` each seed is a run of its own (its queries and planner seeds; a shard on
 genplan.executor, one after the other unless ``--workers K`` or ``--ray``): the JSON holds every
@@ -58,6 +64,13 @@ EXTRA_SAMPLERS = ("adaptive",)
 PLANNERS = ("genplan", "ompl")
 
 
+def algorithms(args: argparse.Namespace) -> list[str]:
+    """genplan's search algorithms of ``--algorithm``: one, or every one for ``all``."""
+    from genplan.planning import ALGORITHMS
+
+    return list(ALGORITHMS) if args.algorithm == "all" else [args.algorithm]
+
+
 def _summary(times: list[float], success: list[bool], **extra: list[float]) -> dict[str, Any]:
     t = np.asarray(times, dtype=np.float64)
     out: dict[str, Any] = {
@@ -74,19 +87,20 @@ def _summary(times: list[float], success: list[bool], **extra: list[float]) -> d
     return out
 
 
-def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, settings: Any, progress: bool) -> dict[str, Any]:
+def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, settings: Any, progress: bool,
+                algorithm: str = "crrt") -> dict[str, Any]:
     import genplan
     from genplan.planning import Planner, environment
 
     env = environment(env_name)
     robot = genplan.load(env.robot)
-    planner = Planner(robot, world=env.world(robot), sampler=sampler, settings=settings, seed=seed)
+    planner = Planner(robot, world=env.world(robot), sampler=sampler, settings=settings, seed=seed, algorithm=algorithm)
     results = []
     it = queries
     if progress:
         from tqdm import tqdm
 
-        it = tqdm(queries, desc=f"{env_name} {sampler}", unit="query", leave=False)
+        it = tqdm(queries, desc=f"{env_name} {algorithm} {sampler}", unit="query", leave=False)
     for q in it:
         results.append(planner.plan(q.start, q.goals))
     row = _summary(
@@ -102,7 +116,7 @@ def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, sett
         checker_s=[r.stats.checker_s for r in results],
         sampler_s=[r.stats.sampler_s for r in results],
     )
-    row.update(env=env_name, planner="genplan", sampler=sampler)
+    row.update(env=env_name, planner="genplan", sampler=sampler, algorithm=algorithm)
     return row
 
 
@@ -137,31 +151,13 @@ def run_ompl(env_name: str, queries: list[Any], seed: int, time_limit: float, pr
     return row
 
 
-def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed: int, ompl_time_limit: float,
-        settings: Any = None, progress: bool = True) -> dict[str, Any]:
-    import genplan
-    from genplan.planning import PlannerSettings, environment
-
-    settings = settings or PlannerSettings()
-    rows = []
-    query_s = {}
+def _ratios(rows: list[dict[str, Any]], envs: list[str], algorithm: str) -> dict[str, Any]:
+    """Per environment: uniform / GAN, uniform / hybrid (and adaptive) of ``algorithm``'s rows,
+    OMPL over each sampler."""
+    ratios: dict[str, Any] = {}
     for env_name in envs:
-        env = environment(env_name)
-        robot = genplan.load(env.robot)
-        t0 = time.perf_counter()
-        queries = env.queries(robot, n, seed=seed, progress=progress)
-        query_s[env_name] = time.perf_counter() - t0
-        if "genplan" in planners:
-            for s in samplers:
-                rows.append(run_genplan(env_name, s, queries, seed, settings, progress))
-        if "ompl" in planners:
-            rows.append(run_ompl(env_name, queries, seed, ompl_time_limit, progress))
-    for r in rows:
-        paper = PAPER_TABLE_II.get((r["env"], r["sampler"]))
-        r["paper"] = None if paper is None else dict(zip(("success_rate", "t_ave_s", "projections", "extensions"), paper))
-    ratios = {}
-    for env_name in envs:
-        by = {(r["planner"], r["sampler"]): r for r in rows if r["env"] == env_name}
+        by = {(r["planner"], r["sampler"]): r for r in rows
+              if r["env"] == env_name and (r["planner"] == "ompl" or r.get("algorithm", "crrt") == algorithm)}
         u, g, h = (by.get(("genplan", s)) for s in SAMPLERS)
         o = next((r for r in rows if r["env"] == env_name and r["planner"] == "ompl"), None)
         ratios[env_name] = {
@@ -174,12 +170,41 @@ def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed:
         a = by.get(("genplan", "adaptive"))
         if a is not None:
             ratios[env_name]["uniform_over_adaptive"] = None if not u else u["t_ave_s"] / a["t_ave_s"]
+    return ratios
+
+
+def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed: int, ompl_time_limit: float,
+        settings: Any = None, progress: bool = True, algorithms: list[str] | None = None) -> dict[str, Any]:
+    import genplan
+    from genplan.planning import PlannerSettings, environment
+
+    settings = settings or PlannerSettings()
+    algorithms = algorithms or [settings.algorithm]
+    rows = []
+    query_s = {}
+    for env_name in envs:
+        env = environment(env_name)
+        robot = genplan.load(env.robot)
+        t0 = time.perf_counter()
+        queries = env.queries(robot, n, seed=seed, progress=progress)
+        query_s[env_name] = time.perf_counter() - t0
+        if "genplan" in planners:
+            for alg in algorithms:
+                for s in samplers:
+                    rows.append(run_genplan(env_name, s, queries, seed, settings, progress, alg))
+        if "ompl" in planners:
+            rows.append(run_ompl(env_name, queries, seed, ompl_time_limit, progress))
+    for r in rows:
+        paper = PAPER_TABLE_II.get((r["env"], r["sampler"]))
+        r["paper"] = None if paper is None else dict(zip(("success_rate", "t_ave_s", "projections", "extensions"), paper))
+    by_algorithm = {alg: _ratios(rows, envs, alg) for alg in algorithms}
     return {
         "benchmark": "plan",
         "queries": n,
         "seed": seed,
         "goals_per_query": 10,
         "settings": settings.to_dict(),
+        "algorithms": algorithms,
         "ompl_time_limit_s": ompl_time_limit,
         "query_generation_s": query_s,
         "units": {"t_*": "seconds per query (all queries, retries included)", "success_rate": "percent",
@@ -187,7 +212,8 @@ def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed:
                   "extensions": "extension steps (iterations)"},
         "machine": machine(),
         "rows": rows,
-        "ratios": ratios,
+        "ratios": by_algorithm[algorithms[0]],
+        "ratios_by_algorithm": by_algorithm,
     }
 
 
@@ -195,16 +221,20 @@ def print_table(payload: dict[str, Any]) -> None:
     out = []
     for r in payload["rows"]:
         p = r["paper"]
-        out.append([r["env"], r["planner"] if r["planner"] == "ompl" else r["sampler"], f"{r['success_rate']:.1f}",
+        out.append([r["env"], r.get("algorithm", "-"), r["planner"] if r["planner"] == "ompl" else r["sampler"], f"{r['success_rate']:.1f}",
                     f"{r['t_ave_s']:.3f} ± {r['t_std_s']:.3f}", f"{r['t_median_s']:.3f}", f"{r['projections']:.1f}",
                     "-" if r.get("extensions") is None else f"{r['extensions']:.1f}",
                     "-" if p is None else f"{p['success_rate']} / {p['t_ave_s']} / {p['projections']} / {p['extensions']}"])
-    print(table(["env", "sampler", "success %", "T_ave s", "T_median s", "Opt. steps", "E",
+    print(table(["env", "algorithm", "sampler", "success %", "T_ave s", "T_median s", "Opt. steps", "E",
                  "paper: success / T_ave / steps / E"], out))
-    for env, rat in payload["ratios"].items():
-        parts = [f"{k} {v:.2f}x" for k, v in rat.items() if v is not None]
-        if parts:
-            print(f"{env}: " + ", ".join(parts))
+    for alg, ratios in payload["ratios_by_algorithm"].items():
+        for env, rat in ratios.items():
+            parts = [f"{k} {v:.2f}x" for k, v in rat.items() if v is not None]
+            if parts:
+                print(f"{alg} {env}: " + ", ".join(parts))
+        gm = [rat["uniform_over_gan"] for rat in ratios.values() if rat.get("uniform_over_gan")]
+        if len(gm) > 1:
+            print(f"{alg}: uniform_over_gan geometric mean over {len(gm)} environments {float(np.exp(np.mean(np.log(gm)))):.2f}x")
 
 
 def run_seed(job: dict[str, Any]) -> dict[str, Any]:
@@ -219,16 +249,21 @@ def sweep(envs: list[str], samplers: list[str], planners: list[str], args: argpa
     from genplan.experiments.sweeps import median_of, run_seeds
 
     jobs = [dict(envs=envs, samplers=samplers, planners=planners, n=args.queries, seed=s,
-                 ompl_time_limit=args.ompl_time_limit, settings=settings) for s in args.seeds]
+                 ompl_time_limit=args.ompl_time_limit, settings=settings, algorithms=algorithms(args)) for s in args.seeds]
     # genplan's planner releases the GIL (threads); OMPL's callbacks run in Python (processes)
     runs, ex = run_seeds(run_seed, jobs, workers=args.workers, ray=args.ray,
                          kind="process" if "ompl" in planners else "thread", desc="bench plan")
-    keys = [(r["env"], r["planner"], r["sampler"]) for r in runs[0]["rows"]]
+    def key_of(r: dict[str, Any]) -> tuple[str, str, str, str]:
+        return r["env"], r["planner"], r["sampler"], r.get("algorithm", "-")
+
+    keys = [key_of(r) for r in runs[0]["rows"]]
     aggregate = []
     for key in keys:
-        same = [next(r for r in run_["rows"] if (r["env"], r["planner"], r["sampler"]) == key) for run_ in runs]
-        aggregate.append({**median_of(same), "env": key[0], "planner": key[1], "sampler": key[2],
-                          "paper": same[0]["paper"]})
+        same = [next(r for r in run_["rows"] if key_of(r) == key) for run_ in runs]
+        row = {**median_of(same), "env": key[0], "planner": key[1], "sampler": key[2], "paper": same[0]["paper"]}
+        if key[3] != "-":
+            row["algorithm"] = key[3]
+        aggregate.append(row)
     shared = ("benchmark", "queries", "goals_per_query", "settings", "ompl_time_limit_s", "units", "machine")
     return {**{k: runs[0][k] for k in shared}, "seeds": list(args.seeds), "executor": ex,
             "per_seed": [{k: v for k, v in r.items() if k not in shared} for r in runs],
@@ -240,17 +275,21 @@ def print_sweep(payload: dict[str, Any]) -> None:
     out = []
     for r in [*payload["per_seed"], {"seed": "median", "rows": payload["aggregate"]}]:
         for x in r["rows"]:
-            out.append([r["seed"], x["env"], x["planner"] if x["planner"] == "ompl" else x["sampler"],
+            out.append([r["seed"], x["env"], x.get("algorithm", "-"), x["planner"] if x["planner"] == "ompl" else x["sampler"],
                         f"{x['success_rate']:.1f}", f"{x['t_ave_s']:.3f}", f"{x['projections']:.1f}",
                         "-" if x.get("extensions") is None else f"{x['extensions']:.1f}"])
-    print(table(["seed", "env", "sampler", "success %", "T_ave s", "Opt. steps", "E"], out))
+    print(table(["seed", "env", "algorithm", "sampler", "success %", "T_ave s", "Opt. steps", "E"], out))
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from genplan.planning import ALGORITHMS
+
     p.add_argument("--env", default="all", choices=[*ENVS, "all"])
     p.add_argument("--sampler", default="all", choices=[*SAMPLERS, *EXTRA_SAMPLERS, "all", "all+"],
                    help="all: the paper's uniform, gan and hybrid; all+: those and adaptive (default all)")
     p.add_argument("--planner", default="genplan", choices=[*PLANNERS, "all"])
+    p.add_argument("--algorithm", default="crrt", choices=[*ALGORITHMS, "all"],
+                   help="genplan's search: crrt (the paper's constrained RRT, default), rrt_connect, or all (both)")
     p.add_argument("--queries", type=A.positive_int, default=100, help="queries per environment (the paper: 100)")
     p.add_argument("--seed", type=A.seed, default=0)
     p.add_argument("--seeds", type=A.seed_range, default=None, metavar="A..B",
@@ -277,7 +316,7 @@ def main(args: argparse.Namespace) -> int:
         return 0
     if args.workers is not None or args.ray is not None:
         raise A.UsageError("--workers/--ray: they run the seeds of --seeds A..B; give --seeds")
-    payload = run(envs, samplers, planners, args.queries, args.seed, args.ompl_time_limit, settings)
+    payload = run(envs, samplers, planners, args.queries, args.seed, args.ompl_time_limit, settings, algorithms=algorithms(args))
     print_table(payload)
     write_json(args.out, payload)
     return 0

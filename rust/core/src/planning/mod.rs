@@ -24,23 +24,35 @@
 //! states each on the manifold and valid (the paper checked the tree nodes only, 0.3 rad apart).
 //! The projected intermediate states are kept and make up the returned dense path.
 //!
+//! The search runs on a [`ConstrainedSpace`] (OMPL's `ProjectedStateSpace` with its
+//! `ConstrainedMotionValidator`): the ambient space, the projector and the checker behind one
+//! type whose constrained steps and geodesics (the projected, checked edges) every planner uses;
+//! the planners keep the tree logic only. [`Settings::algorithm`] picks the search: the paper's
+//! cRRT ([`Algorithm::Crrt`], the default) or a bidirectional constrained RRT-Connect
+//! ([`Algorithm::RrtConnect`]: a tree from the start, one rooted at every goal).
+//!
 //! The files, one concept each: `error` (PlanError), `space` (configuration spaces), `sampler`,
 //! `projector`, `checker` (the components and their native implementations), `nearest` (the
-//! nearest-neighbour indices), `rrt` (settings, the tree and the planner). Everything is
-//! re-exported here: the paths are `genplan_core::planning::X`.
+//! nearest-neighbour indices), `constrained` (the constrained space), `tree` (the search tree),
+//! `rrt` (settings, the planner and the cRRT), `rrt_connect` (RRT-Connect's attempt).
+//! Everything is re-exported here: the paths are `genplan_core::planning::X`.
 
 mod checker;
+mod constrained;
 mod error;
 mod nearest;
 mod projector;
 mod rrt;
+mod rrt_connect;
 mod sampler;
 mod space;
+mod tree;
 
 pub use checker::{AlwaysValid, CollisionChecker, ValidityChecker};
 pub use error::{ComponentError, PlanError, PlanResult};
 pub use nearest::{KdForest, LinearNearest, NearestNeighbors, NeighborIndex, KD_MAX_DIM};
 pub use projector::{GaussNewtonProjector, Projection, Projector};
-pub use rrt::{Components, Planner, Settings, Solution, Stats, MAX_SPACING};
+pub use constrained::{ConstrainedSpace, Step};
+pub use rrt::{Algorithm, Components, Planner, Settings, Solution, Stats, MAX_SPACING};
 pub use sampler::{valid_box, MixtureSampler, Sampler, UniformSampler};
 pub use space::{EuclideanSpace, Space};

@@ -1,15 +1,47 @@
 //! The planner: its [`Settings`], what a plan cost ([`Stats`]) and returns ([`Solution`]), the
-//! search tree of one attempt, the [`Components`] a plan calls, and the [`Planner`] itself
-//! (attempts, ConstrainedExtend, edge validation, lazy pruning, shortcutting).
+//! [`Components`] a plan calls, and the [`Planner`] itself: input checks, attempts, the paper's
+//! cRRT (Algorithm 1: ConstrainedExtend towards samples, then greedily towards the nearest
+//! goal), lazy pruning, shortcutting. The constrained steps and edges are the
+//! [`ConstrainedSpace`]'s; [`Algorithm::RrtConnect`]'s attempt is in `rrt_connect.rs`.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::{NearestNeighbors, NeighborIndex, PlanError, PlanResult, Projection, Projector, Sampler, Space, ValidityChecker};
+use super::constrained::ConstrainedSpace;
+use super::tree::{extract, flatten, Tree};
+use super::{NeighborIndex, PlanError, PlanResult, Projection, Projector, Sampler, Space, ValidityChecker};
 
 /// Consecutive states of a validated edge are at most this many edge resolutions apart.
 pub const MAX_SPACING: f64 = 1.25;
+
+/// The search algorithm on the constrained space ([`Settings::algorithm`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Algorithm {
+    /// The GAN paper's constrained RRT (Algorithm 1): one tree from the start, each iteration
+    /// extended towards a sample, then greedily towards the nearest goal.
+    #[default]
+    Crrt,
+    /// A bidirectional constrained RRT-Connect: a tree from the start and one rooted at every
+    /// goal; each iteration extends one tree towards a sample and connects the other to the
+    /// state reached, then the trees swap roles.
+    RrtConnect,
+}
+
+impl Algorithm {
+    /// Every algorithm with its name (`"crrt"`, `"rrt_connect"`).
+    pub const NAMES: [(&'static str, Algorithm); 2] = [("crrt", Algorithm::Crrt), ("rrt_connect", Algorithm::RrtConnect)];
+
+    /// Its name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, a)| *a == self).map(|(n, _)| *n).unwrap_or("crrt")
+    }
+
+    /// The algorithm of this name, or None.
+    pub fn from_name(name: &str) -> Option<Algorithm> {
+        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, a)| *a)
+    }
+}
 
 /// Planner settings. Defaults: the GAN paper's public code (the values marked "Paper" below),
 /// plus edge validation at 0.025 rad.
@@ -37,7 +69,8 @@ pub struct Settings {
     /// A goal is reached when the tree gets within this distance of it, in (0, 1e6].
     /// Paper: 1e-3.
     pub goal_tolerance: f64,
-    /// Iterations (sample + extension + extension to the goal) per attempt. Paper: 500.
+    /// Iterations (sample + extension + extension to the goal; RRT-Connect: sample + extension
+    /// + connection of the other tree) per attempt. Paper: 500.
     pub max_extensions: usize,
     /// Attempts after a failed one, each from a fresh tree. Paper: 2.
     pub retries: usize,
@@ -62,6 +95,8 @@ pub struct Settings {
     pub neighbors: NeighborIndex,
     /// Give up after this many consecutive sample batches without one projectable sample.
     pub max_empty_batches: usize,
+    /// The search: the paper's cRRT (default) or RRT-Connect (same components, same edges).
+    pub algorithm: Algorithm,
 }
 
 impl Default for Settings {
@@ -80,6 +115,7 @@ impl Default for Settings {
             simplify: false,
             neighbors: NeighborIndex::Auto,
             max_empty_batches: 100,
+            algorithm: Algorithm::Crrt,
         }
     }
 }
@@ -108,7 +144,7 @@ impl Settings {
     ///   [`MAX_EDGE_STATES`](Self::MAX_EDGE_STATES);
     /// * `max_increments`, `max_extensions`, `sample_batch`, `max_empty_batches`: at least 1;
     ///   `sample_batch` at most [`MAX_SAMPLE_BATCH`](Self::MAX_SAMPLE_BATCH);
-    /// * `retries`, the flags and `neighbors`: any value.
+    /// * `retries`, the flags, `neighbors` and `algorithm`: any value.
     pub fn validate(&self) -> PlanResult<()> {
         let bad = |field: &'static str, msg: String| Err(PlanError::Settings { field, msg });
         let max = Self::MAX_LENGTH;
@@ -219,104 +255,6 @@ pub struct Solution {
     pub stats: Stats,
 }
 
-/// The tree of one attempt: node configurations and, per node, the states on the edge from its
-/// parent (exclusive of both ends).
-struct Tree {
-    nq: usize,
-    q: Vec<f64>,
-    parent: Vec<usize>,
-    children: Vec<Vec<usize>>,
-    /// The edge from the parent has been validated (its states are stored).
-    validated: Vec<bool>,
-    /// Pruned: an edge above it failed validation; never extended from again.
-    dead: Vec<bool>,
-    edge_start: Vec<usize>,
-    edge_count: Vec<usize>,
-    edge_states: Vec<f64>,
-    nn: Box<dyn NearestNeighbors>,
-    coords: Vec<f64>,
-}
-
-impl Tree {
-    fn node(&self, i: usize) -> &[f64] {
-        &self.q[i * self.nq..(i + 1) * self.nq]
-    }
-    fn len(&self) -> usize {
-        self.parent.len()
-    }
-    fn new(nq: usize, nv: usize, neighbors: NeighborIndex) -> Tree {
-        Tree {
-            nq,
-            q: Vec::new(),
-            parent: Vec::new(),
-            children: Vec::new(),
-            validated: Vec::new(),
-            dead: Vec::new(),
-            edge_start: Vec::new(),
-            edge_count: Vec::new(),
-            edge_states: Vec::new(),
-            nn: neighbors.build(nv),
-            coords: vec![0.0; nv],
-        }
-    }
-    /// Add a node; `edge`: the validated states from the parent, or None (validated later).
-    fn add(&mut self, space: &dyn Space, q: &[f64], parent: usize, edge: Option<&[f64]>) -> usize {
-        let id = self.len();
-        self.q.extend_from_slice(q);
-        self.parent.push(parent);
-        self.children.push(Vec::new());
-        if parent != usize::MAX {
-            self.children[parent].push(id);
-        }
-        self.dead.push(false);
-        self.validated.push(false);
-        self.edge_start.push(0);
-        self.edge_count.push(0);
-        if let Some(e) = edge {
-            self.set_edge(id, e);
-        }
-        space.coordinates(q, &mut self.coords);
-        self.nn.add(&self.coords);
-        id
-    }
-    fn set_edge(&mut self, node: usize, states: &[f64]) {
-        self.edge_start[node] = self.edge_states.len() / self.nq.max(1);
-        self.edge_count[node] = states.len() / self.nq.max(1);
-        self.edge_states.extend_from_slice(states);
-        self.validated[node] = true;
-    }
-    /// Mark `node` and everything below it dead; returns how many nodes died.
-    fn prune(&mut self, node: usize) -> usize {
-        let mut stack = vec![node];
-        let mut n = 0;
-        while let Some(i) = stack.pop() {
-            if !self.dead[i] {
-                self.dead[i] = true;
-                n += 1;
-            }
-            stack.extend_from_slice(&self.children[i]);
-        }
-        n
-    }
-    fn nearest(&mut self, space: &dyn Space, q: &[f64]) -> usize {
-        space.coordinates(q, &mut self.coords);
-        let dead = &self.dead;
-        self.nn.nearest_where(&self.coords, &|i| !dead[i]).map(|(i, _)| i).unwrap_or(0)
-    }
-    /// Node indices from the root to `node`.
-    fn chain(&self, node: usize) -> Vec<usize> {
-        let mut chain = vec![node];
-        while let Some(&last) = chain.last() {
-            match self.parent[last] {
-                usize::MAX => break,
-                p => chain.push(p),
-            }
-        }
-        chain.reverse();
-        chain
-    }
-}
-
 /// The components of one plan.
 pub struct Components<'a> {
     /// Draws the configurations the tree grows towards.
@@ -337,13 +275,31 @@ pub struct Planner {
     pub settings: Settings,
 }
 
-/// State of one plan call (the planner itself stays immutable and shareable).
-struct Run<'a, 'c> {
-    space: &'a dyn Space,
-    st: &'a Settings,
-    c: &'a mut Components<'c>,
-    stats: Stats,
+/// State of one plan call (the planner itself stays immutable and shareable): the constrained
+/// space (which keeps the stats), the sampler, the interrupt check and the sample buffer.
+pub(super) struct Run<'a> {
+    pub(super) space: ConstrainedSpace<'a>,
+    pub(super) st: &'a Settings,
+    sampler: &'a mut dyn Sampler,
+    pub(super) interrupt: &'a mut dyn FnMut() -> PlanResult<()>,
     samples: VecDeque<Vec<f64>>,
+}
+
+impl<'a> Run<'a> {
+    fn new(space: &'a dyn Space, st: &'a Settings, c: &'a mut Components<'_>) -> Run<'a> {
+        let Components { sampler, projector, checker, interrupt } = c;
+        Run {
+            space: ConstrainedSpace::new(space, &mut **projector, &mut **checker, st),
+            st,
+            sampler: &mut **sampler,
+            interrupt: &mut **interrupt,
+            samples: VecDeque::new(),
+        }
+    }
+
+    pub(super) fn ambient(&self) -> &'a dyn Space {
+        self.space.ambient
+    }
 }
 
 impl Planner {
@@ -381,16 +337,16 @@ impl Planner {
         for (i, g) in goals.chunks(nq).enumerate() {
             space.check(g, &format!("goals[{i}]")).map_err(PlanError::InvalidGoal)?;
         }
-        let mut run = Run { space, st: &self.settings, c, stats: Stats::default(), samples: VecDeque::new() };
-        let (start, goals) = run.onto_manifold(start, goals)?;
+        let mut run = Run::new(space, &self.settings, c);
+        let (start, goals) = run.space.onto_manifold(start, goals)?;
         let (start, goals) = (&start[..], &goals[..]);
         let mut start_ok = [false];
-        run.check_valid(start, &mut start_ok)?;
+        run.space.check(start, &mut start_ok)?;
         if !start_ok[0] {
             return Err(PlanError::InvalidStart("start: the configuration is not valid (in collision or outside the joint limits)".into()));
         }
         let mut goal_ok = vec![false; goals.len() / nq];
-        run.check_valid(goals, &mut goal_ok)?;
+        run.space.check(goals, &mut goal_ok)?;
         let valid_goals: Vec<usize> = (0..goal_ok.len()).filter(|&i| goal_ok[i]).collect();
         if valid_goals.is_empty() {
             return Err(PlanError::InvalidGoal("goals: none of the goal configurations is valid (in collision or outside the joint limits)".into()));
@@ -398,23 +354,21 @@ impl Planner {
 
         let mut solution = None;
         for attempt in 0..=self.settings.retries {
-            run.stats.retries = attempt;
-            let mut tree = Tree::new(nq, space.nv(), self.settings.neighbors);
-            tree.add(space, start, usize::MAX, Some(&[]));
-            if let Some((node, g)) = run.attempt(&mut tree, goals, &valid_goals)? {
-                let (mut waypoints, mut edges) = extract(&tree, node);
+            run.space.stats.retries = attempt;
+            let found = match self.settings.algorithm {
+                Algorithm::Crrt => run.crrt_attempt(start, goals, &valid_goals)?,
+                Algorithm::RrtConnect => run.connect_attempt(start, goals, &valid_goals)?,
+            };
+            if let Some(Found { mut waypoints, mut edges, goal }) = found {
                 if self.settings.simplify {
                     (waypoints, edges) = run.shortcut(waypoints, edges)?;
                 }
                 let (w, path) = flatten(&waypoints, &edges);
-                solution = Some((w, path, g));
-            }
-            run.stats.nodes = tree.len();
-            if solution.is_some() {
+                solution = Some((w, path, goal));
                 break;
             }
         }
-        let mut stats = run.stats;
+        let mut stats = run.space.stats;
         stats.success = solution.is_some();
         stats.time_s = t0.elapsed().as_secs_f64();
         Ok(match solution {
@@ -447,7 +401,7 @@ impl Planner {
 }
 
 /// A distance for a message: three significant digits, scientific notation when tiny or huge.
-fn short(x: f64) -> String {
+pub(super) fn short(x: f64) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
@@ -469,7 +423,7 @@ impl Planner {
         let space = &*self.space;
         space.check(from, "from").map_err(PlanError::Input)?;
         space.check(target, "target").map_err(PlanError::Input)?;
-        let mut run = Run { space, st: &self.settings, c, stats: Stats::default(), samples: VecDeque::new() };
+        let mut run = Run::new(space, &self.settings, c);
         let mut tree = Tree::new(space.nq(), space.nv(), self.settings.neighbors);
         tree.add(space, from, usize::MAX, Some(&[]));
         let reach = run.extend(&mut tree, 0, target, target_on_manifold)?;
@@ -477,103 +431,40 @@ impl Planner {
     }
 }
 
-/// The waypoints from the root to `goal_node` and, per waypoint after the first, the validated
-/// states of the edge that leads to it.
-fn extract(tree: &Tree, goal_node: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let nq = tree.nq;
-    let chain = tree.chain(goal_node);
-    let waypoints = chain.iter().map(|&i| tree.node(i).to_vec()).collect();
-    let edges = chain
-        .iter()
-        .map(|&i| {
-            let (s, n) = (tree.edge_start[i], tree.edge_count[i]);
-            tree.edge_states[s * nq..(s + n) * nq].to_vec()
-        })
-        .collect();
-    (waypoints, edges)
-}
-
-/// Flatten waypoints and their edges into (waypoints, dense path).
-fn flatten(waypoints: &[Vec<f64>], edges: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
-    let mut w = Vec::new();
-    let mut path = Vec::new();
-    for (q, e) in waypoints.iter().zip(edges) {
-        path.extend_from_slice(e);
-        path.extend_from_slice(q);
-        w.extend_from_slice(q);
-    }
-    (w, path)
+/// A path found by an attempt: its waypoints (tree nodes from the start to the goal), per
+/// waypoint the validated states of the edge that leads to it (none for the first), and the
+/// goal reached (its row in the goals).
+pub(super) struct Found {
+    pub(super) waypoints: Vec<Vec<f64>>,
+    pub(super) edges: Vec<Vec<f64>>,
+    pub(super) goal: usize,
 }
 
 /// Where an extension ended.
-struct Reach {
-    node: usize,
+pub(super) struct Reach {
+    pub(super) node: usize,
     /// The target itself was added.
-    reached: bool,
-    added: usize,
+    pub(super) reached: bool,
+    pub(super) added: usize,
 }
 
-impl Run<'_, '_> {
-    fn check_valid(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
-        self.stats.validity_checks += valid.len();
-        let t = Instant::now();
-        let r = self.c.checker.check(qs, valid);
-        self.stats.checker_s += t.elapsed().as_secs_f64();
-        r
-    }
-
-    fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
-        let t = Instant::now();
-        let r = self.c.projector.project(qs, q_noms, out, reports);
-        self.stats.projector_s += t.elapsed().as_secs_f64();
-        r
-    }
-
-    /// The start and goals checked against the manifold (see [`Planner::plan`]): each projected
-    /// around itself in one batch; refused when the projection fails or moves it by more than
-    /// `goal_tolerance`, else replaced by its projection. Not counted in the stats (an input
-    /// check, not the search).
-    fn onto_manifold(&mut self, start: &[f64], goals: &[f64]) -> PlanResult<(Vec<f64>, Vec<f64>)> {
-        let nq = self.space.nq();
-        let rows = [start, goals].concat();
-        let n = rows.len() / nq;
-        let mut out = vec![0.0; rows.len()];
-        let mut reps = vec![Projection::default(); n];
-        self.c.projector.project(&rows, &rows, &mut out, &mut reps)?;
-        let tol = self.st.goal_tolerance;
-        let why = |i: usize| -> Option<String> {
-            let (q, p) = (&rows[i * nq..(i + 1) * nq], &out[i * nq..(i + 1) * nq]);
-            if !reps[i].success || p.iter().any(|x| !x.is_finite()) {
-                return Some("not on the constraint manifold: the projector could not project it".into());
-            }
-            let d = self.space.distance(q, p);
-            (d.is_nan() || d > tol).then(|| format!("not on the constraint manifold: the projector moved it by {} (goal_tolerance {tol})", short(d)))
-        };
-        if let Some(w) = why(0) {
-            return Err(PlanError::InvalidStart(format!("start: {w}")));
-        }
-        let bad: Vec<(usize, String)> = (1..n).filter_map(|i| why(i).map(|w| (i - 1, w))).collect();
-        if let Some((i, w)) = bad.first() {
-            let mut msg = format!("goals[{i}]: {w}");
-            if bad.len() > 1 {
-                let others: Vec<String> = bad[1..].iter().map(|(j, _)| format!("goals[{j}]")).collect();
-                msg += &format!("; also off it: {}", others.join(", "));
-            }
-            return Err(PlanError::InvalidGoal(msg));
-        }
-        let goals = out.split_off(nq);
-        Ok((out, goals))
-    }
-
-    /// One attempt: returns the goal node and the goal's index on success.
-    fn attempt(&mut self, tree: &mut Tree, goals: &[f64], valid_goals: &[usize]) -> PlanResult<Option<(usize, usize)>> {
-        let nq = self.space.nq();
+impl Run<'_> {
+    /// One attempt of the paper's cRRT (Algorithm 1) from a fresh tree rooted at `start`: each
+    /// iteration extends the tree from its nearest node towards a sample, then from the state
+    /// reached towards the nearest valid goal; a path that reaches a goal is validated (lazy
+    /// edges), else pruned below its first failing edge.
+    fn crrt_attempt(&mut self, start: &[f64], goals: &[f64], valid_goals: &[usize]) -> PlanResult<Option<Found>> {
+        let space = self.ambient();
+        let nq = space.nq();
+        let mut tree = Tree::new(nq, space.nv(), self.st.neighbors);
+        tree.add(space, start, usize::MAX, Some(&[]));
+        let mut found = None;
         for _ in 0..self.st.max_extensions {
-            (self.c.interrupt)()?;
-            self.stats.extensions += 1;
+            (self.interrupt)()?;
+            self.space.stats.extensions += 1;
             let q_rand = self.next_sample()?;
-            let near = tree.nearest(self.space, &q_rand);
-            let a = self.extend(tree, near, &q_rand, self.st.project_samples)?;
+            let near = tree.nearest(space, &q_rand);
+            let a = self.extend(&mut tree, near, &q_rand, self.st.project_samples)?;
             if a.added == 0 {
                 continue;
             }
@@ -581,48 +472,51 @@ impl Run<'_, '_> {
             let g = *valid_goals
                 .iter()
                 .min_by(|&&i, &&j| {
-                    let di = self.space.distance(&qa, &goals[i * nq..(i + 1) * nq]);
-                    let dj = self.space.distance(&qa, &goals[j * nq..(j + 1) * nq]);
+                    let di = space.distance(&qa, &goals[i * nq..(i + 1) * nq]);
+                    let dj = space.distance(&qa, &goals[j * nq..(j + 1) * nq]);
                     di.total_cmp(&dj)
                 })
                 .expect("at least one valid goal");
             let goal = &goals[g * nq..(g + 1) * nq];
-            let b = self.extend(tree, a.node, goal, true)?;
-            if b.reached && self.space.distance(tree.node(b.node), goal) <= self.st.goal_tolerance && self.validate_path(tree, b.node)? {
-                return Ok(Some((b.node, g)));
+            let b = self.extend(&mut tree, a.node, goal, true)?;
+            if b.reached && space.distance(tree.node(b.node), goal) <= self.st.goal_tolerance && self.validate_path(&mut tree, b.node)? {
+                let (waypoints, edges) = extract(&tree, b.node);
+                found = Some(Found { waypoints, edges, goal: g });
+                break;
             }
         }
-        Ok(None)
+        self.space.stats.nodes = tree.len();
+        Ok(found)
     }
 
     /// The next (projected, when `project_samples`) sample, refilling the buffer in batches.
-    fn next_sample(&mut self) -> PlanResult<Vec<f64>> {
-        let nq = self.space.nq();
+    pub(super) fn next_sample(&mut self) -> PlanResult<Vec<f64>> {
+        let nq = self.ambient().nq();
         let mut empty = 0;
         while self.samples.is_empty() {
-            (self.c.interrupt)()?;
+            (self.interrupt)()?;
             let n = self.st.sample_batch;
             let mut raw = vec![0.0; n * nq];
             let t = Instant::now();
-            self.c.sampler.sample(n, &mut raw)?;
-            self.stats.sampler_s += t.elapsed().as_secs_f64();
+            self.sampler.sample(n, &mut raw)?;
+            self.space.stats.sampler_s += t.elapsed().as_secs_f64();
             for (i, q) in raw.chunks(nq).enumerate() {
-                self.space
+                self.ambient()
                     .check(q, &format!("sampler output row {i}"))
                     .map_err(|e| PlanError::Sampler(format!("the sampler returned a bad configuration: {e}")))?;
             }
-            self.stats.samples += n;
+            self.space.stats.samples += n;
             if self.st.project_samples {
                 let mut out = vec![0.0; n * nq];
                 let mut reps = vec![Projection::default(); n];
-                self.project(&raw, &raw, &mut out, &mut reps)?;
-                self.stats.projection_calls += n;
+                self.space.project(&raw, &raw, &mut out, &mut reps)?;
+                self.space.stats.projection_calls += n;
                 for (q, r) in out.chunks(nq).zip(&reps) {
-                    self.stats.projections += r.iterations;
+                    self.space.stats.projections += r.iterations;
                     if r.success && q.iter().all(|x| x.is_finite()) {
                         self.samples.push_back(q.to_vec());
                     } else {
-                        self.stats.samples_rejected += 1;
+                        self.space.stats.samples_rejected += 1;
                     }
                 }
             } else {
@@ -642,54 +536,21 @@ impl Run<'_, '_> {
     }
 
     /// ConstrainedExtend from tree node `from` towards `target` (on the manifold when
-    /// `target_on_manifold`).
-    fn extend(&mut self, tree: &mut Tree, from: usize, target: &[f64], target_on_manifold: bool) -> PlanResult<Reach> {
-        let space = self.space;
-        let nq = space.nq();
-        let st = self.st;
+    /// `target_on_manifold`): up to `max_increments` constrained steps
+    /// ([`ConstrainedSpace::step`]), each added to the tree, until the target is reached or a
+    /// step fails.
+    pub(super) fn extend(&mut self, tree: &mut Tree, from: usize, target: &[f64], target_on_manifold: bool) -> PlanResult<Reach> {
+        let space = self.ambient();
         let mut cur = from;
         let mut added = 0;
-        let mut q_next = vec![0.0; nq];
-        for _ in 0..st.max_increments {
+        for _ in 0..self.st.max_increments {
             let q_cur = tree.node(cur).to_vec();
-            let dist = space.distance(&q_cur, target);
-            let last = dist <= st.step;
-            let mut candidate = if last {
-                target.to_vec()
-            } else {
-                space.interpolate(&q_cur, target, st.step / dist, &mut q_next);
-                q_next.clone()
-            };
-            if !(last && target_on_manifold) {
-                let mut out = vec![0.0; nq];
-                let mut rep = [Projection::default()];
-                self.project(&candidate, &candidate, &mut out, &mut rep)?;
-                self.stats.projection_calls += 1;
-                self.stats.projections += rep[0].iterations;
-                if !rep[0].success || out.iter().any(|x| !x.is_finite()) {
-                    break;
-                }
-                candidate = out;
-            }
-            let jump = space.distance(&q_cur, &candidate);
-            if jump > st.max_jump * st.step || jump < 1e-12 {
+            let Some(step) = self.space.step(&q_cur, target, target_on_manifold)? else {
                 break;
-            }
-            if st.lazy_edges {
-                let mut ok = [false];
-                self.check_valid(&candidate, &mut ok)?;
-                if !ok[0] {
-                    break;
-                }
-                cur = tree.add(space, &candidate, cur, None);
-            } else {
-                match self.validate_edge(&q_cur, &candidate, true)? {
-                    Some(edge) => cur = tree.add(space, &candidate, cur, Some(&edge)),
-                    None => break,
-                }
-            }
+            };
+            cur = tree.add(space, &step.q, cur, step.edge.as_deref());
             added += 1;
-            if last {
+            if step.reached {
                 return Ok(Reach { node: cur, reached: true, added });
             }
         }
@@ -711,9 +572,9 @@ impl Run<'_, '_> {
                     out_e.push(edges[j].clone());
                     break;
                 }
-                (self.c.interrupt)()?;
-                if let Some(states) = self.validate_edge(&waypoints[i], &waypoints[j], false)? {
-                    self.stats.shortcuts += 1;
+                (self.interrupt)()?;
+                if let Some(states) = self.space.geodesic(&waypoints[i], &waypoints[j], false)? {
+                    self.space.stats.shortcuts += 1;
                     out_w.push(waypoints[j].clone());
                     out_e.push(states);
                     break;
@@ -727,81 +588,21 @@ impl Run<'_, '_> {
 
     /// Validate the edges from the root to `node` that are not yet; prune below the first that
     /// fails. True when the whole path is valid.
-    fn validate_path(&mut self, tree: &mut Tree, node: usize) -> PlanResult<bool> {
+    pub(super) fn validate_path(&mut self, tree: &mut Tree, node: usize) -> PlanResult<bool> {
         for i in tree.chain(node) {
             if tree.validated[i] {
                 continue;
             }
             let (a, b) = (tree.node(tree.parent[i]).to_vec(), tree.node(i).to_vec());
-            match self.validate_edge(&a, &b, false)? {
+            match self.space.geodesic(&a, &b, false)? {
                 Some(states) => tree.set_edge(i, &states),
                 None => {
-                    self.stats.pruned += tree.prune(i);
+                    self.space.stats.pruned += tree.prune(i);
                     return Ok(false);
                 }
             }
         }
         Ok(true)
-    }
-
-    /// Check the edge from `a` to `b` (and `b` itself when `check_end`): interpolate at
-    /// `edge_resolution`, project each intermediate state (posture around its interpolation),
-    /// check every state. Returns the projected intermediate states (rows), or None when the edge
-    /// is not valid (or would need more than [`Settings::MAX_EDGE_STATES`] states: only a
-    /// shortcut can, never a tree edge).
-    fn validate_edge(&mut self, a: &[f64], b: &[f64], check_end: bool) -> PlanResult<Option<Vec<f64>>> {
-        let space = self.space;
-        let nq = space.nq();
-        let dist = space.distance(a, b);
-        let n_mid = if self.st.edge_resolution > 0.0 {
-            // intervals at the resolution; a tree edge needs at most Settings::MAX_EDGE_STATES
-            // (Settings::validate), a longer edge (a shortcut) that needs more is not taken
-            let intervals = (dist / self.st.edge_resolution).ceil();
-            if intervals.is_nan() || intervals > Settings::MAX_EDGE_STATES as f64 {
-                return Ok(None);
-            }
-            (intervals as usize).saturating_sub(1)
-        } else {
-            0
-        };
-        let mut states = vec![0.0; (n_mid + 1) * nq];
-        if n_mid > 0 {
-            let mut lin = vec![0.0; n_mid * nq];
-            for k in 0..n_mid {
-                let t = (k + 1) as f64 / (n_mid + 1) as f64;
-                space.interpolate(a, b, t, &mut lin[k * nq..(k + 1) * nq]);
-            }
-            let mut reps = vec![Projection::default(); n_mid];
-            self.project(&lin, &lin, &mut states[..n_mid * nq], &mut reps)?;
-            self.stats.edge_projections += reps.iter().map(|r| r.iterations).sum::<usize>();
-            if reps.iter().any(|r| !r.success) || states.iter().any(|x| !x.is_finite()) {
-                return Ok(None);
-            }
-            // consecutive states must stay close (no jump to another branch of the manifold, and
-            // chords short enough to stay on it): at most MAX_SPACING x the edge resolution apart
-            let max_gap = MAX_SPACING * self.st.edge_resolution;
-            let mut prev = a;
-            for k in 0..n_mid {
-                let s = &states[k * nq..(k + 1) * nq];
-                if space.distance(prev, s) > max_gap {
-                    return Ok(None);
-                }
-                prev = s;
-            }
-            if space.distance(prev, b) > max_gap {
-                return Ok(None);
-            }
-        }
-        states[n_mid * nq..].copy_from_slice(b);
-        let n_check = n_mid + usize::from(check_end);
-        let mut valid = vec![false; n_check];
-        self.check_valid(&states[..n_check * nq], &mut valid)?;
-        if valid.iter().all(|&v| v) {
-            states.truncate(n_mid * nq);
-            Ok(Some(states))
-        } else {
-            Ok(None)
-        }
     }
 }
 
@@ -823,49 +624,6 @@ mod tests {
         assert!(internal(&[0.0, 0.0, 0.9, 0.0]).ends_with("it ends 0.100 from the goal (goal_tolerance 0.001)"));
         assert!(internal(&[0.0, 0.0, f64::NAN, 0.0]).ends_with("not whole rows of finite numbers"));
         assert!(internal(&[]).ends_with("not whole rows of finite numbers"));
-    }
-
-    /// The identity projector (R^n is its own manifold).
-    struct Identity;
-
-    impl crate::planning::Projector for Identity {
-        fn project(&mut self, qs: &[f64], _q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
-            out.copy_from_slice(qs);
-            reports.fill(Projection { success: true, iterations: 0 });
-            Ok(())
-        }
-    }
-
-    /// Never called.
-    struct NoSampler;
-
-    impl crate::planning::Sampler for NoSampler {
-        fn sample(&mut self, _n: usize, _out: &mut [f64]) -> PlanResult<()> {
-            Err(PlanError::Sampler("not used".into()))
-        }
-    }
-
-    /// Finding PLAN-1 (fixed): an edge that would need more than Settings::MAX_EDGE_STATES
-    /// states (a shortcut between far waypoints) is not taken; nothing is allocated for it.
-    #[test]
-    fn an_edge_beyond_the_state_cap_is_not_taken() {
-        let st = Settings { edge_resolution: Settings::MIN_EDGE_RESOLUTION, step: 0.3, max_jump: 3.0, ..Settings::default() };
-        st.validate().unwrap();
-        let space = EuclideanSpace(2);
-        let (mut sampler, mut projector, mut checker) = (NoSampler, Identity, crate::planning::AlwaysValid);
-        let mut interrupt = || Ok(());
-        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
-        let mut run = Run { space: &space, st: &st, c: &mut c, stats: Stats::default(), samples: VecDeque::new() };
-        // the longest tree edge (max_jump * step = 0.9: 900000 states) is validated
-        let states = run.validate_edge(&[0.0, 0.0], &[0.9, 0.0], true).unwrap().expect("a tree edge is validated");
-        assert!(states.len() % 2 == 0 && (899_999..=900_000).contains(&(states.len() / 2)), "{} states", states.len() / 2);
-        // 2^20 intervals at most, not one more
-        let cap = Settings::MAX_EDGE_STATES as f64 * Settings::MIN_EDGE_RESOLUTION;
-        assert!(run.validate_edge(&[0.0, 0.0], &[cap * 0.9999, 0.0], false).unwrap().is_some());
-        assert!(run.validate_edge(&[0.0, 0.0], &[cap * 1.001, 0.0], false).unwrap().is_none());
-        // 1e12 states would be 16 TB
-        assert!(run.validate_edge(&[0.0, 0.0], &[1e6, 0.0], false).unwrap().is_none());
-        assert!(run.validate_edge(&[-1e300, 0.0], &[1e300, 0.0], false).unwrap().is_none());
     }
 
     #[test]

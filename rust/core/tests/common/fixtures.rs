@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use genplan_core::planning::{PlanResult, Projection, Projector, Sampler, ValidityChecker};
+use genplan_core::planning::{GaussNewtonProjector, PlanResult, Projection, Projector, Sampler, ValidityChecker};
 use genplan_core::projection::{self, Term, TermKind};
 use genplan_core::KinematicModel;
 use nalgebra::{Matrix3, Vector3};
@@ -98,4 +98,15 @@ pub fn panda_horizontal_gripper(model: Arc<KinematicModel>, tolerance: f64) -> p
         tolerance: 1e-3,
     }];
     projection::Projector::new(model, primary, secondary, projection::Settings::default()).unwrap()
+}
+
+/// The native projector with the posture step on edge states too (the trait's default
+/// `project_edge`: as before issue 17), for comparisons with [`GaussNewtonProjector`], which
+/// drops it there.
+pub struct WithPosture(pub GaussNewtonProjector);
+
+impl Projector for WithPosture {
+    fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        self.0.project(qs, q_noms, out, reports)
+    }
 }

@@ -1,0 +1,399 @@
+//! The constrained space of one plan, as OMPL's `ProjectedStateSpace` with its
+//! `ConstrainedMotionValidator`: the ambient [`Space`], the [`Projector`] that defines the
+//! manifold and the [`ValidityChecker`], behind one type ([`ConstrainedSpace`]) that offers
+//!
+//! * [`step`](ConstrainedSpace::step): one constrained step from a state towards a target (the
+//!   unit of the paper's ConstrainedExtend: a step of `step` along the straight line, projected,
+//!   refused when the projection fails or jumps, then checked);
+//! * [`geodesic`](ConstrainedSpace::geodesic): the projected, checked walk between two states
+//!   on the manifold at `edge_resolution` (the dense states of an edge, or None);
+//! * [`check_motion`](ConstrainedSpace::check_motion): the motion validator (a geodesic exists);
+//! * [`onto_manifold`](ConstrainedSpace::onto_manifold): a plan's inputs checked against the
+//!   manifold.
+//!
+//! The planners (`rrt`: the paper's cRRT; `rrt_connect`) keep the tree logic only; every state
+//! they add and every edge they return went through this type, which also keeps the plan's
+//! counts of projections and checks and the time spent in the projector and the checker
+//! ([`ConstrainedSpace::stats`]).
+
+use std::time::Instant;
+
+use super::rrt::short;
+use super::{PlanError, PlanResult, Projection, Projector, Settings, Space, Stats, ValidityChecker, MAX_SPACING};
+
+/// The constrained space of one plan: the ambient space, the projector and the validity checker,
+/// with the planner's settings (`step`, `max_jump`, `edge_resolution`, `lazy_edges`,
+/// `goal_tolerance`).
+pub struct ConstrainedSpace<'a> {
+    /// The ambient configuration space.
+    pub ambient: &'a dyn Space,
+    projector: &'a mut dyn Projector,
+    checker: &'a mut dyn ValidityChecker,
+    settings: &'a Settings,
+    /// What the space's calls cost so far (projections, edge projections, checks, projector and
+    /// checker times); a planner adds its own counts to it.
+    pub stats: Stats,
+}
+
+/// One constrained step that succeeded ([`ConstrainedSpace::step`]).
+#[derive(Debug, Clone)]
+pub struct Step {
+    /// The new state: on the manifold and valid.
+    pub q: Vec<f64>,
+    /// It is the target itself (the target was within one step).
+    pub reached: bool,
+    /// The validated states between the step's start and `q` (both excluded), or None with lazy
+    /// edges (validated later, with [`ConstrainedSpace::geodesic`]).
+    pub edge: Option<Vec<f64>>,
+}
+
+impl<'a> ConstrainedSpace<'a> {
+    /// The constrained space of `ambient` whose manifold `projector` defines and whose valid
+    /// states `checker` says, with `settings` (validated by the caller).
+    pub fn new(
+        ambient: &'a dyn Space,
+        projector: &'a mut dyn Projector,
+        checker: &'a mut dyn ValidityChecker,
+        settings: &'a Settings,
+    ) -> ConstrainedSpace<'a> {
+        ConstrainedSpace { ambient, projector, checker, settings, stats: Stats::default() }
+    }
+
+    /// The settings the space walks with.
+    pub fn settings(&self) -> &Settings {
+        self.settings
+    }
+
+    /// Check the rows of `qs` (counted in `validity_checks`, timed in `checker_s`).
+    pub fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+        self.stats.validity_checks += valid.len();
+        let t = Instant::now();
+        let r = self.checker.check(qs, valid);
+        self.stats.checker_s += t.elapsed().as_secs_f64();
+        r
+    }
+
+    /// Project the rows of `qs`, each around its row of `q_noms` (timed in `projector_s`; the
+    /// caller counts the iterations where they belong).
+    pub fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        let t = Instant::now();
+        let r = self.projector.project(qs, q_noms, out, reports);
+        self.stats.projector_s += t.elapsed().as_secs_f64();
+        r
+    }
+
+    /// The start and goals checked against the manifold (see
+    /// [`Planner::plan`](super::Planner::plan)): each projected around itself in one batch;
+    /// refused when the projection fails or moves it by more than `goal_tolerance`, else replaced
+    /// by its projection. Not counted in the stats (an input check, not the search).
+    pub fn onto_manifold(&mut self, start: &[f64], goals: &[f64]) -> PlanResult<(Vec<f64>, Vec<f64>)> {
+        let nq = self.ambient.nq();
+        let rows = [start, goals].concat();
+        let n = rows.len() / nq;
+        let mut out = vec![0.0; rows.len()];
+        let mut reps = vec![Projection::default(); n];
+        self.projector.project(&rows, &rows, &mut out, &mut reps)?;
+        let tol = self.settings.goal_tolerance;
+        let why = |i: usize| -> Option<String> {
+            let (q, p) = (&rows[i * nq..(i + 1) * nq], &out[i * nq..(i + 1) * nq]);
+            if !reps[i].success || p.iter().any(|x| !x.is_finite()) {
+                return Some("not on the constraint manifold: the projector could not project it".into());
+            }
+            let d = self.ambient.distance(q, p);
+            (d.is_nan() || d > tol).then(|| format!("not on the constraint manifold: the projector moved it by {} (goal_tolerance {tol})", short(d)))
+        };
+        if let Some(w) = why(0) {
+            return Err(PlanError::InvalidStart(format!("start: {w}")));
+        }
+        let bad: Vec<(usize, String)> = (1..n).filter_map(|i| why(i).map(|w| (i - 1, w))).collect();
+        if let Some((i, w)) = bad.first() {
+            let mut msg = format!("goals[{i}]: {w}");
+            if bad.len() > 1 {
+                let others: Vec<String> = bad[1..].iter().map(|(j, _)| format!("goals[{j}]")).collect();
+                msg += &format!("; also off it: {}", others.join(", "));
+            }
+            return Err(PlanError::InvalidGoal(msg));
+        }
+        let goals = out.split_off(nq);
+        Ok((out, goals))
+    }
+
+    /// One constrained step from `from` (on the manifold) towards `target` (on it too when
+    /// `target_on_manifold`): the state `step` along the straight line (the target itself when
+    /// within `step`: then unprojected if `target_on_manifold`), projected around itself. None
+    /// when the projection fails, lands more than `max_jump * step` from `from` (another branch
+    /// of the manifold) or does not move, or the state (with eager edges: the edge) is not valid.
+    /// Projections are counted in `projection_calls` and `projections`.
+    pub fn step(&mut self, from: &[f64], target: &[f64], target_on_manifold: bool) -> PlanResult<Option<Step>> {
+        let space = self.ambient;
+        let st = self.settings;
+        let dist = space.distance(from, target);
+        let last = dist <= st.step;
+        let mut candidate = target.to_vec();
+        if !last {
+            space.interpolate(from, target, st.step / dist, &mut candidate);
+        }
+        if !(last && target_on_manifold) {
+            let mut out = vec![0.0; candidate.len()];
+            let mut rep = [Projection::default()];
+            self.project(&candidate, &candidate, &mut out, &mut rep)?;
+            self.stats.projection_calls += 1;
+            self.stats.projections += rep[0].iterations;
+            if !rep[0].success || out.iter().any(|x| !x.is_finite()) {
+                return Ok(None);
+            }
+            candidate = out;
+        }
+        let jump = space.distance(from, &candidate);
+        if jump > st.max_jump * st.step || jump < 1e-12 {
+            return Ok(None);
+        }
+        let edge = if st.lazy_edges {
+            let mut ok = [false];
+            self.check(&candidate, &mut ok)?;
+            if !ok[0] {
+                return Ok(None);
+            }
+            None
+        } else {
+            match self.geodesic(from, &candidate, true)? {
+                Some(edge) => Some(edge),
+                None => return Ok(None),
+            }
+        };
+        Ok(Some(Step { q: candidate, reached: last, edge }))
+    }
+
+    /// The geodesic from `a` to `b` (both on the manifold; `b` checked too when `check_end`):
+    /// the straight line interpolated at `edge_resolution`, each intermediate state projected
+    /// around its interpolation (a tree edge, at most `max_jump * step` long, with
+    /// [`Projector::project_edge`]; a longer one, a shortcut, with [`Projector::project`]) and
+    /// checked. Returns the projected
+    /// intermediate states (rows, `a` and `b` excluded; none when `edge_resolution` is 0), or
+    /// None when a projection fails, two consecutive states are more than
+    /// [`MAX_SPACING`]` x edge_resolution` apart (a jump to another branch, or a chord too long
+    /// to stay on the manifold), a state is not valid, or the edge would need more than
+    /// [`Settings::MAX_EDGE_STATES`] states (only a shortcut can, never a tree edge).
+    pub fn geodesic(&mut self, a: &[f64], b: &[f64], check_end: bool) -> PlanResult<Option<Vec<f64>>> {
+        let space = self.ambient;
+        let nq = space.nq();
+        let resolution = self.settings.edge_resolution;
+        let dist = space.distance(a, b);
+        let n_mid = if resolution > 0.0 {
+            // intervals at the resolution; a tree edge needs at most Settings::MAX_EDGE_STATES
+            // (Settings::validate), a longer edge (a shortcut) that needs more is not taken
+            let intervals = (dist / resolution).ceil();
+            if intervals.is_nan() || intervals > Settings::MAX_EDGE_STATES as f64 {
+                return Ok(None);
+            }
+            (intervals as usize).saturating_sub(1)
+        } else {
+            0
+        };
+        let mut states = vec![0.0; (n_mid + 1) * nq];
+        if n_mid > 0 {
+            let mut lin = vec![0.0; n_mid * nq];
+            for k in 0..n_mid {
+                let t = (k + 1) as f64 / (n_mid + 1) as f64;
+                space.interpolate(a, b, t, &mut lin[k * nq..(k + 1) * nq]);
+            }
+            let mut reps = vec![Projection::default(); n_mid];
+            let t = Instant::now();
+            // a tree edge (at most max_jump * step long) without the posture step, which changes
+            // nothing there; a longer one (a shortcut, far off the manifold between its ends)
+            // with it: without, its states drift apart (wider chords: tests/test_planning.py)
+            let r = if dist <= self.settings.max_jump * self.settings.step {
+                self.projector.project_edge(&lin, &lin, &mut states[..n_mid * nq], &mut reps)
+            } else {
+                self.projector.project(&lin, &lin, &mut states[..n_mid * nq], &mut reps)
+            };
+            self.stats.projector_s += t.elapsed().as_secs_f64();
+            r?;
+            self.stats.edge_projections += reps.iter().map(|r| r.iterations).sum::<usize>();
+            if reps.iter().any(|r| !r.success) || states.iter().any(|x| !x.is_finite()) {
+                return Ok(None);
+            }
+            let max_gap = MAX_SPACING * resolution;
+            let mut prev = a;
+            for k in 0..n_mid {
+                let s = &states[k * nq..(k + 1) * nq];
+                if space.distance(prev, s) > max_gap {
+                    return Ok(None);
+                }
+                prev = s;
+            }
+            if space.distance(prev, b) > max_gap {
+                return Ok(None);
+            }
+        }
+        states[n_mid * nq..].copy_from_slice(b);
+        let n_check = n_mid + usize::from(check_end);
+        let mut valid = vec![false; n_check];
+        self.check(&states[..n_check * nq], &mut valid)?;
+        if valid.iter().all(|&v| v) {
+            states.truncate(n_mid * nq);
+            Ok(Some(states))
+        } else {
+            Ok(None)
+        }
+    }
+
+    /// The motion validator: the geodesic from `a` to `b` exists and `b` is valid.
+    pub fn check_motion(&mut self, a: &[f64], b: &[f64]) -> PlanResult<bool> {
+        Ok(self.geodesic(a, b, true)?.is_some())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planning::{AlwaysValid, EuclideanSpace};
+
+    /// The identity projector (R^n is its own manifold).
+    pub(crate) struct Identity;
+
+    impl Projector for Identity {
+        fn project(&mut self, qs: &[f64], _q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+            out.copy_from_slice(qs);
+            reports.fill(Projection { success: true, iterations: 0 });
+            Ok(())
+        }
+    }
+
+    /// Finding PLAN-1 (fixed): an edge that would need more than Settings::MAX_EDGE_STATES
+    /// states (a shortcut between far waypoints) is not taken; nothing is allocated for it.
+    #[test]
+    fn an_edge_beyond_the_state_cap_is_not_taken() {
+        let st = Settings { edge_resolution: Settings::MIN_EDGE_RESOLUTION, step: 0.3, max_jump: 3.0, ..Settings::default() };
+        st.validate().unwrap();
+        let space = EuclideanSpace(2);
+        let (mut projector, mut checker) = (Identity, AlwaysValid);
+        let mut cs = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st);
+        // the longest tree edge (max_jump * step = 0.9: 900000 states) is validated
+        let states = cs.geodesic(&[0.0, 0.0], &[0.9, 0.0], true).unwrap().expect("a tree edge is validated");
+        assert!(states.len() % 2 == 0 && (899_999..=900_000).contains(&(states.len() / 2)), "{} states", states.len() / 2);
+        // 2^20 intervals at most, not one more
+        let cap = Settings::MAX_EDGE_STATES as f64 * Settings::MIN_EDGE_RESOLUTION;
+        assert!(cs.geodesic(&[0.0, 0.0], &[cap * 0.9999, 0.0], false).unwrap().is_some());
+        assert!(cs.geodesic(&[0.0, 0.0], &[cap * 1.001, 0.0], false).unwrap().is_none());
+        // 1e12 states would be 16 TB
+        assert!(cs.geodesic(&[0.0, 0.0], &[1e6, 0.0], false).unwrap().is_none());
+        assert!(cs.geodesic(&[-1e300, 0.0], &[1e300, 0.0], false).unwrap().is_none());
+    }
+
+    /// The unit circle of R^2 (radial projection), the arc (80, 100] degrees blocked.
+    struct Circle;
+
+    impl Projector for Circle {
+        fn project(&mut self, qs: &[f64], _q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+            for ((q, o), r) in qs.chunks(2).zip(out.chunks_mut(2)).zip(reports.iter_mut()) {
+                let n = q[0].hypot(q[1]);
+                o[0] = q[0] / n;
+                o[1] = q[1] / n;
+                *r = Projection { success: n > 1e-9, iterations: 1 };
+            }
+            Ok(())
+        }
+    }
+
+    struct Gap;
+
+    impl ValidityChecker for Gap {
+        fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+            for (q, v) in qs.chunks(2).zip(valid.iter_mut()) {
+                let deg = q[1].atan2(q[0]).to_degrees();
+                *v = !(deg > 80.0 && deg <= 100.0);
+            }
+            Ok(())
+        }
+    }
+
+    fn on_circle(deg: f64) -> [f64; 2] {
+        let r = deg.to_radians();
+        [r.cos(), r.sin()]
+    }
+
+    #[test]
+    fn the_geodesic_is_dense_on_the_manifold_and_valid() {
+        let st = Settings::default();
+        let space = EuclideanSpace(2);
+        let (mut projector, mut checker) = (Circle, Gap);
+        let mut cs = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st);
+        let (a, b) = (on_circle(0.0), on_circle(30.0));
+        let states = cs.geodesic(&a, &b, true).unwrap().expect("a free arc");
+        let n = states.len() / 2;
+        assert_eq!(n, (space.distance(&a, &b) / st.edge_resolution).ceil() as usize - 1);
+        let mut prev = a.to_vec();
+        for s in states.chunks(2).chain([&b[..]]) {
+            assert!((s[0].hypot(s[1]) - 1.0).abs() < 1e-12);
+            assert!(space.distance(&prev, s) <= MAX_SPACING * st.edge_resolution);
+            prev = s.to_vec();
+        }
+        assert_eq!(cs.stats.edge_projections, n);
+        assert_eq!(cs.stats.validity_checks, n + 1);
+        assert!(cs.check_motion(&a, &b).unwrap());
+        // through the blocked arc: no geodesic; the end itself blocked: only with check_end
+        assert!(cs.geodesic(&on_circle(70.0), &on_circle(110.0), false).unwrap().is_none());
+        assert!(cs.geodesic(&on_circle(60.0), &on_circle(80.5), false).unwrap().is_some());
+        assert!(!cs.check_motion(&on_circle(60.0), &on_circle(80.5)).unwrap());
+        // no resolution: the ends only
+        let st0 = Settings { edge_resolution: 0.0, ..Settings::default() };
+        let mut cs0 = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st0);
+        assert_eq!(cs0.geodesic(&on_circle(70.0), &on_circle(110.0), false).unwrap(), Some(vec![]));
+    }
+
+    /// Counts the rows each method projects.
+    #[derive(Default)]
+    struct Counting {
+        project: usize,
+        edge: usize,
+    }
+
+    impl Projector for Counting {
+        fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+            self.project += reports.len();
+            Identity.project(qs, q_noms, out, reports)
+        }
+        fn project_edge(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+            self.edge += reports.len();
+            Identity.project(qs, q_noms, out, reports)
+        }
+    }
+
+    /// A tree edge (at most max_jump * step long) is projected with project_edge (the native
+    /// projector: no posture step), a longer one (a shortcut) with project.
+    #[test]
+    fn tree_edges_use_project_edge_and_shortcuts_project() {
+        let st = Settings::default();
+        let space = EuclideanSpace(2);
+        let (mut projector, mut checker) = (Counting::default(), AlwaysValid);
+        let mut cs = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st);
+        let tree_edge = st.max_jump * st.step;
+        assert_eq!(cs.geodesic(&[0.0, 0.0], &[tree_edge, 0.0], false).unwrap().unwrap().len() / 2, 35);
+        assert!(cs.geodesic(&[0.0, 0.0], &[tree_edge + 0.01, 0.0], false).unwrap().is_some());
+        drop(cs);
+        assert_eq!((projector.edge, projector.project), (35, 36));
+    }
+
+    #[test]
+    fn a_step_is_projected_checked_and_refuses_jumps() {
+        let st = Settings { lazy_edges: false, ..Settings::default() };
+        let space = EuclideanSpace(2);
+        let (mut projector, mut checker) = (Circle, Gap);
+        let mut cs = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st);
+        let from = on_circle(0.0);
+        let s = cs.step(&from, &on_circle(60.0), true).unwrap().expect("a free step");
+        assert!(!s.reached && (s.q[0].hypot(s.q[1]) - 1.0).abs() < 1e-12);
+        assert!(s.edge.is_some_and(|e| !e.is_empty()));
+        assert_eq!((cs.stats.projection_calls, cs.stats.projections), (1, 1));
+        // within a step of a target on the manifold: the target itself, unprojected
+        let near = on_circle(10.0);
+        let s = cs.step(&from, &near, true).unwrap().unwrap();
+        assert!(s.reached && s.q == near);
+        assert_eq!(cs.stats.projection_calls, 1);
+        // into the blocked arc: refused
+        assert!(cs.step(&on_circle(75.0), &on_circle(95.0), true).unwrap().is_none());
+        // straight outwards: the projection lands where it started, no move
+        assert!(cs.step(&from, &[3.0, 0.0], false).unwrap().is_none());
+    }
+}

@@ -1,0 +1,131 @@
+//! The search tree of one attempt ([`Tree`]: nodes, parents, the validated states of each edge,
+//! lazy pruning, the nearest-neighbour index) and the path of a chain of nodes ([`extract`],
+//! [`flatten`]). A tree may have several roots (RRT-Connect's goal tree: one per goal).
+
+use super::{NearestNeighbors, NeighborIndex, Space};
+
+/// The tree of one attempt: node configurations and, per node, the states on the edge from its
+/// parent (exclusive of both ends, in the order parent to node).
+pub(super) struct Tree {
+    pub(super) nq: usize,
+    pub(super) q: Vec<f64>,
+    pub(super) parent: Vec<usize>,
+    children: Vec<Vec<usize>>,
+    /// The edge from the parent has been validated (its states are stored).
+    pub(super) validated: Vec<bool>,
+    /// Pruned: an edge above it failed validation; never extended from again.
+    dead: Vec<bool>,
+    edge_start: Vec<usize>,
+    edge_count: Vec<usize>,
+    edge_states: Vec<f64>,
+    nn: Box<dyn NearestNeighbors>,
+    coords: Vec<f64>,
+}
+
+impl Tree {
+    pub(super) fn node(&self, i: usize) -> &[f64] {
+        &self.q[i * self.nq..(i + 1) * self.nq]
+    }
+    pub(super) fn len(&self) -> usize {
+        self.parent.len()
+    }
+    pub(super) fn new(nq: usize, nv: usize, neighbors: NeighborIndex) -> Tree {
+        Tree {
+            nq,
+            q: Vec::new(),
+            parent: Vec::new(),
+            children: Vec::new(),
+            validated: Vec::new(),
+            dead: Vec::new(),
+            edge_start: Vec::new(),
+            edge_count: Vec::new(),
+            edge_states: Vec::new(),
+            nn: neighbors.build(nv),
+            coords: vec![0.0; nv],
+        }
+    }
+    /// Add a node (a root when `parent` is `usize::MAX`); `edge`: the validated states from the
+    /// parent, or None (validated later).
+    pub(super) fn add(&mut self, space: &dyn Space, q: &[f64], parent: usize, edge: Option<&[f64]>) -> usize {
+        let id = self.len();
+        self.q.extend_from_slice(q);
+        self.parent.push(parent);
+        self.children.push(Vec::new());
+        if parent != usize::MAX {
+            self.children[parent].push(id);
+        }
+        self.dead.push(false);
+        self.validated.push(false);
+        self.edge_start.push(0);
+        self.edge_count.push(0);
+        if let Some(e) = edge {
+            self.set_edge(id, e);
+        }
+        space.coordinates(q, &mut self.coords);
+        self.nn.add(&self.coords);
+        id
+    }
+    pub(super) fn set_edge(&mut self, node: usize, states: &[f64]) {
+        self.edge_start[node] = self.edge_states.len() / self.nq.max(1);
+        self.edge_count[node] = states.len() / self.nq.max(1);
+        self.edge_states.extend_from_slice(states);
+        self.validated[node] = true;
+    }
+    /// The validated states of the edge from `node`'s parent to `node` (parent to node).
+    pub(super) fn edge(&self, node: usize) -> &[f64] {
+        let (s, n) = (self.edge_start[node], self.edge_count[node]);
+        &self.edge_states[s * self.nq..(s + n) * self.nq]
+    }
+    /// Mark `node` and everything below it dead; returns how many nodes died.
+    pub(super) fn prune(&mut self, node: usize) -> usize {
+        let mut stack = vec![node];
+        let mut n = 0;
+        while let Some(i) = stack.pop() {
+            if !self.dead[i] {
+                self.dead[i] = true;
+                n += 1;
+            }
+            stack.extend_from_slice(&self.children[i]);
+        }
+        n
+    }
+    /// The live node nearest to `q` (node 0 when every node is dead).
+    pub(super) fn nearest(&mut self, space: &dyn Space, q: &[f64]) -> usize {
+        space.coordinates(q, &mut self.coords);
+        let dead = &self.dead;
+        self.nn.nearest_where(&self.coords, &|i| !dead[i]).map(|(i, _)| i).unwrap_or(0)
+    }
+    /// Node indices from the root to `node`.
+    pub(super) fn chain(&self, node: usize) -> Vec<usize> {
+        let mut chain = vec![node];
+        while let Some(&last) = chain.last() {
+            match self.parent[last] {
+                usize::MAX => break,
+                p => chain.push(p),
+            }
+        }
+        chain.reverse();
+        chain
+    }
+}
+
+/// The waypoints from the root to `goal_node` and, per waypoint after the first, the validated
+/// states of the edge that leads to it.
+pub(super) fn extract(tree: &Tree, goal_node: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let chain = tree.chain(goal_node);
+    let waypoints = chain.iter().map(|&i| tree.node(i).to_vec()).collect();
+    let edges = chain.iter().map(|&i| tree.edge(i).to_vec()).collect();
+    (waypoints, edges)
+}
+
+/// Flatten waypoints and their edges into (waypoints, dense path).
+pub(super) fn flatten(waypoints: &[Vec<f64>], edges: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
+    let mut w = Vec::new();
+    let mut path = Vec::new();
+    for (q, e) in waypoints.iter().zip(edges) {
+        path.extend_from_slice(e);
+        path.extend_from_slice(q);
+        w.extend_from_slice(q);
+    }
+    (w, path)
+}
