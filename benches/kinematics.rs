@@ -1,4 +1,5 @@
-//! Criterion: forward kinematics of every link, Panda (7 joints) and Talos (free-flyer + 28).
+//! Criterion: forward kinematics of every link, and of the joints above the hand only, Panda
+//! (7 joints) and Talos (free-flyer + 28).
 //! Needs example-robot-data: GENPLAN_ROBOTS_DIR or the project's .venv (scripts/setup).
 
 use std::hint::black_box;
@@ -28,7 +29,7 @@ pub fn random_configurations(model: &genplan_core::KinematicModel, n: usize, see
 }
 
 fn fk(c: &mut Criterion) {
-    for name in ["panda", "talos"] {
+    for (name, hand) in [("panda", "panda_hand"), ("talos", "gripper_right_base_link")] {
         let (model, _) = preset(name).unwrap().load().unwrap();
         let qs = random_configurations(&model, 1024, 1);
         let mut out = Vec::new();
@@ -37,6 +38,15 @@ fn fk(c: &mut Criterion) {
             b.iter(|| {
                 i = (i + 1) % qs.len();
                 model.forward_kinematics_unchecked(black_box(&qs[i]), &mut out);
+                black_box(&out);
+            })
+        });
+        // one link: the joints above it only (what `link_poses(q, [hand])` runs)
+        let joints = model.joints_placing(&[model.link_index(hand).unwrap()]);
+        c.bench_function(&format!("fk_hand/{name}"), |b| {
+            b.iter(|| {
+                i = (i + 1) % qs.len();
+                model.forward_kinematics_prefix(black_box(&qs[i]), &mut out, joints);
                 black_box(&out);
             })
         });

@@ -236,3 +236,43 @@ def test_ctrl_c_interrupts_a_long_collision_query(panda: genplan.Robot, query: s
     n = {"min_distance": 250_000, "in_collision": 800_000}[query]
     qs = random_configurations(panda, n, seed=6)
     assert ctrl_c_latency(lambda: getattr(world, query)(qs)) < MAX_LATENCY_S
+
+
+# --- the boundary: configurations read in Rust (issue 18) -------------------------------------
+
+
+@pytest.mark.parametrize("form", ["list", "tuple", "float32", "strided", "numeric strings"])
+def test_queries_read_any_form_of_a_configuration_as_float64(panda: genplan.Robot, form: str) -> None:
+    world = panda.collision_world()
+    world.add_box("table", [0.5, 0.5, 0.02], [0.5, 0.0, -0.03])
+    for q in random_configurations(panda, 5, seed=21):
+        given = {"list": list(q), "tuple": tuple(q), "float32": q.astype(np.float32),
+                 "strided": np.repeat(q, 3)[::3], "numeric strings": [repr(float(x)) for x in q]}[form]
+        exact = q.astype(np.float32).astype(np.float64) if form == "float32" else q
+        hit, dist = world.in_collision(given), world.min_distance(given)
+        assert type(hit) is bool and type(dist) is float
+        assert hit == world.in_collision(exact) and dist == world.min_distance(exact)
+
+
+def test_batches_of_any_layout_answer_as_their_rows(panda: genplan.Robot) -> None:
+    world = panda.collision_world()
+    qs = random_configurations(panda, 50, seed=22)
+    hits, dist = world.in_collision(qs), world.min_distance(qs)
+    for given in (np.asfortranarray(qs), np.repeat(qs, 2, axis=0)[::2], qs.tolist()):
+        np.testing.assert_array_equal(world.in_collision(given), hits)
+        np.testing.assert_array_equal(world.min_distance(given), dist)
+    assert [world.in_collision(q) for q in qs] == list(hits)
+
+
+@pytest.mark.parametrize("bad, error, match", [
+    ([0.0] * 6, ShapeError, r"^q: expected shape \(7,\) or \(n, 7\), got \(6,\)$"),
+    (np.zeros((3, 8), dtype=np.float32), ShapeError, r"^q: expected shape \(7,\) or \(n, 7\), got \(3, 8\)$"),
+    ([0.0, np.nan] + [0.0] * 5, NonFiniteError, r"^q: element \(1,\) is not finite \(nan\)$"),
+    (np.array([[0.0] * 7, [0.0] * 6 + [np.inf]])[:, ::1], NonFiniteError, r"^q: element \(1, 6\) is not finite \(inf\)$"),
+    ([None] * 7, ShapeError, r"^q: cannot be read"),
+])
+def test_bad_configurations_name_the_argument(panda: genplan.Robot, bad, error, match) -> None:
+    world = panda.collision_world()
+    for query in (world.in_collision, world.min_distance, world.native.in_collision, world.native.min_distance):
+        with pytest.raises(error, match=match):
+            query(bad)

@@ -1,12 +1,13 @@
 """Type stub of the private native module ``genplan._core`` (Rust, PyO3)."""
 
+from collections.abc import Sequence
 from os import PathLike
 from typing import Any, ClassVar, final
 
 from typing_extensions import Self
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, DTypeLike, NDArray
 
 from genplan import protocols
 
@@ -49,8 +50,12 @@ class KinematicModel:
     def upper(self) -> NDArray[np.float64]: ...
     def link_index(self, name: str) -> int: ...
     def forward_kinematics(
-        self, q: NDArray[np.float64], links: list[str] | None = None
-    ) -> NDArray[np.float64]: ...
+        self,
+        q: ArrayLike,
+        links: Sequence[str] | None = None,
+        dtype: DTypeLike | None = None,
+        out: NDArray[Any] | None = None,
+    ) -> NDArray[Any]: ...
 
 @final
 class CollisionWorld:
@@ -111,8 +116,8 @@ class CollisionWorld:
     def add_halfspace(self, name: str, normal: tuple[float, float, float], offset: float) -> None: ...
     def remove_obstacle(self, name: str) -> None: ...
     def clear_obstacles(self) -> None: ...
-    def in_collision(self, q: NDArray[np.float64]) -> bool | NDArray[np.bool_]: ...
-    def min_distance(self, q: NDArray[np.float64]) -> float | NDArray[np.float64]: ...
+    def in_collision(self, q: ArrayLike) -> bool | NDArray[np.bool_]: ...
+    def min_distance(self, q: ArrayLike) -> float | NDArray[np.float64]: ...
     def close_pairs(self, q: list[float], margin: float = 0.0) -> list[tuple[str, str, float]]: ...
 
 @final
@@ -130,6 +135,7 @@ class SolverSettings:
         backtrack: float = 0.2,
         max_backtracks: int = 20,
         clip_to_limits: bool = True,
+        active_set: bool = False,
         secondary_backtracks: int = 3,
         secondary_slack: float = 1e-6,
     ) -> Self: ...
@@ -147,6 +153,8 @@ class SolverSettings:
     def max_backtracks(self) -> int: ...
     @property
     def clip_to_limits(self) -> bool: ...
+    @property
+    def active_set(self) -> bool: ...
     @property
     def secondary_backtracks(self) -> int: ...
     @property
@@ -252,7 +260,8 @@ class MixtureSampler:
 
 @final
 class PlannerSettings:
-    """Settings of the constrained RRT (genplan_core::planning::Settings); immutable."""
+    """Settings of the constrained planner (genplan_core::planning::Settings; ``algorithm``:
+    "crrt" or "rrt_connect"); immutable."""
 
     fields: ClassVar[list[str]]
     def __new__(
@@ -271,6 +280,7 @@ class PlannerSettings:
         simplify: bool = False,
         neighbors: str = "auto",
         max_empty_batches: int = 100,
+        algorithm: str = "crrt",
     ) -> Self: ...
     @property
     def step(self) -> float: ...
@@ -298,6 +308,8 @@ class PlannerSettings:
     def neighbors(self) -> str: ...
     @property
     def max_empty_batches(self) -> int: ...
+    @property
+    def algorithm(self) -> str: ...
     def replace(self, **changes: Any) -> PlannerSettings: ...
     def to_dict(self) -> dict[str, Any]: ...
     def __eq__(self, value: object, /) -> bool: ...
@@ -370,7 +382,8 @@ _NativeSampler = UniformSampler | GanSampler | MixtureSampler
 
 @final
 class Planner:
-    """The constrained RRT (see genplan.planning.Planner for the typed front end)."""
+    """The constrained planner, cRRT or RRT-Connect (see genplan.planning.Planner for the typed
+    front end)."""
 
     def __new__(cls, model: KinematicModel, settings: PlannerSettings | None = None) -> Self: ...
     def plan(

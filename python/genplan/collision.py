@@ -30,6 +30,11 @@ class CollisionWorld:
     def __init__(self, native: _core.CollisionWorld) -> None:
         self._native = native
         self._nq = native.model.nq
+        # the hot calls without a Python frame in between: on an instance, in_collision and
+        # min_distance are the native methods themselves (documented by the methods below,
+        # which call them; benches/boundary.py)
+        self.__dict__["in_collision"] = native.in_collision
+        self.__dict__["min_distance"] = native.min_distance
 
     @property
     def native(self) -> _core.CollisionWorld:
@@ -162,12 +167,14 @@ class CollisionWorld:
     @overload
     def in_collision(self, q: NDArray[np.float64]) -> Any: ...
     def in_collision(self, q: Any) -> Any:
-        """True where q collides (self or obstacles). (nq,) -> bool, (n, nq) -> bool array."""
-        return self._native.in_collision(as_configurations(q, self._nq))
+        """True where q collides (self or obstacles). (nq,) -> bool, (n, nq) -> bool array.
+        q is read and checked in Rust as :func:`genplan._arrays.as_configurations` does."""
+        return self._native.in_collision(q)
 
     def min_distance(self, q: Any) -> Any:
-        """Minimum signed distance in m (negative: penetration depth). (nq,) -> float, (n, nq) -> array."""
-        return self._native.min_distance(as_configurations(q, self._nq))
+        """Minimum signed distance in m (negative: penetration depth). (nq,) -> float, (n, nq) -> array.
+        q is read and checked in Rust as :func:`genplan._arrays.as_configurations` does."""
+        return self._native.min_distance(q)
 
     def close_pairs(self, q: ArrayLike, margin: float = 0.0) -> list[tuple[str, str, float]]:
         """Pairs closer than ``margin`` at one configuration, closest first."""

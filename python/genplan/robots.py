@@ -25,14 +25,14 @@ import json
 import os
 import site
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike, DTypeLike, NDArray
 
 from genplan import _core
 from genplan._arrays import as_configurations
@@ -160,6 +160,10 @@ class Robot:
             locked_joints=self.locked_joints,
             joint_order=self.joint_names,
         )
+        # the hot call without a Python frame in between: on an instance, link_poses is the
+        # native method itself (the same parameters; documented by the method below, which
+        # calls it). A frame costs about a third of a one-configuration call (benches/boundary.py)
+        self.__dict__["link_poses"] = self.kinematics.forward_kinematics
 
     def _reduce(self, full: pin.Model, q_full: NDArray[np.float64]) -> NDArray[np.float64]:
         q = pin.neutral(self.model)
@@ -237,9 +241,25 @@ class Robot:
             rows[:, i : i + k] /= norm
         return qa
 
-    def link_poses(self, q: Any, links: list[str] | None = None) -> NDArray[np.float64]:
-        """World poses (4x4) of links from the Rust kinematics: (L, 4, 4) or (n, L, 4, 4)."""
-        return np.asarray(self.kinematics.forward_kinematics(self.check_configuration(q), links))
+    def link_poses(
+        self,
+        q: Any,
+        links: Sequence[str] | None = None,
+        *,
+        dtype: DTypeLike | None = None,
+        out: NDArray[Any] | None = None,
+    ) -> NDArray[Any]:
+        """World poses (4x4) of links from the Rust kinematics: q of shape (nq,) or (n, nq) gives
+        (L, 4, 4) or (n, L, 4, 4), L = ``len(links)`` (link names; UnknownNameError listing the
+        known ones for another name) or every link (:attr:`kinematics` ``.link_names``).
+
+        ``q`` is read and checked in Rust, as :meth:`check_configuration` does (ShapeError,
+        NonFiniteError; a float64 array is not copied). ``dtype``: float64 (default) or float32.
+        ``out``: an array of exactly that shape, C-contiguous, float64 or float32, written in
+        place and returned (ShapeError naming ``out`` otherwise). A batch is written from all
+        cores with the GIL released.
+        """
+        return self.kinematics.forward_kinematics(q, links, dtype, out)
 
     def frame_placement(self, q: ArrayLike, frame: str) -> pin.SE3:
         """Pinocchio placement of a frame (role or name) at one configuration."""

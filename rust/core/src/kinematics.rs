@@ -489,12 +489,30 @@ impl KinematicModel {
     /// As [`forward_kinematics`](Self::forward_kinematics) for a q already checked by
     /// [`check_configuration`](Self::check_configuration).
     pub fn forward_kinematics_unchecked(&self, q: &[f64], out: &mut Vec<Isometry3<f64>>) {
+        self.forward_kinematics_prefix(q, out, self.joints.len());
+    }
+
+    /// The number of leading joints (in [`joints`](Self::joints) order, parents first) that
+    /// place every link of `links` (indices): what
+    /// [`forward_kinematics_prefix`](Self::forward_kinematics_prefix) needs for their poses.
+    pub fn joints_placing(&self, links: &[usize]) -> usize {
+        let placing = |l: usize| self.joints.iter().position(|j| j.child == l).map_or(0, |p| p + 1);
+        links.iter().map(|&l| placing(l)).max().unwrap_or(0)
+    }
+
+    /// As [`forward_kinematics_unchecked`](Self::forward_kinematics_unchecked) through the
+    /// first `joints` joints only (at most all): the root and the links they move get their
+    /// poses, the links of the later joints are left at the identity. With
+    /// [`joints_placing`](Self::joints_placing), the poses of a few links (a hand) without the
+    /// rest of the tree.
+    #[inline]
+    pub fn forward_kinematics_prefix(&self, q: &[f64], out: &mut Vec<Isometry3<f64>>, joints: usize) {
         out.clear();
         out.resize(self.link_names.len(), Isometry3::identity());
         if self.floating_base {
             out[self.root] = Self::base_pose(q);
         }
-        for j in &self.joints {
+        for j in &self.joints[..joints.min(self.joints.len())] {
             let motion = match &j.motion {
                 Motion::Fixed => None,
                 Motion::Revolute { axis } => Some(Isometry3::from_parts(

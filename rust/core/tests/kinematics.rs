@@ -149,3 +149,26 @@ fn rpy_follows_the_urdf_convention() {
         * nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), r);
     assert!((q.to_rotation_matrix().matrix() - expected.matrix()).amax() < 1e-15);
 }
+
+#[test]
+fn a_prefix_of_the_joints_places_the_links_asked_for() {
+    for floating_base in [false, true] {
+        let m = model(&ModelOptions { floating_base, ..Default::default() });
+        let q: Vec<f64> = if floating_base { vec![0.1, -0.2, 0.3, 0.1, 0.2, 0.3, 0.9, 0.4, -0.7] } else { vec![0.4, -0.7] };
+        let mut all = Vec::new();
+        m.forward_kinematics(&q, &mut all).unwrap();
+        let (base, l1, l2, tool) = ["base", "l1", "l2", "tool"].map(|n| m.link_index(n).unwrap()).into();
+        assert_eq!(m.joints_placing(&[]), 0);
+        assert_eq!(m.joints_placing(&[base]), 0);
+        assert_eq!(m.joints_placing(&[tool]), m.joints.len());
+        for links in [vec![base], vec![l1], vec![l2], vec![l1, tool], vec![tool, base]] {
+            let k = m.joints_placing(&links);
+            let mut some = Vec::new();
+            m.forward_kinematics_prefix(&q, &mut some, k);
+            assert_eq!(some.len(), all.len());
+            for &l in &links {
+                assert_eq!(some[l], all[l], "link {l} with {k} joints");
+            }
+        }
+    }
+}

@@ -1,9 +1,11 @@
 //! `genplan._core`: the private native module. Thin wrappers around `genplan-core`.
 //!
-//! Inputs are float64 C-contiguous numpy arrays (the Python layer converts); batched calls
-//! release the GIL and run in parallel, in chunks of ~50 ms between which Ctrl-C is answered
-//! ([`for_chunks`]); empty batches give empty arrays; every error is a Python exception, never a
-//! panic.
+//! Inputs are float64 C-contiguous numpy arrays (the Python layer converts), except for the
+//! per-configuration calls (forward kinematics, collision, distance), which read and check q
+//! themselves ([`arrays`]: one call costs the Rust work plus a fixed overhead) and write batched
+//! outputs in place; batched calls release the GIL and run in parallel, in chunks of ~50 ms
+//! between which Ctrl-C is answered ([`for_chunks`]); empty batches give empty arrays; every
+//! error is a Python exception, never a panic.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -26,6 +28,7 @@ use genplan_core::srdf::Srdf;
 use genplan_core::urdf::Urdf;
 use genplan_core::Scratch;
 
+mod arrays;
 mod settings;
 
 mod control;
@@ -42,7 +45,7 @@ settings_class!(
     "SolverSettings",
     Settings,
     |s: &Settings| s.validate().map_err(to_py),
-    [max_iterations, mu, mu_bar, armijo_c1, backtrack, max_backtracks, clip_to_limits, secondary_backtracks, secondary_slack]
+    [max_iterations, mu, mu_bar, armijo_c1, backtrack, max_backtracks, clip_to_limits, active_set, secondary_backtracks, secondary_slack]
 );
 
 /// A batch of configurations: leading dims and the flat data, rows of `nq`.
@@ -219,45 +222,38 @@ impl PyKinematicModel {
     }
 
     /// World poses of links as 4x4 matrices: q of shape (nq,) or (n, nq) gives
-    /// (L, 4, 4) or (n, L, 4, 4), L = len(links) or every link.
-    #[pyo3(signature = (q, links=None))]
+    /// (L, 4, 4) or (n, L, 4, 4), L = len(links) or every link. q: a float array or a list,
+    /// checked here ([`arrays::read_configurations`]); `dtype` float64 (default) or float32;
+    /// `out`: an array of that shape to write into (returned). Rows of a batch are written in
+    /// place from rayon's threads, without the GIL; one row is computed with it held.
+    #[pyo3(signature = (q, links=None, dtype=None, out=None))]
     fn forward_kinematics<'py>(
         &self,
         py: Python<'py>,
-        q: PyReadonlyArrayDyn<'py, f64>,
-        links: Option<Vec<String>>,
-    ) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+        q: &Bound<'py, PyAny>,
+        links: Option<&Bound<'py, PyAny>>,
+        dtype: Option<&Bound<'py, PyAny>>,
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let m = &*self.inner;
-        let b = batch(&q, m.nq, "q")?;
-        check_rows(m, &b, "q")?;
-        let idx: Vec<usize> = match links {
-            None => (0..m.n_links()).collect(),
-            Some(names) => names
-                .iter()
-                .map(|n| m.link_index(n))
-                .collect::<Result<_, _>>()
-                .map_err(to_py)?,
-        };
-        let rows: Vec<Vec<f64>> = rows_map(py, b.data, m.nq, |q, _| {
-            let mut poses = Vec::new();
-            m.forward_kinematics_unchecked(q, &mut poses);
-            let mut out = Vec::with_capacity(idx.len() * 16);
-            for &i in &idx {
-                let h = poses[i].to_homogeneous();
-                for r in 0..4 {
-                    for c in 0..4 {
-                        out.push(h[(r, c)]);
-                    }
-                }
-            }
-            out
-        })?;
-        let mut shape = b.lead.clone();
-        shape.extend([idx.len(), 4, 4]);
-        let flat: Vec<f64> = rows.into_iter().flatten().collect();
-        let arr = Array::from_shape_vec(IxDyn(&shape), flat)
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        Ok(arr.into_pyarray(py))
+        let c = arrays::read_configurations(q, m, "q")?;
+        let idx = link_indices(m, links)?;
+        let idx = idx.as_slice();
+        let shape = [c.rows.unwrap_or(0), idx.len(), 4, 4];
+        let shape = if c.rows.is_some() { &shape[..] } else { &shape[1..] };
+        let output = arrays::Output::new(py, shape, arrays::out_type(dtype)?, out)?;
+        let (mut data, one) = (c.data(), c.rows.is_none());
+        let copy;
+        if one && out.is_some_and(|o| !o.is_none()) {
+            // a row read in place (arrays::Data::Row) is copied before `out` is written: the two
+            // may share memory
+            copy = data.to_vec();
+            data = &copy;
+        }
+        output.write(|slot| match slot {
+            arrays::Slot::F64(o) => fk_into(py, m, data, idx, o, one),
+            arrays::Slot::F32(o) => fk_into(py, m, data, idx, o, one),
+        })
     }
 
     fn __repr__(&self) -> String {
@@ -271,6 +267,117 @@ impl PyKinematicModel {
     }
 }
 
+/// Link indices, without a heap allocation for a few (a one-configuration call's hand).
+#[derive(Default)]
+struct Links {
+    few: [usize; 4],
+    n: usize,
+    many: Vec<usize>,
+}
+
+impl Links {
+    fn push(&mut self, i: usize) {
+        if self.many.is_empty() && self.n < self.few.len() {
+            self.few[self.n] = i;
+        } else {
+            if self.many.is_empty() {
+                self.many.extend_from_slice(&self.few[..self.n]);
+            }
+            self.many.push(i);
+        }
+        self.n += 1;
+    }
+    fn as_slice(&self) -> &[usize] {
+        if self.many.is_empty() {
+            &self.few[..self.n]
+        } else {
+            &self.many
+        }
+    }
+}
+
+/// Link indices of `links` (a sequence of link names; None: every link), UnknownNameError
+/// listing the known links for a name that is not one.
+fn link_indices(m: &KinematicModel, links: Option<&Bound<'_, PyAny>>) -> PyResult<Links> {
+    use pyo3::types::PyString;
+    let mut idx = Links::default();
+    let Some(links) = links.filter(|l| !l.is_none()) else {
+        (0..m.n_links()).for_each(|i| idx.push(i));
+        return Ok(idx);
+    };
+    if links.is_instance_of::<PyString>() {
+        return Err(pyo3::exceptions::PyTypeError::new_err("links: expected a list of link names, got a str"));
+    }
+    for name in links.try_iter()? {
+        let name = name?;
+        let name = name.cast::<PyString>().map_err(|_| {
+            let ty = name.get_type().name().map(|n| n.to_string()).unwrap_or_default();
+            pyo3::exceptions::PyTypeError::new_err(format!("links: expected link names (str), got {ty}"))
+        })?;
+        idx.push(m.link_index(name.to_str()?).map_err(to_py)?);
+    }
+    Ok(idx)
+}
+
+thread_local! {
+    /// Link poses of a one-row call (no allocation per call).
+    static POSES: std::cell::RefCell<Vec<Isometry3<f64>>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// Collision buffers of a one-row call.
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// A pose as a row-major 4x4 matrix into `o` (16 values).
+#[inline]
+fn write_pose<T: arrays::OutElement>(p: &Isometry3<f64>, o: &mut [T]) {
+    let r = p.rotation.to_rotation_matrix();
+    let t = &p.translation.vector;
+    for i in 0..3 {
+        for j in 0..3 {
+            o[4 * i + j] = T::from_f64(r[(i, j)]);
+        }
+        o[4 * i + 3] = T::from_f64(t[i]);
+    }
+    o[12] = T::from_f64(0.0);
+    o[13] = T::from_f64(0.0);
+    o[14] = T::from_f64(0.0);
+    o[15] = T::from_f64(1.0);
+}
+
+/// The poses of links `idx` at every row of `data` (checked) into `out` (rows of
+/// `idx.len() * 16`): one row with the GIL held, a batch in place from rayon's threads through
+/// [`for_chunks`].
+fn fk_into<T: arrays::OutElement>(py: Python<'_>, m: &KinematicModel, data: &[f64], idx: &[usize], out: &mut [T], one: bool) -> PyResult<()> {
+    let nq = m.nq.max(1);
+    let stride = idx.len() * 16;
+    let joints = m.joints_placing(idx); // only the joints above the links asked for
+    let row = |q: &[f64], poses: &mut Vec<Isometry3<f64>>, o: &mut [T]| {
+        m.forward_kinematics_prefix(q, poses, joints);
+        for (k, &i) in idx.iter().enumerate() {
+            write_pose(&poses[i], &mut o[k * 16..(k + 1) * 16]);
+        }
+    };
+    if one {
+        POSES.with_borrow_mut(|poses| row(data, poses, out));
+        return Ok(());
+    }
+    if stride == 0 {
+        return Ok(());
+    }
+    let n = data.len() / nq;
+    let mut rest = out;
+    for_chunks(py, n, |rows| {
+        let (chunk, tail) = std::mem::take(&mut rest).split_at_mut(rows.len() * stride);
+        rest = tail;
+        let qs = &data[rows.start * nq..rows.end * nq];
+        if rows.len() > 1 {
+            chunk.par_chunks_mut(stride).zip(qs.par_chunks(nq)).for_each_init(Vec::new, |poses, (o, q)| row(q, poses, o));
+        } else {
+            POSES.with_borrow_mut(|poses| row(qs, poses, chunk));
+        }
+        Ok(())
+    })
+}
+
 /// The robot's collision geometry and environment obstacles (parry).
 #[pyclass(name = "CollisionWorld", module = "genplan._core")]
 pub(crate) struct PyCollisionWorld {
@@ -278,27 +385,38 @@ pub(crate) struct PyCollisionWorld {
 }
 
 impl PyCollisionWorld {
-    /// Check q (one row or a batch), run `f` per row without the GIL (in parallel for a batch),
-    /// return a scalar for one row and a numpy array for a batch.
+    /// Read and check q (one row or a batch: [`arrays::read_configurations`]), run `f` per row
+    /// without the GIL (in parallel for a batch), return a scalar for one row and a numpy array
+    /// for a batch.
     fn per_configuration<'py, T>(
         &self,
         py: Python<'py>,
-        q: PyReadonlyArrayDyn<'py, f64>,
+        q: &Bound<'py, PyAny>,
         f: fn(&CollisionWorld, &[f64], &mut Scratch) -> T,
     ) -> PyResult<Py<PyAny>>
     where
         T: Send + numpy::Element + for<'a> IntoPyObject<'a>,
     {
         let w = &self.inner;
-        let b = batch(&q, w.model.nq, "q")?;
-        check_rows(&w.model, &b, "q")?;
-        let mut out: Vec<T> = rows_map(py, b.data, w.model.nq, |q, s| f(w, q, s))?;
-        if b.lead.is_empty() {
-            let first = out.swap_remove(0);
-            first.into_py_any(py)
-        } else {
-            Ok(out.into_pyarray(py).into_any().unbind())
+        let c = arrays::read_configurations(q, &w.model, "q")?;
+        let data = c.data();
+        if c.rows.is_none() {
+            // the row copied (it may be read in place: see arrays::read_configurations) before
+            // the GIL is released
+            let mut buf = [0.0; 64];
+            let owned;
+            let q: &[f64] = if data.len() <= buf.len() {
+                buf[..data.len()].copy_from_slice(data);
+                &buf[..data.len()]
+            } else {
+                owned = data.to_vec();
+                &owned
+            };
+            let v = py.detach(|| SCRATCH.with_borrow_mut(|s| f(w, q, s)));
+            return v.into_py_any(py);
         }
+        let out: Vec<T> = rows_map(py, data, w.model.nq, |q, s| f(w, q, s))?;
+        Ok(out.into_pyarray(py).into_any().unbind())
     }
 }
 
@@ -439,12 +557,12 @@ impl PyCollisionWorld {
     }
 
     /// True where a configuration collides: q (nq,) -> bool; q (n, nq) -> bool array (n,).
-    fn in_collision<'py>(&self, py: Python<'py>, q: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Py<PyAny>> {
+    fn in_collision<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Py<PyAny>> {
         self.per_configuration(py, q, CollisionWorld::in_collision_unchecked)
     }
 
     /// Minimum signed distance (m, negative = penetration depth): q (nq,) -> float; (n, nq) -> (n,).
-    fn min_distance<'py>(&self, py: Python<'py>, q: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Py<PyAny>> {
+    fn min_distance<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Py<PyAny>> {
         self.per_configuration(py, q, CollisionWorld::min_distance_unchecked)
     }
 
@@ -519,11 +637,7 @@ impl PyCustomTerm {
     /// `value` as float64 numbers of shape `shape`, copied to `out` (row-major); `call` names the
     /// method in errors.
     fn copy_out(&self, py: Python<'_>, value: &Bound<'_, PyAny>, call: &str, shape: &[usize], out: &mut [f64]) -> PyResult<()> {
-        // as Python prints a shape: (2,) (1, 2)
-        let shown = |s: &[usize]| match s {
-            [one] => format!("({one},)"),
-            _ => format!("({})", s.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")),
-        };
+        let shown = arrays::shape_str; // as Python prints a shape: (2,) (1, 2)
         let bad = |got: String| {
             err(Kind::Shape, format!(
                 "term '{}': {call} must return an array of shape {} for q of shape (1, {}), got {got}",
