@@ -576,7 +576,7 @@ PLANNER_DEFAULTS = {"step": 0.3, "max_jump": 3.0, "edge_resolution": 0.025}
 #: (rust/core/src/projection.rs, Settings::validate; finding PROJ-1, fixed): the damping in [0, 1e6]
 SOLVER_FLOATS = {"mu": "damping", "mu_bar": "damping", "secondary_slack": "damping", "armijo_c1": "unit", "backtrack": "unit"}
 SOLVER_COUNTS = {"max_iterations": (0, 2**64 - 1), "max_backtracks": (0, 2**64 - 1), "secondary_backtracks": (0, 2**64 - 1)}
-SOLVER_FLAGS = ["clip_to_limits"]
+SOLVER_FLAGS = ["clip_to_limits", "active_set"]
 
 #: values at the bounds above and just beyond them
 AT_BOUNDS = [1e6, float(np.nextafter(1e6, 2e6)), 1e-6, float(np.nextafter(1e-6, 0)), 1e-300, 2**16, 2**16 + 1, 2**40,

@@ -60,6 +60,20 @@ def test_uniform_init_and_given_warm_starts(panda, task, targets) -> None:
     assert (given.attempts == 1).all()
 
 
+def test_solver_settings_are_used_with_the_attempt_iterations(panda, task, targets) -> None:
+    """``settings`` replaces the solver's defaults (``iterations`` still caps each attempt): an
+    active-set solve reaches the same targets' tolerances, and no damping at all still solves."""
+    from genplan.projection import SolverSettings
+
+    for settings in (SolverSettings(active_set=True), SolverSettings(mu=0.0, max_iterations=3)):
+        res = solve_ik(panda, task, targets[:20], init="uniform", restarts=10, seed=0, settings=settings)
+        assert res.success.mean() >= 0.9
+        assert all(np.all(r[res.success] < 1e-3) for r in res.residuals.values())
+    one = solve_ik(panda, task, targets[:20], init="uniform", restarts=0, iterations=1,
+                   settings=SolverSettings(max_iterations=500))
+    assert one.success.mean() < 0.5  # one iteration, not the settings' 500
+
+
 def test_time_budget_stops_retries(panda, task) -> None:
     far = np.array([[3.0, 0.0, 0.5]] * 4)  # 3 m away: out of reach
     budget = 0.002
@@ -97,6 +111,7 @@ def test_one_target_is_a_batch_of_one(panda, task, targets) -> None:
     ({"restarts": 1.5}, SettingsError, "restarts"),
     ({"time_budget_s": 0.0}, SettingsError, "time_budget_s"),
     ({"time_budget_s": float("nan")}, SettingsError, "time_budget_s"),
+    ({"settings": {"mu": 1e-3}}, SettingsError, "settings"),
 ])
 def test_bad_input_raises_typed_errors_naming_the_argument(panda, task, kwargs, error, words) -> None:
     args = {"targets": [[0.5, 0.0, 0.6]], **kwargs}

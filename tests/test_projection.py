@@ -1,6 +1,7 @@
 """genplan.projection: Jacobians, the native solver against the Pinocchio one, the paper's tasks,
 bad input."""
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,8 +80,11 @@ def test_native_frame_jacobian_and_com_match_pinocchio(name: str) -> None:
 
 @pytest.mark.parametrize("name", ["panda", "talos"])
 @pytest.mark.parametrize("kind", ["projection", "ik"])
-def test_native_solver_follows_the_pinocchio_solver(name: str, kind: str) -> None:
-    """Same algorithm in Rust and in Python/Pinocchio: same iteration counts, same answers."""
+@pytest.mark.parametrize("active_set", [False, True])
+def test_native_solver_follows_the_pinocchio_solver(name: str, kind: str, active_set: bool) -> None:
+    """Same algorithm in Rust and in Python/Pinocchio, with the paper's clipped step and with
+    the joint limits as an active set: same iteration counts, same answers."""
+    settings = P.SolverSettings(active_set=active_set)
     robot = genplan.load(name)
     task = P.paper_task(robot, kind)
     rng = np.random.default_rng(5)
@@ -89,8 +93,8 @@ def test_native_solver_follows_the_pinocchio_solver(name: str, kind: str) -> Non
     if kind == "ik":
         box = P.PANDA_IK_BOX if name == "panda" else P.TALOS_IK_BOX
         targets = {task.primary[0].name: rng.uniform(box[0], box[1], size=(25, 3))}
-    a = P.GaussNewtonProjector(robot, task, backend="native").solve_batch(q0, targets=targets)
-    b = P.GaussNewtonProjector(robot, task, backend="pinocchio").solve_batch(q0, targets=targets)
+    a = P.GaussNewtonProjector(robot, task, settings, backend="native").solve_batch(q0, targets=targets)
+    b = P.GaussNewtonProjector(robot, task, settings, backend="pinocchio").solve_batch(q0, targets=targets)
     np.testing.assert_array_equal(a.success, b.success)
     assert (a.iterations == b.iterations).mean() >= 0.95
     # rounding can flip one line-search decision on a long solve: nearly all answers are the same
@@ -98,6 +102,23 @@ def test_native_solver_follows_the_pinocchio_solver(name: str, kind: str) -> Non
     agree = np.abs(a.q[same] - b.q[same]).max(axis=1) < 1e-6
     assert agree.mean() >= 0.9, agree
     assert a.success.mean() > 0.6
+
+
+def test_the_active_set_holds_joints_at_their_limits_instead_of_losing_the_step() -> None:
+    """``active_set=True``: a joint at a limit whose step points out is held and the others take
+    the step, instead of the clipping throwing that part of the step away. Without the task's
+    joint-limit residual (only the clipping keeps q in range) it solves clearly more Panda IK
+    targets from uniform starts (here 74.0 % vs 66.5 %); the answers stay in range."""
+    panda = genplan.load("panda")
+    task = P.paper_task(panda, "ik")
+    task = dataclasses.replace(task, primary=[t for t in task.primary if t.name != "joint_limits"])
+    rng = np.random.default_rng(7)
+    q0 = panda.random_configurations(200, rng)
+    targets = {task.primary[0].name: rng.uniform(P.PANDA_IK_BOX[0], P.PANDA_IK_BOX[1], size=(200, 3))}
+    clipped = P.GaussNewtonProjector(panda, task).solve_batch(q0, targets=targets)
+    held = P.GaussNewtonProjector(panda, task, P.SolverSettings(active_set=True)).solve_batch(q0, targets=targets)
+    assert held.success.mean() >= clipped.success.mean() + 0.05, (held.success.mean(), clipped.success.mean())
+    assert np.all(held.q >= panda.lower) and np.all(held.q <= panda.upper)
 
 
 def test_panda_projection_keeps_the_gripper_horizontal(panda: genplan.Robot) -> None:

@@ -23,12 +23,14 @@ __all__ = [
     "InvalidGoalError",
     "InvalidStartError",
     "LimitExceededError",
+    "MissingExtraError",
     "ModelFileError",
     "NonFiniteError",
     "RobotFileError",
     "SceneFileError",
     "SettingsError",
     "ShapeError",
+    "ShardsFailedError",
     "TaskFileError",
     "UnknownNameError",
 ]
@@ -93,3 +95,17 @@ class LimitExceededError(GenplanError):
     """A trajectory whose execution exceeds the robot's rated joint limits (torque or speed),
     refused under strict checking (``genplan.control.execute(..., strict=True)``); the message
     names the joint, the time, the value and the limit."""
+
+
+class MissingExtraError(GenplanError):
+    """An optional part of genplan that needs a package not installed (e.g. Ray for ``--ray``, a peer of a benchmark);
+    the message says what to install."""
+
+
+class ShardsFailedError(GenplanError):
+    """A run whose shards did not all finish: ``failures`` maps each failed shard's index to why
+    (its last error, and how many attempts were made)."""
+
+    def __init__(self, message: str, failures: dict[int, str]) -> None:
+        super().__init__(message)
+        self.failures = failures

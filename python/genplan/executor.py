@@ -36,7 +36,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from genplan.errors import GenplanError
+from genplan.errors import GenplanError, MissingExtraError, ShardsFailedError
 
 __all__ = ["Executor", "LocalExecutor", "MissingExtraError", "RayExecutor", "RETRIES", "ShardsFailedError",
            "chunks", "executor", "shard_rng", "shard_seed"]
@@ -48,20 +48,6 @@ R = TypeVar("R")
 RETRIES = 2
 
 RAY_HINT = "pip install 'genplan[ray]'"
-
-
-class MissingExtraError(GenplanError):
-    """An optional part of genplan that needs a package not installed (e.g. Ray for ``--ray``);
-    the message says what to install."""
-
-
-class ShardsFailedError(GenplanError):
-    """A run whose shards did not all finish: ``failures`` maps each failed shard's index to why
-    (its last error, and how many attempts were made)."""
-
-    def __init__(self, message: str, failures: dict[int, str]) -> None:
-        super().__init__(message)
-        self.failures = failures
 
 
 def shard_seed(seed: int, index: int) -> np.random.SeedSequence:

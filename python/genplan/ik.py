@@ -20,7 +20,7 @@ import math
 import os
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,6 +28,9 @@ from numpy.typing import ArrayLike, NDArray
 from genplan._arrays import as_float_array
 from genplan.errors import NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
+
+if TYPE_CHECKING:
+    from genplan.projection import SolverSettings
 
 __all__ = ["ATTEMPT_ITERATIONS", "INITS", "IKResult", "solve_ik"]
 
@@ -92,7 +95,8 @@ def _model(robot: Robot, task: Any, model: Any) -> Any:
 
 def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike = "gan", restarts: int = 20,
              time_budget_s: float | None = None, model: str | os.PathLike[str] | Any = None, seed: int = 0,
-             iterations: int = ATTEMPT_ITERATIONS, parallel: bool = True) -> IKResult:
+             iterations: int = ATTEMPT_ITERATIONS, parallel: bool = True,
+             settings: SolverSettings | None = None) -> IKResult:
     """Solve the IK of ``task`` (a :class:`~genplan.projection.Task`, a shipped task's name or a
     task file, with a [condition]) for each row of ``targets`` ((n, 3) positions of the condition
     term's frame; one (3,) target is a batch of one), retrying the failures; see the module text.
@@ -109,10 +113,12 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
         iterations: Gauss-Newton iterations per attempt (default :data:`ATTEMPT_ITERATIONS`):
             an attempt that has not converged by then is abandoned for a new warm start.
         parallel: solve a round's rows on all cores (each row's time is its own solve).
+        settings: the solver's :class:`~genplan.projection.SolverSettings` (default: the
+            defaults, the paper's); ``iterations`` replaces its ``max_iterations``.
 
     Raises:
         ShapeError / NonFiniteError (``targets``, ``init``), UnknownNameError (``init``),
-        SettingsError (``restarts``, ``time_budget_s``, ``iterations``), GenplanError (a task without
+        SettingsError (``restarts``, ``time_budget_s``, ``iterations``, ``settings``), GenplanError (a task without
         [condition]).
     """
     from genplan.projection import GaussNewtonProjector, SolverSettings, condition_term, load_task
@@ -130,6 +136,10 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
     budget = math.inf if time_budget_s is None else float(time_budget_s)
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
         raise SettingsError(f"iterations must be an integer >= 1, got {iterations!r}")
+    if settings is None:
+        settings = SolverSettings()
+    elif not isinstance(settings, SolverSettings):
+        raise SettingsError(f"settings must be a SolverSettings or None, got {type(settings).__name__}")
     t = _targets(targets)
     n = len(t)
     first: NDArray[np.float64] | None = None
@@ -142,7 +152,7 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
             raise ShapeError(f"init: expected ({n}, {robot.nq}) configurations (one per target), got {first.shape}")
     ik_task = load_task(task, robot)
     term = condition_term(ik_task).name
-    solver = GaussNewtonProjector(robot, ik_task, SolverSettings(max_iterations=int(iterations)))
+    solver = GaussNewtonProjector(robot, ik_task, settings.replace(max_iterations=int(iterations)))
     labels = [tm.label() for tm in ik_task.primary]
     tols = np.array([float(tm.tolerance) for tm in ik_task.primary])
     gan = _model(robot, ik_task, model) if isinstance(init, str) and init == "gan" else None

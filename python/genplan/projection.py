@@ -821,6 +821,9 @@ def _toml(data: Mapping[str, Any]) -> str:
 #: keyword-only, immutable (``replace(**changes)``), validated (:class:`~genplan.errors.SettingsError`).
 #: Defaults: the GAN paper and its public code (``mu``: damping lambda = mu r^T r + mu_bar).
 SolverSettings = _core.SolverSettings
+#: ``SolverSettings.active_set``: a bounded joint within this of a limit is at it (as
+#: rust/core/src/projection.rs ``AT_LIMIT``; the clipping puts it exactly there).
+AT_LIMIT = 1e-9
 
 
 @dataclass
@@ -890,6 +893,9 @@ class GaussNewtonProjector:
         self._weights = [float(t.weight) for t in task.primary]
         self._tols = [float(t.tolerance) for t in task.primary]
         self._bounded = np.isfinite(robot.lower) & np.isfinite(robot.upper)
+        # (q index, v index) of each bounded 1-dof joint, in the model's order (the active set's)
+        self._bounded_qv = [(j.idx_q, j.idx_v) for j in robot.model.joints[1:]
+                            if j.nq == 1 and j.nv == 1 and self._bounded[j.idx_q]]
         self._eye_nv = np.eye(robot.nv)
         self._native: _core.Projector | None = None
         if backend == "native":
@@ -922,6 +928,26 @@ class GaussNewtonProjector:
             b = self._bounded
             q[b] = np.clip(q[b], self.robot.lower[b], self.robot.upper[b])
         return q
+
+    def _hold_at_limits(self, q: Array, lam: float, r1: Array, j1: Array, j1_pinv: Array,
+                        dq1: Array) -> tuple[list[int], Array, Array, Array]:
+        """``SolverSettings.active_set``: while the step ``-dq1`` moves a bounded joint that sits
+        at a limit out of its range, hold it (zero its Jacobian column) and solve the step again;
+        as rust/core/src/projection.rs ``Projector::hold_at_limits``."""
+        held: list[int] = []
+        lower, upper = self.robot.lower, self.robot.upper
+        while True:
+            before = len(held)
+            for iq, iv in self._bounded_qv:
+                v = -dq1[iv]
+                out = (q[iq] <= lower[iq] + AT_LIMIT and v < 0.0) or (q[iq] >= upper[iq] - AT_LIMIT and v > 0.0)
+                if out and iv not in held:
+                    held.append(iv)
+                    j1[:, iv] = 0.0
+            if len(held) == before:
+                return held, j1, j1_pinv, dq1
+            j1_pinv = _damped_pinv(j1, lam)
+            dq1 = j1_pinv @ r1
 
     def _step(self, q: Array, dq: Array, alpha: float) -> Array:
         return self._clip(pin.integrate(self.robot.model, q, -alpha * dq))
@@ -956,6 +982,9 @@ class GaussNewtonProjector:
             lam = st.mu * c0 + st.mu_bar
             j1_pinv = _damped_pinv(j1, lam)
             dq1 = j1_pinv @ r1
+            held: list[int] = []
+            if st.active_set:
+                held, j1, j1_pinv, dq1 = self._hold_at_limits(q, lam, r1, j1.copy(), j1_pinv, dq1)
             slope = 2.0 * float(r1 @ (j1 @ dq1))  # -d cost / d alpha at alpha = 0
             alpha = 1.0
             for _ in range(st.max_backtracks):
@@ -970,6 +999,7 @@ class GaussNewtonProjector:
                 # not make the primary cost worse (beyond a slack).
                 r2 = np.concatenate([b.term.weight * b.residual(s) for b in self._secondary])
                 j2 = np.vstack([b.term.weight * b.jacobian(s) for b in self._secondary])
+                j2[:, held] = 0.0
                 n1 = self._eye_nv - j1_pinv @ j1
                 dq2 = n1 @ (_damped_pinv(j2 @ n1, st.mu_bar) @ (r2 - alpha * (j2 @ dq1)))
                 alpha2 = 1.0

@@ -3,6 +3,7 @@
 import json
 
 from genplan.cli import main
+from genplan.experiments.benchmarks.ik import IK_ROWS
 
 
 def test_bench_ik_json(tmp_path, capsys) -> None:
@@ -12,11 +13,13 @@ def test_bench_ik_json(tmp_path, capsys) -> None:
     data = json.loads(out.read_text())
     panda = data["ik"]["panda"]
     assert panda["targets"] == 12 and panda["target_seed"] == 2001 and panda["task"] == "panda_ik"
-    for row in ("gan_one_attempt", "solve_ik"):
+    for row in IK_ROWS:
         r = panda[row]
         assert 0.0 <= r["success_within_budget"] <= r["success_rate"] <= 100.0 and r["t_mean_ms"] > 0
-    assert panda["gan_one_attempt"]["attempts_max"] == 1
+    for one in ("gan_one_attempt", "uniform_one_attempt", "uniform_one_attempt_active_set"):
+        assert panda[one]["attempts_max"] == 1
     assert panda["solve_ik"]["success_rate"] >= panda["gan_one_attempt"]["success_rate"]
+    assert panda["solve_ik_uniform"]["success_rate"] >= panda["uniform_one_attempt"]["success_rate"]
     traj = data["trajectory"]
     if traj["planned"]:
         s = traj["summary"]

@@ -200,6 +200,12 @@ pub struct Settings {
     pub max_backtracks: usize,
     /// Clip q to the joint limits at the start and after every step.
     pub clip_to_limits: bool,
+    /// Joint limits as bounds of the step (an active set), beyond the paper: a bounded joint at
+    /// a limit whose step points out of its range is held there and the step is solved again
+    /// over the other joints (primary and posture steps), until no held joint is left out, so
+    /// the other joints do the work instead of losing it to the clipping. `false` (default):
+    /// the paper's step, clipped (its Table I is reproduced with it).
+    pub active_set: bool,
     /// Tries of the secondary step at most.
     pub secondary_backtracks: usize,
     /// The secondary step is kept when the primary cost grows by at most this, in [0, 1e6].
@@ -216,6 +222,7 @@ impl Default for Settings {
             backtrack: 0.2,
             max_backtracks: 20,
             clip_to_limits: true,
+            active_set: false,
             secondary_backtracks: 3,
             secondary_slack: 1e-6,
         }
@@ -533,6 +540,30 @@ impl Projector {
         self.primary.iter().zip(raws).all(|(t, r)| r.len() == 0 || (r.iter().all(|x| x.is_finite()) && r.amax() < t.tolerance))
     }
 
+    /// The active set of [`Settings::active_set`]: while the step `-dq1` moves a bounded joint
+    /// that sits at a limit out of its range, hold that joint (zero its Jacobian column, so its
+    /// step component is 0) and solve the step again over the others. Returns the held joints'
+    /// tangent indices (at most one round per bounded joint).
+    fn hold_at_limits(&self, q: &[f64], lam: f64, r1: &DVector<f64>, j1: &mut DMatrix<f64>, j1_pinv: &mut DMatrix<f64>, dq1: &mut DVector<f64>) -> Vec<usize> {
+        let mut held: Vec<usize> = Vec::new();
+        loop {
+            let before = held.len();
+            for &(iq, iv, lo, hi) in &self.bounded {
+                let v = -dq1[iv];
+                let out = (q[iq] <= lo + AT_LIMIT && v < 0.0) || (q[iq] >= hi - AT_LIMIT && v > 0.0);
+                if out && !held.contains(&iv) {
+                    held.push(iv);
+                    j1.column_mut(iv).fill(0.0);
+                }
+            }
+            if held.len() == before {
+                return held;
+            }
+            *j1_pinv = damped_pinv(j1, lam);
+            *dq1 = &*j1_pinv * r1;
+        }
+    }
+
     fn step(&self, q: &[f64], dq: &DVector<f64>, alpha: f64) -> Vec<f64> {
         let v: Vec<f64> = dq.iter().map(|x| -alpha * x).collect();
         let mut out = vec![0.0; q.len()];
@@ -653,8 +684,10 @@ impl Projector {
             let r1 = r1_full.select_rows(keep.iter());
             let c0 = r1.norm_squared();
             let lam = st.mu * c0 + st.mu_bar;
-            let j1_pinv = damped_pinv(&j1m, lam);
-            let dq1 = &j1_pinv * &r1;
+            let mut j1m = j1m;
+            let mut j1_pinv = damped_pinv(&j1m, lam);
+            let mut dq1 = &j1_pinv * &r1;
+            let held = if st.active_set { self.hold_at_limits(&q, lam, &r1, &mut j1m, &mut j1_pinv, &mut dq1) } else { Vec::new() };
             let slope = 2.0 * r1.dot(&(&j1m * &dq1));
             let mut alpha = 1.0;
             let mut q_new = q.clone();
@@ -676,7 +709,10 @@ impl Projector {
                     let (r, jt) = self.eval(t, &s, nom, true, &mut frame_jac)?;
                     r2_parts.push(r * t.weight);
                     let Some(jt) = jt else { unreachable!("eval with_jac returns a Jacobian") };
-                    let jt = jt * t.weight;
+                    let mut jt = jt * t.weight;
+                    for &iv in &held {
+                        jt.column_mut(iv).fill(0.0);
+                    }
                     let rows = j2.nrows();
                     j2 = j2.insert_rows(rows, jt.nrows(), 0.0);
                     j2.view_mut((rows, 0), (jt.nrows(), nv)).copy_from(&jt);
@@ -727,6 +763,10 @@ impl Projector {
         })
     }
 }
+
+/// A bounded joint within this of a limit (rad or m) is at it, for [`Settings::active_set`]
+/// (the clipping puts it exactly there).
+const AT_LIMIT: f64 = 1e-9;
 
 /// The result of a step that evaluates terms: a custom term may fail.
 pub type TermResult<T> = std::result::Result<T, TermFailure>;

@@ -51,8 +51,8 @@ fn out_of_range(s: &Settings) -> Vec<&'static str> {
 }
 
 fn settings(counts: impl Strategy<Value = usize> + Clone, unit: impl Strategy<Value = f64> + Clone) -> impl Strategy<Value = Settings> {
-    (counts.clone(), any_f64(), any_f64(), unit.clone(), unit, counts.clone(), any::<bool>(), counts, any_f64()).prop_map(
-        |(max_iterations, mu, mu_bar, armijo_c1, backtrack, max_backtracks, clip_to_limits, secondary_backtracks, secondary_slack)| Settings {
+    (counts.clone(), any_f64(), any_f64(), unit.clone(), unit, counts.clone(), any::<bool>(), any::<bool>(), counts, any_f64()).prop_map(
+        |(max_iterations, mu, mu_bar, armijo_c1, backtrack, max_backtracks, clip_to_limits, active_set, secondary_backtracks, secondary_slack)| Settings {
             max_iterations,
             mu,
             mu_bar,
@@ -60,6 +60,7 @@ fn settings(counts: impl Strategy<Value = usize> + Clone, unit: impl Strategy<Va
             backtrack,
             max_backtracks,
             clip_to_limits,
+            active_set,
             secondary_backtracks,
             secondary_slack,
         },

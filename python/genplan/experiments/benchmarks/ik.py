@@ -8,7 +8,9 @@ IK: the targets are the condition frame's positions (forward kinematics) of conf
 IK task's manifold drawn with seed 2000 + seed (genplan.gan.data.valid_configurations; the GANs
 were trained on seed 0, the coverage benchmark holds out 1000 + seed), hence reachable and never
 seen in training. Rows: one GAN-initialised attempt (the paper's protocol), and ``solve_ik`` with
-retries and a per-target time budget. Times are per target, one target after the other on one
+retries and a per-target time budget; the same from uniform random starts (one attempt of 50
+iterations with the paper's clipped step and with ``SolverSettings(active_set=True)``, the joint
+limits as bounds of the step: the peers' protocol; ``solve_ik(init="uniform")`` with retries). Times are per target, one target after the other on one
 core (``parallel=False``): its solves plus its share of the GAN sampling; "within budget" counts a
 target solved with its time at most the budget.
 
@@ -35,6 +37,10 @@ from genplan.experiments.common import machine, table, write_json
 TASKS = {"panda": "panda_ik", "talos": "talos_ik"}
 #: [planner]'s targets (issue 17): IK success and mean time, trajectory parameterisation time.
 TARGETS = {"ik_success_within_budget_percent": 99.9, "ik_mean_ms_panda": 0.2, "trajectory_parameterisation_ms": 5.0}
+#: The IK rows of each robot: GAN warm starts (one attempt; solve_ik's retries), uniform random
+#: starts (one attempt with the paper's clipped step; with the joint limits as an active set;
+#: solve_ik's uniform retries).
+IK_ROWS = ("gan_one_attempt", "solve_ik", "uniform_one_attempt", "uniform_one_attempt_active_set", "solve_ik_uniform")
 
 
 def reachable_targets(robot: genplan.Robot, task: Any, n: int, seed: int) -> np.ndarray:
@@ -61,7 +67,7 @@ def _summary(res: Any, budget_s: float | None) -> dict[str, Any]:
 
 def run_ik(robots: list[str], n: int, seed: int, budget_s: float, restarts: int) -> dict[str, Any]:
     from genplan.gan.model import load_model
-    from genplan.projection import load_task
+    from genplan.projection import SolverSettings, load_task
 
     out: dict[str, Any] = {}
     for name in robots:
@@ -73,9 +79,21 @@ def run_ik(robots: list[str], n: int, seed: int, budget_s: float, restarts: int)
                                 parallel=False)  # the paper's protocol: one attempt, the solver's 50 iterations
         retried = genplan.solve_ik(robot, task, targets, restarts=restarts, time_budget_s=budget_s, model=model,
                                    seed=seed, parallel=False)
+        # from uniform random starts, one attempt of the solver's 50 iterations ([core-speed] item 4:
+        # the paper's clipped step vs the joint limits as an active set; the peers' protocol), and
+        # solve_ik's uniform retries within the budget
+        uniform = {f"uniform_one_attempt{suffix}": _summary(
+            genplan.solve_ik(robot, task, targets, init="uniform", restarts=0, seed=seed, iterations=50,
+                             parallel=False, settings=SolverSettings(active_set=active)), budget_s)
+            for suffix, active in (("", False), ("_active_set", True))}
+        uniform_retried = genplan.solve_ik(robot, task, targets, init="uniform", restarts=restarts,
+                                           time_budget_s=budget_s, seed=seed, parallel=False)
         out[name] = {"task": task.name, "targets": n, "target_seed": 2000 + seed,
                      "gan_one_attempt": _summary(once, budget_s),
-                     "solve_ik": {**_summary(retried, budget_s), "restarts": restarts, "time_budget_ms": budget_s * 1e3}}
+                     "solve_ik": {**_summary(retried, budget_s), "restarts": restarts, "time_budget_ms": budget_s * 1e3},
+                     **uniform,
+                     "solve_ik_uniform": {**_summary(uniform_retried, budget_s), "restarts": restarts,
+                                          "time_budget_ms": budget_s * 1e3}}
     return out
 
 
@@ -128,7 +146,7 @@ def main(args: argparse.Namespace) -> int:
     traj = run_trajectory(args.plans, args.seed) if args.plans else None
     rows = []
     for name, r in ik.items():
-        for kind in ("gan_one_attempt", "solve_ik"):
+        for kind in IK_ROWS:
             s = r[kind]
             rows.append([name, kind, f"{s['success_rate']:.1f}", f"{s['success_within_budget']:.1f}",
                          f"{s['t_mean_ms']:.3f}", f"{s['t_p99_ms']:.3f}", s["attempts_max"]])
