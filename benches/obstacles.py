@@ -31,24 +31,11 @@ from pathlib import Path
 import numpy as np
 
 import genplan
+from genplan.experiments.benchmarks.peers import add_extra_boxes  # the one definition
 from genplan.planning import Planner
 from genplan.planning.environments import environment
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def add_extra_boxes(world: genplan.collision.CollisionWorld, n: int, seed: int) -> None:
-    """n seeded random boxes out of the Panda's reach (see the module's notes)."""
-    rng = np.random.default_rng(seed)
-    for k in range(n):
-        r, a, z = rng.uniform(1.6, 3.0), rng.uniform(0.0, 2 * np.pi), rng.uniform(-0.4, 1.6)
-        half = rng.uniform(0.03, 0.15, size=3)
-        axis = rng.normal(size=3)
-        axis /= np.linalg.norm(axis)
-        angle = rng.uniform(0.0, 1.0)
-        k_ = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-        rot = np.eye(3) + np.sin(angle) * k_ + (1 - np.cos(angle)) * k_ @ k_  # Rodrigues
-        world.add_box(f"extra_{k}", half, (r * np.cos(a), r * np.sin(a), z), rot)
 
 
 def main() -> None:

@@ -84,6 +84,7 @@ COMMANDS: list[tuple[str, str, str, str]] = [
     ("bench", "plan", "genplan.experiments.benchmarks.plan", "Table II: constrained RRT (uniform / GAN / hybrid) and OMPL"),
     ("bench", "control", "genplan.experiments.benchmarks.control", "Fig. 12: the 1 kHz spatula controller (P-D + DOB) on the simulated UR5, pancake slip"),
     ("bench", "scaling", "genplan.experiments.benchmarks.scaling", "data generation on 1 vs 2 local workers and Ray: speed-up, samples/s per core, sha256"),
+    ("bench", "peers", "genplan.experiments.benchmarks.peers", "genplan beside Pinocchio + coal, pink, placo, ikpy, pytorch-kinematics: FK, collision, IK, plan time vs obstacles"),
     ("bench", "adjust", "genplan.experiments.benchmarks.adjust", "seq2seq paper Figs. 5-9, 11: latent trajectory adjustment (J1, J2) vs direct U and CasADi + IPOPT"),
     ("train", "gan", "genplan.gan.train_cli", "the conditional ensemble GAN of valid configurations"),
     ("train", "seq2seq", "genplan.pancake.train_cli", "the pancake seq2seq trajectory deformation model"),

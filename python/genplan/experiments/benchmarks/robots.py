@@ -101,16 +101,18 @@ def coal_geometry(robot: Any, hulls: bool) -> Any:
     return geom
 
 
-def agreement(robot: Any, qs: NDArray[np.float64], hulls: bool) -> dict[str, float]:
+def agreement(robot: Any, qs: NDArray[np.float64], hulls: bool, world: Any = None, geom: Any = None) -> dict[str, Any]:
     """Share of equal answers, largest |distance| (Rust) of a disagreement, share in collision
     (coal). coal's answer depends on its history (a cached GJK guess in the GeometryData): a
     disagreement is asked again of a fresh GeometryData, and ``coal_history_flips`` counts the
-    answers that changed (coal misses a contact after other queries; seen on UR3/UR10 hulls)."""
+    answers that changed (coal misses a contact after other queries; seen on UR3/UR10 hulls).
+    ``world`` / ``geom``: the same scene on both sides (default: the robot alone, its
+    :func:`coal_geometry`); ``disagreements`` lists each (row, genplan's answer, distance)."""
     import pinocchio as pin
 
-    geom = coal_geometry(robot, hulls)
+    geom = coal_geometry(robot, hulls) if geom is None else geom
     gdata = pin.GeometryData(geom)
-    world = robot.collision_world()
+    world = robot.collision_world() if world is None else world
     ours = world.in_collision(qs)
     ref = np.array([bool(pin.computeCollisions(robot.model, robot.data, geom, gdata, q, True)) for q in qs])
     flips = 0
@@ -119,9 +121,12 @@ def agreement(robot: Any, qs: NDArray[np.float64], hulls: bool) -> dict[str, flo
         flips += int(fresh != ref[i])
         ref[i] = fresh
     disagree = ours != ref
-    dist = float(np.max(np.abs(world.min_distance(qs[disagree])))) if disagree.any() else 0.0
+    d = np.asarray(world.min_distance(qs[disagree])) if disagree.any() else np.zeros(0)
+    dist = float(np.max(np.abs(d))) if len(d) else 0.0
+    listed = [{"row": int(i), "genplan_collides": bool(ours[i]), "distance": float(x)}
+              for i, x in zip(np.nonzero(disagree)[0], d)]
     return {"agreement": float(1.0 - disagree.mean()), "max_distance": dist, "rate": float(ref.mean()),
-            "coal_history_flips": flips, "missed": int(np.sum(ref & ~ours))}
+            "coal_history_flips": flips, "missed": int(np.sum(ref & ~ours)), "disagreements": listed}
 
 
 @contextlib.contextmanager
