@@ -53,28 +53,38 @@ def main() -> None:
                 rows.append(row)
                 print(f"{env_name:12s} {protocol:5s} {label:14s} {row['success_rate']:5.1f} % "
                       f"E {row['extensions']:7.1f}  T {row['t_ave_s'] * 1e3:8.2f} ms", flush=True)
+    summary = summarize(rows, [label for label, _, _ in samplers], list(ENVIRONMENT_NAMES))
+    if args.out:
+        write_json(args.out, {"queries": args.queries, "seed": args.seed, "half_lives": args.half_lives,
+                              "load_average": os.getloadavg(), "rows": rows, "summary": summary})
+
+
+def summarize(rows: list[dict], labels: list[str], envs: list[str]) -> dict[str, dict]:
+    """Per protocol and sampler label: uniform time / its time in each environment, their
+    geometric mean and its lowest success rate (printed as well)."""
     summary = {}
     for protocol in ("nodes", "edges"):
-        for label, _, _ in samplers:
+        for label in labels:
             ratios = []
-            for env_name in ENVIRONMENT_NAMES:
+            for env_name in envs:
                 by = {r["sampler"]: r for r in rows if r["env"] == env_name and r["protocol"] == protocol}
                 ratios.append(by["uniform"]["t_ave_s"] / by[label]["t_ave_s"])
-            summary[f"{protocol}/{label}"] = {"per_env": ratios,
-                                              "geometric_mean": math.exp(float(np.mean(np.log(ratios)))),
+            gm = math.exp(float(np.mean(np.log(ratios))))
+            summary[f"{protocol}/{label}"] = {"per_env": ratios, "geometric_mean": gm,
                                               "min_success": min(r["success_rate"] for r in rows
                                                                  if r["sampler"] == label and r["protocol"] == protocol)}
-            print(f"{protocol:5s} {label:14s} uniform/this: " + ", ".join(f"{x:.2f}" for x in ratios)
-                  + f"  geometric mean {summary[f'{protocol}/{label}']['geometric_mean']:.2f}")
-    if args.out:
-        payload = {"queries": args.queries, "seed": args.seed, "half_lives": args.half_lives,
-                   "load_average": os.getloadavg(), "rows": rows, "summary": summary}
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = args.out.with_suffix(".tmp")
-        tmp.write_text(json.dumps(payload, indent=1) + "\n")
-        os.replace(tmp, args.out)
-        print(f"wrote {args.out}")
+            print(f"{protocol:5s} {label:16s} uniform/this: " + ", ".join(f"{x:.2f}" for x in ratios)
+                  + f"  geometric mean {gm:.2f}")
+    return summary
 
+
+def write_json(out: Path, payload: dict) -> None:
+    """``payload`` to ``out`` through a temporary name (never half-written)."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".tmp")
+    tmp.write_text(json.dumps(payload, indent=1) + "\n")
+    os.replace(tmp, out)
+    print(f"wrote {out}")
 
 if __name__ == "__main__":
     main()

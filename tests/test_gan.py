@@ -287,10 +287,12 @@ def test_train_command(tmp_path, monkeypatch, capsys) -> None:
     monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "cli.safetensors"
     assert main(["train", "gan", "--robot", "panda", "--seed", "1", "--iterations", "5", "--data-size", "300",
-                 "--n-net", "2", "--out", str(out)]) == 0
+                 "--n-net", "2", "--loss", "wgan_gp", "--w-diversity", "1", "--member-init", "data", "--out", str(out)]) == 0
     card = json.loads(out.with_suffix(".json").read_text())
     assert card["config"]["n_net"] == 2 and card["config"]["seed"] == 1 and card["config"]["task"] == "panda_ik"
-    assert card["command"] == "genplan train gan --robot panda --seed 1 --iterations 5 --n-net 2 --data-size 300"
+    assert (card["config"]["loss"], card["config"]["w_diversity"], card["config"]["member_init"]) == ("wgan_gp", 1.0, "data")
+    assert card["command"] == ("genplan train gan --robot panda --seed 1 --iterations 5 --n-net 2 --data-size 300 "
+                               "--loss wgan_gp --w-diversity 1.0 --member-init data")
     ev = card["evaluation"]
     for init in ("gan", "uniform"):
         for kind in ("projection", "ik"):
@@ -363,3 +365,107 @@ def test_gan_targets_refuse_complex_strings_and_none(panda: genplan.Robot) -> No
     for bad, message in [(np.zeros((2, 3)) + 1j, "complex"), ("abc", "cannot be read"), (None, "None is not a number")]:
         with pytest.raises(ShapeError, match=f"targets: .*{message}"):
             model.check_targets(bad)
+
+
+# -- the coverage remedies: Wasserstein loss with gradient penalty, mode seeking, members apart
+
+
+def test_gradient_penalty_is_taken_on_interpolates() -> None:
+    from genplan.gan.model import gradient_penalty
+
+    class HalfSquare(torch.nn.Module):  # critic 0.5 |x|^2: its gradient at x is x
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return 0.5 * (x * x).sum(-1, keepdim=True)
+
+    real, fake = torch.tensor([[2.0, 0.0], [0.0, 3.0]]), torch.zeros(2, 2)
+    eps = torch.tensor([[0.25], [1.0]])
+    # interpolates (0.5, 0) and (0, 3): gradient norms 0.5 and 3, penalties 0.25 and 4
+    assert float(gradient_penalty(HalfSquare(), real, fake, eps).detach()) == pytest.approx((0.25 + 4.0) / 2)
+
+
+def test_gradient_penalty_drives_the_critics_gradient_norm_to_one() -> None:
+    from genplan.gan.model import _mlp, gradient_penalty
+
+    torch.manual_seed(0)
+    critic = _mlp([4, 32, 32, 1])
+    with torch.no_grad():
+        for p in critic.parameters():
+            p.mul_(4.0)  # steep at first: gradient norms far above 1
+    real, fake = torch.randn(256, 4) + 2.0, torch.randn(256, 4)
+
+    def norms() -> torch.Tensor:
+        x = (0.5 * real + 0.5 * fake).requires_grad_(True)
+        (g,) = torch.autograd.grad(critic(x).sum(), x)
+        return g.norm(dim=-1)
+
+    assert float((norms() - 1).abs().mean()) > 1.0
+    opt = torch.optim.Adam(critic.parameters(), lr=5e-3)
+    for _ in range(300):
+        loss = gradient_penalty(critic, real, fake, torch.rand(len(real), 1))
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert float((norms() - 1).abs().mean()) < 0.2 and abs(float(norms().median()) - 1) < 0.05
+
+
+def test_mode_seeking_loss_penalises_a_generator_that_ignores_its_noise() -> None:
+    from genplan.gan.model import EnsembleGenerator, mode_seeking_loss
+
+    z_a, z_b = torch.randn(2, 64, 3), torch.randn(2, 64, 3)
+    same = torch.ones(2, 64, 5)
+    assert float(mode_seeking_loss(same, same, z_a, z_b)) == pytest.approx(1e5)  # 1 / eps: collapsed
+    assert float(mode_seeking_loss(z_a, z_b, z_a, z_b)) == pytest.approx(1.0, rel=1e-4)  # outputs as spread as noise
+    # a generator that starts near-deterministic spreads its outputs when trained on the term
+    torch.manual_seed(0)
+    gen = EnsembleGenerator(2, 3 + 1, (16,), 5)
+    with torch.no_grad():
+        gen.weights[0][:, :3].mul_(0.01)  # the noise inputs barely count
+    x = torch.zeros(2, 64, 1)
+
+    def spread() -> float:
+        with torch.no_grad():
+            return float((gen(torch.cat([z_a, x], -1)) - gen(torch.cat([z_b, x], -1))).abs().mean())
+
+    before = spread()
+    opt = torch.optim.Adam(gen.parameters(), lr=1e-2)
+    for _ in range(100):
+        za, zb = torch.randn(2, 64, 3), torch.randn(2, 64, 3)
+        loss = mode_seeking_loss(gen(torch.cat([za, x], -1)), gen(torch.cat([zb, x], -1)), za, zb)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert spread() > 10 * before
+
+
+def test_spread_members_picks_rows_apart() -> None:
+    from genplan.gan.model import spread_members
+
+    centers = torch.tensor([[-5.0, 0.0], [5.0, 0.0], [0.0, 5.0], [0.0, -5.0]])
+    feats = torch.cat([c + 0.1 * torch.randn(50, 2) for c in centers])
+    picked = spread_members(feats, 4, np.random.default_rng(0))
+    nearest = torch.cdist(picked, centers).argmin(1)
+    assert sorted(nearest.tolist()) == [0, 1, 2, 3]  # one member per cluster
+
+
+def test_coverage_options_train_round_trip_and_old_cards_default(panda: genplan.Robot, tmp_path, monkeypatch) -> None:
+    from genplan.gan.model import GanConfig
+
+    monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
+    cfg = default_config("panda", iterations=6, data_size=200, n_net=3, seed=2, loss="wgan_gp", gp_weight=5.0,
+                         w_diversity=0.5, member_init="data")
+    model = train(cfg, progress=False)
+    log = model.card["training"]["loss_log"][-1]
+    assert log["mode_seeking"] > 0 and np.isfinite(log["d_loss"])
+    weights, card = model.save(tmp_path / "m.safetensors")
+    loaded = load_model(panda, weights)
+    assert loaded.config == cfg
+    assert json.loads(card.read_text())["config"]["loss"] == "wgan_gp"
+    # the native sampler runs it: same architecture
+    assert np.isfinite(loaded.native_sampler(seed=0).sample(4)).all()
+    # cards written before the options: the paper's values
+    shipped = load_model(panda).config
+    assert (shipped.loss, shipped.w_diversity, shipped.member_init) == ("bce", 0.0, "uniform")
+    assert {"loss", "gp_weight", "w_diversity", "member_init"} <= GanConfig.ADDED_FIELDS
+    for field, value in (("loss", "hinge"), ("member_init", "zeros"), ("w_diversity", -1.0), ("gp_weight", float("nan"))):
+        with pytest.raises(SettingsError, match=f"GanConfig.{field} must be"):
+            default_config("panda", **{field: value})

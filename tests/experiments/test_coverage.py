@@ -26,3 +26,20 @@ def test_planar_collision_check() -> None:
     assert not C.planar_collision_free(hit)[0]
     data = C.planar_data(500, np.random.default_rng(0))
     assert data.shape == (500, 2) and C.planar_collision_free(data).all()
+
+
+def test_variants_are_valid_gan_configs_and_parsed_by_name() -> None:
+    import argparse
+
+    import pytest
+
+    from genplan.gan.model import default_config
+
+    for name, overrides in C.VARIANTS.items():
+        cfg = default_config("panda", **overrides)  # validated: every variant trains
+        assert all(getattr(cfg, k) == v for k, v in overrides.items()), name
+    assert set(C.PAPER_VARIANTS) <= set(C.VARIANTS)
+    assert C.variant_list("default, wgan_gp,default") == ["default", "wgan_gp"]
+    for bad in ("", "default,bogus"):
+        with pytest.raises(argparse.ArgumentTypeError, match="expected comma-separated variants"):
+            C.variant_list(bad)

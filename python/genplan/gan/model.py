@@ -8,6 +8,12 @@
   constraint costs (Panda: gripper horizontal; Talos: soles fixed, CoM in the support box).
 * Adam, batch 100, 5 discriminator steps per generator step.
 
+Beyond the paper, as :class:`GanConfig` options (defaults: the paper's): a Wasserstein critic with
+gradient penalty (``loss="wgan_gp"``), a mode-seeking diversity term (``w_diversity``) and members
+initialised apart on the data (``member_init="data"``); the generator's architecture, hence the
+native sampler (rust/core/src/gan.rs), is the same for all of them. Their coverage:
+``genplan bench coverage --variants ...`` (genplan/experiments/benchmarks/coverage.py).
+
 A model is saved as ``<name>.safetensors`` (weights and normalisation) plus ``<name>.json`` (the
 card: hyperparameters, data, seed, training time, evaluation). Never pickles.
 """
@@ -80,9 +86,26 @@ class GanConfig:
     #: the task (its name) the GAN samples for; "" in cards written before tasks were files: the
     #: robot's shipped ``<robot>_ik``
     task: str = ""
+    #: adversarial loss: "bce" (the paper's: binary cross-entropy, a classifier discriminator) or
+    #: "wgan_gp" (Wasserstein critic with a gradient penalty on real/fake interpolates, Gulrajani
+    #: et al. 2017; the paper's future work); ``disc_steps`` is the critic's steps per generator step
+    loss: str = "bce"
+    #: weight of the gradient penalty (``loss="wgan_gp"`` only)
+    gp_weight: float = 10.0
+    #: weight of the mode-seeking term (Mao et al. 2019, :func:`mode_seeking_loss`): pairs of noise
+    #: for the same target whose outputs lie close are penalised, against a generator that ignores
+    #: its noise; 0: off (the paper's)
+    w_diversity: float = 0.0
+    #: the members' initialisation: "uniform" (the paper's: PyTorch's default for every layer) or
+    #: "data" (each member's output bias starts at a different configuration of the data, spread by
+    #: farthest-point selection, so the members start in different regions of the manifold)
+    member_init: str = "uniform"
 
     #: fields a card written before they existed may lack (model_files.read_config)
-    ADDED_FIELDS: ClassVar[frozenset[str]] = frozenset({"task"})
+    ADDED_FIELDS: ClassVar[frozenset[str]] = frozenset({"task", "loss", "gp_weight", "w_diversity", "member_init"})
+    #: the values of :attr:`loss` and :attr:`member_init`
+    LOSSES: ClassVar[tuple[str, ...]] = ("bce", "wgan_gp")
+    MEMBER_INITS: ClassVar[tuple[str, ...]] = ("uniform", "data")
 
     @property
     def task_name(self) -> str:
@@ -105,11 +128,15 @@ class GanConfig:
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise SettingsError(f"GanConfig.{name} must be a non-negative integer, got {v!r}")
         rates = {"lr_gen": self.lr_gen, "lr_disc": self.lr_disc}
-        weights = {"w_target": self.w_target, "w_limits": self.w_limits, "w_constraint": self.w_constraint}
+        weights = {"w_target": self.w_target, "w_limits": self.w_limits, "w_constraint": self.w_constraint,
+                   "gp_weight": self.gp_weight, "w_diversity": self.w_diversity}
         for name, x in {**rates, **weights}.items():
             if not (isinstance(x, (int, float)) and math.isfinite(x) and (x > 0 if name in rates else x >= 0)):
                 raise SettingsError(f"GanConfig.{name} must be a finite number {'> 0' if name in rates else '>= 0'}, "
                                     f"got {x!r}")
+        for name, value, allowed in (("loss", self.loss, self.LOSSES), ("member_init", self.member_init, self.MEMBER_INITS)):
+            if value not in allowed:
+                raise SettingsError(f"GanConfig.{name} must be one of {list(allowed)}, got {value!r}")
         try:
             as_box(self.target_box, "GanConfig.target_box")
         except GenplanError as exc:
@@ -216,6 +243,37 @@ class EnsembleGenerator(torch.nn.Module):
             if i < len(self.weights) - 1:
                 h = torch.relu(h)
         return h
+
+
+def gradient_penalty(critic: torch.nn.Module, real: torch.Tensor, fake: torch.Tensor, eps: torch.Tensor) -> torch.Tensor:
+    """WGAN-GP's penalty (Gulrajani et al. 2017): the mean of ``(|grad critic(x)| - 1)^2`` over the
+    interpolates ``x = eps * real + (1 - eps) * fake`` (``eps``: (B, 1) in [0, 1]), differentiable
+    in the critic's parameters."""
+    x = (eps * real + (1.0 - eps) * fake).detach().requires_grad_(True)
+    (grad,) = torch.autograd.grad(critic(x).sum(), x, create_graph=True)
+    return ((grad.norm(dim=-1) - 1.0) ** 2).mean()
+
+
+def mode_seeking_loss(out_a: torch.Tensor, out_b: torch.Tensor, z_a: torch.Tensor, z_b: torch.Tensor,
+                      eps: float = 1e-5) -> torch.Tensor:
+    """The mode-seeking regulariser (Mao et al. 2019, MSGAN) of an ensemble: per member, the ratio
+    of the mean distance between outputs to that between their noises, for pairs (``*_a``,
+    ``*_b``: (n_net, B, .)) made with the same target; the loss is the mean over members of
+    ``1 / (ratio + eps)``, large when a member maps different noise to the same output."""
+    ratio = (out_a - out_b).abs().mean((1, 2)) / (z_a - z_b).abs().mean((1, 2))
+    return (1.0 / (ratio + eps)).mean()
+
+
+def spread_members(feats: torch.Tensor, n_net: int, rng: np.random.Generator, pool: int = 2000) -> torch.Tensor:
+    """``n_net`` rows of ``feats`` (N, d) far apart: farthest-point selection from a random row
+    over a random pool of at most ``pool`` rows (``member_init="data"``)."""
+    cand = feats[torch.from_numpy(rng.choice(len(feats), size=min(pool, len(feats)), replace=False))]
+    picked = [int(rng.integers(len(cand)))]
+    d = ((cand - cand[picked[0]]) ** 2).sum(-1)
+    for _ in range(1, n_net):
+        picked.append(int(torch.argmax(d)))
+        d = torch.minimum(d, ((cand - cand[picked[-1]]) ** 2).sum(-1))
+    return cand[picked]
 
 
 def _mlp(dims: list[int]) -> torch.nn.Sequential:
@@ -544,17 +602,27 @@ def _train(cfg: GanConfig, data: NDArray[np.float64] | None, progress: bool, log
     real_disc = real_disc[:, disc_keep]
 
     gen = EnsembleGenerator(cfg.n_net, cfg.noise_dim + 3, cfg.gen_hidden, codec.dim)
+    if cfg.member_init == "data":
+        with torch.no_grad():
+            gen.biases[-1].copy_(spread_members(real_feats, cfg.n_net, rng)[:, None, :])
     disc = _mlp([real_disc.shape[1], *cfg.disc_hidden, 1])
-    opt_g = torch.optim.Adam(gen.parameters(), lr=cfg.lr_gen)
-    opt_d = torch.optim.Adam(disc.parameters(), lr=cfg.lr_disc)
+    wgan = cfg.loss == "wgan_gp"
+    betas = (0.5, 0.9) if wgan else (0.9, 0.999)  # WGAN-GP's usual Adam momentum; else torch's default
+    opt_g = torch.optim.Adam(gen.parameters(), lr=cfg.lr_gen, betas=betas)
+    opt_d = torch.optim.Adam(disc.parameters(), lr=cfg.lr_disc, betas=betas)
     bce = torch.nn.BCEWithLogitsLoss()
     n, b, k = len(data), cfg.batch, cfg.n_net
+    pairs = cfg.w_diversity > 0 and b >= 2
 
-    def fake_batch() -> tuple[torch.Tensor, torch.Tensor]:
-        idx = torch.from_numpy(rng.integers(0, n, size=(k, b)))
+    def fake_batch(paired: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(outputs, targets, noise), each (k, b, .); ``paired``: the second half of the batch
+        repeats the first half's targets (with other noise), for the mode-seeking term."""
+        idx = torch.from_numpy(rng.integers(0, n, size=(k, b // 2 if paired else b)))
+        if paired:
+            idx = torch.cat([idx, idx, idx[:, : b % 2]], 1)
         x = real_targets[idx]  # targets: end-effector positions of data samples
         z = torch.randn(k, b, cfg.noise_dim)
-        return gen(torch.cat([z, x], -1)), x
+        return gen(torch.cat([z, x], -1)), x, z
 
     def disc_input(out: torch.Tensor, aug: torch.Tensor) -> torch.Tensor:
         return torch.cat([out.reshape(-1, codec.dim), (aug - aug_mean) / aug_std], -1)[:, disc_keep]
@@ -576,18 +644,22 @@ def _train(cfg: GanConfig, data: NDArray[np.float64] | None, progress: bool, log
             # the generator does not change during the discriminator steps: one forward pass
             # (and one kinematics pass) serves them all, each a batch of b of its k * b samples
             with torch.no_grad():
-                out, _ = fake_batch()
+                out, _, _ = fake_batch()
                 pick = torch.from_numpy(rng.choice(k * b, size=cfg.disc_steps * b, replace=cfg.disc_steps > k))
                 out = out.reshape(k * b, -1)[pick]
                 fakes = disc_input(out, cons.evaluate(codec.decode(out), constraint=False)["augment"])
             for step in range(cfg.disc_steps):
                 fake_in = fakes[step * b:(step + 1) * b]
                 real_in = real_disc[torch.from_numpy(rng.integers(0, n, size=b))]
-                d_loss = bce(disc(real_in), ones_b) + bce(disc(fake_in), zeros_b)
+                if wgan:
+                    d_loss = (disc(fake_in).mean() - disc(real_in).mean()
+                              + cfg.gp_weight * gradient_penalty(disc, real_in, fake_in, torch.rand(b, 1)))
+                else:
+                    d_loss = bce(disc(real_in), ones_b) + bce(disc(fake_in), zeros_b)
                 opt_d.zero_grad()
                 d_loss.backward()
                 opt_d.step()
-        out, x = fake_batch()
+        out, x, z = fake_batch(pairs)
         q = codec.decode(out.reshape(k * b, -1))
         ev = cons.evaluate(q)
         c_target = ((ev["ee_pos"] - x.reshape(k * b, 3)) ** 2).sum(-1).mean()
@@ -596,14 +668,21 @@ def _train(cfg: GanConfig, data: NDArray[np.float64] | None, progress: bool, log
         g_loss = cfg.w_target * c_target + cfg.w_limits * c_limits + cfg.w_constraint * c_cons
         adv = torch.tensor(0.0)
         if cfg.use_discriminator:
-            adv = bce(disc(disc_input(out, ev["augment"])), torch.ones(k * b, 1))
+            scores = disc(disc_input(out, ev["augment"]))
+            adv = -scores.mean() if wgan else bce(scores, torch.ones(k * b, 1))
             g_loss = g_loss + adv
+        div = torch.tensor(0.0)
+        if pairs:
+            h = b // 2
+            div = mode_seeking_loss(out[:, :h], out[:, h:2 * h], z[:, :h], z[:, h:2 * h])
+            g_loss = g_loss + cfg.w_diversity * div
         opt_g.zero_grad()
         g_loss.backward()
         opt_g.step()
         if it % log_every == 0 or it == cfg.iterations - 1:
             entry = {"iteration": it, "d_loss": float(d_loss.detach()), "adversarial": float(adv.detach()),
-                     "target_m2": float(c_target.detach()), "limits": float(c_limits.detach()), "constraint": float(c_cons.detach())}
+                     "target_m2": float(c_target.detach()), "limits": float(c_limits.detach()), "constraint": float(c_cons.detach()),
+                     "mode_seeking": float(div.detach())}
             log.append(entry)
             if bar is not None:
                 bar.set_postfix(d=f"{entry['d_loss']:.3f}", tgt=f"{math.sqrt(entry['target_m2']) * 100:.1f}cm",

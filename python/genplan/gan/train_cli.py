@@ -31,6 +31,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--n-net", type=A.positive_int, default=None,
                    help="ensemble size (default: 10 for up to 12 configuration features, else 5)")
     p.add_argument("--no-discriminator", action="store_true", help="train on the costs only (ablation)")
+    p.add_argument("--loss", choices=["bce", "wgan_gp"], default=None,
+                   help="adversarial loss (default bce, the paper's; wgan_gp: Wasserstein critic with gradient penalty)")
+    p.add_argument("--w-diversity", type=A.non_negative_float, default=None,
+                   help="weight of the mode-seeking term against noise-ignoring members (default 0: off)")
+    p.add_argument("--member-init", choices=["uniform", "data"], default=None,
+                   help="ensemble initialisation (default uniform; data: output biases at data points far apart)")
     p.add_argument("--data-size", type=A.positive_int, default=None, help="valid configurations (default 25,000)")
     p.add_argument("--data", type=A.existing_folder, default=None,
                    help="train on a data set written by `genplan data` (checked: robot, task, sha256)")
@@ -100,6 +106,9 @@ def main(args: argparse.Namespace) -> int:
         overrides["data_size"] = args.data_size
     if args.no_discriminator:
         overrides["use_discriminator"] = False
+    for key in ("loss", "w_diversity", "member_init"):
+        if getattr(args, key) is not None:
+            overrides[key] = getattr(args, key)
     data, data_set = None, None
     if args.data is not None:
         from genplan.gan.data import read_dataset
@@ -110,7 +119,8 @@ def main(args: argparse.Namespace) -> int:
                     "seed": manifest["seed"], "shard_size": manifest["shard_size"]}
     cfg = default_config(robot, task, **overrides, seed=seeds[0])  # errors (no [condition], ...) before any work
     out = args.out or A.check_output_file(models_dir() / f"{robot.name}_gan.safetensors", "--out")
-    extra = "".join(f" --{k} {getattr(args, k.replace('-', '_'))}" for k in ("iterations", "n-net", "data-size", "data")
+    extra = "".join(f" --{k} {getattr(args, k.replace('-', '_'))}" for k in ("iterations", "n-net", "data-size", "data", "loss",
+                                                                         "w-diversity", "member-init")
                     if getattr(args, k.replace("-", "_")) is not None) + (" --no-discriminator" if args.no_discriminator else "")
     parallel = args.seeds is not None and (args.ray is not None or (args.workers or 1) > 1)
     jobs = [{"robot": args.robot, "task": args.task, "overrides": {**overrides, "seed": s}, "data": data,

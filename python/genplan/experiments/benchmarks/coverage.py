@@ -1,11 +1,15 @@
 """Coverage of the learned distributions: the GAN paper's Fig. 3 and Fig. 4 claims, as numbers.
 
     genplan bench coverage --out benches/results/coverage.json [--quick] [--figures DIR]
+    genplan bench coverage --no-planar --robots panda --variants default,wgan_gp,diversity \
+        --iterations 2000 --seed 1 --out benches/results/coverage_variants.json
 
 1. The planar 2-link robot among circular obstacles (Fig. 3): an unconditional GAN of its
    collision-free configurations with an ensemble of 1 vs 5 generators.
 2. Panda and Talos (Fig. 4): the trained conditional GAN with the discriminator, without it, and
-   with N_net = 1, each trained here with the same seed and iterations.
+   with N_net = 1, each trained here with the same seed and iterations; ``--variants`` picks other
+   named GanConfig variants (:data:`VARIANTS`: Wasserstein loss, the mode-seeking term, members
+   initialised apart), each row with its training time and the machine's load.
 
 Metrics, each against held-out valid data the GAN never saw:
 
@@ -22,7 +26,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -217,12 +223,42 @@ def _plot_planar(held_out: NDArray[np.float64], samples: dict[int, NDArray[np.fl
 # ---------------------------------------------------------------------------------------------
 
 
+#: the named GAN variants ``--variants`` picks from: GanConfig overrides of the robot's default
+#: (genplan.gan.model.default_config). The first three are the paper's ablations (Fig. 4).
+VARIANTS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "no_discriminator": {"use_discriminator": False},
+    "n_net_1": {"n_net": 1},
+    "wgan_gp": {"loss": "wgan_gp"},
+    "diversity": {"w_diversity": 1.0},
+    "diversity_low": {"w_diversity": 0.2},
+    "data_init": {"member_init": "data"},
+    "wgan_gp_diversity": {"loss": "wgan_gp", "w_diversity": 1.0},
+    "diversity_data_init": {"w_diversity": 1.0, "member_init": "data"},
+    "wgan_gp_data_init": {"loss": "wgan_gp", "member_init": "data"},
+}
+#: the variants of the shipped coverage.json (the paper's ablations)
+PAPER_VARIANTS = ("default", "no_discriminator", "n_net_1")
+
+
+def variant_list(text: str) -> list[str]:
+    """``--variants``: comma-separated names of :data:`VARIANTS`."""
+    names = [v.strip() for v in text.split(",") if v.strip()]
+    unknown = [v for v in names if v not in VARIANTS]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(f"expected comma-separated variants among {', '.join(VARIANTS)}, got {text!r}")
+    return list(dict.fromkeys(names))
+
+
 def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progress: bool,
-              threads: int | None = None) -> dict[str, Any]:
+              threads: int | None = None, variants: "tuple[str, ...] | list[str]" = PAPER_VARIANTS,
+              on_variant: "Callable[[dict[str, Any]], None] | None" = None) -> dict[str, Any]:
+    """Train each of ``variants`` on ``name`` and measure it; ``on_variant(results so far)`` after
+    each (to checkpoint a long run)."""
     import genplan
     from genplan import projection as P
     from genplan.gan.data import valid_configurations
-    from genplan.gan.model import Codec, default_config, train
+    from genplan.gan.model import DISC_MIN_STD, Codec, default_config, train
 
     robot = genplan.load(name)
     data = valid_configurations(robot, 25_000, 0, progress=progress)
@@ -232,17 +268,15 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
     feats_ref = Codec.features(robot, held_out)
     scale = np.maximum(feats_ref.std(0), 0.05)
     ref = feats_ref / scale
-    variants = {
-        "default": {},
-        "no_discriminator": {"use_discriminator": False},
-        "n_net_1": {"n_net": 1},
-    }
+    free = feats_ref.std(0) > DISC_MIN_STD  # features the constraints do not pin (Talos: all but the left arm)
     out: dict[str, Any] = {"iterations": iterations, "held_out_size": len(held_out), "seed": seed}
     projected = {}
     solver = P.GaussNewtonProjector(robot, P.paper_task(robot, "projection"))
-    for label, overrides in variants.items():
+    for label in variants:
+        overrides = VARIANTS[label]
         cfg = default_config(name, iterations=iterations, seed=seed, **overrides)
         t0 = time.perf_counter()
+        load_start = os.getloadavg()[0]
         model = train(cfg, data=data, progress=progress, threads=threads)
         train_s = time.perf_counter() - t0
         rng = np.random.default_rng(seed)
@@ -254,14 +288,58 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
             "mmd": mmd(ref, s, np.random.default_rng(seed)),
             "projection_success": float(res.success.mean()),
             "projection_steps_mean": float(res.iterations[res.success].mean()) if res.success.any() else None,
+            **member_diagnostics(model, targets, ref, scale, free, seed),
             "train_s": train_s,
-            "config": {k: v for k, v in dataclasses.asdict(cfg).items() if k in ("n_net", "use_discriminator", "iterations")},
+            "load_average_1min_start_end": [load_start, os.getloadavg()[0]],
+            "overrides": overrides,
+            "config": {k: v for k, v in dataclasses.asdict(cfg).items()
+                       if k in ("n_net", "use_discriminator", "iterations", *overrides)},
         }
         projected[label] = s
+        if on_variant is not None:
+            on_variant(out)
+        if progress:
+            r = out[label]
+            print(f"{name} {label}: coverage {r['cluster_coverage']:.2f} (members {np.mean(r['member_coverage']):.2f}), "
+                  f"MMD {r['mmd']:.4f} (free features {r['mmd_free_features']:.4f}), noise spread "
+                  f"{r['noise_spread']:.3f}, projects "
+                  f"{r['projection_success']:.3f} in {r['projection_steps_mean']} steps, trained in {train_s:.0f} s",
+                  flush=True)
     if figures is not None:
-        _plot_robot(name, ref, projected, figures / f"coverage_{name}.png")
-        out["figure"] = str(figures / f"coverage_{name}.png")
+        # the paper's ablations keep their figure's name; other variant sets get their own
+        figure = figures / f"coverage_{name}{'' if tuple(variants) == PAPER_VARIANTS else '_variants'}.png"
+        _plot_robot(name, ref, projected, figure)
+        out["figure"] = str(figure)
     return out
+
+
+def member_diagnostics(model: Any, targets: NDArray[np.float64], ref: NDArray[np.float64],
+                       scale: NDArray[np.float64], free: NDArray[np.bool_], seed: int,
+                       n_targets: int = 100, draws: int = 16) -> dict[str, Any]:
+    """Why a GAN's coverage is what it is, against the held-out features ``ref`` (scaled by
+    ``scale``) of the held-out ``targets``:
+
+    * ``member_coverage``: each ensemble member's own cluster coverage (one sample per target);
+    * ``noise_spread``: how much a member's output moves with its noise, for a fixed target: the
+      standard deviation over ``draws`` noise vectors, averaged over the first ``n_targets``
+      targets, the members and the free features, relative to the held-out data's standard
+      deviation (0: the member ignores its noise);
+    * ``mmd_free_features``: the MMD over the features the constraints leave free (``free``), so a
+      constant offset in the pinned ones (Talos' left arm) does not hide the distribution's match.
+    """
+    from genplan.gan.model import Codec
+
+    robot = model.robot
+    rng = np.random.default_rng(seed)
+    members = model.sample_members(targets, rng)  # (n_net, n, nq)
+    per_member = [cluster_coverage(ref, Codec.features(robot, m) / scale, np.random.default_rng(seed)) for m in members]
+    t = np.repeat(targets[:n_targets], draws, axis=0)
+    q = model.sample_members(t, rng)  # (n_net, n_targets * draws, nq)
+    f = np.stack([Codec.features(robot, m) / scale for m in q]).reshape(len(q), -1, draws, ref.shape[1])
+    spread = float(f.std(2)[..., free].mean() / ref[:, free].std(0).mean())
+    s = Codec.features(robot, model.sample(targets, np.random.default_rng(seed))) / scale
+    return {"member_coverage": per_member, "noise_spread": spread,
+            "mmd_free_features": mmd(ref[:, free], s[:, free], np.random.default_rng(seed))}
 
 
 def _plot_robot(name: str, ref: NDArray[np.float64], samples: dict[str, NDArray[np.float64]], path: Path) -> None:
@@ -273,7 +351,9 @@ def _plot_robot(name: str, ref: NDArray[np.float64], samples: dict[str, NDArray[
     mean = ref.mean(0)
     _, _, vt = np.linalg.svd(ref - mean, full_matrices=False)
     proj = vt[:2].T
-    fig, axes = plt.subplots(1, len(samples), figsize=(4.3 * len(samples), 4.2), sharex=True, sharey=True)
+    fig, axes = plt.subplots(1, len(samples), figsize=(4.3 * len(samples), 4.2), sharex=True, sharey=True,
+                             squeeze=False)
+    axes = axes[0]
     r2 = (ref - mean) @ proj
     for ax, (label, s) in zip(axes, samples.items()):
         s2 = (s - mean) @ proj
@@ -293,6 +373,13 @@ def _plot_robot(name: str, ref: NDArray[np.float64], samples: dict[str, NDArray[
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true", help="fewer iterations (planar 1,500, robots 1,500)")
+    p.add_argument("--variants", type=variant_list, default=list(PAPER_VARIANTS), metavar="A,B,...",
+                   help=f"GAN variants trained per robot (default: the paper's {','.join(PAPER_VARIANTS)}; "
+                        f"among {', '.join(VARIANTS)}); another set than the default writes "
+                        "coverage_<robot>_variants.png")
+    p.add_argument("--iterations", type=A.positive_int, default=None,
+                   help="generator steps per robot variant (default 10,000, --quick 1,500)")
+    p.add_argument("--no-planar", action="store_true", help="skip the planar 2-link robot")
     p.add_argument("--robots", nargs="*", default=["panda", "talos"], choices=["panda", "talos"])
     p.add_argument("--seed", type=A.seed, default=0)
     p.add_argument("--figures", type=A.output_folder, default="benches/results",
@@ -307,18 +394,28 @@ def main(args: argparse.Namespace) -> int:
 
     torch.set_num_threads(args.threads)
     planar_it = 1500 if args.quick else 5000
-    robot_it = 1500 if args.quick else 10_000
+    robot_it = args.iterations or (1500 if args.quick else 10_000)
     payload: dict[str, Any] = {"benchmark": "coverage", "quick": args.quick, "machine": machine(),
-                               "k_clusters": K_CLUSTERS, "planar": run_planar(planar_it, args.seed, args.figures, True)}
+                               "k_clusters": K_CLUSTERS, "threads": args.threads, "variants": args.variants}
+    if not args.no_planar:
+        payload["planar"] = run_planar(planar_it, args.seed, args.figures, True)
     for name in args.robots:
-        payload[name] = run_robot(name, robot_it, args.seed, args.figures, True, threads=args.threads)
+        def checkpoint(part: dict[str, Any], name: str = name) -> None:
+            """Written after each variant too: a long run interrupted keeps what it measured."""
+            write_json(args.out, {**payload, name: {**part, "partial": True}})
+
+        payload[name] = run_robot(name, robot_it, args.seed, args.figures, True, threads=args.threads,
+                                  variants=args.variants, on_variant=checkpoint)
     rows = [["planar", f"N_net={k}", payload["planar"][f"n_net_{k}"]["cluster_coverage"],
-             payload["planar"][f"n_net_{k}"]["mmd"], f"valid {payload['planar'][f'n_net_{k}']['valid_rate']:.3f}"]
-            for k in (1, 5)]
+             payload["planar"][f"n_net_{k}"]["mmd"], f"valid {payload['planar'][f'n_net_{k}']['valid_rate']:.3f}", "", ""]
+            for k in (1, 5) if "planar" in payload]
     for name in args.robots:
-        for label in ("default", "no_discriminator", "n_net_1"):
+        for label in args.variants:
             r = payload[name][label]
-            rows.append([name, label, r["cluster_coverage"], r["mmd"], f"projects {r['projection_success']:.3f}"])
-    print(table(["setup", "variant", "cluster coverage", "MMD", "quality"], rows))
+            steps = r["projection_steps_mean"]
+            rows.append([name, label, r["cluster_coverage"], r["mmd"],
+                         f"projects {r['projection_success']:.3f}, steps {'-' if steps is None else f'{steps:.2f}'}",
+                         f"{r['train_s']:.0f}", f"{r['load_average_1min_start_end'][0]:.1f}"])
+    print(table(["setup", "variant", "cluster coverage", "MMD", "quality", "train s", "load"], rows))
     write_json(args.out, payload)
     return 0
