@@ -1,0 +1,74 @@
+"""Does a GAN that covers more of the manifold plan faster? ([sampler]: Table II with a coverage
+variant) One environment, the Table II queries (seed 0), uniform vs the shipped GAN vs a GAN file
+given with --model (e.g. trained with `genplan train gan --robot panda --seed 0 --w-diversity 1.0
+--member-init data --out M`), under the paper's protocol (tree nodes checked) and with edges
+checked, the paper's cRRT; the samplers alternate query by query.
+
+    python benches/sampler_variant_plan.py --env panda_shelf --model M --queries 100 --seed 0 \
+        --out benches/results/sampler_variant_plan_panda.json
+
+Per protocol and sampler: success %, mean extensions, mean projection steps and mean plan time;
+uniform time / sampler time. Extensions and projections are deterministic for a seed; times vary
+with the machine's load (recorded).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+from pathlib import Path
+
+import numpy as np
+
+import genplan
+from genplan.gan.model import load_model
+from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment
+
+from adaptive_half_life import write_json  # benches/: run as python benches/<script>.py
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="panda_shelf", choices=list(ENVIRONMENT_NAMES))
+    parser.add_argument("--model", type=Path, required=True, help="the variant GAN (.safetensors with its card)")
+    parser.add_argument("--queries", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+    env = environment(args.env)
+    robot = genplan.load(env.robot)
+    world = env.world(robot)
+    queries = env.queries(robot, n=args.queries, seed=args.seed)
+    variant = load_model(robot, args.model)
+    rows = []
+    for protocol, resolution in (("nodes", 0.0), ("edges", PlannerSettings().edge_resolution)):
+        settings = PlannerSettings(edge_resolution=resolution)
+        planners = {"uniform": Planner(robot, world=world, sampler="uniform", settings=settings, seed=args.seed),
+                    "gan": Planner(robot, world=world, sampler="gan", settings=settings, seed=args.seed),
+                    "gan_variant": Planner(robot, world=world, sampler="gan", settings=settings, seed=args.seed,
+                                           gan_model=variant)}
+        results: dict[str, list] = {k: [] for k in planners}
+        for q in queries:
+            for label, planner in planners.items():
+                results[label].append(planner.plan(q.start, q.goals))
+        t_uniform = float(np.mean([r.time_s for r in results["uniform"]]))
+        for label, res in results.items():
+            t = float(np.mean([r.time_s for r in res]))
+            row = {"protocol": protocol, "sampler": label,
+                   "success_rate": 100.0 * float(np.mean([r.success for r in res])),
+                   "extensions": float(np.mean([r.extensions for r in res])),
+                   "projection_steps": float(np.mean([r.projections for r in res])),
+                   "t_ave_s": t, "uniform_over_this": t_uniform / t}
+            rows.append(row)
+            print(f"{protocol:5s} {label:12s} {row['success_rate']:5.1f} %  E {row['extensions']:7.1f}  "
+                  f"P {row['projection_steps']:8.1f}  T {t * 1e3:8.2f} ms  uniform/this {row['uniform_over_this']:.2f}x",
+                  flush=True)
+    if args.out:
+        write_json(args.out, {"env": args.env, "queries": args.queries, "seed": args.seed,
+                              "model": str(args.model), "model_config": dataclasses.asdict(variant.config),
+                              "load_average": os.getloadavg(), "rows": rows})
+
+
+if __name__ == "__main__":
+    main()
