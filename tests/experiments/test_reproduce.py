@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import shutil
+from pathlib import Path
 
 from genplan.cli import main
 
@@ -37,6 +39,27 @@ def test_report_rebuilds_from_a_folder_of_json(tmp_path) -> None:
     assert report.startswith("# genplan benchmarks") and "| talos | projection | uniform" in report
     assert "84.4" in report  # the paper's Talos success rate beside ours
 
+
+
+def test_report_has_the_algorithms_coverage_variants_ik_and_peers(tmp_path) -> None:
+    """The committed JSON of `bench plan --algorithm all`, `bench coverage --variants`, `bench ik`
+    and `bench peers` each get their section (and a folder without them none)."""
+    results = Path(__file__).parents[2] / "benches" / "results"
+    names = ["table2_genplan_algorithms.json", "table2_genplan_algorithms_nodes_only.json",
+             "coverage_variants.json", "ik.json", "peers.json"]
+    for name in names:
+        shutil.copy(results / name, tmp_path / name)
+    assert main(["report", str(tmp_path)]) == 0
+    report = (tmp_path / "report.md").read_text()
+    for words in ("### Both algorithms, edges checked", "### Both algorithms, nodes only", "rrt_connect",
+                  "geometric mean", "### Coverage variants", "diversity_data_init", "## IK for users",
+                  "solve_ik_uniform", "max_velocity_ratio", "[peers.md](peers.md)"):
+        assert words in report, words
+    for name in names:
+        (tmp_path / name).unlink()
+    assert main(["report", str(tmp_path)]) == 0
+    report = (tmp_path / "report.md").read_text()
+    assert "Both algorithms" not in report and "IK for users" not in report and "peers.md" not in report
 
 
 def test_report_names_a_broken_json_file(tmp_path, capsys) -> None:

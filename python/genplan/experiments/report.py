@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -147,6 +148,74 @@ def _coverage(res: dict[str, Any]) -> str:
             + table(["setup", "variant", "cluster coverage", "MMD", "quality"], rows) + "\n")
 
 
+def _table2_algorithms(res: dict[str, Any]) -> str:
+    """Table II with both search algorithms ([planner]), edges checked and nodes only."""
+    parts = []
+    for name, protocol in (("table2_genplan_algorithms.json", "edges checked"),
+                           ("table2_genplan_algorithms_nodes_only.json", "nodes only (`--edge-resolution 0`)")):
+        r = res.get(name)
+        if r is None:
+            continue
+        rows = [[x["env"], x["algorithm"], x["sampler"], x["queries"], f"{x['success_rate']:.1f}", f"{x['t_ave_s']:.3f}",
+                 _f(x.get("extensions"), 3), f"{x['projections']:.0f}"] for x in r["rows"]]
+        ratios = []
+        for algorithm, by_env in r["ratios_by_algorithm"].items():
+            values = [v["uniform_over_gan"] for v in by_env.values() if v.get("uniform_over_gan")]
+            if values:
+                gm = math.exp(sum(math.log(v) for v in values) / len(values))
+                ratios.append(f"- {algorithm}: uniform / GAN " + ", ".join(f"{v:.2f}x" for v in values)
+                              + f" (geometric mean {gm:.2f}x)")
+        parts.append(f"\n### Both algorithms, {protocol} (`{name}`)\n\n"
+                     + table(["env", "algorithm", "sampler", "queries", "success %", "T_ave", "E", "Opt. steps"], rows)
+                     + "\n\n" + "\n".join(ratios) + "\n")
+    return "".join(parts)
+
+
+def _coverage_variants(res: dict[str, Any]) -> str:
+    """The coverage variants ([sampler]): `genplan bench coverage --variants`."""
+    c = res.get("coverage_variants.json")
+    if c is None:
+        return ""
+    rows = []
+    for robot in ("panda", "talos"):
+        r = c.get(robot)
+        if not r:
+            continue
+        for label, v in r.items():
+            if isinstance(v, dict) and "cluster_coverage" in v:
+                rows.append([robot, label, r["iterations"], r["seed"], _f(v["cluster_coverage"]), _f(v["mmd"]),
+                             f"{v['projection_success']:.3f}", _f(v["projection_steps_mean"]), f"{v['train_s']:.0f}"])
+    return ("\n### Coverage variants (`coverage_variants.json`)\n\n"
+            + table(["robot", "variant", "iterations", "seed", "cluster coverage", "MMD", "projects", "steps*",
+                     "train s"], rows) + "\n")
+
+
+def _ik(res: dict[str, Any]) -> str:
+    """IK for users ([planner] item 5, [core-speed] item 4): `genplan bench ik`."""
+    r = res.get("ik.json")
+    if r is None:
+        return ""
+    rows = []
+    for robot, by in r["ik"].items():
+        for kind, v in by.items():
+            if isinstance(v, dict) and "success_rate" in v:
+                rows.append([robot, kind, f"{v['success_rate']:.1f}", f"{v['success_within_budget']:.1f}",
+                             f"{v['t_mean_ms']:.3f}", f"{v['t_p99_ms']:.3f}", v["attempts_max"]])
+    text = ("## IK for users\n\n`ik.json`: reachable targets, one target after the other on one core; a row's "
+            "budget is 5 ms per target unless its JSON says otherwise.\n\n"
+            + table(["robot", "IK", "success %", "within budget %", "mean ms", "p99 ms", "attempts max"], rows) + "\n")
+    traj = r.get("trajectory")
+    if traj and traj["summary"]:
+        text += "\nTrajectories (Panda shelf, 1 kHz):\n\n" + table(
+            ["", "median", "max"], [[k, _f(v["median"], 4), _f(v["max"], 4)] for k, v in traj["summary"].items()]) + "\n"
+    return text
+
+
+def _peers(res: dict[str, Any]) -> str:
+    """`genplan bench peers` writes its own markdown table beside its JSON."""
+    return "## Beside the peers\n\n[peers.md](peers.md) (`genplan bench peers`).\n" if "peers.json" in res else ""
+
+
 def _figures(out: Path) -> str:
     figs = sorted(out.glob("**/*.png"))
     if not figs:
@@ -185,9 +254,13 @@ def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, s
         "",
         _table2(res),
         _table2_nodes_only(res),
+        _table2_algorithms(res),
         "## GAN coverage (Fig. 3 and 4 as numbers)",
         "",
         _coverage(res),
+        _coverage_variants(res),
+        _ik(res),
+        _peers(res),
         "## seq2seq paper: latent trajectory adjustment",
         "",
         adjust_section(res),
