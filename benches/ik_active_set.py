@@ -26,6 +26,8 @@ import numpy as np
 
 import genplan
 from genplan.experiments.benchmarks.ik import TASKS, reachable_targets
+from genplan.experiments.common import write_json
+from genplan.ik import solve_ik
 from genplan.projection import SolverSettings, load_task
 
 
@@ -46,8 +48,8 @@ def main() -> None:
         rows = []
 
         def attempt(tk: Any, iterations: int, mu: float, active: bool) -> Any:
-            return genplan.solve_ik(robot, tk, targets, init=starts, restarts=0, iterations=iterations, parallel=False,
-                                    settings=SolverSettings(mu=mu, active_set=active))
+            return solve_ik(robot, tk, targets, init=starts, restarts=0, iterations=iterations, parallel=False,
+                            settings=SolverSettings(mu=mu, active_set=active))
 
         for label, tk in (("paper task", task), ("without JointLimits", no_limits)):
             for iterations in (50, 200):
@@ -70,13 +72,7 @@ def main() -> None:
         print(f"{name}: failures {json.dumps(failures)}")
         out["robots"][name] = {"task": task.name, "target_seed": 3000 + args.seed, "rows": rows, "failures": failures}
     out["load"] = list(os.getloadavg())
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = args.out.with_suffix(".tmp")
-        tmp.write_text(json.dumps(out, indent=1) + "\n")
-        tmp.replace(args.out)
-        print(f"wrote {args.out}")
-
+    write_json(args.out, out)
 
 if __name__ == "__main__":
     main()

@@ -25,9 +25,10 @@ import numpy as np
 import genplan
 from genplan import _core
 from genplan.gan.sampler import GanSampler
-from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment
+from genplan.experiments.common import write_json
+from genplan.planning import ENVIRONMENT_NAMES, Planner, environment
 
-from adaptive_half_life import summarize, write_json  # benches/: run as python benches/<script>.py
+from adaptive_half_life import PROTOCOLS, record, summarize  # benches/: run as python benches/<script>.py
 
 
 def query_box(robot: genplan.Robot, gan: GanSampler, start: np.ndarray, goals: np.ndarray, margin: float) -> np.ndarray:
@@ -51,14 +52,13 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     variants = [(f"query_{m:g}_{w:g}", m, w) for m in args.margins for w in args.weights]
-    rows = []
+    rows: list[dict] = []
     for env_name in args.envs:
         env = environment(env_name)
         robot = genplan.load(env.robot)
         world = env.world(robot)
         queries = env.queries(robot, n=args.queries, seed=args.seed)
-        for protocol, resolution in (("nodes", 0.0), ("edges", PlannerSettings().edge_resolution)):
-            settings = PlannerSettings(edge_resolution=resolution)
+        for protocol, settings in PROTOCOLS:
             planners = {kind: Planner(robot, world=world, sampler=kind, settings=settings, seed=args.seed)
                         for kind in ("uniform", "gan")}
             gan = GanSampler(robot, seed=args.seed)
@@ -74,13 +74,7 @@ def main() -> None:
                     sampler = _core.MixtureSampler(focused, whole, weight, seed + 2)
                     results[label].append(planners["gan"].plan(q.start, q.goals, sampler=sampler))
             for label, res in results.items():
-                row = {"env": env_name, "protocol": protocol, "sampler": label,
-                       "success_rate": 100.0 * float(np.mean([r.success for r in res])),
-                       "extensions": float(np.mean([r.extensions for r in res])),
-                       "t_ave_s": float(np.mean([r.time_s for r in res]))}
-                rows.append(row)
-                print(f"{env_name:12s} {protocol:5s} {label:16s} {row['success_rate']:5.1f} % "
-                      f"E {row['extensions']:7.1f}  T {row['t_ave_s'] * 1e3:8.2f} ms", flush=True)
+                record(rows, res, env=env_name, protocol=protocol, sampler=label)
     summary = summarize(rows, ["gan"] + [v[0] for v in variants], args.envs)
     if args.out:
         write_json(args.out, {"queries": args.queries, "seed": args.seed, "envs": args.envs, "margins": args.margins,

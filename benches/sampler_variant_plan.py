@@ -23,9 +23,10 @@ import numpy as np
 
 import genplan
 from genplan.gan.model import load_model
-from genplan.planning import ENVIRONMENT_NAMES, Planner, PlannerSettings, environment
+from genplan.experiments.common import write_json
+from genplan.planning import ENVIRONMENT_NAMES, Planner, environment
 
-from adaptive_half_life import write_json  # benches/: run as python benches/<script>.py
+from adaptive_half_life import PROTOCOLS, record  # benches/: run as python benches/<script>.py
 
 
 def main() -> None:
@@ -41,9 +42,8 @@ def main() -> None:
     world = env.world(robot)
     queries = env.queries(robot, n=args.queries, seed=args.seed)
     variant = load_model(robot, args.model)
-    rows = []
-    for protocol, resolution in (("nodes", 0.0), ("edges", PlannerSettings().edge_resolution)):
-        settings = PlannerSettings(edge_resolution=resolution)
+    rows: list[dict] = []
+    for protocol, settings in PROTOCOLS:
         planners = {"uniform": Planner(robot, world=world, sampler="uniform", settings=settings, seed=args.seed),
                     "gan": Planner(robot, world=world, sampler="gan", settings=settings, seed=args.seed),
                     "gan_variant": Planner(robot, world=world, sampler="gan", settings=settings, seed=args.seed,
@@ -52,18 +52,10 @@ def main() -> None:
         for q in queries:
             for label, planner in planners.items():
                 results[label].append(planner.plan(q.start, q.goals))
-        t_uniform = float(np.mean([r.time_s for r in results["uniform"]]))
-        for label, res in results.items():
-            t = float(np.mean([r.time_s for r in res]))
-            row = {"protocol": protocol, "sampler": label,
-                   "success_rate": 100.0 * float(np.mean([r.success for r in res])),
-                   "extensions": float(np.mean([r.extensions for r in res])),
-                   "projection_steps": float(np.mean([r.projections for r in res])),
-                   "t_ave_s": t, "uniform_over_this": t_uniform / t}
-            rows.append(row)
-            print(f"{protocol:5s} {label:12s} {row['success_rate']:5.1f} %  E {row['extensions']:7.1f}  "
-                  f"P {row['projection_steps']:8.1f}  T {t * 1e3:8.2f} ms  uniform/this {row['uniform_over_this']:.2f}x",
-                  flush=True)
+        by = {label: record(rows, res, protocol=protocol, sampler=label) for label, res in results.items()}
+        for label, row in by.items():
+            row["uniform_over_this"] = by["uniform"]["t_ave_s"] / row["t_ave_s"]
+            print(f"{protocol:5s} {label:12s} uniform/this {row['uniform_over_this']:.2f}x")
     if args.out:
         write_json(args.out, {"env": args.env, "queries": args.queries, "seed": args.seed,
                               "model": str(args.model), "model_config": dataclasses.asdict(variant.config),

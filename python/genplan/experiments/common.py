@@ -11,6 +11,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from genplan._files import atomic_path, write_text
 
 
@@ -54,6 +56,12 @@ def write_json(path: Path | None, payload: dict[str, Any]) -> None:
         return
     write_text(path, json.dumps(payload, indent=2) + "\n")
     print(f"wrote {path}")
+
+
+def geometric_mean(values: Any) -> float:
+    """The geometric mean of positive ``values`` (how the benchmarks average speed-up ratios)."""
+    v = np.asarray(list(values), dtype=np.float64)
+    return float(np.exp(np.mean(np.log(v))))
 
 
 def table(headers: list[str], rows: list[list[Any]]) -> str:

@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 from genplan import _cli_args as A
 from genplan.errors import GenplanError
-from genplan.experiments.common import table, write_text
+from genplan.experiments.common import geometric_mean, table, write_text
 
 
 def _f(x: Any, digits: int = 3) -> str:
@@ -162,9 +161,8 @@ def _table2_algorithms(res: dict[str, Any]) -> str:
         for algorithm, by_env in r["ratios_by_algorithm"].items():
             values = [v["uniform_over_gan"] for v in by_env.values() if v.get("uniform_over_gan")]
             if values:
-                gm = math.exp(sum(math.log(v) for v in values) / len(values))
                 ratios.append(f"- {algorithm}: uniform / GAN " + ", ".join(f"{v:.2f}x" for v in values)
-                              + f" (geometric mean {gm:.2f}x)")
+                              + f" (geometric mean {geometric_mean(values):.2f}x)")
         parts.append(f"\n### Both algorithms, {protocol} (`{name}`)\n\n"
                      + table(["env", "algorithm", "sampler", "queries", "success %", "T_ave", "E", "Opt. steps"], rows)
                      + "\n\n" + "\n".join(ratios) + "\n")

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from genplan import _cli_args as A
-from genplan.experiments.common import machine, table, write_json
+from genplan.experiments.common import geometric_mean, machine, table, write_json
 
 #: Table II of the GAN paper: (success %, T_ave s, Opt. Steps, E).
 PAPER_TABLE_II: dict[tuple[str, str], tuple[float, float, float, float]] = {
@@ -103,7 +103,15 @@ def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, sett
         it = tqdm(queries, desc=f"{env_name} {algorithm} {sampler}", unit="query", leave=False)
     for q in it:
         results.append(planner.plan(q.start, q.goals))
-    row = _summary(
+    row = summarize_plans(results)
+    row.update(env=env_name, planner="genplan", sampler=sampler, algorithm=algorithm)
+    return row
+
+
+def summarize_plans(results: list[Any]) -> dict[str, Any]:
+    """One Table II row of a sampler's plans (``PlanResult``s): success rate, time statistics and
+    the means (and standard deviations) of the search's counts."""
+    return _summary(
         [r.time_s for r in results],
         [r.success for r in results],
         projections=[r.projections for r in results],
@@ -116,8 +124,6 @@ def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, sett
         checker_s=[r.stats.checker_s for r in results],
         sampler_s=[r.stats.sampler_s for r in results],
     )
-    row.update(env=env_name, planner="genplan", sampler=sampler, algorithm=algorithm)
-    return row
 
 
 def run_ompl(env_name: str, queries: list[Any], seed: int, time_limit: float, progress: bool) -> dict[str, Any]:
@@ -234,7 +240,7 @@ def print_table(payload: dict[str, Any]) -> None:
                 print(f"{alg} {env}: " + ", ".join(parts))
         gm = [rat["uniform_over_gan"] for rat in ratios.values() if rat.get("uniform_over_gan")]
         if len(gm) > 1:
-            print(f"{alg}: uniform_over_gan geometric mean over {len(gm)} environments {float(np.exp(np.mean(np.log(gm)))):.2f}x")
+            print(f"{alg}: uniform_over_gan geometric mean over {len(gm)} environments {geometric_mean(gm):.2f}x")
 
 
 def run_seed(job: dict[str, Any]) -> dict[str, Any]:
