@@ -133,6 +133,35 @@ def test_the_algorithm_is_a_known_name(panda, shelf) -> None:
     assert (p.settings.algorithm, p.settings.step) == ("crrt", 0.2)
 
 
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_certified_edges_are_dense_rechecked(panda, talos, shelf, task1, algorithm) -> None:
+    """edge_check="certified": every motion between consecutive states certified collision-free
+    (conservative advancement); the returned paths pass the dense re-check at twice the
+    sub-points, and cost certificates; the spacing bound still holds (states are only added)."""
+    settings = PlannerSettings(edge_check="certified", algorithm=algorithm)
+    for robot, (env, world, queries), sub in [(panda, shelf, 16), (talos, task1, 4)]:
+        planner = Planner(robot, world=world, sampler="gan", seed=2, settings=settings)
+        res = planner.plan(queries[0].start, queries[0].goals)
+        assert_path_valid(robot, world, res, queries[0], sub=sub)
+        assert res.stats.motion_certificates > 0
+        assert planner.settings.edge_check == "certified"
+
+
+def test_certified_edges_need_a_certifying_checker(panda, shelf) -> None:
+    env, world, queries = shelf
+    assert PlannerSettings().edge_check == "sampled"
+    with pytest.raises(SettingsError, match="unknown edge check 'exact' \\(known: 'sampled', 'certified'\\)"):
+        PlannerSettings(edge_check="exact")
+    with pytest.raises(SettingsError, match="edge_check 'certified' needs edge_resolution > 0"):
+        PlannerSettings(edge_check="certified", edge_resolution=0.0)
+    planner = Planner(panda, world=world, checker=PythonChecker(world), settings=PlannerSettings(edge_check="certified"))
+    with pytest.raises(SettingsError, match="needs a checker that certifies motions"):
+        planner.plan(queries[0].start, queries[0].goals)
+    # sampled stats count no certificate
+    res = Planner(panda, world=world, seed=2).plan(queries[0].start, queries[0].goals)
+    assert res.stats.motion_certificates == 0
+
+
 class CountingSampler:
     def __init__(self, robot: genplan.Robot) -> None:
         self.robot, self.calls, self.rng = robot, 0, np.random.default_rng(0)

@@ -72,3 +72,16 @@ def test_bench_plan_both_algorithms(tmp_path, capsys) -> None:
     assert one["algorithm"] == "crrt"
     for key in ("success_rate", "projections", "extensions", "nodes"):
         assert one[key] == rows[("crrt", "uniform")][key], key
+
+
+def test_bench_plan_certified_edges(tmp_path) -> None:
+    """--edge-check certified: the settings in the JSON say so, the plans succeed and pay for
+    motion certificates (mean per query)."""
+    out = tmp_path / "certified.json"
+    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "gan", "--queries", "2", "--seed", "3",
+                 "--edge-check", "certified", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["settings"]["edge_check"] == "certified"
+    (row,) = data["rows"]
+    assert row["success_rate"] == 100.0
+    assert row["motion_certificates"] > 0

@@ -214,6 +214,13 @@ class Planner:
     the robot's collision world, self-collision included) checks validity unless ``checker`` is
     given. ``parallel=True`` lets native projections and collision checks of one batch use all
     cores (off by default: the benchmarks compare one core against one core).
+
+    ``PlannerSettings(edge_check="certified")`` also certifies every motion between consecutive
+    states collision-free, not only the states (conservative advancement with swept-motion bounds
+    of the robot's geometry, rust/core/src/collision/motion.rs; states are added where a chord
+    cannot be certified, and an edge is refused when a chord 8x finer than ``edge_resolution``
+    still cannot). It needs the native checker (a CollisionWorld) and costs about 3x the edge
+    time of the default ``"sampled"`` check (benches/results/table2_certified.json).
     """
 
     def __init__(self, robot: Robot, world: CollisionWorld | None = None, task: Task | None = None, *,

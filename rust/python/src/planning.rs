@@ -25,7 +25,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyList, PyTuple};
 
 use genplan_core::planning::{
-    self, Algorithm, CollisionChecker, Components, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
+    self, Algorithm, CollisionChecker, Components, EdgeCheck, Named, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
     Projection, Sampler, Settings, Space, Stats, ValidityChecker,
 };
 
@@ -437,21 +437,31 @@ fn sampler_from(py: Python<'_>, obj: &Bound<'_, PyAny>, nq: usize) -> PyResult<B
 // The planner
 // ---------------------------------------------------------------------------------------------
 
-/// The algorithm's name in Python: `"crrt"` or `"rrt_connect"` (anything else is a
-/// SettingsError listing both).
-impl Field for Algorithm {
-    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
-        let known = Algorithm::NAMES.iter().map(|(n, _)| format!("'{n}'")).collect::<Vec<_>>().join(", ");
-        let name: Option<String> = v.extract().ok();
-        name.as_deref().and_then(Algorithm::from_name).ok_or_else(|| {
-            let shown = v.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
-            err(Kind::Settings, format!("{what}: unknown algorithm {shown} (known: {known})"))
-        })
-    }
-    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        Ok(pyo3::types::PyString::new(py, self.name()).into_any())
-    }
+/// A named setting in Python: its name (`"crrt"`, `"rrt_connect"`; `"sampled"`, `"certified"`);
+/// anything else is a SettingsError listing the known names.
+fn named_from_py<T: Named>(v: &Bound<'_, PyAny>, what: &str) -> PyResult<T> {
+    let known = T::NAMES.iter().map(|(n, _)| format!("'{n}'")).collect::<Vec<_>>().join(", ");
+    let name: Option<String> = v.extract().ok();
+    name.as_deref().and_then(T::from_name).ok_or_else(|| {
+        let shown = v.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+        err(Kind::Settings, format!("{what}: unknown {} {shown} (known: {known})", T::WHAT))
+    })
 }
+
+macro_rules! named_field {
+    ($($t:ty),*) => {$(
+        impl Field for $t {
+            fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+                named_from_py(v, what)
+            }
+            fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+                Ok(pyo3::types::PyString::new(py, self.name()).into_any())
+            }
+        }
+    )*};
+}
+
+named_field!(Algorithm, EdgeCheck);
 
 settings_class!(
     /// Settings of the constrained planner (defaults: the GAN paper's cRRT and its public code,
@@ -462,7 +472,7 @@ settings_class!(
     Settings,
     |s: &Settings| s.validate().map_err(plan_error_to_py),
     [step, max_increments, max_jump, goal_tolerance, max_extensions, retries, project_samples, sample_batch,
-     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm]
+     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm, edge_check]
 );
 
 record_class!(
@@ -471,7 +481,7 @@ record_class!(
     "PlanStats",
     Stats,
     [success, retries, extensions, projections, projection_calls, edge_projections, samples, samples_rejected,
-     validity_checks, nodes, pruned, shortcuts, time_s, sampler_s, projector_s, checker_s]
+     validity_checks, motion_certificates, nodes, pruned, shortcuts, time_s, sampler_s, projector_s, checker_s]
 );
 
 /// A plan's outcome. `path` is dense: from the start to the goal reached, every state is on the

@@ -21,7 +21,9 @@ projection task) and the same collision model (parry, self-collision included). 
 paper's: success %, T_ave (s, all queries, retries included), Opt. Steps (projection iterations
 of samples and extension steps) and E (extension steps); genplan also validates every edge of
 the returned path (projected states 0.025 rad apart), counted separately; ``--edge-resolution 0``
-times the paper's protocol (tree nodes checked, edges not validated).
+times the paper's protocol (tree nodes checked, edges not validated); ``--edge-check certified``
+certifies every motion between those states collision-free as well (conservative advancement,
+``PlannerSettings.edge_check``; the settings go into the JSON).
 
 The peer (``--planner ompl``) is OMPL's ProjectedStateSpace with RRTConnect (PyPI ``ompl``),
 whose constraint and validity callbacks run in Python (genplan's Pinocchio terms and parry
@@ -123,6 +125,7 @@ def summarize_plans(results: list[Any]) -> dict[str, Any]:
         projector_s=[r.stats.projector_s for r in results],
         checker_s=[r.stats.checker_s for r in results],
         sampler_s=[r.stats.sampler_s for r in results],
+        motion_certificates=[r.stats.motion_certificates for r in results],
     )
 
 
@@ -305,6 +308,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ompl-time-limit", type=A.positive_float, default=30.0, help="seconds per OMPL query")
     p.add_argument("--edge-resolution", type=A.non_negative_float, default=None,
                    help="genplan edge validation spacing (0: off)")
+    p.add_argument("--edge-check", default="sampled", choices=["sampled", "certified"],
+                   help="genplan edges: states checked at the resolution (sampled, default) or every motion between "
+                        "them certified collision-free (certified, PlannerSettings.edge_check)")
     p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
 
 
@@ -314,7 +320,9 @@ def main(args: argparse.Namespace) -> int:
     envs = list(ENVS) if args.env == "all" else [args.env]
     samplers = {"all": list(SAMPLERS), "all+": [*SAMPLERS, *EXTRA_SAMPLERS]}.get(args.sampler, [args.sampler])
     planners = list(PLANNERS) if args.planner == "all" else [args.planner]
-    settings = PlannerSettings() if args.edge_resolution is None else PlannerSettings(edge_resolution=args.edge_resolution)
+    settings = PlannerSettings(edge_check=args.edge_check)
+    if args.edge_resolution is not None:
+        settings = settings.replace(edge_resolution=args.edge_resolution)
     if args.seeds is not None:
         payload = sweep(envs, samplers, planners, args, settings)
         print_sweep(payload)

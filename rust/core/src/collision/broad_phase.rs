@@ -161,11 +161,19 @@ impl Obb {
     /// that near-parallel edges never separate by round-off (the test only errs towards
     /// "overlap", which sends the pair to the exact narrow phase).
     pub(super) fn separated(&self, o: &Obb) -> bool {
+        self.separated_by(o, 0.0)
+    }
+
+    /// [`separated`](Self::separated) with this box grown by `margin` (>= 0) along each of its
+    /// axes: the grown box contains every point within `margin` of this one, so true means the
+    /// shapes inside the two boxes are farther apart than `margin`.
+    pub(super) fn separated_by(&self, o: &Obb, margin: f64) -> bool {
         const EPS: f64 = 1e-9;
         let r = self.axes.transpose() * o.axes; // o's axes in self's frame
         let t = self.axes.transpose() * (o.center - self.center);
         let abs_r = r.map(|x| x.abs() + EPS);
-        let (a, b) = (&self.half, &o.half);
+        let grown = self.half.add_scalar(margin);
+        let (a, b) = (&grown, &o.half);
         for i in 0..3 {
             let rb = b[0] * abs_r[(i, 0)] + b[1] * abs_r[(i, 1)] + b[2] * abs_r[(i, 2)];
             if t[i].abs() > a[i] + rb {

@@ -10,15 +10,18 @@
 //! The files, one concept each: `geometry` (URDF and mesh geometry to parry shapes),
 //! `broad_phase` (the pair lists and the bounding-volume filters that rule pairs out before the
 //! exact test), `obstacles` ([`Obstacles`]: the obstacle list and the bounding-volume hierarchy
-//! over it that finds the obstacles near a robot shape), `world` ([`CollisionWorld`]: obstacles and the queries). Everything is
+//! over it that finds the obstacles near a robot shape), `motion` ([`MotionBounds`]: how far
+//! each geometry can move along a motion, to certify motions with `CollisionWorld::clear_by`), `world` ([`CollisionWorld`]: obstacles and the queries). Everything is
 //! re-exported here: the paths are `genplan_core::collision::X`.
 
 pub mod allowed;
 mod broad_phase;
 mod geometry;
+mod motion;
 mod obstacles;
 mod world;
 
 pub use geometry::{load_mesh_vertices, RobotGeometry};
+pub use motion::{Levers, MotionBounds, Sweep};
 pub use obstacles::Obstacles;
 pub use world::{CollisionWorld, Obstacle, PairDistance, Scratch, MAX_OBSTACLE_EXTENT, MIN_NORMAL_NORM, QUATERNION_TOLERANCE};

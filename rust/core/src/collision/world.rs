@@ -449,6 +449,66 @@ impl CollisionWorld {
         best.min(d)
     }
 
+    /// True when every checked pair is farther apart than its margin: robot geometry i from
+    /// every obstacle by more than `geometry[i]`, self pair p (in `self_pairs` order) by more
+    /// than `pairs[p]` (margins >= 0; a half-space counts its signed distance). With the margins
+    /// of a [`MotionBounds`](super::MotionBounds) sweep halved, true at both ends of a motion
+    /// certifies the whole motion collision-free. Conservative where parry cannot answer (a
+    /// pair it does not support counts as too close). No input checks: a checked q, one margin
+    /// per geometry and per self pair.
+    pub fn clear_by(&self, q: &[f64], geometry: &[f64], pairs: &[f64], s: &mut Scratch) -> bool {
+        self.pose(q, s);
+        self.clear_by_posed(geometry, pairs, s)
+    }
+
+    /// Pose the robot's links and geometries at a checked `q` into `s` (for
+    /// [`clear_by_posed`](Self::clear_by_posed) and [`MotionBounds::levers`](super::MotionBounds::levers)).
+    pub fn pose(&self, q: &[f64], s: &mut Scratch) {
+        self.geometry_poses(q, s);
+    }
+
+    /// [`clear_by`](Self::clear_by) at the configuration last posed into `s` ([`pose`](Self::pose)).
+    pub fn clear_by_posed(&self, geometry: &[f64], pairs: &[f64], s: &mut Scratch) -> bool {
+        debug_assert_eq!(geometry.len(), self.geometries.len());
+        debug_assert!(!self.check_self || pairs.len() == self.self_pairs.len());
+        let far = |i: usize, t: Target, m: f64, s: &Scratch| -> bool {
+            let g = &self.geometries[i];
+            let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
+            let ca = s.poses[i] * g.center;
+            if rb.is_finite() && (ca - cb).norm() - g.radius - rb > m {
+                return true;
+            }
+            if self.aabb_gap(i, t, s) > m {
+                return true;
+            }
+            if let Some(b) = self.target_obb(t, s) {
+                if s.obbs[i].separated_by(b, m) {
+                    return true;
+                }
+            }
+            matches!(
+                query::closest_points(&s.poses[i], &*g.shape, &pose_b, &**shape_b, m),
+                Ok(query::ClosestPoints::Disjoint)
+            )
+        };
+        let mut near = std::mem::take(&mut s.near);
+        let mut clear = true;
+        'outer: for (i, &m) in geometry.iter().enumerate() {
+            self.obstacles.overlapping(&s.aabbs[i].loosened(m), &mut near);
+            for &k in &near {
+                if !far(i, Target::Obstacle(k), m, s) {
+                    clear = false;
+                    break 'outer;
+                }
+            }
+        }
+        s.near = near;
+        if !clear {
+            return false;
+        }
+        !self.check_self || self.self_pairs.iter().zip(pairs).all(|(&(i, j), &m)| far(i, Target::Robot(j), m, s))
+    }
+
     /// Every checked pair closer than `margin` (signed distance < margin), with its distance.
     pub fn close_pairs(&self, q: &[f64], margin: f64) -> Result<Vec<PairDistance>> {
         self.model.check_configuration(q)?;
@@ -508,7 +568,7 @@ const NEAR_LINEAR_MAX: usize = 24;
 /// Reusable buffers for repeated queries.
 #[derive(Clone)]
 pub struct Scratch {
-    links: Vec<Isometry3<f64>>,
+    pub(super) links: Vec<Isometry3<f64>>,
     pub(super) poses: Vec<Isometry3<f64>>,
     pub(super) aabbs: Vec<Aabb>,
     pub(super) obbs: Vec<Obb>,

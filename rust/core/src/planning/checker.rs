@@ -1,17 +1,51 @@
 //! Validity checkers: the [`ValidityChecker`] trait and the native ones, joint limits plus the
-//! parry collision world ([`CollisionChecker`]) and no check at all ([`AlwaysValid`]).
+//! parry collision world ([`CollisionChecker`]) and no check at all ([`AlwaysValid`]). A checker
+//! may also certify whole motions ([`ValidityChecker::certify_motion`]): the collision checker
+//! does it with the swept-motion bounds of `collision/motion.rs`.
 
 use std::sync::Arc;
 
 use rayon::prelude::*;
 
 use super::PlanResult;
-use crate::collision::{CollisionWorld, Scratch};
+use crate::collision::{CollisionWorld, Levers, MotionBounds, Scratch, Sweep};
+use crate::kinematics::KinematicModel;
 
 /// Says which configurations are valid (collision-free, within limits, ...).
 pub trait ValidityChecker: Send {
     /// `valid[i]` for row i of `qs` (n x nq).
     fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()>;
+
+    /// Can [`certify_motion`](Self::certify_motion) answer (default: no)?
+    fn certifies_motions(&self) -> bool {
+        false
+    }
+
+    /// For two valid configurations `a` and `b`: true when every configuration of the straight
+    /// motion between them (`a (+) t (b (-) a)`, t in [0, 1]) is certainly valid; false when
+    /// that cannot be shown (the motion may still be valid). Only called when
+    /// [`certifies_motions`](Self::certifies_motions).
+    fn certify_motion(&mut self, _a: &[f64], _b: &[f64]) -> PlanResult<bool> {
+        Ok(false)
+    }
+
+    /// For the rows of `path` (n + 1 states, the first one known valid): `valid[i]` for each
+    /// state, and `certified[k]` when the motion from state k to k + 1 is certainly valid (both
+    /// ends valid). Returns how many certificates it computed. Default: [`check`](Self::check)
+    /// and [`certify_motion`](Self::certify_motion) for each chord with valid ends.
+    fn certify_path(&mut self, path: &[f64], valid: &mut [bool], certified: &mut [bool]) -> PlanResult<usize> {
+        self.check(path, valid)?;
+        let nq = path.len() / valid.len();
+        let mut n = 0;
+        for k in 0..certified.len() {
+            certified[k] = false;
+            if valid[k] && valid[k + 1] {
+                n += 1;
+                certified[k] = self.certify_motion(&path[k * nq..(k + 1) * nq], &path[(k + 1) * nq..(k + 2) * nq])?;
+            }
+        }
+        Ok(n)
+    }
 }
 
 /// Valid = within the joint limits and not in collision (parry world, self-collision included
@@ -22,12 +56,25 @@ pub struct CollisionChecker {
     /// Check the configurations of a batch on rayon's threads.
     pub parallel: bool,
     scratch: Scratch,
+    bounds: Option<MotionBounds>,
+    dq: Vec<f64>,
+    levers: Levers,
+    sweep: Sweep,
 }
 
 impl CollisionChecker {
     /// A checker of the configurations against `world`.
     pub fn new(world: Arc<CollisionWorld>, parallel: bool) -> CollisionChecker {
-        CollisionChecker { world, parallel, scratch: Scratch::default() }
+        let bounds = MotionBounds::new(&world);
+        CollisionChecker {
+            world,
+            parallel,
+            scratch: Scratch::default(),
+            bounds,
+            dq: Vec::new(),
+            levers: Levers::default(),
+            sweep: Sweep::default(),
+        }
     }
 
     fn valid_one(world: &CollisionWorld, q: &[f64], s: &mut Scratch) -> bool {
@@ -54,6 +101,116 @@ impl ValidityChecker for CollisionChecker {
         }
         Ok(())
     }
+
+    /// Yes, unless a prismatic joint without finite limits leaves the swept bounds unbounded.
+    fn certifies_motions(&self) -> bool {
+        self.bounds.is_some()
+    }
+
+    /// Conservative advancement: from each end, the bound on how far the geometry moves over its
+    /// half of the motion (`collision/motion.rs`, with the lever arms at that end) as the
+    /// clearance margin there ([`CollisionWorld::clear_by_posed`]). Joint limits hold along the
+    /// motion when they hold at its ends (each coordinate moves linearly).
+    fn certify_motion(&mut self, a: &[f64], b: &[f64]) -> PlanResult<bool> {
+        let Some(bounds) = &self.bounds else {
+            return Ok(false);
+        };
+        let m: &KinematicModel = &self.world.model;
+        self.dq.resize(m.nv, 0.0);
+        m.difference(a, b, &mut self.dq);
+        for q in [a, b] {
+            let w = &self.world;
+            w.pose(q, &mut self.scratch);
+            bounds.levers(w, &self.scratch, &mut self.levers);
+            self.sweep.clear();
+            bounds.sweep(&self.dq, 0.5, Some(&mut self.levers), &mut self.sweep);
+            if !w.clear_by_posed(&self.sweep.geometry, &self.sweep.pairs, &mut self.scratch) {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+
+    /// Conservative advancement along the polyline: from a state, the motion through the next L
+    /// chords is certified when the state is clear by the bound on how far the geometry moves
+    /// along them (with the lever arms at that state); L doubles while that holds (starting from
+    /// the last run's length), so one query covers many chords far from obstacles. A chord no
+    /// run covers is tried from both ends ([`certify_motion`](ValidityChecker::certify_motion)).
+    /// States are checked for the joint limits; a state a run covers is collision-free; any other
+    /// is checked.
+    fn certify_path(&mut self, path: &[f64], valid: &mut [bool], certified: &mut [bool]) -> PlanResult<usize> {
+        let Some(bounds) = &self.bounds else {
+            certified.fill(false);
+            return self.check(path, valid).map(|_| 0);
+        };
+        let m = self.world.model.clone();
+        let (nq, nv) = (m.nq, m.nv);
+        let n_seg = certified.len();
+        let in_limits = |q: &[f64]| (0..nq).all(|i| q[i] >= m.lower[i] - 1e-9 && q[i] <= m.upper[i] + 1e-9);
+        for (q, v) in path.chunks(nq).zip(valid.iter_mut()) {
+            *v = in_limits(q);
+        }
+        certified.fill(false);
+        if !valid.iter().all(|&v| v) {
+            return Ok(0);
+        }
+        // every chord's motion
+        let mut dqs = vec![0.0; n_seg * nv];
+        for k in 0..n_seg {
+            m.difference(&path[k * nq..(k + 1) * nq], &path[(k + 1) * nq..(k + 2) * nq], &mut dqs[k * nv..(k + 1) * nv]);
+        }
+        let mut queries = 0;
+        let mut covered = vec![false; n_seg + 1];
+        covered[0] = true;
+        let (mut k, mut run) = (0, 1);
+        let mut start_levers = Levers::default();
+        while k < n_seg {
+            let w = &self.world;
+            w.pose(&path[k * nq..(k + 1) * nq], &mut self.scratch);
+            bounds.levers(w, &self.scratch, &mut start_levers);
+            let mut best = 0;
+            let mut len = run.min(n_seg - k);
+            loop {
+                // the run's bound: its chords one after the other, the lever arms growing
+                self.levers.clone_from(&start_levers);
+                self.sweep.clear();
+                for i in k..k + len {
+                    bounds.sweep(&dqs[i * nv..(i + 1) * nv], 1.0, Some(&mut self.levers), &mut self.sweep);
+                }
+                queries += 1;
+                if !w.clear_by_posed(&self.sweep.geometry, &self.sweep.pairs, &mut self.scratch) {
+                    break;
+                }
+                best = len;
+                if k + len == n_seg {
+                    break;
+                }
+                len = (2 * len).min(n_seg - k);
+            }
+            if best == 0 {
+                run = 1;
+                k += 1;
+            } else {
+                certified[k..k + best].fill(true);
+                covered[k..=k + best].fill(true);
+                run = best;
+                k += best;
+            }
+        }
+        // states no run covered: checked; chords between valid ones: tried from both ends
+        for k in 0..=n_seg {
+            if !covered[k] {
+                valid[k] = !self.world.in_collision_unchecked(&path[k * nq..(k + 1) * nq], &mut self.scratch);
+            }
+        }
+        for k in 0..n_seg {
+            if !certified[k] && valid[k] && valid[k + 1] {
+                queries += 1;
+                certified[k] = self.certify_motion(&path[k * nq..(k + 1) * nq], &path[(k + 1) * nq..(k + 2) * nq])?;
+            }
+        }
+        Ok(queries)
+    }
 }
 
 /// Every configuration is valid (no obstacles, no limits).
@@ -64,5 +221,13 @@ impl ValidityChecker for AlwaysValid {
     fn check(&mut self, _qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
         valid.fill(true);
         Ok(())
+    }
+
+    fn certifies_motions(&self) -> bool {
+        true
+    }
+
+    fn certify_motion(&mut self, _a: &[f64], _b: &[f64]) -> PlanResult<bool> {
+        Ok(true)
     }
 }

@@ -19,7 +19,7 @@
 use std::time::Instant;
 
 use super::rrt::short;
-use super::{PlanError, PlanResult, Projection, Projector, Settings, Space, Stats, ValidityChecker, MAX_SPACING};
+use super::{EdgeCheck, PlanError, PlanResult, Projection, Projector, Settings, Space, Stats, ValidityChecker, MAX_SPACING};
 
 /// The constrained space of one plan: the ambient space, the projector and the validity checker,
 /// with the planner's settings (`step`, `max_jump`, `edge_resolution`, `lazy_edges`,
@@ -174,6 +174,9 @@ impl<'a> ConstrainedSpace<'a> {
     /// [`MAX_SPACING`]` x edge_resolution` apart (a jump to another branch, or a chord too long
     /// to stay on the manifold), a state is not valid, or the edge would need more than
     /// [`Settings::MAX_EDGE_STATES`] states (only a shortcut can, never a tree edge).
+    ///
+    /// With [`EdgeCheck::Certified`] the motion between consecutive states is certified as well
+    /// (`certify_states`: [`ValidityChecker::certify_path`]), and states are added where it cannot be.
     pub fn geodesic(&mut self, a: &[f64], b: &[f64], check_end: bool) -> PlanResult<Option<Vec<f64>>> {
         let space = self.ambient;
         let nq = space.nq();
@@ -227,6 +230,9 @@ impl<'a> ConstrainedSpace<'a> {
             }
         }
         states[n_mid * nq..].copy_from_slice(b);
+        if self.settings.edge_check == EdgeCheck::Certified && resolution > 0.0 {
+            return self.certify_states(a, states, dist <= self.settings.max_jump * self.settings.step);
+        }
         let n_check = n_mid + usize::from(check_end);
         let mut valid = vec![false; n_check];
         self.check(&states[..n_check * nq], &mut valid)?;
@@ -236,6 +242,87 @@ impl<'a> ConstrainedSpace<'a> {
         } else {
             Ok(None)
         }
+    }
+
+    /// Certified edges ([`EdgeCheck::Certified`]): `rest` is the edge's projected states after
+    /// `a` (rows, the last one its end `b`). The checker certifies the motions between
+    /// consecutive states ([`ValidityChecker::certify_path`]: every state valid, every chord
+    /// collision-free); a chord it cannot certify is split at its projected midpoint (valid,
+    /// within [`MAX_SPACING`] half-chords of either end) and each half certified
+    /// ([`ValidityChecker::certify_motion`]), down to chords of `edge_resolution /`
+    /// [`Settings::CERTIFY_REFINEMENT`]. Returns the states between `a` and `b`, with those added
+    /// (rows, in order), or None when a state is not valid or a chord cannot be certified.
+    fn certify_states(&mut self, a: &[f64], rest: Vec<f64>, tree_edge: bool) -> PlanResult<Option<Vec<f64>>> {
+        let nq = self.ambient.nq();
+        let path = [a, &rest[..]].concat();
+        let n_seg = rest.len() / nq;
+        let mut certified = vec![false; n_seg];
+        let mut valid = vec![false; n_seg + 1];
+        let t = Instant::now();
+        let r = self.checker.certify_path(&path, &mut valid, &mut certified);
+        self.stats.checker_s += t.elapsed().as_secs_f64();
+        self.stats.motion_certificates += r?;
+        if !valid[1..].iter().all(|&v| v) {
+            return Ok(None);
+        }
+        let finest = self.settings.edge_resolution / Settings::CERTIFY_REFINEMENT;
+        let mut out = Vec::with_capacity(rest.len());
+        for k in 0..n_seg {
+            let (s0, s1) = (&path[k * nq..(k + 1) * nq], &path[(k + 1) * nq..(k + 2) * nq]);
+            if !certified[k] && !self.certify_chord(s0, s1, tree_edge, finest, &mut out)? {
+                return Ok(None);
+            }
+            if k + 1 < n_seg {
+                out.extend_from_slice(s1);
+            }
+        }
+        Ok(Some(out))
+    }
+
+    /// One chord between two valid states: certified ([`ValidityChecker::certify_motion`]), or
+    /// split at its projected midpoint and both halves certified the same way (the states
+    /// between appended to `out`, in order); false when that fails down to `finest`.
+    fn certify_chord(&mut self, a: &[f64], b: &[f64], tree_edge: bool, finest: f64, out: &mut Vec<f64>) -> PlanResult<bool> {
+        self.stats.motion_certificates += 1;
+        let t = Instant::now();
+        let ok = self.checker.certify_motion(a, b);
+        self.stats.checker_s += t.elapsed().as_secs_f64();
+        if ok? {
+            return Ok(true);
+        }
+        let space = self.ambient;
+        let nq = space.nq();
+        let d = space.distance(a, b);
+        if d / 2.0 < finest {
+            return Ok(false);
+        }
+        let mut mid = vec![0.0; nq];
+        space.interpolate(a, b, 0.5, &mut mid);
+        let mut m = vec![0.0; nq];
+        let mut rep = [Projection::default()];
+        let t = Instant::now();
+        let r = if tree_edge {
+            self.projector.project_edge(&mid, &mid, &mut m, &mut rep)
+        } else {
+            self.projector.project(&mid, &mid, &mut m, &mut rep)
+        };
+        self.stats.projector_s += t.elapsed().as_secs_f64();
+        r?;
+        self.stats.edge_projections += rep[0].iterations;
+        if !rep[0].success || m.iter().any(|x| !x.is_finite()) {
+            return Ok(false);
+        }
+        let max_gap = MAX_SPACING * d / 2.0;
+        if space.distance(a, &m) > max_gap || space.distance(&m, b) > max_gap {
+            return Ok(false);
+        }
+        let mut ok = [false];
+        self.check(&m, &mut ok)?;
+        if !ok[0] || !self.certify_chord(a, &m, tree_edge, finest, out)? {
+            return Ok(false);
+        }
+        out.extend_from_slice(&m);
+        self.certify_chord(&m, b, tree_edge, finest, out)
     }
 
     /// The motion validator: the geodesic from `a` to `b` exists and `b` is valid.

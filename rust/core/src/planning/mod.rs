@@ -22,7 +22,10 @@
 //! Beyond the paper, every tree edge is validated: the states between its ends are interpolated
 //! at `edge_resolution`, projected and checked, so the returned path is a dense sequence of
 //! states each on the manifold and valid (the paper checked the tree nodes only, 0.3 rad apart).
-//! The projected intermediate states are kept and make up the returned dense path.
+//! The projected intermediate states are kept and make up the returned dense path. With
+//! [`EdgeCheck::Certified`] the motions between them are certified collision-free too
+//! ([`ValidityChecker::certify_path`]; the collision checker by conservative advancement with the
+//! swept-motion bounds of `collision/motion.rs`), states being added where a chord cannot be.
 //!
 //! The search runs on a [`ConstrainedSpace`] (OMPL's `ProjectedStateSpace` with its
 //! `ConstrainedMotionValidator`): the ambient space, the projector and the checker behind one
@@ -53,6 +56,6 @@ pub use error::{ComponentError, PlanError, PlanResult};
 pub use nearest::{KdForest, LinearNearest, NearestNeighbors, NeighborIndex, KD_MAX_DIM};
 pub use projector::{GaussNewtonProjector, Projection, Projector};
 pub use constrained::{ConstrainedSpace, Step};
-pub use rrt::{Algorithm, Components, Planner, Settings, Solution, Stats, MAX_SPACING};
+pub use rrt::{Algorithm, Components, EdgeCheck, Named, Planner, Settings, Solution, Stats, MAX_SPACING};
 pub use sampler::{valid_box, MixtureSampler, Sampler, UniformSampler};
 pub use space::{EuclideanSpace, Space};

@@ -28,19 +28,50 @@ pub enum Algorithm {
     RrtConnect,
 }
 
-impl Algorithm {
-    /// Every algorithm with its name (`"crrt"`, `"rrt_connect"`).
-    pub const NAMES: [(&'static str, Algorithm); 2] = [("crrt", Algorithm::Crrt), ("rrt_connect", Algorithm::RrtConnect)];
+/// A setting chosen by name ([`Algorithm`], [`EdgeCheck`]): its values with their names.
+pub trait Named: Copy + PartialEq + Sized + 'static {
+    /// Every value with its name, the default first.
+    const NAMES: &'static [(&'static str, Self)];
+    /// What the setting is called in messages (`"algorithm"`, `"edge check"`).
+    const WHAT: &'static str;
 
     /// Its name.
-    pub fn name(self) -> &'static str {
-        Self::NAMES.iter().find(|(_, a)| *a == self).map(|(n, _)| *n).unwrap_or("crrt")
+    fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, a)| *a == self).map_or(Self::NAMES[0].0, |(n, _)| *n)
     }
 
-    /// The algorithm of this name, or None.
-    pub fn from_name(name: &str) -> Option<Algorithm> {
+    /// The value of this name, or None.
+    fn from_name(name: &str) -> Option<Self> {
         Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, a)| *a)
     }
+}
+
+impl Named for Algorithm {
+    const NAMES: &'static [(&'static str, Algorithm)] = &[("crrt", Algorithm::Crrt), ("rrt_connect", Algorithm::RrtConnect)];
+    const WHAT: &'static str = "algorithm";
+}
+
+/// How the motion between consecutive states of an edge is validated ([`Settings::edge_check`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EdgeCheck {
+    /// States at `edge_resolution` along the edge, each projected and checked; the motion
+    /// between two states is not checked (as OMPL's discrete motion validator).
+    #[default]
+    Sampled,
+    /// Every chord between consecutive states is certified: its quarter points need no
+    /// projection step (the constraint holds there within tolerance) and the checker certifies
+    /// the whole motion ([`ValidityChecker::certify_motion`](super::ValidityChecker::certify_motion):
+    /// the collision checker by conservative advancement). A chord that fails is split at its
+    /// projected midpoint, down to `edge_resolution /`
+    /// [`CERTIFY_REFINEMENT`](Settings::CERTIFY_REFINEMENT); one still uncertified there
+    /// refuses the edge. States are as far apart as the certificate allows: far from
+    /// obstacles and where the manifold is flat, much farther than `edge_resolution`.
+    Certified,
+}
+
+impl Named for EdgeCheck {
+    const NAMES: &'static [(&'static str, EdgeCheck)] = &[("sampled", EdgeCheck::Sampled), ("certified", EdgeCheck::Certified)];
+    const WHAT: &'static str = "edge check";
 }
 
 /// Planner settings. Defaults: the GAN paper's public code (the values marked "Paper" below),
@@ -97,6 +128,9 @@ pub struct Settings {
     pub max_empty_batches: usize,
     /// The search: the paper's cRRT (default) or RRT-Connect (same components, same edges).
     pub algorithm: Algorithm,
+    /// How edges are validated: states at `edge_resolution` (default) or certified chords
+    /// (needs `edge_resolution` > 0 and a checker that certifies motions).
+    pub edge_check: EdgeCheck,
 }
 
 impl Default for Settings {
@@ -116,6 +150,7 @@ impl Default for Settings {
             neighbors: NeighborIndex::Auto,
             max_empty_batches: 100,
             algorithm: Algorithm::Crrt,
+            edge_check: EdgeCheck::Sampled,
         }
     }
 }
@@ -133,6 +168,8 @@ impl Settings {
     /// The largest `sample_batch`: 65536 configurations per sampler call (the planner holds
     /// two buffers of `sample_batch x nq` numbers).
     pub const MAX_SAMPLE_BATCH: usize = 1 << 16;
+    /// With [`EdgeCheck::Certified`], chords are split down to `edge_resolution / 8` at most.
+    pub const CERTIFY_REFINEMENT: f64 = 8.0;
 
     /// Check every value ([`PlanError::Settings`] names the first bad one, its value and the
     /// bound it breaks):
@@ -144,6 +181,8 @@ impl Settings {
     ///   [`MAX_EDGE_STATES`](Self::MAX_EDGE_STATES);
     /// * `max_increments`, `max_extensions`, `sample_batch`, `max_empty_batches`: at least 1;
     ///   `sample_batch` at most [`MAX_SAMPLE_BATCH`](Self::MAX_SAMPLE_BATCH);
+    /// * `edge_check`: certified needs `edge_resolution` > 0 (its finest spacing, times
+    ///   [`CERTIFY_REFINEMENT`](Self::CERTIFY_REFINEMENT));
     /// * `retries`, the flags, `neighbors` and `algorithm`: any value.
     pub fn validate(&self) -> PlanResult<()> {
         let bad = |field: &'static str, msg: String| Err(PlanError::Settings { field, msg });
@@ -173,15 +212,21 @@ impl Settings {
         if er > max {
             return bad("edge_resolution", format!("edge_resolution must be at most {max:e}, got {er:?}"));
         }
+        if self.edge_check == EdgeCheck::Certified && er == 0.0 {
+            return bad("edge_check", "edge_check 'certified' needs edge_resolution > 0 (edges are validated), got 0".into());
+        }
         // a tree edge is at most max_jump * step long (Run::extend): its state count is bounded
         let longest = self.step * self.max_jump;
-        if er > 0.0 && longest / er > Self::MAX_EDGE_STATES as f64 {
+        // certified edges split chords down to er / CERTIFY_REFINEMENT
+        let refine = if self.edge_check == EdgeCheck::Certified { Self::CERTIFY_REFINEMENT } else { 1.0 };
+        if er > 0.0 && longest * refine / er > Self::MAX_EDGE_STATES as f64 {
             return bad(
                 "edge_resolution",
                 format!(
-                    "edge_resolution must be at least step * max_jump / {} = {:e} (at most {} states on a tree edge of up to step * max_jump = {:?} long), got {er:?}",
+                    "edge_resolution must be at least step * max_jump{} / {} = {:e} (at most {} states on a tree edge of up to step * max_jump = {:?} long), got {er:?}",
+                    if refine > 1.0 { format!(" * {refine} (certified edges)") } else { String::new() },
                     Self::MAX_EDGE_STATES,
-                    longest / Self::MAX_EDGE_STATES as f64,
+                    longest * refine / Self::MAX_EDGE_STATES as f64,
                     Self::MAX_EDGE_STATES,
                     longest
                 ),
@@ -223,6 +268,8 @@ pub struct Stats {
     pub samples_rejected: usize,
     /// Configurations given to the validity checker.
     pub validity_checks: usize,
+    /// Motions the checker was asked to certify (edge chords, with certified edges).
+    pub motion_certificates: usize,
     /// Tree nodes at the end of the last attempt.
     pub nodes: usize,
     /// Nodes pruned because an edge above them failed (lazy) validation.
@@ -336,6 +383,12 @@ impl Planner {
         }
         for (i, g) in goals.chunks(nq).enumerate() {
             space.check(g, &format!("goals[{i}]")).map_err(PlanError::InvalidGoal)?;
+        }
+        if self.settings.edge_check == EdgeCheck::Certified && !c.checker.certifies_motions() {
+            return Err(PlanError::Settings {
+                field: "edge_check",
+                msg: "edge_check 'certified' needs a checker that certifies motions (the native collision world); this checker cannot: use edge_check 'sampled'".into(),
+            });
         }
         let mut run = Run::new(space, &self.settings, c);
         let (start, goals) = run.space.onto_manifold(start, goals)?;
