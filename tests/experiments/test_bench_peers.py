@@ -72,8 +72,11 @@ def test_quick_run_without_the_peers_skips_them_with_the_extra(monkeypatch, tmp_
     assert set(payload["skipped"]) == set(PEERS)
     assert all("genplan[peers]" in v or "placo" in v for v in payload["skipped"].values())
     ik = payload["ik"]["panda"]["solvers"]
-    assert list(ik) == ["genplan"] and ik["genplan"]["problems"] == bench.QUICK.ik_targets
-    assert list(payload["ik"]["talos"]["solvers"]) == ["genplan"]
+    assert list(ik) == ["genplan", "genplan_retries"] and ik["genplan"]["problems"] == bench.QUICK.ik_targets
+    assert list(payload["ik"]["talos"]["solvers"]) == ["genplan", "genplan_retries"]
+    # solve_ik's retries (uniform redraws) solve about what one attempt from the same start does, or
+    # more (one target of slack: its 5 ms budget may cut the retries on a loaded machine)
+    assert ik["genplan_retries"]["success_percent"] >= ik["genplan"]["success_percent"] - 100 / bench.QUICK.ik_targets
     assert payload["ik"]["talos"]["starts"].startswith("GAN")
     plan = payload["plan"]
     assert plan["same_answers"] and plan["same_plans"]

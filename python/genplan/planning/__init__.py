@@ -219,8 +219,9 @@ class Planner:
     states collision-free, not only the states (conservative advancement with swept-motion bounds
     of the robot's geometry, rust/core/src/collision/motion.rs; states are added where a chord
     cannot be certified, and an edge is refused when a chord 8x finer than ``edge_resolution``
-    still cannot). It needs the native checker (a CollisionWorld) and costs about 3x the edge
-    time of the default ``"sampled"`` check (benches/results/table2_certified.json).
+    still cannot). It needs the native checker (a CollisionWorld) and costs several times the
+    plan time of the default ``"sampled"`` check (``python benches/certified_edges.py``,
+    benches/results/certified_edges.json).
     """
 
     def __init__(self, robot: Robot, world: CollisionWorld | None = None, task: Task | None = None, *,
