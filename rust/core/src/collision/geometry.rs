@@ -9,6 +9,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use parry3d_f64::bounding_volume::Aabb;
 use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, SharedShape};
 
+use super::Hull;
 use crate::error::{Error, Result};
 use crate::kinematics::KinematicModel;
 use crate::urdf::{Geometry, Urdf};
@@ -110,7 +111,7 @@ fn shape_of(
                 return Ok((s.clone(), Isometry3::identity()));
             }
             let points = load_mesh_vertices(&path, scale)?;
-            let hull = SharedShape::convex_hull(&points).ok_or_else(|| Error::Mesh {
+            let hull = Hull::from_points(&points).map(SharedShape::new).ok_or_else(|| Error::Mesh {
                 path: path.clone(),
                 msg: "convex hull failed (degenerate mesh?)".into(),
             })?;

@@ -7,7 +7,8 @@
 //! or locked joints form one body, as in Pinocchio's `addAllCollisionPairs`), minus the SRDF's
 //! disabled link pairs.
 //!
-//! The files, one concept each: `geometry` (URDF and mesh geometry to parry shapes),
+//! The files, one concept each: `geometry` (URDF and mesh geometry to parry shapes), `hull`
+//! ([`Hull`]: a convex hull whose GJK support point climbs its vertex graph),
 //! `broad_phase` (the pair lists and the bounding-volume filters that rule pairs out before the
 //! exact test), `obstacles` ([`Obstacles`]: the obstacle list and the bounding-volume hierarchy
 //! over it that finds the obstacles near a robot shape), `motion` ([`MotionBounds`]: how far
@@ -17,11 +18,13 @@
 pub mod allowed;
 mod broad_phase;
 mod geometry;
+mod hull;
 mod motion;
 mod obstacles;
 mod world;
 
 pub use geometry::{load_mesh_vertices, RobotGeometry};
+pub use hull::Hull;
 pub use motion::{Levers, MotionBounds, Sweep};
 pub use obstacles::Obstacles;
 pub use world::{CollisionWorld, Obstacle, PairDistance, Scratch, MAX_OBSTACLE_EXTENT, MIN_NORMAL_NORM, QUATERNION_TOLERANCE};

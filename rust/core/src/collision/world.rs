@@ -13,7 +13,7 @@ use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, HalfSpace, SharedShape
 use super::broad_phase::{self_pairs, Obb, Target};
 use super::obstacles::Obstacles;
 use super::geometry::{bounding_sphere, load_mesh_vertices, robot_geometries};
-use super::RobotGeometry;
+use super::{Hull, RobotGeometry};
 use crate::error::{check_finite, check_vector, unknown, Error, Result};
 use crate::lie::{stable_norm, unit_vector};
 use crate::kinematics::KinematicModel;
@@ -211,7 +211,7 @@ impl CollisionWorld {
                 msg: format!("{what}: a scaled vertex {:?} lies beyond {MAX_OBSTACLE_EXTENT:e} m", p.coords.as_slice()),
             });
         }
-        let hull = SharedShape::convex_hull(&points).ok_or_else(|| Error::Mesh {
+        let hull = Hull::from_points(&points).map(SharedShape::new).ok_or_else(|| Error::Mesh {
             path: path.to_path_buf(),
             msg: format!("{what}: convex hull failed (flat or degenerate mesh?)"),
         })?;
