@@ -209,9 +209,32 @@ def _ik(res: dict[str, Any]) -> str:
     return text
 
 
+def _certified_edges(res: dict[str, Any]) -> str:
+    """Certified edges ([planner] item 3): `python benches/certified_edges.py`."""
+    r = res.get("certified_edges.json")
+    if r is None:
+        return ""
+    rows = [[x["env"], x["edge_check"], x["queries"], f"{x['success_rate']:.1f}", f"{x['t_median_s']:.4f}",
+             f"{x['checker_median_s']:.4f}", f"{x['projector_median_s']:.4f}", _f(x.get("path_states_median"), 4),
+             f"{x['motion_certificates_median']:.0f}"] for x in r["rows"]]
+    ratios = ", ".join(f"{env} {v:.2f}x" for env, v in r["certified_over_sampled_median_time"].items())
+    return (f"\n### Certified edges (`certified_edges.json`: {r['algorithm']}, {r['sampler']} sampler)\n\n"
+            + table(["env", "edge check", "queries", "success %", "T median s", "checker s", "projector s",
+                     "path states", "certificates"], rows)
+            + f"\n\nCertified / sampled median plan time: {ratios}.\n")
+
+
+#: the markdown tables `genplan bench peers` writes beside its JSON (a run of some sections only
+#: writes its own pair of files)
+PEERS_FILES = (("peers", "all sections"), ("peers_ik", "IK, with solve_ik's retries"),
+               ("peers_collision", "collision"))
+
+
 def _peers(res: dict[str, Any]) -> str:
     """`genplan bench peers` writes its own markdown table beside its JSON."""
-    return "## Beside the peers\n\n[peers.md](peers.md) (`genplan bench peers`).\n" if "peers.json" in res else ""
+    links = [f"- [{stem}.md]({stem}.md) ({what}; `genplan bench peers`)" for stem, what in PEERS_FILES
+             if f"{stem}.json" in res]
+    return "## Beside the peers\n\n" + "\n".join(links) + "\n" if links else ""
 
 
 def _figures(out: Path) -> str:
@@ -253,6 +276,7 @@ def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, s
         _table2(res),
         _table2_nodes_only(res),
         _table2_algorithms(res),
+        _certified_edges(res),
         "## GAN coverage (Fig. 3 and 4 as numbers)",
         "",
         _coverage(res),
