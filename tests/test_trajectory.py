@@ -163,3 +163,48 @@ def test_plan_cli_writes_the_trajectory(panda, tmp_path, capsys) -> None:
     assert np.abs(back.qd).max() > 0
     assert main([*argv, str(tmp_path / "t.txt")]) == 2
     assert "expected a .npz, .json or .csv file" in capsys.readouterr().err
+
+
+def test_the_native_topp_ra_matches_toppra(panda, result) -> None:
+    """rust/core/src/timing.rs against the ``toppra`` package on the same spline, grid and limits
+    (TOPPRA, joint velocity and acceleration constraints, interpolation discretisation): the same
+    speed profile within toppra's solver tolerance, hence the same duration."""
+    import toppra  # the test extra's
+    import toppra.algorithm as algo
+    import toppra.constraint as constraint
+    from genplan import trajectory as T
+
+    states = result.path
+    steps = np.linalg.norm(np.diff(states, axis=0), axis=1)
+    states = states[np.concatenate([[True], steps > 1e-12])]
+    ss = np.concatenate([[0.0], np.cumsum(steps[steps > 1e-12])])
+    vlim, alim = T.joint_limits(panda)
+    spline = toppra.SplineInterpolator(ss, states)
+    grid = T._gridpoints(spline, ss, vlim, alim)
+    instance = algo.TOPPRA(
+        [constraint.JointVelocityConstraint(np.stack([-vlim, vlim], axis=1)),
+         constraint.JointAccelerationConstraint(np.stack([-alim, alim], axis=1),
+                                                discretization_scheme=constraint.DiscretizationType.Interpolation)],
+        spline, gridpoints=grid, solver_wrapper="seidel")
+    _, sd, _, _ = instance.compute_parameterization(0.0, 0.0, return_data=True)
+    theirs = np.maximum(np.asarray(sd), 0.0)
+    mine = np.sqrt(_core.time_optimal(grid.tolist(), np.ascontiguousarray(spline(grid, 1)),
+                                      np.ascontiguousarray(spline(grid, 2)), vlim.tolist(), alim.tolist()))
+    assert len(grid) > 50 and mine.max() > 0.1
+    assert np.max(np.abs(mine - theirs)) <= 1e-3 * theirs.max(), np.max(np.abs(mine - theirs))
+
+    def duration(sdot: np.ndarray) -> float:
+        return float(np.sum(2.0 * np.diff(grid) / (sdot[:-1] + sdot[1:])))
+
+    assert abs(duration(mine) - duration(theirs)) <= 1e-3 * duration(theirs)
+
+
+def test_the_native_topp_ra_refuses_bad_input() -> None:
+    grid = [0.0, 0.5, 1.0]
+    d = np.ones((3, 2))
+    with pytest.raises(ValueError, match="one limit per joint"):
+        _core.time_optimal(grid, d, d, [1.0, 1.0], [1.0])
+    with pytest.raises(ValueError, match="must increase"):
+        _core.time_optimal([0.0, 0.5, 0.5], d, d, [1.0, 1.0], [1.0, 1.0])
+    with pytest.raises(ValueError, match="d1 and d2"):
+        _core.time_optimal(grid, d[:2], d, [1.0, 1.0], [1.0, 1.0])

@@ -14,7 +14,7 @@ from genplan import protocols
 __all__ = [
     "__version__", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "Projector",
     "SolverSettings", "read_robot_file", "robot_description", "load_robot", "srdf_disabled_pairs",
-    "disabled_pairs_srdf", "Planner", "PlannerSettings", "PlanStats",
+    "disabled_pairs_srdf", "time_optimal", "Planner", "PlannerSettings", "PlanStats",
     "PlanResult", "UniformSampler", "MixtureSampler", "GanSampler", "Dynamics", "SpatulaSimulation",
     "spatula_defaults", "pancake_phi",
 ]
@@ -205,6 +205,9 @@ def disabled_pairs_srdf(
     robot_name: str, pairs: list[tuple[str, str, str]], default_state: list[tuple[str, float]] | None = None
 ) -> str: ...
 def load_robot(path: _Path, package_dirs: list[_Path]) -> tuple[KinematicModel, CollisionWorld]: ...
+def time_optimal(
+    grid: Sequence[float], d1: NDArray[np.float64], d2: NDArray[np.float64], vlim: Sequence[float], alim: Sequence[float]
+) -> NDArray[np.float64]: ...
 
 # --- constrained planning (genplan_core::planning / gan; genplan.planning) ---
 

@@ -3,8 +3,10 @@
 A plan's dense path (every state projected onto the task's manifold and checked) is the geometric
 path: a cubic spline through all its states, parameterised by joint-space arc length ``s``. Its
 timing ``s(t)`` is the time-optimal one under the joint velocity and acceleration limits, computed
-by TOPP-RA (the ``toppra`` package, ``ParametrizeConstAccel``'s model: constant ``s''`` between
-grid points), then sampled at ``rate_hz``:
+by TOPP-RA (native: rust/core/src/timing.rs, the model of the ``toppra`` package's TOPPRA with
+joint velocity and acceleration constraints, interpolation discretisation: constant ``s''``
+between grid points; cross-checked against ``toppra`` in tests/test_trajectory.py), then sampled
+at ``rate_hz``:
 
     q = p(s),  qd = p'(s) s',  qdd = p'(s) s'' + p''(s) s'^2.
 
@@ -22,8 +24,8 @@ Two checks make the samples, not only the grid points, trustworthy:
 Grid points: every ``GRID_BASE``-th part of the path's states, plus every state where the
 spline's curvature could call for more than ``GRID_CRITICAL`` of an acceleration limit at the
 largest speed the velocity limits allow there (the path's corners, at its waypoints), those
-corners' intervals subdivided. That keeps TOPP-RA (a Python loop over grid points) near 5 ms for
-a Panda shelf path (benchmark: ``genplan bench ik``, its trajectory part).
+corners' intervals subdivided (the grid ``toppra``'s Python loop needed to stay fast; the native
+pass takes well under a millisecond on it; benchmark: ``genplan bench ik``, its trajectory part).
 
 Files: :meth:`Trajectory.save` writes ``.npz``, ``.json`` or ``.csv`` (by suffix, atomically);
 :meth:`Trajectory.load` reads them back (a CSV holds the arrays and joint names only).
@@ -44,6 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from genplan import _core
 from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
 
@@ -293,23 +296,18 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
                                  "path_states": 1})
         return _checked(traj, robot, task)
 
-    import toppra
-    import toppra.algorithm as algo
-    import toppra.constraint as constraint
+    from scipy.interpolate import CubicSpline
 
     ss = np.concatenate([[0.0], np.cumsum(steps)])
-    spline = toppra.SplineInterpolator(ss, states)
+    spline = _Spline(CubicSpline(ss, states))  # not-a-knot, as toppra's SplineInterpolator
     grid = _gridpoints(spline, ss, vlim, alim)
-    instance = algo.TOPPRA(
-        [constraint.JointVelocityConstraint(np.stack([-vlim, vlim], axis=1)),
-         constraint.JointAccelerationConstraint(np.stack([-alim, alim], axis=1),
-                                                discretization_scheme=constraint.DiscretizationType.Interpolation)],
-        spline, gridpoints=grid, solver_wrapper="seidel")
-    _, sd, _, _ = instance.compute_parameterization(0.0, 0.0, return_data=True)
-    if sd is None or not np.all(np.isfinite(sd)):
+    _, g1, g2 = spline.all(grid)
+    try:
+        x = _core.time_optimal(grid.tolist(), g1, g2, vlim.tolist(), alim.tolist())
+    except ValueError as e:
         raise GenplanError(f"trajectory: TOPP-RA found no parameterisation of the path ({len(states)} states) within "
-                           "the limits")
-    x = np.maximum(np.asarray(sd, dtype=np.float64), 0.0) ** 2
+                           f"the limits ({e})") from e
+    x = np.maximum(x, 0.0)
     x[0] = x[-1] = 0.0
     ds = np.diff(grid)
     sdd = (x[1:] - x[:-1]) / (2.0 * ds)  # constant s'' per interval, consistent with x = s'^2
@@ -329,10 +327,10 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
         tau = tu - knots_t[i]
         s = np.clip(grid[i] + sdot[i] * tau + 0.5 * sdd[i] * tau**2, 0.0, ss[-1])
         sv = np.maximum(sdot[i] + sdd[i] * tau, 0.0)
-        d1, d2 = spline(s, 1), spline(s, 2)
+        q, d1, d2 = spline.all(s)
         qd = d1 * sv[:, None] / scale
         qdd = (d1 * sdd[i][:, None] + d2 * (sv**2)[:, None]) / scale**2
-        return t, spline(s), qd, qdd
+        return t, q, qd, qdd
 
     scale = 1.0
     t, q, qd, qdd = sample(scale)
@@ -349,6 +347,29 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     traj = Trajectory(t=t, q=q, qd=qd, qdd=qdd, joint_names=names, rate_hz=rate, velocity_limits=vlim,
                       acceleration_limits=alim, robot=robot.name, stats=stats)
     return _checked(traj, robot, task)
+
+
+class _Spline:
+    """A cubic spline of the path (scipy's CubicSpline) and its derivatives: ``spline(s, order)``
+    (the interface of toppra's SplineInterpolator) and :meth:`all`, the three at once from its
+    piecewise coefficients (one interval lookup for the 1 kHz samples)."""
+
+    def __init__(self, cs: Any) -> None:
+        self._x = np.asarray(cs.x, dtype=np.float64)
+        self._c = np.asarray(cs.c, dtype=np.float64)  # (4, intervals, nq): c[k] multiplies (s - x_i)^(3 - k)
+
+    def all(self, s: Array) -> tuple[Array, Array, Array]:
+        """``p(s)``, ``p'(s)``, ``p''(s)`` ((len(s), nq) each)."""
+        i = np.clip(np.searchsorted(self._x, s, side="right") - 1, 0, self._c.shape[1] - 1)
+        dx = (np.asarray(s, dtype=np.float64) - self._x[i])[:, None]
+        c0, c1, c2, c3 = self._c[0, i], self._c[1, i], self._c[2, i], self._c[3, i]
+        q = ((c0 * dx + c1) * dx + c2) * dx + c3
+        d1 = (3.0 * c0 * dx + 2.0 * c1) * dx + c2
+        d2 = 6.0 * c0 * dx + 2.0 * c1
+        return q, d1, d2
+
+    def __call__(self, s: Any, order: int = 0) -> Array:
+        return self.all(np.atleast_1d(np.asarray(s, dtype=np.float64)))[order]
 
 
 def _gridpoints(spline: Any, ss: Array, vlim: Array, alim: Array) -> Array:

@@ -128,7 +128,7 @@ class PlanResult:
         velocity limits times ``velocity_scale`` and ``acceleration_limits`` (rad/s^2, one number
         or one per joint; default 2 x the velocity limits, see
         :data:`genplan.trajectory.DEFAULT_ACCELERATION_FACTOR`) times ``acceleration_scale``,
-        by TOPP-RA (the ``toppra`` package) along a spline through every state of the dense
+        by TOPP-RA (native, rust/core/src/timing.rs) along a spline through every state of the dense
         path. The dense path, not the waypoints, is the geometric path: a spline through the
         waypoints alone would leave the manifold; plan with ``PlannerSettings(simplify=True)``
         for the shortcut path (fewer corners, a shorter trajectory). Every sample's residual is

@@ -30,6 +30,7 @@ pub mod planning;
 pub mod projection;
 pub mod robot;
 pub mod srdf;
+pub mod timing;
 pub mod urdf;
 
 pub use collision::{CollisionWorld, Scratch};

@@ -1097,6 +1097,24 @@ fn robot_description<'py>(
 }
 
 /// The `<disable_collisions>` link pairs of an SRDF file.
+/// `s'^2` at each grid point of the time-optimal parameterisation from rest to rest
+/// (genplan_core::timing::time_optimal: TOPP-RA under joint velocity and acceleration box
+/// limits); `d1`, `d2`: (N + 1, n) C-contiguous float64 arrays of q', q'' at the grid points.
+/// The GIL is released while it runs.
+#[pyfunction]
+fn time_optimal<'py>(
+    py: Python<'py>,
+    grid: Vec<f64>,
+    d1: PyReadonlyArrayDyn<'py, f64>,
+    d2: PyReadonlyArrayDyn<'py, f64>,
+    vlim: Vec<f64>,
+    alim: Vec<f64>,
+) -> PyResult<Bound<'py, numpy::PyArray1<f64>>> {
+    let (a, b) = (d1.as_slice()?, d2.as_slice()?);
+    let x = py.detach(|| genplan_core::timing::time_optimal(&grid, a, b, &vlim, &alim)).map_err(to_py)?;
+    Ok(x.into_pyarray(py))
+}
+
 #[pyfunction]
 fn srdf_disabled_pairs(path: PathBuf) -> PyResult<Vec<(String, String)>> {
     Ok(Srdf::from_file(&path).map_err(to_py)?.disabled_pairs)
@@ -1149,6 +1167,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(robot_description, m)?)?;
     m.add_function(wrap_pyfunction!(load_robot, m)?)?;
     m.add_function(wrap_pyfunction!(srdf_disabled_pairs, m)?)?;
+    m.add_function(wrap_pyfunction!(time_optimal, m)?)?;
     m.add_function(wrap_pyfunction!(disabled_pairs_srdf, m)?)?;
     planning::register(m)?;
     control::register(m)?;

@@ -16,7 +16,7 @@ target solved with its time at most the budget.
 
 Trajectory: ``--plans`` queries of the Panda shelf environment (seed ``seed``), planned with the
 GAN sampler and shortcuts, each parameterised at 1 kHz (after one untimed warm-up that imports
-toppra): the parameterisation time (TOPP-RA and sampling), the duration, the uniform time scaling
+scipy's spline module): the parameterisation time (TOPP-RA and sampling), the duration, the uniform time scaling
 the sample check applied, the largest velocity / acceleration ratio to the limits over the
 samples and the largest constraint residual / tolerance.
 """
@@ -110,7 +110,7 @@ def run_trajectory(plans: int, seed: int) -> dict[str, Any]:
         if not res.success:
             continue
         if not warm:
-            res.trajectory()  # imports toppra (about a second), not timed
+            res.trajectory()  # imports scipy.interpolate (about half a second), not timed
             warm = True
         traj = res.trajectory()
         rows.append({"parameterisation_ms": traj.stats["parameterisation_s"] * 1e3,

@@ -1,0 +1,217 @@
+//! Time-optimal path parameterisation under joint velocity and acceleration limits: TOPP-RA
+//! (Pham and Pham, "A new approach to time-optimal path parameterization based on reachability
+//! analysis", IEEE T-RO 2018) for box limits, the model of the `toppra` package's
+//! `TOPPRA` with `JointVelocityConstraint` and `JointAccelerationConstraint` (interpolation
+//! discretisation) that `python/genplan/trajectory.py` used before this module.
+//!
+//! The path `q(s)` is given at grid points `s_0 < ... < s_N` by its derivatives `q'(s_i)` and
+//! `q''(s_i)`. Per stage the unknowns are `x_i = s'^2` and a constant `u_i = s''` over
+//! `[s_i, s_{i+1}]` (so `x_{i+1} = x_i + 2 (s_{i+1} - s_i) u_i`); every limit is linear in
+//! `(x, u)`:
+//!
+//! * velocity: `x_i <= min_j (v_j / |q'_j(s_i)|)^2`;
+//! * acceleration `q' u + q'' x` within `+-a` at `s_i`, and at `s_{i+1}` with `x_{i+1}`
+//!   (the interpolation scheme: the limits hold at both ends of each interval).
+//!
+//! The backward pass computes each stage's controllable set `[lo_i, hi_i]` (the `x_i` from which
+//! the rest of the path can be followed to rest at the end): a two-variable linear programme,
+//! solved exactly by eliminating `u` (Fourier-Motzkin on the stage's few constraints). The
+//! forward pass then takes, from `x_0 = 0`, the largest `u_i` that keeps `x_{i+1}` controllable.
+
+use crate::error::{check_finite, Error, Result};
+
+/// `|a| below this` counts as 0 in a constraint on `u` (a joint at rest along the path there).
+const ZERO: f64 = 1e-12;
+
+/// One linear constraint `a u + b x <= c`.
+#[derive(Debug, Clone, Copy)]
+struct Row {
+    a: f64,
+    b: f64,
+    c: f64,
+}
+
+/// `x = s'^2` at every grid point of the time-optimal parameterisation from rest to rest.
+///
+/// `grid`: N + 1 increasing path parameters; `d1`, `d2`: `q'` and `q''` at them (row-major,
+/// (N + 1) x n); `vlim`, `alim`: the n positive velocity and acceleration limits. Errors: bad
+/// shapes, non-finite values, a grid that does not increase, non-positive limits, or no
+/// parameterisation (a stage whose controllable set is empty).
+pub fn time_optimal(grid: &[f64], d1: &[f64], d2: &[f64], vlim: &[f64], alim: &[f64]) -> Result<Vec<f64>> {
+    let n = vlim.len();
+    let points = grid.len();
+    if n == 0 || alim.len() != n {
+        return Err(Error::Invalid(format!("vlim and alim: one limit per joint (got {} and {})", n, alim.len())));
+    }
+    if points < 2 {
+        return Err(Error::Invalid(format!("grid: at least 2 points, got {points}")));
+    }
+    if d1.len() != points * n || d2.len() != points * n {
+        return Err(Error::Invalid(format!(
+            "d1 and d2: {points} x {n} values (the grid's points x the joints), got {} and {}",
+            d1.len(),
+            d2.len()
+        )));
+    }
+    for (what, v) in [("grid", grid), ("d1", d1), ("d2", d2), ("vlim", vlim), ("alim", alim)] {
+        check_finite(what, v)?;
+    }
+    if let Some(i) = (1..points).find(|&i| grid[i] <= grid[i - 1]) {
+        return Err(Error::Invalid(format!("grid: must increase, but grid[{i}] = {} <= grid[{}] = {}", grid[i], i - 1, grid[i - 1])));
+    }
+    if let Some(j) = (0..n).find(|&j| vlim[j] <= 0.0 || alim[j] <= 0.0) {
+        return Err(Error::Invalid(format!("limits: must be positive, joint {j} has vlim {} and alim {}", vlim[j], alim[j])));
+    }
+    let row = |i: usize| (&d1[i * n..(i + 1) * n], &d2[i * n..(i + 1) * n]);
+    // velocity bound on x at each grid point
+    let xv: Vec<f64> = (0..points)
+        .map(|i| {
+            let (p, _) = row(i);
+            (0..n).map(|j| if p[j].abs() > ZERO { (vlim[j] / p[j].abs()).powi(2) } else { f64::INFINITY }).fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    // the stage's constraints in (x, u), given the next stage's controllable set
+    let mut rows: Vec<Row> = Vec::with_capacity(4 * n + 2);
+    let stage = |i: usize, next: (f64, f64), rows: &mut Vec<Row>| {
+        rows.clear();
+        let delta = grid[i + 1] - grid[i];
+        let ((p0, pp0), (p1, pp1)) = (row(i), row(i + 1));
+        for j in 0..n {
+            for (a, b) in [(p0[j], pp0[j]), (p1[j] + 2.0 * delta * pp1[j], pp1[j])] {
+                rows.push(Row { a, b, c: alim[j] });
+                rows.push(Row { a: -a, b: -b, c: alim[j] });
+            }
+        }
+        rows.push(Row { a: 2.0 * delta, b: 1.0, c: next.1 });
+        rows.push(Row { a: -2.0 * delta, b: -1.0, c: -next.0 });
+    };
+    // backward pass: the controllable sets
+    let mut sets = vec![(0.0, 0.0); points];
+    for i in (0..points - 1).rev() {
+        stage(i, sets[i + 1], &mut rows);
+        let (lo, hi) = x_range(&rows, xv[i]);
+        if !(lo <= hi + 1e-9 * hi.abs().max(1.0)) {
+            return Err(Error::Invalid(format!(
+                "no parameterisation within the limits: stage {i} (s = {}) cannot be followed to rest at the end",
+                grid[i]
+            )));
+        }
+        sets[i] = (lo, hi.max(lo));
+    }
+    if sets[0].0 > 1e-9 {
+        return Err(Error::Invalid("no parameterisation within the limits from rest at the start".into()));
+    }
+    // forward pass: the largest admissible s'' at each stage
+    let mut x = vec![0.0; points];
+    for i in 0..points - 1 {
+        stage(i, sets[i + 1], &mut rows);
+        let (mut u_lo, mut u_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        for r in &rows {
+            let rhs = r.c - r.b * x[i];
+            if r.a > ZERO {
+                u_hi = u_hi.min(rhs / r.a);
+            } else if r.a < -ZERO {
+                u_lo = u_lo.max(rhs / r.a);
+            }
+        }
+        // round-off may leave the interval a hair empty: stay within the next controllable set
+        let u = if u_hi >= u_lo { u_hi } else { u_lo };
+        let delta = grid[i + 1] - grid[i];
+        x[i + 1] = (x[i] + 2.0 * delta * u).clamp(sets[i + 1].0.max(0.0), sets[i + 1].1);
+    }
+    x[points - 1] = 0.0;
+    Ok(x)
+}
+
+/// The range of `x` in [0, `x_max`] for which some `u` satisfies every row (Fourier-Motzkin
+/// elimination of `u`); (lo, hi) with lo > hi when there is none.
+fn x_range(rows: &[Row], x_max: f64) -> (f64, f64) {
+    let (mut lo, mut hi) = (0.0f64, x_max);
+    let bound = |alpha: f64, beta: f64, lo: &mut f64, hi: &mut f64| {
+        // alpha x >= beta
+        if alpha > ZERO {
+            *lo = lo.max(beta / alpha);
+        } else if alpha < -ZERO {
+            *hi = hi.min(beta / alpha);
+        } else if beta > 1e-12 {
+            *hi = f64::NEG_INFINITY;
+        }
+    };
+    for r in rows.iter().filter(|r| r.a.abs() <= ZERO) {
+        // b x <= c
+        bound(-r.b, -r.c, &mut lo, &mut hi);
+    }
+    for up in rows.iter().filter(|r| r.a > ZERO) {
+        for down in rows.iter().filter(|r| r.a < -ZERO) {
+            // u <= (c_up - b_up x) / a_up and u >= (c_down - b_down x) / a_down
+            let alpha = down.b / down.a - up.b / up.a;
+            let beta = down.c / down.a - up.c / up.a;
+            bound(alpha, beta, &mut lo, &mut hi);
+        }
+    }
+    (lo, hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A straight line of length L for one joint at unit speed along s: the optimum is the
+    /// bang-bang profile (accelerate at a, cruise at v, brake at a); the grid's x follows it.
+    #[test]
+    fn a_straight_line_is_bang_coast_bang() {
+        let (v, a, len) = (1.0, 2.0, 2.0);
+        let points = 401;
+        let grid: Vec<f64> = (0..points).map(|i| len * i as f64 / (points - 1) as f64).collect();
+        let d1 = vec![1.0; points];
+        let d2 = vec![0.0; points];
+        let x = time_optimal(&grid, &d1, &d2, &[v], &[a]).unwrap();
+        for (s, x) in grid.iter().zip(&x) {
+            // s'^2 = min(2 a s, v^2, 2 a (L - s))
+            let want = (2.0 * a * s).min(v * v).min(2.0 * a * (len - s));
+            assert!((x - want).abs() < 1e-9, "s = {s}: x = {x}, want {want}");
+        }
+    }
+
+    /// Curved paths of several joints: every grid point keeps the velocity limits and each
+    /// interval's constant s'' keeps the acceleration limits at both of its ends; the end is at
+    /// rest; a limit that cannot be met is an error naming it.
+    #[test]
+    fn limits_hold_at_the_grid_and_bad_input_is_refused() {
+        let n = 3;
+        let points = 200;
+        let grid: Vec<f64> = (0..points).map(|i| 3.0 * i as f64 / (points - 1) as f64).collect();
+        let (mut d1, mut d2) = (Vec::new(), Vec::new());
+        for &s in &grid {
+            for j in 0..n {
+                let w = 1.0 + j as f64;
+                d1.push((w * s).cos());
+                d2.push(-w * (w * s).sin());
+            }
+        }
+        let (vlim, alim) = ([1.0, 0.8, 1.5], [2.0, 3.0, 1.0]);
+        let x = time_optimal(&grid, &d1, &d2, &vlim, &alim).unwrap();
+        assert_eq!((x[0], x[points - 1]), (0.0, 0.0));
+        assert!(x.iter().any(|&v| v > 0.1), "it moves");
+        for i in 0..points - 1 {
+            let u = (x[i + 1] - x[i]) / (2.0 * (grid[i + 1] - grid[i]));
+            for (k, xk) in [(i, x[i]), (i + 1, x[i + 1])] {
+                for j in 0..n {
+                    let (p, pp) = (d1[k * n + j], d2[k * n + j]);
+                    assert!(p.abs() * xk.sqrt() <= vlim[j] * (1.0 + 1e-9), "velocity at {k}");
+                    assert!((p * u + pp * xk).abs() <= alim[j] * (1.0 + 1e-6) + 1e-9, "acceleration at {k}: {}", p * u + pp * xk);
+                }
+            }
+        }
+        let err = |r: Result<Vec<f64>>| r.unwrap_err().to_string();
+        assert!(err(time_optimal(&grid, &d1, &d2, &vlim, &[1.0])).contains("one limit per joint"));
+        assert!(err(time_optimal(&grid, &d1[1..], &d2, &vlim, &alim)).contains("d1 and d2"));
+        assert!(err(time_optimal(&grid, &d1, &d2, &[1.0, 0.0, 1.0], &alim)).contains("must be positive"));
+        let mut g = grid.clone();
+        g[5] = g[4];
+        assert!(err(time_optimal(&g, &d1, &d2, &vlim, &alim)).contains("must increase"));
+        let mut bad = d1.clone();
+        bad[7] = f64::NAN;
+        assert!(err(time_optimal(&grid, &bad, &d2, &vlim, &alim)).contains("d1"));
+    }
+}
