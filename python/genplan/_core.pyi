@@ -14,7 +14,7 @@ from genplan import protocols
 __all__ = [
     "__version__", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "Projector",
     "SolverSettings", "read_robot_file", "robot_description", "load_robot", "srdf_disabled_pairs",
-    "disabled_pairs_srdf", "time_optimal", "Planner", "PlannerSettings", "PlanStats",
+    "disabled_pairs_srdf", "time_optimal", "sample_timed_spline", "Planner", "PlannerSettings", "PlanStats",
     "PlanResult", "UniformSampler", "MixtureSampler", "GanSampler", "Dynamics", "SpatulaSimulation",
     "spatula_defaults", "pancake_phi",
 ]
@@ -208,6 +208,16 @@ def load_robot(path: _Path, package_dirs: list[_Path]) -> tuple[KinematicModel, 
 def time_optimal(
     grid: Sequence[float], d1: NDArray[np.float64], d2: NDArray[np.float64], vlim: Sequence[float], alim: Sequence[float]
 ) -> NDArray[np.float64]: ...
+def sample_timed_spline(
+    x: Sequence[float],
+    c: NDArray[np.float64],
+    grid: Sequence[float],
+    knots: Sequence[float],
+    sdot: Sequence[float],
+    sdd: Sequence[float],
+    rate: float,
+    scale: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
 
 # --- constrained planning (genplan_core::planning / gan; genplan.planning) ---
 

@@ -317,20 +317,11 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     seg_t = 2.0 * ds / (sdot[:-1] + sdot[1:])
     knots_t = np.concatenate([[0.0], np.cumsum(seg_t)])
 
+    timed = (spline.breaks.tolist(), spline.coefficients, grid.tolist(), knots_t.tolist(), sdot.tolist(), sdd.tolist())
+
     def sample(scale: float) -> tuple[Array, Array, Array, Array]:
-        total = knots_t[-1] * scale
-        t = np.arange(int(math.floor(total * rate + 1e-9)) + 1) / rate
-        if total - t[-1] > 1e-9:
-            t = np.append(t, total)
-        tu = np.minimum(t / scale, knots_t[-1])
-        i = np.clip(np.searchsorted(knots_t, tu, side="right") - 1, 0, len(ds) - 1)
-        tau = tu - knots_t[i]
-        s = np.clip(grid[i] + sdot[i] * tau + 0.5 * sdd[i] * tau**2, 0.0, ss[-1])
-        sv = np.maximum(sdot[i] + sdd[i] * tau, 0.0)
-        q, d1, d2 = spline.all(s)
-        qd = d1 * sv[:, None] / scale
-        qdd = (d1 * sdd[i][:, None] + d2 * (sv**2)[:, None]) / scale**2
-        return t, q, qd, qdd
+        # native: q = p(s(t)), qd = p'(s) s', qdd = p'(s) s'' + p''(s) s'^2 at each tick
+        return _core.sample_timed_spline(*timed, rate, scale)
 
     scale = 1.0
     t, q, qd, qdd = sample(scale)
@@ -357,6 +348,9 @@ class _Spline:
     def __init__(self, cs: Any) -> None:
         self._x = np.asarray(cs.x, dtype=np.float64)
         self._c = np.asarray(cs.c, dtype=np.float64)  # (4, intervals, nq): c[k] multiplies (s - x_i)^(3 - k)
+        #: the breakpoints and the coefficients as (intervals, 4, nq), for the native sampler
+        self.breaks = self._x
+        self.coefficients = np.ascontiguousarray(np.moveaxis(self._c, 0, 1))
 
     def all(self, s: Array) -> tuple[Array, Array, Array]:
         """``p(s)``, ``p'(s)``, ``p''(s)`` ((len(s), nq) each)."""

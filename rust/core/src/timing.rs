@@ -17,6 +17,8 @@
 //! the rest of the path can be followed to rest at the end): a two-variable linear programme,
 //! solved exactly by eliminating `u` (Fourier-Motzkin on the stage's few constraints). The
 //! forward pass then takes, from `x_0 = 0`, the largest `u_i` that keeps `x_{i+1}` controllable.
+//!
+//! [`sample`] evaluates the timed spline at a fixed rate (positions, velocities, accelerations).
 
 use crate::error::{check_finite, Error, Result};
 
@@ -152,6 +154,93 @@ fn x_range(rows: &[Row], x_max: f64) -> (f64, f64) {
     (lo, hi)
 }
 
+/// A timed path: a cubic spline `q(s)` (breakpoints `x`, m intervals, coefficients `c`:
+/// m x 4 x n, `c[i][k]` multiplying `(s - x_i)^(3 - k)`, scipy's `CubicSpline.c` with its first
+/// two axes swapped) and a timing `s(t)` that is piecewise quadratic between the times `knots`
+/// of the grid points `grid` (speed `sdot` at each, constant `sdd` after each).
+#[derive(Debug, Clone, Copy)]
+pub struct TimedSpline<'a> {
+    /// The spline's breakpoints (m + 1, increasing).
+    pub x: &'a [f64],
+    /// Its coefficients (m x 4 x n).
+    pub c: &'a [f64],
+    /// Grid points (N + 1) in s.
+    pub grid: &'a [f64],
+    /// Their times (N + 1, increasing from 0).
+    pub knots: &'a [f64],
+    /// s' at each grid point (N + 1).
+    pub sdot: &'a [f64],
+    /// s'' on each interval (N).
+    pub sdd: &'a [f64],
+}
+
+/// Sample times, then `q`, `qd`, `qdd` (rows of n), of [`sample`].
+pub type Samples = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// The samples of a timed path at `rate` Hz, its timing stretched by `scale` (`t -> scale t`),
+/// from 0 to the end (the end itself appended when it falls between two ticks): times, then
+/// `q`, `qd`, `qdd` (rows of n): the samples of `python/genplan/trajectory.py`.
+pub fn sample(p: &TimedSpline<'_>, n: usize, rate: f64, scale: f64) -> Result<Samples> {
+    let (m, points) = (p.x.len().saturating_sub(1), p.grid.len());
+    if m == 0 || n == 0 || p.c.len() != m * 4 * n {
+        return Err(Error::Invalid(format!("spline: {} breakpoints need {} x 4 x {n} coefficients, got {}", p.x.len(), m, p.c.len())));
+    }
+    if points < 2 || p.knots.len() != points || p.sdot.len() != points || p.sdd.len() != points - 1 {
+        return Err(Error::Invalid(format!(
+            "timing: {points} grid points need as many knots and speeds and one s'' fewer, got {}, {} and {}",
+            p.knots.len(),
+            p.sdot.len(),
+            p.sdd.len()
+        )));
+    }
+    for (what, v) in [("x", p.x), ("c", p.c), ("grid", p.grid), ("knots", p.knots), ("sdot", p.sdot), ("sdd", p.sdd)] {
+        check_finite(what, v)?;
+    }
+    if !(rate.is_finite() && rate > 0.0 && scale.is_finite() && scale > 0.0) {
+        return Err(Error::Invalid(format!("rate and scale must be positive and finite, got {rate} and {scale}")));
+    }
+    let end = p.knots[points - 1];
+    let total = end * scale;
+    let ticks = (total * rate + 1e-9).floor();
+    if !(ticks < 1e9) {
+        return Err(Error::Invalid(format!("{total} s at {rate} Hz: too many samples")));
+    }
+    let mut t: Vec<f64> = (0..=ticks as usize).map(|k| k as f64 / rate).collect();
+    if total - t[t.len() - 1] > 1e-9 {
+        t.push(total);
+    }
+    let s_end = p.x[m];
+    let (mut q, mut qd, mut qdd) = (vec![0.0; t.len() * n], vec![0.0; t.len() * n], vec![0.0; t.len() * n]);
+    let (mut i, mut j) = (0usize, 0usize);
+    for (k, &tk) in t.iter().enumerate() {
+        let tu = (tk / scale).min(end);
+        // times and s only grow: walk the intervals forward
+        while i + 1 < points - 1 && p.knots[i + 1] <= tu {
+            i += 1;
+        }
+        let tau = tu - p.knots[i];
+        let s = (p.grid[i] + p.sdot[i] * tau + 0.5 * p.sdd[i] * tau * tau).clamp(0.0, s_end);
+        let sv = (p.sdot[i] + p.sdd[i] * tau).max(0.0);
+        while j + 1 < m && p.x[j + 1] <= s {
+            j += 1;
+        }
+        while j > 0 && p.x[j] > s {
+            j -= 1;
+        }
+        let dx = s - p.x[j];
+        let c = &p.c[j * 4 * n..(j + 1) * 4 * n];
+        for a in 0..n {
+            let (c0, c1, c2, c3) = (c[a], c[n + a], c[2 * n + a], c[3 * n + a]);
+            let d1 = (3.0 * c0 * dx + 2.0 * c1) * dx + c2;
+            let d2 = 6.0 * c0 * dx + 2.0 * c1;
+            q[k * n + a] = ((c0 * dx + c1) * dx + c2) * dx + c3;
+            qd[k * n + a] = d1 * sv / scale;
+            qdd[k * n + a] = (d1 * p.sdd[i] + d2 * sv * sv) / (scale * scale);
+        }
+    }
+    Ok((t, q, qd, qdd))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -171,6 +260,27 @@ mod tests {
             let want = (2.0 * a * s).min(v * v).min(2.0 * a * (len - s));
             assert!((x - want).abs() < 1e-9, "s = {s}: x = {x}, want {want}");
         }
+    }
+
+    /// q(s) = s^3 timed s(t) = t, stretched by 2: the samples are the closed form's; the end is
+    /// included; bad shapes are refused.
+    #[test]
+    fn samples_follow_the_closed_form() {
+        let (x, c) = ([0.0, 1.0], [1.0, 0.0, 0.0, 0.0]);
+        let p = TimedSpline { x: &x, c: &c, grid: &[0.0, 1.0], knots: &[0.0, 1.0], sdot: &[1.0, 1.0], sdd: &[0.0] };
+        let (t, q, qd, qdd) = sample(&p, 1, 4.0, 2.0).unwrap();
+        assert_eq!(t.len(), 9);
+        assert_eq!(t[8], 2.0);
+        for k in 0..t.len() {
+            let u = t[k] / 2.0;
+            assert!((q[k] - u.powi(3)).abs() < 1e-12);
+            assert!((qd[k] - 3.0 * u * u / 2.0).abs() < 1e-12);
+            assert!((qdd[k] - 6.0 * u / 4.0).abs() < 1e-12);
+        }
+        let bad = TimedSpline { sdd: &[0.0, 0.0], ..p };
+        assert!(sample(&bad, 1, 4.0, 1.0).unwrap_err().to_string().contains("one s'' fewer"));
+        assert!(sample(&p, 2, 4.0, 1.0).unwrap_err().to_string().contains("coefficients"));
+        assert!(sample(&p, 1, 0.0, 1.0).unwrap_err().to_string().contains("positive"));
     }
 
     /// Curved paths of several joints: every grid point keeps the velocity limits and each
