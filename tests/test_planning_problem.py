@@ -118,7 +118,12 @@ def test_plan_command_writes_json_and_html(tmp_path, capsys) -> None:
     data = json.loads(js.read_text())
     assert data["success"] and data["sampler"] == "hybrid" and data["algorithm"] == "rrt_connect" and len(data["path"]) > 2
     assert not viewer or page.stat().st_size > 100_000
-    assert "found:" in (text := capsys.readouterr().out) and "(rrt_connect, hybrid sampler)" in text
+    assert "found:" in (text := capsys.readouterr().out) and "(rrt_connect, hybrid sampler, sampled edges)" in text
+    # certified edges: the same query, every motion between the path's states certified
+    assert main(argv[:-2] + ["--edge-check", "certified"] if viewer else argv + ["--edge-check", "certified"]) == 0
+    data = json.loads(js.read_text())
+    assert data["success"] and data["stats"]["motion_certificates"] > 0
+    assert "sampler, certified edges)" in capsys.readouterr().out
 
 
 def test_plan_command_errors_are_one_line(tmp_path, capsys) -> None:
