@@ -14,7 +14,7 @@ from genplan import _core
 from genplan import projection as P
 from genplan.errors import (CallbackError, GenplanError, InvalidGoalError, InvalidStartError, NonFiniteError, SettingsError,
                             ShapeError, UnknownNameError)
-from genplan.planning import (ALGORITHMS, ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler,
+from genplan.planning import (ALGORITHMS, EDGE_CHECKS, ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler,
                               uniform_base_box)
 from tests.interrupt import MAX_LATENCY_S, ctrl_c_latency
 
@@ -149,7 +149,7 @@ def test_certified_edges_are_dense_rechecked(panda, talos, shelf, task1, algorit
 
 def test_certified_edges_need_a_certifying_checker(panda, shelf) -> None:
     env, world, queries = shelf
-    assert PlannerSettings().edge_check == "sampled"
+    assert PlannerSettings().edge_check == "sampled" and EDGE_CHECKS == ("sampled", "certified")
     with pytest.raises(SettingsError, match="unknown edge check 'exact' \\(known: 'sampled', 'certified'\\)"):
         PlannerSettings(edge_check="exact")
     with pytest.raises(SettingsError, match="edge_check 'certified' needs edge_resolution > 0"):

@@ -299,11 +299,10 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     from scipy.interpolate import CubicSpline
 
     ss = np.concatenate([[0.0], np.cumsum(steps)])
-    spline = _Spline(CubicSpline(ss, states))  # not-a-knot, as toppra's SplineInterpolator
+    spline = CubicSpline(ss, states)  # not-a-knot, as toppra's SplineInterpolator; spline(s, order)
     grid = _gridpoints(spline, ss, vlim, alim)
-    _, g1, g2 = spline.all(grid)
     try:
-        x = _core.time_optimal(grid.tolist(), g1, g2, vlim.tolist(), alim.tolist())
+        x = _core.time_optimal(grid.tolist(), spline(grid, 1), spline(grid, 2), vlim.tolist(), alim.tolist())
     except ValueError as e:
         raise GenplanError(f"trajectory: TOPP-RA found no parameterisation of the path ({len(states)} states) within "
                            f"the limits ({e})") from e
@@ -317,7 +316,9 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     seg_t = 2.0 * ds / (sdot[:-1] + sdot[1:])
     knots_t = np.concatenate([[0.0], np.cumsum(seg_t)])
 
-    timed = (spline.breaks.tolist(), spline.coefficients, grid.tolist(), knots_t.tolist(), sdot.tolist(), sdd.tolist())
+    # the spline's coefficients as (intervals, 4, nq) for the native sampler (scipy's: (4, intervals, nq))
+    coefficients = np.ascontiguousarray(np.moveaxis(spline.c, 0, 1), dtype=np.float64)
+    timed = (spline.x.tolist(), coefficients, grid.tolist(), knots_t.tolist(), sdot.tolist(), sdd.tolist())
 
     def sample(scale: float) -> tuple[Array, Array, Array, Array]:
         # native: q = p(s(t)), qd = p'(s) s', qdd = p'(s) s'' + p''(s) s'^2 at each tick
@@ -338,32 +339,6 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     traj = Trajectory(t=t, q=q, qd=qd, qdd=qdd, joint_names=names, rate_hz=rate, velocity_limits=vlim,
                       acceleration_limits=alim, robot=robot.name, stats=stats)
     return _checked(traj, robot, task)
-
-
-class _Spline:
-    """A cubic spline of the path (scipy's CubicSpline) and its derivatives: ``spline(s, order)``
-    (the interface of toppra's SplineInterpolator) and :meth:`all`, the three at once from its
-    piecewise coefficients (one interval lookup for the 1 kHz samples)."""
-
-    def __init__(self, cs: Any) -> None:
-        self._x = np.asarray(cs.x, dtype=np.float64)
-        self._c = np.asarray(cs.c, dtype=np.float64)  # (4, intervals, nq): c[k] multiplies (s - x_i)^(3 - k)
-        #: the breakpoints and the coefficients as (intervals, 4, nq), for the native sampler
-        self.breaks = self._x
-        self.coefficients = np.ascontiguousarray(np.moveaxis(self._c, 0, 1))
-
-    def all(self, s: Array) -> tuple[Array, Array, Array]:
-        """``p(s)``, ``p'(s)``, ``p''(s)`` ((len(s), nq) each)."""
-        i = np.clip(np.searchsorted(self._x, s, side="right") - 1, 0, self._c.shape[1] - 1)
-        dx = (np.asarray(s, dtype=np.float64) - self._x[i])[:, None]
-        c0, c1, c2, c3 = self._c[0, i], self._c[1, i], self._c[2, i], self._c[3, i]
-        q = ((c0 * dx + c1) * dx + c2) * dx + c3
-        d1 = (3.0 * c0 * dx + 2.0 * c1) * dx + c2
-        d2 = 6.0 * c0 * dx + 2.0 * c1
-        return q, d1, d2
-
-    def __call__(self, s: Any, order: int = 0) -> Array:
-        return self.all(np.atleast_1d(np.asarray(s, dtype=np.float64)))[order]
 
 
 def _gridpoints(spline: Any, ss: Array, vlim: Array, alim: Array) -> Array:

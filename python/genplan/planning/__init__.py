@@ -56,6 +56,7 @@ from genplan.robots import Robot
 
 __all__ = [
     "ALGORITHMS",
+    "EDGE_CHECKS",
     "ENVIRONMENT_NAMES",
     "Environment",
     "Outcome",
@@ -77,6 +78,9 @@ SAMPLERS = ("uniform", "gan", "hybrid", "adaptive")
 #: Search algorithms (``PlannerSettings.algorithm``, ``Planner(..., algorithm=)``): the paper's
 #: constrained RRT (default) and the bidirectional constrained RRT-Connect.
 ALGORITHMS = ("crrt", "rrt_connect")
+#: Edge checks (``PlannerSettings.edge_check``): states checked at ``edge_resolution`` (default),
+#: or every motion between them certified collision-free as well.
+EDGE_CHECKS = ("sampled", "certified")
 #: The adaptive hybrid's half-life (rows drawn within a plan after which the GAN's share has
 #: halved, ~100 extensions of 16 samples; ``half_life=`` overrides it): see :func:`make_sampler`.
 #: Chosen on tuning queries (seed 1; Table II reports seed 0) by benches/adaptive_half_life.py

@@ -36,7 +36,7 @@ def _start(text: str) -> str | list[float]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from genplan.planning import ALGORITHMS, SAMPLERS
+    from genplan.planning import ALGORITHMS, EDGE_CHECKS, SAMPLERS
 
     A.add_robot_and_task(p, None, task_required=True)
     p.add_argument("--scene", default=None, help="obstacles: a shipped scene's name or a scene file (.toml)")
@@ -50,7 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sampler", choices=SAMPLERS, default="uniform")
     p.add_argument("--algorithm", choices=ALGORITHMS, default="crrt",
                    help="crrt: the GAN paper's constrained RRT (default); rrt_connect: bidirectional RRT-Connect")
-    p.add_argument("--edge-check", choices=["sampled", "certified"], default="sampled",
+    p.add_argument("--edge-check", choices=EDGE_CHECKS, default="sampled",
                    help="sampled: edge states checked 0.025 rad apart (default); certified: every motion between "
                         "them certified collision-free as well (PlannerSettings.edge_check; slower)")
     p.add_argument("--model", type=A.existing_file, default=None, help="the GAN for --sampler gan or hybrid")

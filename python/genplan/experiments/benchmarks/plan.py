@@ -291,7 +291,7 @@ def print_sweep(payload: dict[str, Any]) -> None:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from genplan.planning import ALGORITHMS
+    from genplan.planning import ALGORITHMS, EDGE_CHECKS
 
     p.add_argument("--env", default="all", choices=[*ENVS, "all"])
     p.add_argument("--sampler", default="all", choices=[*SAMPLERS, *EXTRA_SAMPLERS, "all", "all+"],
@@ -308,7 +308,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ompl-time-limit", type=A.positive_float, default=30.0, help="seconds per OMPL query")
     p.add_argument("--edge-resolution", type=A.non_negative_float, default=None,
                    help="genplan edge validation spacing (0: off)")
-    p.add_argument("--edge-check", default="sampled", choices=["sampled", "certified"],
+    p.add_argument("--edge-check", default="sampled", choices=EDGE_CHECKS,
                    help="genplan edges: states checked at the resolution (sampled, default) or every motion between "
                         "them certified collision-free (certified, PlannerSettings.edge_check)")
     p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")

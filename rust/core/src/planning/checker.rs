@@ -77,10 +77,13 @@ impl CollisionChecker {
         }
     }
 
+    /// Within the joint limits (1e-9 of slack).
+    fn in_limits(m: &KinematicModel, q: &[f64]) -> bool {
+        (0..m.nq).all(|i| q[i] >= m.lower[i] - 1e-9 && q[i] <= m.upper[i] + 1e-9)
+    }
+
     fn valid_one(world: &CollisionWorld, q: &[f64], s: &mut Scratch) -> bool {
-        let m = &world.model;
-        let in_limits = (0..m.nq).all(|i| q[i] >= m.lower[i] - 1e-9 && q[i] <= m.upper[i] + 1e-9);
-        in_limits && !world.in_collision_unchecked(q, s)
+        Self::in_limits(&world.model, q) && !world.in_collision_unchecked(q, s)
     }
 }
 
@@ -146,9 +149,8 @@ impl ValidityChecker for CollisionChecker {
         let m = self.world.model.clone();
         let (nq, nv) = (m.nq, m.nv);
         let n_seg = certified.len();
-        let in_limits = |q: &[f64]| (0..nq).all(|i| q[i] >= m.lower[i] - 1e-9 && q[i] <= m.upper[i] + 1e-9);
         for (q, v) in path.chunks(nq).zip(valid.iter_mut()) {
-            *v = in_limits(q);
+            *v = Self::in_limits(&m, q);
         }
         certified.fill(false);
         if !valid.iter().all(|&v| v) {

@@ -201,18 +201,7 @@ impl<'a> ConstrainedSpace<'a> {
                 space.interpolate(a, b, t, &mut lin[k * nq..(k + 1) * nq]);
             }
             let mut reps = vec![Projection::default(); n_mid];
-            let t = Instant::now();
-            // a tree edge (at most max_jump * step long) without the posture step, which changes
-            // nothing there; a longer one (a shortcut, far off the manifold between its ends)
-            // with it: without, its states drift apart (wider chords: tests/test_planning.py)
-            let r = if dist <= self.settings.max_jump * self.settings.step {
-                self.projector.project_edge(&lin, &lin, &mut states[..n_mid * nq], &mut reps)
-            } else {
-                self.projector.project(&lin, &lin, &mut states[..n_mid * nq], &mut reps)
-            };
-            self.stats.projector_s += t.elapsed().as_secs_f64();
-            r?;
-            self.stats.edge_projections += reps.iter().map(|r| r.iterations).sum::<usize>();
+            self.project_edge_states(&lin, self.is_tree_edge(dist), &mut states[..n_mid * nq], &mut reps)?;
             if reps.iter().any(|r| !r.success) || states.iter().any(|x| !x.is_finite()) {
                 return Ok(None);
             }
@@ -231,7 +220,7 @@ impl<'a> ConstrainedSpace<'a> {
         }
         states[n_mid * nq..].copy_from_slice(b);
         if self.settings.edge_check == EdgeCheck::Certified && resolution > 0.0 {
-            return self.certify_states(a, states, dist <= self.settings.max_jump * self.settings.step);
+            return self.certify_states(a, states, self.is_tree_edge(dist));
         }
         let n_check = n_mid + usize::from(check_end);
         let mut valid = vec![false; n_check];
@@ -242,6 +231,29 @@ impl<'a> ConstrainedSpace<'a> {
         } else {
             Ok(None)
         }
+    }
+
+    /// An edge `dist` long is a tree edge (at most `max_jump * step`), not a shortcut.
+    fn is_tree_edge(&self, dist: f64) -> bool {
+        dist <= self.settings.max_jump * self.settings.step
+    }
+
+    /// Project interpolated states of an edge (rows of `lin`, each around itself) into `out`:
+    /// those of a tree edge without the posture step, which changes nothing there; those of a
+    /// longer one (a shortcut, far off the manifold between its ends) with it: without, its
+    /// states drift apart (wider chords: tests/test_planning.py). Timed in `projector_s`,
+    /// counted in `edge_projections`.
+    fn project_edge_states(&mut self, lin: &[f64], tree_edge: bool, out: &mut [f64], reps: &mut [Projection]) -> PlanResult<()> {
+        let t = Instant::now();
+        let r = if tree_edge {
+            self.projector.project_edge(lin, lin, out, reps)
+        } else {
+            self.projector.project(lin, lin, out, reps)
+        };
+        self.stats.projector_s += t.elapsed().as_secs_f64();
+        r?;
+        self.stats.edge_projections += reps.iter().map(|r| r.iterations).sum::<usize>();
+        Ok(())
     }
 
     /// Certified edges ([`EdgeCheck::Certified`]): `rest` is the edge's projected states after
@@ -300,15 +312,7 @@ impl<'a> ConstrainedSpace<'a> {
         space.interpolate(a, b, 0.5, &mut mid);
         let mut m = vec![0.0; nq];
         let mut rep = [Projection::default()];
-        let t = Instant::now();
-        let r = if tree_edge {
-            self.projector.project_edge(&mid, &mid, &mut m, &mut rep)
-        } else {
-            self.projector.project(&mid, &mid, &mut m, &mut rep)
-        };
-        self.stats.projector_s += t.elapsed().as_secs_f64();
-        r?;
-        self.stats.edge_projections += rep[0].iterations;
+        self.project_edge_states(&mid, tree_edge, &mut m, &mut rep)?;
         if !rep[0].success || m.iter().any(|x| !x.is_finite()) {
             return Ok(false);
         }

@@ -58,14 +58,13 @@ pub enum EdgeCheck {
     /// between two states is not checked (as OMPL's discrete motion validator).
     #[default]
     Sampled,
-    /// Every chord between consecutive states is certified: its quarter points need no
-    /// projection step (the constraint holds there within tolerance) and the checker certifies
-    /// the whole motion ([`ValidityChecker::certify_motion`](super::ValidityChecker::certify_motion):
-    /// the collision checker by conservative advancement). A chord that fails is split at its
-    /// projected midpoint, down to `edge_resolution /`
-    /// [`CERTIFY_REFINEMENT`](Settings::CERTIFY_REFINEMENT); one still uncertified there
-    /// refuses the edge. States are as far apart as the certificate allows: far from
-    /// obstacles and where the manifold is flat, much farther than `edge_resolution`.
+    /// The states at `edge_resolution` as [`Sampled`](EdgeCheck::Sampled), and every chord
+    /// between consecutive states certified valid by the checker
+    /// ([`ValidityChecker::certify_path`](super::ValidityChecker::certify_path) /
+    /// [`certify_motion`](super::ValidityChecker::certify_motion): the collision checker by
+    /// conservative advancement). A chord that fails is split at its projected midpoint, down to
+    /// `edge_resolution /` [`CERTIFY_REFINEMENT`](Settings::CERTIFY_REFINEMENT); one still
+    /// uncertified there refuses the edge.
     Certified,
 }
 
