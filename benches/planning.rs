@@ -9,7 +9,11 @@
 //!   .venv);
 //! * the Panda's constrained space: one constrained step (0.3 rad, projected, checked) and the
 //!   check of a 0.3 rad edge (11 projected, checked states at 0.025 rad), its states projected
-//!   without the posture step (as the planner does) and with it (as before issue 17).
+//!   without the posture step (as the planner does) and with it (as before issue 17);
+//! * the Talos paper projection (both soles fixed, centre of mass in its box, joint limits, the
+//!   left arm held; posture in the null space, as python/genplan/presets/tasks/talos_projection.toml):
+//!   one solve from a random configuration (the sampler's projection), and one from a
+//!   configuration 0.02 rad off the manifold without the posture step (an edge state).
 
 #[path = "../rust/core/tests/common/fixtures.rs"]
 mod fixtures;
@@ -165,5 +169,94 @@ fn constrained_space(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, nearest, sphere, panda, constrained_space);
+/// The Talos paper projection task (python/genplan/presets/tasks/talos_projection.toml) at the
+/// SRDF's half-sitting state (the soles on the ground), and that state.
+fn talos_projection() -> (Arc<genplan_core::kinematics::KinematicModel>, genplan_core::projection::Projector, Vec<f64>) {
+    use genplan_core::projection::{Projector as Solver, Settings as SolverSettings, Term, TermKind};
+    use nalgebra::Vector3;
+    let desc = preset("talos").unwrap();
+    let srdf = desc.read_srdf().unwrap().unwrap();
+    let (model, _) = desc.load().unwrap();
+    let state = &srdf.group_states["half_sitting"];
+    let mut q = vec![0.0; model.nq];
+    q[6] = 1.0;
+    for j in &model.joints {
+        if model.active_joints.contains(&j.name) && j.name != "root_joint" {
+            if let Some(v) = state.get(&j.name) {
+                q[j.q_index] = v[0];
+            }
+        }
+    }
+    let (left, right) = (model.link_index("left_sole_link").unwrap(), model.link_index("right_sole_link").unwrap());
+    let mut poses = Vec::new();
+    model.forward_kinematics(&q, &mut poses).unwrap();
+    q[2] = -poses[left].translation.vector.z;
+    model.forward_kinematics(&q, &mut poses).unwrap();
+    let mut arm = vec![0.0; model.nv];
+    for j in model.joints.iter().filter(|j| j.name.starts_with("arm_left_") && model.active_joints.contains(&j.name)) {
+        arm[j.v_index] = 1.0;
+    }
+    let term = |name: &str, kind, tolerance| Term { name: name.into(), kind, weight: 20.0, tolerance };
+    let primary = vec![
+        term("left_sole", TermKind::FramePose { link: left, target: poses[left], mask: [1.0; 6] }, 1e-4),
+        term("right_sole", TermKind::FramePose { link: right, target: poses[right], mask: [1.0; 6] }, 1e-4),
+        term("com", TermKind::ComBox { lower: Vector3::new(-0.1, -0.1, 0.6), upper: Vector3::new(0.1, 0.1, 1.1), margin: 1e-3 }, 1e-3),
+        term("joint_limits", TermKind::JointLimits { margin: 1e-3 }, 1e-3),
+        Term { name: "left_arm".into(), kind: TermKind::Posture { q_nom: Some(q.clone()), weights: arm, overrides: vec![] }, weight: 10.0, tolerance: 1e-3 },
+    ];
+    let secondary = vec![Term {
+        name: "posture".into(),
+        kind: TermKind::Posture { q_nom: None, weights: vec![1.0; model.nv], overrides: vec![] },
+        weight: 1.0,
+        tolerance: 1e-3,
+    }];
+    let solver = Solver::new(model.clone(), primary, secondary, SolverSettings::default()).unwrap();
+    (model, solver, q)
+}
+
+/// One Talos projection from a random configuration (joints uniform within their limits, the base
+/// at half-sitting: the sampler's projection, with the posture step), and one of a state 0.02 rad
+/// off the manifold without it (an edge state: `GaussNewtonProjector::project_edge`).
+fn projection(c: &mut Criterion) {
+    let (model, solver, q_default) = talos_projection();
+    let mut rng = StdRng::seed_from_u64(7);
+    let random: Vec<Vec<f64>> = (0..64)
+        .map(|_| {
+            let mut q = q_default.clone();
+            for i in 7..model.nq {
+                q[i] = rng.random_range(model.lower[i]..=model.upper[i]);
+            }
+            q
+        })
+        .collect();
+    let on: Vec<Vec<f64>> = random.iter().map(|q| solver.solve_unchecked(q, None)).filter(|o| o.success).map(|o| o.q).collect();
+    assert!(on.len() >= 48, "only {} of 64 random configurations projected", on.len());
+    let near: Vec<Vec<f64>> = on
+        .iter()
+        .map(|q| {
+            let mut q = q.clone();
+            for i in 7..model.nq {
+                q[i] = (q[i] + rng.random_range(-0.02..=0.02)).clamp(model.lower[i], model.upper[i]);
+            }
+            q
+        })
+        .collect();
+    let mut primary_only = solver.clone();
+    primary_only.secondary.clear();
+    let mut k = 0;
+    c.bench_function("projection/talos_random", |b| {
+        b.iter(|| {
+            k = (k + 1) % random.len();
+            black_box(solver.solve_unchecked(black_box(&random[k]), None))
+        })
+    });
+    c.bench_function("projection/talos_edge_state", |b| {
+        b.iter(|| {
+            k = (k + 1) % near.len();
+            black_box(primary_only.solve_unchecked(black_box(&near[k]), None))
+        })
+    });
+}
+
+criterion_group!(benches, nearest, sphere, panda, constrained_space, projection);
 criterion_main!(benches);

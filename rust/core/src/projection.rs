@@ -519,6 +519,53 @@ impl Projector {
         Ok((raws, Some(j)))
     }
 
+    /// The weighted residual rows (of `raws`, the terms' residuals at `s`) and weighted Jacobian
+    /// rows of `terms` at `s`, without the rows whose residual and Jacobian row are both zero
+    /// (they change nothing in a least-squares step).
+    fn active_rows(
+        &self,
+        terms: &[Term],
+        s: &State,
+        noms: &[Vec<f64>],
+        raws: &[DVector<f64>],
+        frame_jac: &mut DMatrix<f64>,
+    ) -> TermResult<(DVector<f64>, DMatrix<f64>)> {
+        let nv = self.model.nv;
+        let mut jacs = Vec::with_capacity(terms.len());
+        // per term, which rows are kept (a column-major scan of its Jacobian)
+        let mut keep = Vec::with_capacity(terms.len());
+        for ((t, n), r) in terms.iter().zip(noms).zip(raws) {
+            let j = match &t.kind {
+                TermKind::Custom(_) => self.eval(t, s, n, true, frame_jac)?.1.unwrap_or_else(|| unreachable!("eval with_jac returns a Jacobian")),
+                _ => self.jacobian(t, s, n, frame_jac),
+            };
+            let mut k: Vec<bool> = r.iter().map(|&x| x != 0.0).collect();
+            for col in j.column_iter() {
+                k.iter_mut().zip(col.iter()).for_each(|(k, &x)| *k |= x != 0.0);
+            }
+            jacs.push(j);
+            keep.push(k);
+        }
+        let kept: Vec<Vec<usize>> = keep.iter().map(|k| (0..k.len()).filter(|&i| k[i]).collect()).collect();
+        let rows = kept.iter().map(Vec::len).sum();
+        let mut r1 = DVector::zeros(rows);
+        let mut j1 = DMatrix::zeros(rows, nv);
+        let mut k0 = 0;
+        for (((t, r), j), kept) in terms.iter().zip(raws).zip(&jacs).zip(&kept) {
+            for (dst, &i) in r1.as_mut_slice()[k0..k0 + kept.len()].iter_mut().zip(kept) {
+                *dst = t.weight * r[i];
+            }
+            for c in 0..nv {
+                let (src, col) = (j.column(c), &mut j1.as_mut_slice()[c * rows..(c + 1) * rows]);
+                for (dst, &i) in col[k0..k0 + kept.len()].iter_mut().zip(kept) {
+                    *dst = t.weight * src[i];
+                }
+            }
+            k0 += kept.len();
+        }
+        Ok((r1, j1))
+    }
+
     fn weighted(terms: &[Term], raws: &[DVector<f64>]) -> DVector<f64> {
         let n: usize = raws.iter().map(|r| r.len()).sum();
         let mut out = DVector::zeros(n);
@@ -544,7 +591,7 @@ impl Projector {
     /// that sits at a limit out of its range, hold that joint (zero its Jacobian column, so its
     /// step component is 0) and solve the step again over the others. Returns the held joints'
     /// tangent indices (at most one round per bounded joint).
-    fn hold_at_limits(&self, q: &[f64], lam: f64, r1: &DVector<f64>, j1: &mut DMatrix<f64>, j1_pinv: &mut DMatrix<f64>, dq1: &mut DVector<f64>) -> Vec<usize> {
+    fn hold_at_limits(&self, q: &[f64], lam: f64, r1: &DVector<f64>, j1: &mut DMatrix<f64>, pinv: &mut DampedPinv, dq1: &mut DVector<f64>) -> Vec<usize> {
         let mut held: Vec<usize> = Vec::new();
         loop {
             let before = held.len();
@@ -559,8 +606,8 @@ impl Projector {
             if held.len() == before {
                 return held;
             }
-            *j1_pinv = damped_pinv(j1, lam);
-            *dq1 = &*j1_pinv * r1;
+            *pinv = DampedPinv::new(j1, lam);
+            *dq1 = pinv.apply(j1, r1);
         }
     }
 
@@ -672,36 +719,39 @@ impl Projector {
         let (mut raws, _) = self.stack(&self.primary, &s, &primary_nominal, false)?;
         let mut frame_jac = DMatrix::zeros(6, nv);
         while !self.satisfied(&raws) && iterations < st.max_iterations {
-            let (_, j1) = self.stack(&self.primary, &s, &primary_nominal, true)?;
-            let Some(j1_full) = j1 else { unreachable!("stack with_jac returns a Jacobian") };
-            let r1_full = Self::weighted(&self.primary, &raws);
-            // Rows with a zero residual and a zero Jacobian (inactive limits, CoM inside its box)
-            // change nothing in the step: drop them to keep the linear algebra small.
-            let keep: Vec<usize> = (0..r1_full.len())
-                .filter(|&i| r1_full[i] != 0.0 || j1_full.row(i).iter().any(|&x| x != 0.0))
-                .collect();
-            let j1m = j1_full.select_rows(keep.iter());
-            let r1 = r1_full.select_rows(keep.iter());
+            // Rows with a zero residual and a zero Jacobian (inactive limits, CoM inside its box,
+            // posture rows of weight 0) change nothing in the step: only the others are stacked.
+            let (r1, mut j1m) = self.active_rows(&self.primary, &s, &primary_nominal, &raws, &mut frame_jac)?;
             let c0 = r1.norm_squared();
             let lam = st.mu * c0 + st.mu_bar;
-            let mut j1m = j1m;
-            let mut j1_pinv = damped_pinv(&j1m, lam);
-            let mut dq1 = &j1_pinv * &r1;
-            let held = if st.active_set { self.hold_at_limits(&q, lam, &r1, &mut j1m, &mut j1_pinv, &mut dq1) } else { Vec::new() };
+            let mut pinv = DampedPinv::new(&j1m, lam);
+            let mut dq1 = pinv.apply(&j1m, &r1);
+            let held = if st.active_set { self.hold_at_limits(&q, lam, &r1, &mut j1m, &mut pinv, &mut dq1) } else { Vec::new() };
             let slope = 2.0 * r1.dot(&(&j1m * &dq1));
             let mut alpha = 1.0;
-            let mut q_new = q.clone();
+            // the iterate after the step, its state and residuals (those of the last try)
+            let mut next = None;
             let mut c = f64::INFINITY;
             for _ in 0..st.max_backtracks {
-                q_new = self.step(&q, &dq1, alpha);
-                let sn = self.state(q_new.clone());
+                let q_try = self.step(&q, &dq1, alpha);
+                let sn = self.state(q_try);
                 let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false)?;
                 c = self.cost(&rn);
+                next = Some((sn, rn));
                 if c <= c0 - st.armijo_c1 * alpha * slope {
                     break;
                 }
                 alpha *= st.backtrack;
             }
+            let (mut s_new, mut raws_new) = match next {
+                Some(n) => n,
+                // no backtrack allowed: the step is not taken
+                None => {
+                    let sn = self.state(q.clone());
+                    let rn = raws.clone();
+                    (sn, rn)
+                }
+            };
             if !self.secondary.is_empty() {
                 let mut r2_parts = Vec::new();
                 let mut j2 = DMatrix::zeros(0, nv);
@@ -721,30 +771,30 @@ impl Projector {
                     r2_parts.iter().map(|r| r.len()).sum(),
                     r2_parts.iter().flat_map(|r| r.iter().copied()),
                 );
-                let n1 = DMatrix::identity(nv, nv) - &j1_pinv * &j1m;
-                let j2n = &j2 * &n1;
+                let n1 = pinv.null_space(&j1m);
+                let j2n = sparse_mul(&j2, &n1);
                 let rhs = r2 - &j2 * (&dq1 * alpha);
-                let dq2 = &n1 * damped_pinv_apply(&j2n, st.mu_bar, &rhs);
+                let dq2 = &n1 * DampedPinv::new(&j2n, st.mu_bar).apply(&j2n, &rhs);
                 let mut alpha2 = 1.0;
                 for _ in 0..st.secondary_backtracks {
-                    let q_try = self.step(&q_new, &dq2, alpha2);
-                    let sn = self.state(q_try.clone());
+                    let q_try = self.step(&s_new.q, &dq2, alpha2);
+                    let sn = self.state(q_try);
                     let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false)?;
                     if self.cost(&rn) <= c + st.secondary_slack {
-                        q_new = q_try;
+                        (s_new, raws_new) = (sn, rn);
                         break;
                     }
                     alpha2 *= st.backtrack;
                 }
             }
             iterations += 1;
-            if q_new.iter().any(|x| !x.is_finite()) {
+            if s_new.q.iter().any(|x| !x.is_finite()) {
                 // the step overflowed: stop at the last finite iterate (`q`, `raws`), unsuccessful
                 break;
             }
-            q = q_new;
-            s = self.state(q.clone());
-            raws = self.stack(&self.primary, &s, &primary_nominal, false)?.0;
+            q = s_new.q.clone();
+            s = s_new;
+            raws = raws_new;
         }
         let residuals = raws
             .iter()
@@ -793,42 +843,78 @@ fn nominals(terms: &[Term], nominal: &[f64]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// J^+ with Tikhonov damping: J^T (J J^T + lambda I)^-1 (or the normal-equation form when J is
-/// tall).
-fn damped_pinv(j: &DMatrix<f64>, lam: f64) -> DMatrix<f64> {
-    let (m, n) = j.shape();
-    if m <= n {
-        let a = j * j.transpose() + DMatrix::identity(m, m) * lam;
-        match a.cholesky() {
-            Some(ch) => ch.solve(j).transpose(),
-            None => DMatrix::zeros(n, m),
+/// The damped pseudo-inverse of a Jacobian J, `J^+ = J^T (J J^T + lambda I)^-1` (the
+/// normal-equation form `(J^T J + lambda I)^-1 J^T` when J is tall), by one Cholesky factorisation
+/// of the smaller damped Gram matrix, shared by the step ([`apply`](Self::apply)) and the null
+/// space ([`null_space`](Self::null_space)). The pseudo-inverse itself is never formed (a solve
+/// with one right-hand side per joint cost a fifth of a Talos iteration). When the damped matrix
+/// is not positive definite (lambda = 0 and J rank-deficient), `J^+` is 0.
+struct DampedPinv {
+    ch: Option<nalgebra::linalg::Cholesky<f64, nalgebra::Dyn>>,
+    wide: bool,
+}
+
+impl DampedPinv {
+    fn new(j: &DMatrix<f64>, lam: f64) -> DampedPinv {
+        let (m, n) = j.shape();
+        let wide = m <= n;
+        let a = if wide { j * j.transpose() + DMatrix::identity(m, m) * lam } else { j.transpose() * j + DMatrix::identity(n, n) * lam };
+        DampedPinv { ch: a.cholesky(), wide }
+    }
+
+    /// `J^+ v` (`j` the matrix this was made from).
+    fn apply(&self, j: &DMatrix<f64>, v: &DVector<f64>) -> DVector<f64> {
+        match (&self.ch, self.wide) {
+            (Some(ch), true) => j.transpose() * ch.solve(v),
+            (Some(ch), false) => ch.solve(&(j.transpose() * v)),
+            (None, _) => DVector::zeros(j.ncols()),
         }
-    } else {
-        let a = j.transpose() * j + DMatrix::identity(n, n) * lam;
-        match a.cholesky() {
-            Some(ch) => ch.solve(&j.transpose()),
-            None => DMatrix::zeros(n, m),
+    }
+
+    /// `I - J^+ J`, the secondary step's null-space projector (`j` the matrix this was made
+    /// from). For a wide J it is `I - B^T B` with `B = L^-1 J`, `L` the Cholesky factor, by
+    /// forward substitution on the columns of `J^T` (contiguous).
+    fn null_space(&self, j: &DMatrix<f64>) -> DMatrix<f64> {
+        let (m, n) = j.shape();
+        let Some(ch) = &self.ch else { return DMatrix::identity(n, n) };
+        if !self.wide {
+            return DMatrix::identity(n, n) - ch.solve(&j.transpose()) * j;
         }
+        let l = ch.l_dirty();
+        // column i of bt = (row i of J - sum over k < i of L[i, k] row k of B) / L[i, i]
+        let mut bt = j.transpose();
+        for i in 0..m {
+            for k in 0..i {
+                let lik = l[(i, k)];
+                if lik != 0.0 {
+                    let (done, rest) = bt.as_mut_slice().split_at_mut(i * n);
+                    let (bk, bi) = (&done[k * n..(k + 1) * n], &mut rest[..n]);
+                    bi.iter_mut().zip(bk).for_each(|(x, y)| *x -= lik * y);
+                }
+            }
+            let d = l[(i, i)];
+            bt.column_mut(i).iter_mut().for_each(|x| *x /= d);
+        }
+        let mut out = DMatrix::identity(n, n);
+        out.gemm(-1.0, &bt, &bt.transpose(), 1.0);
+        out
     }
 }
 
-/// `damped_pinv(j, lam) * v` without forming the pseudo-inverse: one Cholesky factorisation and a
-/// vector solve instead of a solve with as many right-hand sides as J has columns.
-fn damped_pinv_apply(j: &DMatrix<f64>, lam: f64, v: &DVector<f64>) -> DVector<f64> {
-    let (m, n) = j.shape();
-    if m <= n {
-        let a = j * j.transpose() + DMatrix::identity(m, m) * lam;
-        match a.cholesky() {
-            Some(ch) => j.transpose() * ch.solve(v),
-            None => DVector::zeros(n),
-        }
-    } else {
-        let a = j.transpose() * j + DMatrix::identity(n, n) * lam;
-        match a.cholesky() {
-            Some(ch) => ch.solve(&(j.transpose() * v)),
-            None => DVector::zeros(n),
+/// `a * b` for a sparse `a` (a posture Jacobian: diagonal but for the free-flyer's block): each
+/// non-zero of `a` adds a multiple of a row of `b` (a column of `b^T`, contiguous).
+fn sparse_mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
+    let bt = b.transpose();
+    let mut out_t = DMatrix::zeros(b.ncols(), a.nrows());
+    for i in 0..a.nrows() {
+        for k in 0..a.ncols() {
+            let x = a[(i, k)];
+            if x != 0.0 {
+                out_t.column_mut(i).axpy(x, &bt.column(k), 1.0);
+            }
         }
     }
+    out_t.transpose()
 }
 
 /// Check a term against the model (see the module doc): the link index; every number finite
