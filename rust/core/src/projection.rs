@@ -539,12 +539,14 @@ impl Projector {
                 TermKind::Custom(_) => self.eval(t, s, n, true, frame_jac)?.1.unwrap_or_else(|| unreachable!("eval with_jac returns a Jacobian")),
                 _ => self.jacobian(t, s, n, frame_jac),
             };
-            let mut k: Vec<bool> = r.iter().map(|&x| x != 0.0).collect();
+            // the sum of a row's absolute values is 0 exactly when the row is (NaN stays NaN,
+            // kept); summed column by column, which vectorises
+            let mut mass: Vec<f64> = r.iter().map(|x| x.abs()).collect();
             for col in j.column_iter() {
-                k.iter_mut().zip(col.iter()).for_each(|(k, &x)| *k |= x != 0.0);
+                mass.iter_mut().zip(col.iter()).for_each(|(m, x)| *m += x.abs());
             }
             jacs.push(j);
-            keep.push(k);
+            keep.push(mass.iter().map(|&m| m != 0.0).collect::<Vec<bool>>());
         }
         let kept: Vec<Vec<usize>> = keep.iter().map(|k| (0..k.len()).filter(|&i| k[i]).collect()).collect();
         let rows = kept.iter().map(Vec::len).sum();
