@@ -1053,4 +1053,55 @@ mod tests {
         let e = Projector::new(Arc::new(model), terms(), Vec::new(), Settings::default()).unwrap_err().to_string();
         assert!(e.contains("joint 'j'") && e.contains("lower limit 1.0 is above its upper limit -1.0"), "{e}");
     }
+
+    /// The damped pseudo-inverse written out: J^T (J J^T + lambda I)^-1.
+    fn explicit_pinv(j: &DMatrix<f64>, lam: f64) -> DMatrix<f64> {
+        let m = j.nrows();
+        j.transpose() * (j * j.transpose() + DMatrix::identity(m, m) * lam).try_inverse().unwrap()
+    }
+
+    fn random_matrix(rows: usize, cols: usize, seed: u64) -> DMatrix<f64> {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        DMatrix::from_fn(rows, cols, |_, _| rng.random_range(-1.0..1.0))
+    }
+
+    /// The factorised step and null space (no pseudo-inverse formed) against the formulas written
+    /// out, for wide and tall Jacobians, with and without damping, with a rank-deficient one.
+    #[test]
+    fn damped_pinv_matches_the_explicit_formula() {
+        for (rows, cols, lam, seed) in [(20, 34, 1e-3, 1), (3, 7, 0.0, 2), (7, 7, 1e-6, 3), (12, 5, 0.1, 4), (1, 6, 0.0, 5)] {
+            let j = random_matrix(rows, cols, seed);
+            let v = random_matrix(rows, 1, seed + 100).column(0).into_owned();
+            let pinv = if rows <= cols {
+                explicit_pinv(&j, lam)
+            } else {
+                (j.transpose() * &j + DMatrix::identity(cols, cols) * lam).try_inverse().unwrap() * j.transpose()
+            };
+            let d = DampedPinv::new(&j, lam);
+            assert!((d.apply(&j, &v) - &pinv * &v).amax() < 1e-9, "{rows}x{cols}: step");
+            let n1 = DMatrix::identity(cols, cols) - &pinv * &j;
+            assert!((d.null_space(&j) - n1).amax() < 1e-9, "{rows}x{cols}: null space");
+        }
+        // rank-deficient (a zero row) without damping: J J^T is singular, J^+ = 0, as before
+        let mut j = random_matrix(4, 6, 9);
+        j.row_mut(1).fill(0.0);
+        let d = DampedPinv::new(&j, 0.0);
+        assert!(d.ch.is_none());
+        assert_eq!(d.apply(&j, &DVector::from_element(4, 1.0)), DVector::zeros(6));
+        assert_eq!(d.null_space(&j), DMatrix::identity(6, 6));
+    }
+
+    #[test]
+    fn sparse_mul_is_the_product() {
+        let mut a = DMatrix::zeros(9, 9);
+        a.view_mut((0, 0), (3, 3)).copy_from(&random_matrix(3, 3, 11));
+        for i in 3..9 {
+            a[(i, i)] = 0.5 + i as f64;
+        }
+        let b = random_matrix(9, 9, 12);
+        assert!((sparse_mul(&a, &b) - &a * &b).amax() < 1e-12);
+        let wide = random_matrix(4, 9, 13);
+        assert!((sparse_mul(&wide, &b) - &wide * &b).amax() < 1e-12);
+    }
 }
