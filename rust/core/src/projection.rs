@@ -532,8 +532,8 @@ impl Projector {
     ) -> TermResult<(DVector<f64>, DMatrix<f64>)> {
         let nv = self.model.nv;
         let mut jacs = Vec::with_capacity(terms.len());
-        // per term, which rows are kept (a column-major scan of its Jacobian)
-        let mut keep = Vec::with_capacity(terms.len());
+        // per term, the indices of the rows kept (a column-major scan of its Jacobian)
+        let mut kept: Vec<Vec<usize>> = Vec::with_capacity(terms.len());
         for ((t, n), r) in terms.iter().zip(noms).zip(raws) {
             let j = match &t.kind {
                 TermKind::Custom(_) => self.eval(t, s, n, true, frame_jac)?.1.unwrap_or_else(|| unreachable!("eval with_jac returns a Jacobian")),
@@ -546,9 +546,8 @@ impl Projector {
                 mass.iter_mut().zip(col.iter()).for_each(|(m, x)| *m += x.abs());
             }
             jacs.push(j);
-            keep.push(mass.iter().map(|&m| m != 0.0).collect::<Vec<bool>>());
+            kept.push((0..mass.len()).filter(|&i| mass[i] != 0.0).collect());
         }
-        let kept: Vec<Vec<usize>> = keep.iter().map(|k| (0..k.len()).filter(|&i| k[i]).collect()).collect();
         let rows = kept.iter().map(Vec::len).sum();
         let mut r1 = DVector::zeros(rows);
         let mut j1 = DMatrix::zeros(rows, nv);
@@ -715,7 +714,8 @@ impl Projector {
         let primary_nominal = nominals(&self.primary, &nominal);
         let secondary_nominal = nominals(&self.secondary, &nominal);
         let mut iterations = 0;
-        let mut s = self.state(q.clone());
+        // the iterate: its configuration (`s.q`) and link poses
+        let mut s = self.state(q);
         // Residuals first: a configuration already on the manifold (most states along a planner's
         // edge) costs one forward kinematics, no Jacobian.
         let (mut raws, _) = self.stack(&self.primary, &s, &primary_nominal, false)?;
@@ -728,14 +728,14 @@ impl Projector {
             let lam = st.mu * c0 + st.mu_bar;
             let mut pinv = DampedPinv::new(&j1m, lam);
             let mut dq1 = pinv.apply(&j1m, &r1);
-            let held = if st.active_set { self.hold_at_limits(&q, lam, &r1, &mut j1m, &mut pinv, &mut dq1) } else { Vec::new() };
+            let held = if st.active_set { self.hold_at_limits(&s.q, lam, &r1, &mut j1m, &mut pinv, &mut dq1) } else { Vec::new() };
             let slope = 2.0 * r1.dot(&(&j1m * &dq1));
             let mut alpha = 1.0;
             // the iterate after the step, its state and residuals (those of the last try)
             let mut next = None;
             let mut c = f64::INFINITY;
             for _ in 0..st.max_backtracks {
-                let q_try = self.step(&q, &dq1, alpha);
+                let q_try = self.step(&s.q, &dq1, alpha);
                 let sn = self.state(q_try);
                 let (rn, _) = self.stack(&self.primary, &sn, &primary_nominal, false)?;
                 c = self.cost(&rn);
@@ -749,7 +749,7 @@ impl Projector {
                 Some(n) => n,
                 // no backtrack allowed: the step is not taken
                 None => {
-                    let sn = self.state(q.clone());
+                    let sn = self.state(s.q.clone());
                     let rn = raws.clone();
                     (sn, rn)
                 }
@@ -791,10 +791,9 @@ impl Projector {
             }
             iterations += 1;
             if s_new.q.iter().any(|x| !x.is_finite()) {
-                // the step overflowed: stop at the last finite iterate (`q`, `raws`), unsuccessful
+                // the step overflowed: stop at the last finite iterate (`s`, `raws`), unsuccessful
                 break;
             }
-            q = s_new.q.clone();
             s = s_new;
             raws = raws_new;
         }
@@ -808,7 +807,7 @@ impl Projector {
             .collect();
         Ok(Outcome {
             success: self.satisfied(&raws),
-            q,
+            q: s.q,
             iterations,
             residuals,
             time_s: t0.elapsed().as_secs_f64(),
