@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import genplan
-from genplan.gan.model import load_model
+from genplan.gan.loading import load_sampler_model
 from genplan.experiments.common import write_json
 from genplan.planning import ENVIRONMENT_NAMES, Planner, environment
 
@@ -32,7 +32,8 @@ from adaptive_half_life import PROTOCOLS, record  # benches/: run as python benc
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="panda_shelf", choices=list(ENVIRONMENT_NAMES))
-    parser.add_argument("--model", type=Path, required=True, help="the variant GAN (.safetensors with its card)")
+    parser.add_argument("--model", type=Path, required=True,
+                        help="the variant: a GAN or flow file (.safetensors with its card)")
     parser.add_argument("--queries", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=None)
@@ -41,7 +42,7 @@ def main() -> None:
     robot = genplan.load(env.robot)
     world = env.world(robot)
     queries = env.queries(robot, n=args.queries, seed=args.seed)
-    variant = load_model(robot, args.model)
+    variant = load_sampler_model(robot, args.model)
     rows: list[dict] = []
     for protocol, settings in PROTOCOLS:
         planners = {"uniform": Planner(robot, world=world, sampler="uniform", settings=settings, seed=args.seed),

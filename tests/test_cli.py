@@ -118,6 +118,7 @@ OUTPUTS = [
     ("bench peers", "", "--markdown", "file"),
     ("data", "--robot panda --data-size 10", "--out", "folder"),
     ("train gan", "--robot panda", "--out", "file"),
+    ("train flow", "--robot panda", "--out", "file"),
     ("train seq2seq", "", "--out", "file"),
     ("report", "{tmp}", "--out", "file"),
     ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5", "--out", "file"),

@@ -15,7 +15,7 @@ __all__ = [
     "__version__", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "Projector",
     "SolverSettings", "read_robot_file", "robot_description", "load_robot", "srdf_disabled_pairs",
     "disabled_pairs_srdf", "time_optimal", "sample_timed_spline", "Planner", "PlannerSettings", "PlanStats",
-    "PlanResult", "UniformSampler", "MixtureSampler", "GanSampler", "Dynamics", "SpatulaSimulation",
+    "PlanResult", "UniformSampler", "MixtureSampler", "GanSampler", "FlowSampler", "Dynamics", "SpatulaSimulation",
     "spatula_defaults", "pancake_phi",
 ]
 
@@ -254,14 +254,37 @@ class GanSampler:
     ) -> NDArray[np.float64]: ...
 
 @final
+class FlowSampler:
+    """A trained flow-matching sampler run natively (see genplan.gan.flow.FlowModel.native_sampler)."""
+
+    def __new__(
+        cls,
+        weights: list[NDArray[np.float32]],
+        biases: list[NDArray[np.float32]],
+        steps: int,
+        target_mean: list[float],
+        target_std: list[float],
+        mean: list[float],
+        std: list[float],
+        floating_base: bool,
+        lower: list[float],
+        upper: list[float],
+        seed: int = 0,
+    ) -> Self: ...
+    @property
+    def nq(self) -> int: ...
+    def sample(self, n: int) -> NDArray[np.float64]: ...
+    def generate(self, noise: NDArray[np.float64], targets: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+@final
 class MixtureSampler:
     """``primary`` with probability ``p``, else ``secondary`` (native samplers or objects with
     sample(n)); with ``half_life``, the probability halves every ``half_life`` rows of a plan."""
 
     def __new__(
         cls,
-        primary: UniformSampler | GanSampler | MixtureSampler | protocols.Sampler,
-        secondary: UniformSampler | GanSampler | MixtureSampler | protocols.Sampler,
+        primary: UniformSampler | GanSampler | FlowSampler | MixtureSampler | protocols.Sampler,
+        secondary: UniformSampler | GanSampler | FlowSampler | MixtureSampler | protocols.Sampler,
         p: float = 0.8,
         seed: int = 0,
         half_life: float | None = None,
@@ -396,7 +419,7 @@ class PlanResult:
     @property
     def retries(self) -> int: ...
 
-_NativeSampler = UniformSampler | GanSampler | MixtureSampler
+_NativeSampler = UniformSampler | GanSampler | FlowSampler | MixtureSampler
 
 @final
 class Planner:

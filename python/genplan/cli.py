@@ -87,6 +87,7 @@ COMMANDS: list[tuple[str, str, str, str]] = [
     ("bench", "peers", "genplan.experiments.benchmarks.peers", "genplan beside Pinocchio + coal, pink, placo, ikpy, pytorch-kinematics: FK, collision, IK, plan time vs obstacles"),
     ("bench", "adjust", "genplan.experiments.benchmarks.adjust", "seq2seq paper Figs. 5-9, 11: latent trajectory adjustment (J1, J2) vs direct U and CasADi + IPOPT"),
     ("train", "gan", "genplan.gan.train_cli", "the conditional ensemble GAN of valid configurations"),
+    ("train", "flow", "genplan.gan.flow_cli", "a conditional flow-matching sampler of valid configurations (beyond the paper)"),
     ("train", "seq2seq", "genplan.pancake.train_cli", "the pancake seq2seq trajectory deformation model"),
 ]
 

@@ -84,13 +84,15 @@ def _targets(targets: ArrayLike) -> NDArray[np.float64]:
 
 
 def _model(robot: Robot, task: Any, model: Any) -> Any:
-    from genplan.gan.model import GanModel, load_model
+    from genplan.gan.flow import FlowModel
+    from genplan.gan.loading import load_sampler_model
+    from genplan.gan.model import GanModel
 
-    if isinstance(model, GanModel):
+    if isinstance(model, (GanModel, FlowModel)):
         if model.robot.name != robot.name:
             raise SettingsError(f"model: a GAN for robot '{model.robot.name}', not '{robot.name}'")
         return model
-    return load_model(robot, model, task=task)
+    return load_sampler_model(robot, model, task=task)
 
 
 def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike = "gan", restarts: int = 20,
@@ -165,12 +167,19 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
         # on targets clipped into the box its output is vouched for (GanModel.native_sampler)
         native_gan = gan.native_sampler(seed=seed)
         box = np.asarray(gan.config.target_box, dtype=np.float64)
-        n_net, noise_dim = gan.config.n_net, gan.config.noise_dim
+        if hasattr(gan.config, "n_net"):
+            n_net, noise_dim = gan.config.n_net, gan.config.noise_dim
 
-        def gan_starts(rows: NDArray[np.intp]) -> NDArray[np.float64]:
-            members = rng.integers(0, n_net, size=len(rows)).tolist()
-            noise = np.clip(rng.standard_normal((len(rows), noise_dim)), -NATIVE_NOISE_MAX, NATIVE_NOISE_MAX)
-            return native_gan.generate(members, noise, np.clip(t[rows], box[0], box[1]))
+            def gan_starts(rows: NDArray[np.intp]) -> NDArray[np.float64]:
+                members = rng.integers(0, n_net, size=len(rows)).tolist()
+                noise = np.clip(rng.standard_normal((len(rows), noise_dim)), -NATIVE_NOISE_MAX, NATIVE_NOISE_MAX)
+                return native_gan.generate(members, noise, np.clip(t[rows], box[0], box[1]))
+        else:  # a flow sampler (genplan.gan.flow)
+            dim = gan.codec.dim
+
+            def gan_starts(rows: NDArray[np.intp]) -> NDArray[np.float64]:
+                noise = np.clip(rng.standard_normal((len(rows), dim)), -NATIVE_NOISE_MAX, NATIVE_NOISE_MAX)
+                return native_gan.generate(noise, np.clip(t[rows], box[0], box[1]))
 
     q = np.tile(robot.q_default, (n, 1)) if first is None else first.copy()
     success = np.zeros(n, dtype=bool)

@@ -28,16 +28,19 @@ def test_planar_collision_check() -> None:
     assert data.shape == (500, 2) and C.planar_collision_free(data).all()
 
 
-def test_variants_are_valid_gan_configs_and_parsed_by_name() -> None:
+def test_variants_are_valid_configs_and_parsed_by_name() -> None:
     import argparse
 
     import pytest
 
-    from genplan.gan.model import default_config
+    from genplan.gan.flow import FlowConfig
+    from genplan.gan.model import GanConfig
 
-    for name, overrides in C.VARIANTS.items():
-        cfg = default_config("panda", **overrides)  # validated: every variant trains
-        assert all(getattr(cfg, k) == v for k, v in overrides.items()), name
+    for name in C.VARIANTS:
+        family, cfg, overrides = C.variant_config("panda", name, iterations=7)  # validated: every variant trains
+        assert isinstance(cfg, FlowConfig if family == "flow" else GanConfig), name
+        assert cfg.iterations == 7 and all(getattr(cfg, k) == v for k, v in overrides.items()), name
+    assert {"flow", "flow_pure"} <= set(C.VARIANTS)
     assert set(C.PAPER_VARIANTS) <= set(C.VARIANTS)
     assert C.variant_list("default, wgan_gp,default") == ["default", "wgan_gp"]
     for bad in ("", "default,bogus"):

@@ -4,6 +4,8 @@
 * :mod:`genplan.gan.model` -- ensemble generator, discriminator, training, safetensors I/O.
 * :mod:`genplan.gan.sampler` -- :class:`GanSampler`, a planner Sampler (uniform and hybrid sampling:
   :func:`genplan.planning.make_sampler`).
+* :mod:`genplan.gan.flow` -- beyond the paper: a conditional flow-matching sampler behind the same
+  interface (``genplan train flow``); :mod:`genplan.gan.loading` loads a GAN or a flow file.
 
 Imported lazily, so that ``import genplan`` does not import torch.
 """
@@ -20,6 +22,9 @@ _EXPORTS = {
     "load_model": "genplan.gan.model",
     "train": "genplan.gan.model",
     "GanSampler": "genplan.gan.sampler",
+    "FlowConfig": "genplan.gan.flow",
+    "FlowModel": "genplan.gan.flow",
+    "load_sampler_model": "genplan.gan.loading",
 }
 
 #: Names removed after 0.1.0 and what replaces them (the Python twins of the native samplers).

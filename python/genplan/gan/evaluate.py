@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from genplan import projection as P
 from genplan.gan.costs import condition_term, manifold_task
-from genplan.gan.model import GanModel
+from genplan.gan.model import SamplerModel
 
 
 def _summary(res: P.BatchResult) -> dict[str, Any]:
@@ -34,7 +34,7 @@ def _summary(res: P.BatchResult) -> dict[str, Any]:
     }
 
 
-def evaluate(model: GanModel, task: P.Task, n: int = 500, seed: int = 1, progress: bool = False) -> dict[str, Any]:
+def evaluate(model: SamplerModel, task: P.Task, n: int = 500, seed: int = 1, progress: bool = False) -> dict[str, Any]:
     """The card's evaluation of ``model`` on ``task`` (see the module docstring): ``n`` held-out
     targets drawn with ``seed``."""
     robot = model.robot

@@ -59,6 +59,34 @@ STD_FLOOR = 0.05
 DISC_MIN_STD = 1e-3
 
 
+def check_fields(cfg: Any, *, positive: tuple[str, ...] = (), non_negative: tuple[str, ...] = (),
+                 widths: tuple[str, ...] = (), rates: tuple[str, ...] = (), weights: tuple[str, ...] = ()) -> None:
+    """SettingsError naming the first field of ``cfg`` (a GanConfig or FlowConfig) that is not:
+    a positive integer (``positive``), a non-negative integer (``non_negative``), a
+    tuple of positive integers (``widths``), a finite number > 0 (``rates``) or >= 0
+    (``weights``)."""
+    kind = type(cfg).__name__
+
+    def integer(v: Any, least: int) -> bool:
+        return not isinstance(v, bool) and isinstance(v, int) and v >= least
+
+    for name in positive + non_negative:
+        v = getattr(cfg, name)
+        if not integer(v, 1 if name in positive else 0):
+            raise SettingsError(f"{kind}.{name} must be a {'positive' if name in positive else 'non-negative'} "
+                                f"integer, got {v!r}")
+    for name in widths:
+        seq = getattr(cfg, name)
+        if not all(integer(v, 1) for v in seq):
+            raise SettingsError(f"{kind}.{name} must hold positive integers, got {seq!r}")
+    for name in rates + weights:
+        x = getattr(cfg, name)
+        if not (isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                and (x > 0 if name in rates else x >= 0)):
+            raise SettingsError(f"{kind}.{name} must be a finite number {'> 0' if name in rates else '>= 0'}, "
+                                f"got {x!r}")
+
+
 @dataclass(frozen=True)
 class GanConfig:
     """Hyperparameters (defaults: the authors' public code; the card records every value)."""
@@ -116,24 +144,10 @@ class GanConfig:
 
     def validate(self) -> None:
         """SettingsError naming the first field with a value training or sampling cannot use."""
-        positive = {"noise_dim": self.noise_dim, "n_net": self.n_net, "batch": self.batch,
-                    "disc_steps": self.disc_steps, "iterations": self.iterations, "data_size": self.data_size}
-        for name, v in positive.items():
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise SettingsError(f"GanConfig.{name} must be a positive integer, got {v!r}")
-        for name, seq in (("gen_hidden", self.gen_hidden), ("disc_hidden", self.disc_hidden)):
-            if any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in seq):
-                raise SettingsError(f"GanConfig.{name} must hold positive integers, got {seq!r}")
-        for name, v in (("seed", self.seed), ("data_seed", self.data_seed)):
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise SettingsError(f"GanConfig.{name} must be a non-negative integer, got {v!r}")
-        rates = {"lr_gen": self.lr_gen, "lr_disc": self.lr_disc}
-        weights = {"w_target": self.w_target, "w_limits": self.w_limits, "w_constraint": self.w_constraint,
-                   "gp_weight": self.gp_weight, "w_diversity": self.w_diversity}
-        for name, x in {**rates, **weights}.items():
-            if not (isinstance(x, (int, float)) and math.isfinite(x) and (x > 0 if name in rates else x >= 0)):
-                raise SettingsError(f"GanConfig.{name} must be a finite number {'> 0' if name in rates else '>= 0'}, "
-                                    f"got {x!r}")
+        check_fields(self, positive=("noise_dim", "n_net", "batch", "disc_steps", "iterations", "data_size"),
+                     non_negative=("seed", "data_seed"), widths=("gen_hidden", "disc_hidden"),
+                     rates=("lr_gen", "lr_disc"),
+                     weights=("w_target", "w_limits", "w_constraint", "gp_weight", "w_diversity"))
         for name, value, allowed in (("loss", self.loss, self.LOSSES), ("member_init", self.member_init, self.MEMBER_INITS)):
             if value not in allowed:
                 raise SettingsError(f"GanConfig.{name} must be one of {list(allowed)}, got {value!r}")
@@ -325,15 +339,23 @@ class Constraints:
         return out
 
 
-@dataclass
-class GanModel:
-    """A trained generator with its codec: samples configurations given targets."""
+class SamplerModel:
+    """What the learned samplers (:class:`GanModel`, :class:`genplan.gan.flow.FlowModel`) share:
+    configurations of ``robot`` conditioned on targets, answered for targets in the config's
+    ``target_box`` widened by :data:`TARGET_MARGIN`."""
 
-    config: GanConfig
+    config: Any
     robot: Robot
-    generator: EnsembleGenerator
-    codec: Codec
-    card: dict[str, Any] = field(default_factory=dict)
+    card: dict[str, Any]
+
+    def sample(self, targets: ArrayLike, rng: np.random.Generator | int | None = None, *,
+               threads: int | None = None) -> NDArray[np.float64]:
+        """One configuration per target (n, 3) -> (n, nq)."""
+        raise NotImplementedError
+
+    def native_sampler(self, box: Any = None, seed: int = 0) -> Any:
+        """The model run natively (Rust): what the planner uses."""
+        raise NotImplementedError
 
     def target_limits(self) -> NDArray[np.float64]:
         """The box of targets the model answers for, [[xmin, ymin, zmin], [xmax, ymax, zmax]]: its
@@ -355,10 +377,21 @@ class GanModel:
         if len(outside):
             i = int(outside[0])
             raise GenplanError(
-                f"{what}: row {i} {t[i].tolist()} lies outside the region this GAN answers for, "
+                f"{what}: row {i} {t[i].tolist()} lies outside the region this model answers for, "
                 f"{lim.round(3).tolist()} (its target box widened by {TARGET_MARGIN} m; {len(outside)} row(s) "
                 f"outside); clip the targets into it to sample anyway")
         return t
+
+
+@dataclass
+class GanModel(SamplerModel):
+    """A trained generator with its codec: samples configurations given targets."""
+
+    config: GanConfig
+    robot: Robot
+    generator: EnsembleGenerator
+    codec: Codec
+    card: dict[str, Any] = field(default_factory=dict)
 
     @torch.no_grad()
     def generate(self, z: NDArray[np.float64], targets: NDArray[np.float64], offset: int = 0) -> NDArray[np.float64]:
@@ -474,7 +507,8 @@ def tensor_shapes(cfg: GanConfig, robot: Robot) -> dict[str, tuple[int, ...]]:
 
 def load_model(robot: str | Robot, path: str | Path | None = None,
                task: "str | os.PathLike[str] | P.Task | None" = None) -> GanModel:
-    """Load a GAN (default: the shipped ``models/<robot>_gan.safetensors``).
+    """Load a GAN (default: the shipped ``models/<robot>_gan.safetensors``; a GAN or a flow file:
+    :func:`genplan.gan.loading.load_sampler_model`).
 
     ``task`` (a :class:`~genplan.projection.Task`, a shipped task's name or a task file): the
     task the caller samples for; a GAN trained for another task is refused naming both (by name,
@@ -491,20 +525,7 @@ def load_model(robot: str | Robot, path: str | Path | None = None,
     path = models_dir() / f"{rob.name}_gan.safetensors" if path is None else Path(path)
     card, tensors = read_model(path, FORMAT, "GAN", train_command(rob), CARD_KEYS)
     cfg = read_config(card, path, "GAN", GanConfig)
-    if cfg.robot != rob.name or card.get("robot", cfg.robot) != cfg.robot:
-        raise ModelFileError(f"{path} is a GAN for robot '{cfg.robot}', not '{rob.name}'"
-                             + ("" if card.get("robot", cfg.robot) == cfg.robot else
-                                f" (and its card also says '{card['robot']}')"))
-    if task is not None:
-        t = P.load_task(task, rob)
-        if t.name != cfg.task_name:
-            raise ModelFileError(f"{path} is a GAN for task '{cfg.task_name}', not '{t.name}' (robot '{rob.name}')")
-        if "task" in card and _comparable(card["task"]) != _comparable(t.to_dict()):
-            raise ModelFileError(f"{path} is a GAN for another task '{cfg.task_name}' than the one given (same name, "
-                                 "other terms: retrain it for this task)")
-    if cfg.target_frame not in rob.frames and not rob.model.existFrame(cfg.target_frame):
-        raise ModelFileError(f"{path}: the GAN's target frame '{cfg.target_frame}' is not a frame of "
-                             f"'{rob.name}' (roles: {sorted(rob.frames)}, or any link name)")
+    check_model_fits(path, "GAN", cfg, card, rob, task)
     check_tensors(tensors, tensor_shapes(cfg, rob), path, "GAN")
     if not bool((tensors["codec.std"] > 0).all()):
         raise ModelFileError(f"GAN model file {path} is corrupt: tensor codec.std holds a scale <= 0")
@@ -516,6 +537,27 @@ def load_model(robot: str | Robot, path: str | Path | None = None,
             gen.biases[i].copy_(tensors[f"generator.bias.{i}"])
     gen.eval()
     return GanModel(cfg, rob, gen, codec, card)
+
+
+def check_model_fits(path: Path, kind: str, cfg: Any, card: dict[str, Any], rob: Robot,
+                     task: "str | os.PathLike[str] | P.Task | None") -> None:
+    """ModelFileError unless the model file ``path`` (a ``kind``, "GAN" or "flow", of config
+    ``cfg`` and card ``card``) is for robot ``rob``, for ``task`` (when given: by name, and by its
+    terms when the card records them), and its target frame is a frame of ``rob``."""
+    if cfg.robot != rob.name or card.get("robot", cfg.robot) != cfg.robot:
+        raise ModelFileError(f"{path} is a {kind} for robot '{cfg.robot}', not '{rob.name}'"
+                             + ("" if card.get("robot", cfg.robot) == cfg.robot else
+                                f" (and its card also says '{card['robot']}')"))
+    if task is not None:
+        t = P.load_task(task, rob)
+        if t.name != cfg.task_name:
+            raise ModelFileError(f"{path} is a {kind} for task '{cfg.task_name}', not '{t.name}' (robot '{rob.name}')")
+        if "task" in card and _comparable(card["task"]) != _comparable(t.to_dict()):
+            raise ModelFileError(f"{path} is a {kind} for another task '{cfg.task_name}' than the one given (same "
+                                 "name, other terms: retrain it for this task)")
+    if cfg.target_frame not in rob.frames and not rob.model.existFrame(cfg.target_frame):
+        raise ModelFileError(f"{path}: the {kind}'s target frame '{cfg.target_frame}' is not a frame of "
+                             f"'{rob.name}' (roles: {sorted(rob.frames)}, or any link name)")
 
 
 def _comparable(task: dict[str, Any]) -> str:
@@ -532,6 +574,58 @@ def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0) 
     else:
         target = robot.name if robot.source is None or robot.source.parent == PRESETS_DIR else str(robot.source)
     return f"genplan train gan --robot {target}" + (f" --task {task}" if task else "") + f" --seed {seed}"
+
+
+@dataclass
+class TrainingData:
+    """What a learned sampler trains on (:func:`prepare_training`)."""
+
+    robot: Robot
+    task: P.Task
+    #: valid configurations (n, nq)
+    data: NDArray[np.float64]
+    #: "given", "cache" or "generated"
+    data_source: str
+    data_seconds: float
+    #: the data's features (n, dim), not standardised
+    features: NDArray[np.float64]
+    #: standardisation of the features (scales floored at :data:`STD_FLOOR`)
+    codec: Codec
+
+
+def prepare_training(cfg: Any, data: NDArray[np.float64] | None, progress: bool, robot: Robot | None,
+                     task: "P.Task | None", kind: str) -> TrainingData:
+    """The robot, task, data and codec of a training run of ``cfg`` (a GanConfig or FlowConfig:
+    ``robot``, ``task_name``, ``data_size``, ``data_seed``), checked: a robot or task other than
+    the config's, continuous joints or misshapen data raise before any work. ``kind`` names the
+    model in messages."""
+    from genplan.gan.data import cache_path, valid_configurations
+
+    robot = load(cfg.robot) if robot is None else robot  # cfg is valid: a frozen config validates when made
+    if robot.name != cfg.robot:
+        raise SettingsError(f"{type(cfg).__name__}.robot is '{cfg.robot}', the robot given '{robot.name}'")
+    task = P.load_task(cfg.task_name, robot) if task is None else task
+    if task.name != cfg.task_name:
+        raise SettingsError(f"{type(cfg).__name__}.task is '{cfg.task_name}', the task given '{task.name}'")
+    if robot.continuous:
+        names = [n for n in robot.joint_names if robot.model.joints[robot.model.getJointId(n)].nq == 2]
+        raise SettingsError(f"robot '{robot.name}': the {kind}'s codec does not handle continuous joints yet "
+                            f"({', '.join(names)}); lock them or give them limits in the URDF")
+    if data is not None:
+        data = as_configurations(data, robot.nq, "data")
+        if data.ndim != 2:
+            raise ShapeError(f"data: expected configurations of shape (n, {robot.nq}), got {data.shape}")
+    t_data = time.perf_counter()
+    data_source = "given"
+    if data is None:
+        data_source = "cache" if cache_path(robot, cfg.data_size, cfg.data_seed, task).is_file() else "generated"
+        data = valid_configurations(robot, cfg.data_size, cfg.data_seed, progress=progress, task=task)
+    t_data = time.perf_counter() - t_data
+    feats = Codec.features(robot, data)
+    # Scales are floored: a feature the constraints pin (Talos' left arm, the Panda hand's axis)
+    # has a near-zero spread, and dividing by it would turn any deviation into a huge input.
+    codec = Codec(robot, feats.mean(0), np.maximum(feats.std(0), STD_FLOOR))
+    return TrainingData(robot, task, data, data_source, t_data, feats, codec)
 
 
 @uses_torch("training")
@@ -556,35 +650,11 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
 def _train(cfg: GanConfig, data: NDArray[np.float64] | None, progress: bool, log_every: int,
            robot: Robot | None, task: "P.Task | None") -> GanModel:
     """:func:`train`'s work."""
-    from genplan.gan.data import cache_path, valid_configurations
-
-    robot = load(cfg.robot) if robot is None else robot  # cfg is valid: a frozen GanConfig validates when made
-    if robot.name != cfg.robot:
-        raise SettingsError(f"GanConfig.robot is '{cfg.robot}', the robot given '{robot.name}'")
-    task = P.load_task(cfg.task_name, robot) if task is None else task
-    if task.name != cfg.task_name:
-        raise SettingsError(f"GanConfig.task is '{cfg.task_name}', the task given '{task.name}'")
-    if robot.continuous:
-        names = [n for n in robot.joint_names if robot.model.joints[robot.model.getJointId(n)].nq == 2]
-        raise SettingsError(f"robot '{robot.name}': the GAN's codec does not handle continuous joints yet "
-                            f"({', '.join(names)}); lock them or give them limits in the URDF")
-    if data is not None:
-        data = as_configurations(data, robot.nq, "data")
-        if data.ndim != 2:
-            raise ShapeError(f"data: expected configurations of shape (n, {robot.nq}), got {data.shape}")
+    prep = prepare_training(cfg, data, progress, robot, task, "GAN")
+    robot, task, data, data_source, t_data, feats, codec = (prep.robot, prep.task, prep.data, prep.data_source,
+                                                            prep.data_seconds, prep.features, prep.codec)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
-    t_data = time.perf_counter()
-    data_source = "given"
-    if data is None:
-        data_source = "cache" if cache_path(robot, cfg.data_size, cfg.data_seed, task).is_file() else "generated"
-        data = valid_configurations(robot, cfg.data_size, cfg.data_seed, progress=progress, task=task)
-    t_data = time.perf_counter() - t_data
-    feats = Codec.features(robot, data)
-    # Scales are floored: a feature the constraints pin (Talos' left arm, the Panda hand's axis)
-    # has a near-zero spread, and dividing by it would turn any deviation into a huge input.
-    mean, std = feats.mean(0), np.maximum(feats.std(0), STD_FLOOR)
-    codec = Codec(robot, mean, std)
     cons = Constraints(robot, cfg, task)
     with torch.no_grad():
         real_all = cons.evaluate(torch.tensor(data, dtype=torch.float32), constraint=False)

@@ -1,4 +1,5 @@
-"""The GAN sampler: configurations from a trained GAN, conditioned on end-effector targets.
+"""The learned sampler: configurations from a trained GAN (or flow, :mod:`genplan.gan.flow`),
+conditioned on end-effector targets.
 
 It has ``sample(n) -> (n, nq)`` (a :class:`genplan.protocols.Sampler`) and runs torch; its
 :meth:`GanSampler.native` twin runs the same generator in Rust, which is what the planner uses.
@@ -27,7 +28,9 @@ from numpy.typing import ArrayLike, NDArray
 from genplan._arrays import as_box, as_float_array
 from genplan._threads import resolve, torch_threads
 from genplan.errors import ModelFileError, SettingsError, ShapeError
-from genplan.gan.model import GanModel, load_model
+from genplan.gan.flow import FlowModel
+from genplan.gan.loading import load_sampler_model
+from genplan.gan.model import GanModel
 from genplan.robots import Robot
 
 #: rows per chunk (the last chunk takes the rest, up to ``2 * CHUNK_ROWS - 1`` rows): the shipped
@@ -55,14 +58,14 @@ class GanSampler:
     them).
     """
 
-    def __init__(self, robot: Robot, model: GanModel | str | Path | None = None,
+    def __init__(self, robot: Robot, model: GanModel | FlowModel | str | Path | None = None,
                  box: ArrayLike | None = None, seed: int | None = None, *, task: Any = None,
                  threads: int | None = None) -> None:
         self.robot = robot
-        self.model = model if isinstance(model, GanModel) else load_model(robot, model, task)
+        self.model = model if isinstance(model, (GanModel, FlowModel)) else load_sampler_model(robot, model, task)
         if self.model.config.robot != robot.name:
             raise ModelFileError(f"the GAN is for '{self.model.config.robot}', not '{robot.name}'")
-        if task is not None and isinstance(model, GanModel):
+        if task is not None and isinstance(model, (GanModel, FlowModel)):
             from genplan import projection as P
 
             name = P.load_task(task, robot).name
@@ -108,6 +111,12 @@ class GanSampler:
         """:meth:`GanModel.sample` (python/genplan/gan/model.py: noise (n_net, n, noise_dim), then
         a member per row, from one stream) evaluated ``CHUNK_ROWS`` rows at a time; ``t`` checked."""
         model, rng = self.model, self.rng
+        if isinstance(model, FlowModel):  # one noise row per target, from the stream in order
+            out = np.empty((len(t), self.robot.nq))
+            with torch_threads("small", self.threads):
+                for s, e in _chunks(len(t)):
+                    out[s:e] = model.generate(rng.standard_normal((e - s, model.codec.dim)), t[s:e])
+            return out
         n_net, nd, n = model.config.n_net, model.config.noise_dim, len(t)
         # the noise of member m follows that of member m - 1 in the stream: one pass records the
         # stream's state where each member's noise starts (drawing and dropping it, chunk by chunk)

@@ -319,9 +319,9 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
         if model is None:
             raise SettingsError(f"sampler '{sampler}' needs a model: a GAN trained for robot '{rob.name}' and task "
                                 f"'{t.name}' (genplan train gan --robot ... --task ...)")
-        from genplan.gan.model import load_model
+        from genplan.gan.loading import load_sampler_model
 
-        gan_model = load_model(rob, Path(model), task=t)  # another robot's or task's GAN: refused, both named
+        gan_model = load_sampler_model(rob, Path(model), task=t)  # another robot's or task's GAN: refused, both named
     world = rob.collision_world()
     scene_obj = None
     if scene is not None:

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
+use crate::codec::Codec;
 use crate::error::{Error, Result};
 use crate::planning::{PlanResult, Sampler};
 
@@ -37,13 +38,8 @@ pub struct Generator {
     pub noise_dim: usize,
     /// The dense layers, input first.
     pub layers: Vec<Layer>,
-    /// Feature standardisation: features = output * std + mean.
-    pub mean: Vec<f64>,
-    /// See `mean`.
-    pub std: Vec<f64>,
-    /// Features start with [base position (3), base rotation vector (3)] and the configuration
-    /// with [x, y, z, qx, qy, qz, qw].
-    pub floating_base: bool,
+    /// Output features to configurations.
+    pub codec: Codec,
 }
 
 impl Generator {
@@ -71,15 +67,13 @@ impl Generator {
         if mean.len() != dim || std.len() != dim {
             return bad(format!("codec mean/std must have {dim} values"));
         }
-        if floating_base && dim < 6 {
-            return bad("a free-flyer codec needs at least 6 features".into());
-        }
-        Ok(Generator { n_net, noise_dim, layers, mean, std, floating_base })
+        let codec = Codec::new(mean, std, floating_base, "GAN generator")?;
+        Ok(Generator { n_net, noise_dim, layers, codec })
     }
 
     /// Length of a generated configuration.
     pub fn nq(&self) -> usize {
-        self.mean.len() + usize::from(self.floating_base)
+        self.codec.nq()
     }
 
     /// The configuration member `member` makes of `noise` and `target`; `scratch` is reused.
@@ -107,20 +101,7 @@ impl Generator {
             }
             std::mem::swap(h, next);
         }
-        let f: Vec<f64> = h.iter().zip(&self.mean).zip(&self.std).map(|((x, m), s)| x * s + m).collect();
-        if !self.floating_base {
-            out.copy_from_slice(&f);
-            return;
-        }
-        let rv = [f[3], f[4], f[5]];
-        let angle = (rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2] + 1e-12).sqrt();
-        let s = (angle / 2.0).sin() / angle;
-        out[..3].copy_from_slice(&f[..3]);
-        out[3] = rv[0] * s;
-        out[4] = rv[1] * s;
-        out[5] = rv[2] * s;
-        out[6] = (angle / 2.0).cos();
-        out[7..].copy_from_slice(&f[6..]);
+        self.codec.decode(h, out);
     }
 }
 
@@ -145,13 +126,6 @@ impl GanSampler {
         }
         Ok(GanSampler { generator, lower, upper, rng: StdRng::seed_from_u64(seed), scratch: Default::default() })
     }
-
-    /// A standard normal number (Box-Muller).
-    fn normal(&mut self) -> f64 {
-        let u1: f64 = 1.0 - self.rng.random::<f64>(); // (0, 1]
-        let u2: f64 = self.rng.random::<f64>();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
 }
 
 impl Sampler for GanSampler {
@@ -160,12 +134,9 @@ impl Sampler for GanSampler {
         let mut noise = vec![0.0; self.generator.noise_dim];
         for row in out.chunks_mut(nq).take(n) {
             let member = self.rng.random_range(0..self.generator.n_net);
-            let mut target = [0.0; 3];
-            for k in 0..3 {
-                target[k] = if self.upper[k] > self.lower[k] { self.rng.random_range(self.lower[k]..self.upper[k]) } else { self.lower[k] };
-            }
+            let target = crate::planning::uniform_in_box(&mut self.rng, &self.lower, &self.upper);
             for z in noise.iter_mut() {
-                *z = self.normal();
+                *z = crate::planning::standard_normal(&mut self.rng);
             }
             let generator = self.generator.clone();
             generator.generate(member, &noise, &target, row, &mut self.scratch);

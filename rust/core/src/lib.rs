@@ -19,8 +19,10 @@
 #![warn(missing_docs)]
 
 pub mod collision;
+pub mod codec;
 pub mod control;
 pub mod dynamics;
+pub mod flow;
 pub mod error;
 pub mod gan;
 pub mod kinematics;

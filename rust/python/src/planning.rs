@@ -29,7 +29,7 @@ use genplan_core::planning::{
     Projection, Sampler, Settings, Space, Stats, ValidityChecker,
 };
 
-use genplan_core::gan;
+use genplan_core::{codec, flow, gan};
 
 use crate::errors::{err, Kind};
 use crate::settings::{record_class, settings_class, Field};
@@ -224,6 +224,16 @@ impl PyUniformSampler {
 
 /// n configurations (rows of nq) from a native sampler shared with the planner, drawn in
 /// chunks (the same stream as one call) without the GIL, Ctrl-C answered between chunks.
+/// A native sampler shared with Python (`what` names it in errors), used by one plan at a time.
+struct Shared<S>(Arc<Mutex<S>>, &'static str);
+
+impl<S: Sampler> Sampler for Shared<S> {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        let what = self.1;
+        self.0.lock().map_err(|_| PlanError::Sampler(format!("{what}: lock poisoned")))?.sample(n, out)
+    }
+}
+
 fn sample_in_chunks<S: Sampler>(py: Python<'_>, sampler: &Mutex<S>, n: usize, nq: usize, what: &str) -> PyResult<Vec<f64>> {
     let mut out = vec![0.0; n * nq];
     for_chunks(py, n, |rows| {
@@ -233,17 +243,6 @@ fn sample_in_chunks<S: Sampler>(py: Python<'_>, sampler: &Mutex<S>, n: usize, nq
     Ok(out)
 }
 
-/// A sampler shared with Python, used by one plan at a time.
-struct SharedUniform(Arc<Mutex<planning::UniformSampler>>);
-
-impl Sampler for SharedUniform {
-    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
-        self.0
-            .lock()
-            .map_err(|_| PlanError::Sampler("uniform sampler: lock poisoned".into()))?
-            .sample(n, out)
-    }
-}
 
 /// A trained GAN generator run natively: samples conditioned on targets uniform in a box.
 /// Built by `genplan.gan.GanModel.native_sampler()` from the torch weights.
@@ -343,17 +342,93 @@ impl PyGanSampler {
     }
 }
 
-/// A GAN sampler shared with Python, used by one plan at a time.
-struct SharedGan(Arc<Mutex<gan::GanSampler>>);
 
-impl Sampler for SharedGan {
-    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
-        self.0
-            .lock()
-            .map_err(|_| PlanError::Sampler("GAN sampler: lock poisoned".into()))?
-            .sample(n, out)
+/// A trained flow-matching sampler run natively: samples conditioned on targets uniform in a box.
+/// Built by `genplan.gan.flow.FlowModel.native_sampler()` from the torch weights.
+#[pyclass(name = "FlowSampler", module = "genplan._core", frozen)]
+pub(crate) struct PyFlowSampler {
+    inner: Arc<Mutex<flow::FlowSampler>>,
+    flow: Arc<flow::Flow>,
+}
+
+#[pymethods]
+impl PyFlowSampler {
+    /// `weights[i]`: (outputs, inputs), `biases[i]`: (outputs,), float32 (torch's Linear layout).
+    #[new]
+    #[pyo3(signature = (weights, biases, steps, target_mean, target_std, mean, std, floating_base, lower, upper, seed=0))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        weights: Vec<PyReadonlyArray2<'_, f32>>,
+        biases: Vec<PyReadonlyArray1<'_, f32>>,
+        steps: usize,
+        target_mean: [f64; 3],
+        target_std: [f64; 3],
+        mean: Vec<f64>,
+        std: Vec<f64>,
+        floating_base: bool,
+        lower: [f64; 3],
+        upper: [f64; 3],
+        seed: u64,
+    ) -> PyResult<Self> {
+        if weights.len() != biases.len() || weights.is_empty() {
+            return Err(err(Kind::Shape, "flow sampler: one bias per weight matrix, at least one layer"));
+        }
+        let mut layers = Vec::new();
+        for (w, b) in weights.iter().zip(&biases) {
+            let (rows, cols) = (w.shape()[0], w.shape()[1]);
+            let values: Vec<f32> = w.as_array().iter().copied().collect();
+            layers.push(flow::Dense {
+                weight: nalgebra::DMatrix::from_row_slice(rows, cols, &values),
+                bias: b.as_array().iter().copied().collect(),
+            });
+        }
+        let codec = codec::Codec::new(mean, std, floating_base, "flow sampler").map_err(to_py)?;
+        let flow = Arc::new(flow::Flow::new(layers, steps, target_mean, target_std, codec).map_err(to_py)?);
+        let sampler = flow::FlowSampler::new(flow.clone(), lower, upper, seed).map_err(to_py)?;
+        Ok(Self { inner: Arc::new(Mutex::new(sampler)), flow })
+    }
+
+    #[getter]
+    fn nq(&self) -> usize {
+        self.flow.nq()
+    }
+
+    /// n configurations, (n, nq), targets uniform in the box.
+    fn sample<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        let nq = self.flow.nq();
+        let out = sample_in_chunks(py, &self.inner, n, nq, "flow sampler")?;
+        to_array(py, &out, nq)
+    }
+
+    /// The configurations the flow makes of the given noise (n, dim) and targets (n, 3).
+    fn generate<'py>(
+        &self,
+        py: Python<'py>,
+        noise: PyReadonlyArray2<'py, f64>,
+        targets: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        let f = &self.flow;
+        let n = targets.shape()[0];
+        let dim = f.codec.dim();
+        if noise.shape() != [n, dim] || targets.shape() != [n, 3] {
+            return Err(err(Kind::Shape, format!(
+                "generate: expected noise ({n}, {dim}) and targets ({n}, 3), got {:?} and {:?}",
+                noise.shape(),
+                targets.shape()
+            )));
+        }
+        let z: Vec<f64> = noise.as_array().iter().copied().collect();
+        let t: Vec<f64> = targets.as_array().iter().copied().collect();
+        let nq = f.nq();
+        let mut out = vec![0.0; n * nq];
+        for_chunks(py, n, |rows| {
+            f.generate(&z[rows.start * dim..rows.end * dim], &t[rows.start * 3..rows.end * 3], &mut out[rows.start * nq..rows.end * nq]);
+            Ok(())
+        })?;
+        to_array(py, &out, nq)
     }
 }
+
 
 /// Draws from `primary` with probability `p`, else from `secondary` (each native or Python):
 /// the paper's hybrid sampler.
@@ -400,14 +475,21 @@ fn sampler_from(py: Python<'_>, obj: &Bound<'_, PyAny>, nq: usize) -> PyResult<B
         if u.nq != nq {
             return Err(err(Kind::Shape, format!("sampler: configurations of length {} for a model of nq = {nq}", u.nq)));
         }
-        return Ok(Box::new(SharedUniform(u.inner.clone())));
+        return Ok(Box::new(Shared(u.inner.clone(), "uniform sampler")));
     }
     if let Ok(g) = obj.cast::<PyGanSampler>() {
         let g = g.get();
         if g.generator.nq() != nq {
             return Err(err(Kind::Shape, format!("sampler: GAN makes configurations of length {} for a model of nq = {nq}", g.generator.nq())));
         }
-        return Ok(Box::new(SharedGan(g.inner.clone())));
+        return Ok(Box::new(Shared(g.inner.clone(), "GAN sampler")));
+    }
+    if let Ok(f) = obj.cast::<PyFlowSampler>() {
+        let f = f.get();
+        if f.flow.nq() != nq {
+            return Err(err(Kind::Shape, format!("sampler: the flow makes configurations of length {} for a model of nq = {nq}", f.flow.nq())));
+        }
+        return Ok(Box::new(Shared(f.inner.clone(), "flow sampler")));
     }
     if let Ok(m) = obj.cast::<PyMixtureSampler>() {
         let m = m.get();
@@ -644,5 +726,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyUniformSampler>()?;
     m.add_class::<PyMixtureSampler>()?;
     m.add_class::<PyGanSampler>()?;
+    m.add_class::<PyFlowSampler>()?;
     Ok(())
 }

@@ -223,8 +223,10 @@ def _plot_planar(held_out: NDArray[np.float64], samples: dict[int, NDArray[np.fl
 # ---------------------------------------------------------------------------------------------
 
 
-#: the named GAN variants ``--variants`` picks from: GanConfig overrides of the robot's default
-#: (genplan.gan.model.default_config). The first three are the paper's ablations (Fig. 4).
+#: the named variants ``--variants`` picks from: GanConfig overrides of the robot's default
+#: (genplan.gan.model.default_config), or, with ``"family": "flow"``, FlowConfig overrides of the
+#: flow sampler's (genplan.gan.flow.default_config). The first three are the paper's ablations
+#: (Fig. 4).
 VARIANTS: dict[str, dict[str, Any]] = {
     "default": {},
     "no_discriminator": {"use_discriminator": False},
@@ -236,6 +238,9 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "wgan_gp_diversity": {"loss": "wgan_gp", "w_diversity": 1.0},
     "diversity_data_init": {"w_diversity": 1.0, "member_init": "data"},
     "wgan_gp_data_init": {"loss": "wgan_gp", "member_init": "data"},
+    "flow": {"family": "flow"},
+    "flow_pure": {"family": "flow", "w_cost": 0.0, "steps": 8},
+    "flow_pure_small": {"family": "flow", "w_cost": 0.0, "steps": 4, "hidden": (128, 128, 128)},
 }
 #: the variants of the shipped coverage.json (the paper's ablations)
 PAPER_VARIANTS = ("default", "no_discriminator", "n_net_1")
@@ -248,6 +253,20 @@ def variant_list(text: str) -> list[str]:
     if not names or unknown:
         raise argparse.ArgumentTypeError(f"expected comma-separated variants among {', '.join(VARIANTS)}, got {text!r}")
     return list(dict.fromkeys(names))
+
+
+def variant_config(robot: str, label: str, **settings: Any) -> tuple[str, Any, dict[str, Any]]:
+    """``(family, config, overrides)`` of variant ``label`` of :data:`VARIANTS` for ``robot``, with
+    ``settings`` (iterations, seed) applied: a GanConfig, or a FlowConfig for ``"family": "flow"``."""
+    from genplan.gan.model import default_config
+
+    overrides = dict(VARIANTS[label])
+    family = overrides.pop("family", "gan")
+    if family == "flow":
+        from genplan.gan.flow import default_config as flow_config
+
+        return family, flow_config(robot, **settings, **overrides), overrides
+    return family, default_config(robot, **settings, **overrides), overrides
 
 
 def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progress: bool,
@@ -273,11 +292,15 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
     projected = {}
     solver = P.GaussNewtonProjector(robot, P.paper_task(robot, "projection"))
     for label in variants:
-        overrides = VARIANTS[label]
-        cfg = default_config(name, iterations=iterations, seed=seed, **overrides)
+        family, cfg, overrides = variant_config(name, label, iterations=iterations, seed=seed)
+        trainer: Callable[..., Any] = train
+        if family == "flow":
+            from genplan.gan import flow
+
+            trainer = flow.train
         t0 = time.perf_counter()
         load_start = os.getloadavg()[0]
-        model = train(cfg, data=data, progress=progress, threads=threads)
+        model = trainer(cfg, data=data, progress=progress, threads=threads)
         train_s = time.perf_counter() - t0
         rng = np.random.default_rng(seed)
         q = model.sample(targets, rng, threads=threads)  # one sample per held-out target: same conditioning
@@ -288,21 +311,26 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
             "mmd": mmd(ref, s, np.random.default_rng(seed)),
             "projection_success": float(res.success.mean()),
             "projection_steps_mean": float(res.iterations[res.success].mean()) if res.success.any() else None,
-            **member_diagnostics(model, targets, ref, scale, free, seed),
+            **(member_diagnostics(model, targets, ref, scale, free, seed) if family == "gan"
+               else {"mmd_free_features": mmd(ref[:, free], s[:, free], np.random.default_rng(seed))}),
+            "native_sample_us": native_sample_us(model, seed),
             "train_s": train_s,
             "load_average_1min_start_end": [load_start, os.getloadavg()[0]],
             "overrides": overrides,
+            "family": family,
             "config": {k: v for k, v in dataclasses.asdict(cfg).items()
-                       if k in ("n_net", "use_discriminator", "iterations", *overrides)},
+                       if k in ("n_net", "use_discriminator", "iterations", "hidden", "steps", "w_cost", *overrides)},
         }
         projected[label] = s
         if on_variant is not None:
             on_variant(out)
         if progress:
             r = out[label]
-            print(f"{name} {label}: coverage {r['cluster_coverage']:.2f} (members {np.mean(r['member_coverage']):.2f}), "
-                  f"MMD {r['mmd']:.4f} (free features {r['mmd_free_features']:.4f}), noise spread "
-                  f"{r['noise_spread']:.3f}, projects "
+            members = f" (members {np.mean(r['member_coverage']):.2f})" if "member_coverage" in r else ""
+            spread = f", noise spread {r['noise_spread']:.3f}" if "noise_spread" in r else ""
+            print(f"{name} {label}: coverage {r['cluster_coverage']:.2f}{members}, "
+                  f"MMD {r['mmd']:.4f} (free features {r['mmd_free_features']:.4f}){spread}, "
+                  f"native {r['native_sample_us']:.1f} us/sample, projects "
                   f"{r['projection_success']:.3f} in {r['projection_steps_mean']} steps, trained in {train_s:.0f} s",
                   flush=True)
     if figures is not None:
@@ -311,6 +339,19 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
         _plot_robot(name, ref, projected, figure)
         out["figure"] = str(figure)
     return out
+
+
+def native_sample_us(model: Any, seed: int, n: int = 4096, repeats: int = 5) -> float:
+    """Median microseconds per configuration of the model's native sampler (what the planner
+    calls), ``n`` configurations per call, one thread."""
+    sampler = model.native_sampler(seed=seed)
+    sampler.sample(256)  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        sampler.sample(n)
+        times.append((time.perf_counter() - t0) / n * 1e6)
+    return float(np.median(times))
 
 
 def member_diagnostics(model: Any, targets: NDArray[np.float64], ref: NDArray[np.float64],
@@ -407,7 +448,7 @@ def main(args: argparse.Namespace) -> int:
         payload[name] = run_robot(name, robot_it, args.seed, args.figures, True, threads=args.threads,
                                   variants=args.variants, on_variant=checkpoint)
     rows = [["planar", f"N_net={k}", payload["planar"][f"n_net_{k}"]["cluster_coverage"],
-             payload["planar"][f"n_net_{k}"]["mmd"], f"valid {payload['planar'][f'n_net_{k}']['valid_rate']:.3f}", "", ""]
+             payload["planar"][f"n_net_{k}"]["mmd"], f"valid {payload['planar'][f'n_net_{k}']['valid_rate']:.3f}", "", "", ""]
             for k in (1, 5) if "planar" in payload]
     for name in args.robots:
         for label in args.variants:
@@ -415,7 +456,8 @@ def main(args: argparse.Namespace) -> int:
             steps = r["projection_steps_mean"]
             rows.append([name, label, r["cluster_coverage"], r["mmd"],
                          f"projects {r['projection_success']:.3f}, steps {'-' if steps is None else f'{steps:.2f}'}",
-                         f"{r['train_s']:.0f}", f"{r['load_average_1min_start_end'][0]:.1f}"])
-    print(table(["setup", "variant", "cluster coverage", "MMD", "quality", "train s", "load"], rows))
+                         f"{r['native_sample_us']:.1f}", f"{r['train_s']:.0f}",
+                         f"{r['load_average_1min_start_end'][0]:.1f}"])
+    print(table(["setup", "variant", "cluster coverage", "MMD", "quality", "native us/sample", "train s", "load"], rows))
     write_json(args.out, payload)
     return 0

@@ -83,9 +83,9 @@ def make_problems(robot: genplan.Robot, n: int, seed: int, init: str = "uniform"
         "ik": {"q0": robot.random_configurations(n, rng), "targets": rng.uniform(box[0], box[1], size=(n, 3))},
     }
     if init == "gan":
-        from genplan.gan.model import load_model
+        from genplan.gan.loading import load_sampler_model
 
-        model = load_model(robot, model_path, task=tasks["ik"])
+        model = load_sampler_model(robot, model_path, task=tasks["ik"])
         gbox = np.asarray(model.config.target_box)
         t0 = time.perf_counter()
         problems["projection"]["q0"] = model.sample(rng.uniform(gbox[0], gbox[1], size=(n, 3)), rng)

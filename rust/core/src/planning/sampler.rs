@@ -22,6 +22,20 @@ pub trait Sampler: Send {
     fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()>;
 }
 
+/// A standard normal number from `rng` (Box-Muller on a uniform in (0, 1], so its magnitude is at
+/// most sqrt(106 ln 2) = 8.57): the learned samplers' noise (`crate::gan`, `crate::flow`).
+pub fn standard_normal(rng: &mut impl rand::Rng) -> f64 {
+    let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
+    let u2: f64 = rng.random::<f64>();
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+}
+
+/// A point uniform in the box `lower..upper` (a degenerate side gives its bound): the learned
+/// samplers' targets (`crate::gan`, `crate::flow`).
+pub fn uniform_in_box(rng: &mut impl rand::Rng, lower: &[f64; 3], upper: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|k| if upper[k] > lower[k] { rng.random_range(lower[k]..upper[k]) } else { lower[k] })
+}
+
 /// True when `lower..=upper` is a box: finite bounds, each lower <= upper, and a finite width
 /// (so that it can be sampled uniformly; -1e308..1e308 cannot) (the samplers' target and base
 /// boxes).

@@ -1,0 +1,151 @@
+"""genplan.gan.flow: the conditional flow-matching sampler (training, files, native twin, use in
+planning and IK through the GAN's entry points)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+import genplan
+from genplan import _core
+from genplan.errors import GenplanError, ModelFileError, SettingsError
+from genplan.gan.flow import FlowConfig, FlowModel, FlowNet, default_config, load_flow, train
+from genplan.gan.loading import load_sampler_model as load_model
+from genplan.gan.sampler import GanSampler
+from genplan.planning import Planner, environment, make_sampler
+
+pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+
+
+@pytest.fixture(scope="module")
+def tiny_flow(tmp_path_factory) -> FlowModel:
+    cache = tmp_path_factory.mktemp("cache")
+    mp = pytest.MonkeyPatch()
+    mp.setenv("GENPLAN_CACHE", str(cache))
+    cfg = default_config("panda", iterations=40, data_size=400, hidden=(32, 32), steps=3, cost_batch=16, seed=2)
+    model = train(cfg, progress=False)
+    mp.undo()
+    return model
+
+
+def test_training_writes_a_card_and_the_file_loads_as_the_same_model(tiny_flow, panda, tmp_path) -> None:
+    log = tiny_flow.card["training"]["loss_log"]
+    assert log[0]["iteration"] == 0 and log[-1]["iteration"] == 39
+    assert all(np.isfinite(e["flow_matching"]) and e["constraint"] > 0 for e in log)  # cost terms were on
+    weights, card = tiny_flow.save(tmp_path / "f.safetensors")
+    assert json.loads(card.read_text())["format"] == "genplan-flow/1"
+    # the one loader of model files reads the card's format and returns the flow
+    loaded = load_model(panda, weights, task="panda_ik")
+    assert isinstance(loaded, FlowModel) and loaded.config == tiny_flow.config
+    t = np.array([[0.4, 0.1, 0.5], [0.3, -0.2, 0.6], [0.5, 0.0, 0.3]])
+    np.testing.assert_array_equal(loaded.sample(t, 7), tiny_flow.sample(t, 7))
+    with pytest.raises(ModelFileError, match="is a flow for task 'panda_ik', not 'panda_projection'"):
+        load_flow(panda, weights, task="panda_projection")
+
+
+def test_a_corrupt_or_foreign_flow_file_is_refused(tiny_flow, talos, tmp_path) -> None:
+    weights, card = tiny_flow.save(tmp_path / "f.safetensors")
+    with pytest.raises(ModelFileError, match="is a flow for robot 'panda', not 'talos'"):
+        load_model(talos, weights)
+    data = bytearray(weights.read_bytes())
+    data[-3] ^= 0xFF
+    weights.write_bytes(bytes(data))
+    with pytest.raises(ModelFileError, match="does not match its card"):
+        load_model("panda", weights)
+    with pytest.raises(FileNotFoundError, match="genplan train"):
+        load_flow("panda", tmp_path / "missing.safetensors")
+
+
+def test_config_is_validated_before_work() -> None:
+    for bad in ({"steps": 0}, {"cost_batch": -1}, {"hidden": (8, -1)}, {"w_cost": -1.0}, {"lr": 0.0},
+                {"w_cost": float("nan")}, {"target_box": ((0, 0, 0), (1, 1))}):
+        with pytest.raises(SettingsError, match="FlowConfig"):
+            default_config("panda", **bad)
+    assert isinstance(default_config("panda"), FlowConfig)
+
+
+def test_euler_integration_of_the_field() -> None:
+    """integrate() is the explicit Euler sum the native sampler mirrors."""
+    net = FlowNet(2, (8,))
+    x0, c = torch.randn(5, 2), torch.randn(5, 3)
+    x = x0.clone()
+    for k in range(4):
+        x = x + 0.25 * net(x, torch.full((5, 1), k * 0.25), c)
+    torch.testing.assert_close(net.integrate(x0, c, 4), x)
+
+
+@pytest.mark.parametrize("robot_name", ["panda", "talos"])
+def test_native_sampler_matches_torch(robot_name: str, tmp_path, monkeypatch) -> None:
+    """The Rust forward pass (float32 matrix products, codec in float64, free-flyer quaternion)
+    against torch on the same noise and targets."""
+    robot = genplan.load(robot_name)
+    torch.manual_seed(0)
+    cfg = default_config(robot, hidden=(24, 16), steps=3)
+    dim = robot.nq - int(robot.floating_base)
+    from genplan.gan.model import Codec
+
+    codec = Codec(robot, np.linspace(-0.3, 0.3, dim), np.linspace(0.2, 0.9, dim))
+    model = FlowModel(cfg, robot, FlowNet(dim, cfg.hidden), codec, torch.tensor([0.2, -0.1, 0.6]),
+                      torch.tensor([0.3, 0.4, 0.2]))
+    rng = np.random.default_rng(1)
+    targets = rng.uniform(*np.asarray(cfg.target_box), size=(300, 3))  # > one native block of 256
+    z = rng.standard_normal((300, dim))
+    native = model.native_sampler(seed=0)
+    np.testing.assert_allclose(native.generate(z, targets), model.generate(z, targets), atol=2e-5)
+    assert native.nq == robot.nq
+    q = native.sample(50)
+    assert q.shape == (50, robot.nq) and np.isfinite(q).all()
+    if robot.floating_base:
+        np.testing.assert_allclose(np.linalg.norm(q[:, 3:7], axis=1), 1.0, atol=1e-12)
+    # the same seed and calls give the same samples, bit for bit; the same stream in one call or in
+    # two (float32 matrix products of another batch size may round the last bits differently)
+    a = model.native_sampler(seed=4).sample(10)
+    np.testing.assert_array_equal(a, model.native_sampler(seed=4).sample(10))
+    s = model.native_sampler(seed=4)
+    np.testing.assert_allclose(a, np.concatenate([s.sample(4), s.sample(6)]), rtol=1e-6, atol=1e-6)
+    with pytest.raises(ValueError, match="expected noise"):
+        native.generate(z[:, :-1], targets)
+
+
+def test_native_constructor_refuses_bad_shapes() -> None:
+    w = [np.zeros((7, 11), np.float32)]
+    b = [np.zeros(7, np.float32)]
+    args = (3, [0.0] * 3, [1.0] * 3, [0.0] * 7, [1.0] * 7, False, [0.0] * 3, [1.0] * 3)
+    _core.FlowSampler(w, b, *args)
+    with pytest.raises(ValueError, match="first layer takes 10 inputs"):
+        _core.FlowSampler([np.zeros((7, 10), np.float32)], b, *args)
+    with pytest.raises(ValueError, match="one bias per weight"):
+        _core.FlowSampler(w, [], *args)
+    with pytest.raises(ValueError, match="target standardisation"):
+        _core.FlowSampler(w, b, 3, [0.0] * 3, [0.0, 1.0, 1.0], *args[3:])
+    with pytest.raises(ValueError, match="target box"):
+        _core.FlowSampler(w, b, *args[:-2], [0.0] * 3, [float("nan")] * 3)
+
+
+def test_targets_outside_the_model_region_are_refused(tiny_flow) -> None:
+    with pytest.raises(GenplanError, match="lies outside the region this model answers for"):
+        tiny_flow.sample([[9.0, 0.0, 0.0]])
+    with pytest.raises(GenplanError, match="box"):
+        tiny_flow.native_sampler(box=[[9.0, 0.0, 0.0], [10.0, 1.0, 1.0]])
+
+
+def test_a_flow_plans_samples_and_warm_starts_ik_where_a_gan_does(tiny_flow, panda) -> None:
+    """make_sampler, the hybrid mixture, GanSampler and solve_ik take a flow model."""
+    for kind in ("gan", "hybrid", "adaptive"):
+        s = make_sampler(panda, kind, seed=0, gan_model=tiny_flow)
+        assert s is not None
+    native = make_sampler(panda, "gan", seed=0, gan_model=tiny_flow)
+    assert isinstance(native, _core.FlowSampler)
+    py = GanSampler(panda, tiny_flow, seed=3)
+    assert py.sample(5).shape == (5, 7) and py.sample_for([[0.4, 0.0, 0.5]]).shape == (1, 7)
+    env = environment("panda_shelf")
+    query = env.queries(panda, n=1, seed=0)[0]
+    planner = Planner(panda, world=env.world(panda), sampler="gan", gan_model=tiny_flow, seed=0)
+    result = planner.plan(query.start, query.goals)
+    assert result.success and result.stats.samples > 0
+    targets = panda.link_poses(np.asarray(query.goals)[:3], [panda.frames["hand"]])[:, 0, :3, 3]
+    ik = genplan.solve_ik(panda, "panda_ik", targets, init="gan", model=tiny_flow, time_budget_s=0.05)
+    assert ik.success.all()
