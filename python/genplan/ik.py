@@ -84,11 +84,10 @@ def _targets(targets: ArrayLike) -> NDArray[np.float64]:
 
 
 def _model(robot: Robot, task: Any, model: Any) -> Any:
-    from genplan.gan.flow import FlowModel
     from genplan.gan.loading import load_sampler_model
-    from genplan.gan.model import GanModel
+    from genplan.gan.model import SamplerModel
 
-    if isinstance(model, (GanModel, FlowModel)):
+    if isinstance(model, SamplerModel):
         if model.robot.name != robot.name:
             raise SettingsError(f"model: a GAN for robot '{model.robot.name}', not '{robot.name}'")
         return model
@@ -161,25 +160,13 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
     gan_attempts = (restarts + 2) // 2  # attempts 1 .. this: GAN; later ones uniform
     rng = np.random.default_rng(seed)
     if gan is not None:
-        from genplan.gan.model import NATIVE_NOISE_MAX
-
         # the generator run natively (one row costs microseconds; torch's call alone ~0.7 ms),
         # on targets clipped into the box its output is vouched for (GanModel.native_sampler)
         native_gan = gan.native_sampler(seed=seed)
         box = np.asarray(gan.config.target_box, dtype=np.float64)
-        if hasattr(gan.config, "n_net"):
-            n_net, noise_dim = gan.config.n_net, gan.config.noise_dim
 
-            def gan_starts(rows: NDArray[np.intp]) -> NDArray[np.float64]:
-                members = rng.integers(0, n_net, size=len(rows)).tolist()
-                noise = np.clip(rng.standard_normal((len(rows), noise_dim)), -NATIVE_NOISE_MAX, NATIVE_NOISE_MAX)
-                return native_gan.generate(members, noise, np.clip(t[rows], box[0], box[1]))
-        else:  # a flow sampler (genplan.gan.flow)
-            dim = gan.codec.dim
-
-            def gan_starts(rows: NDArray[np.intp]) -> NDArray[np.float64]:
-                noise = np.clip(rng.standard_normal((len(rows), dim)), -NATIVE_NOISE_MAX, NATIVE_NOISE_MAX)
-                return native_gan.generate(noise, np.clip(t[rows], box[0], box[1]))
+        def gan_starts(rows: NDArray[np.intp]) -> NDArray[np.float64]:
+            return gan.draw_native(native_gan, np.clip(t[rows], box[0], box[1]), rng)
 
     q = np.tile(robot.q_default, (n, 1)) if first is None else first.copy()
     success = np.zeros(n, dtype=bool)

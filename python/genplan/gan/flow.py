@@ -45,10 +45,11 @@ from genplan._arrays import as_box
 from genplan._threads import torch_threads, uses_torch
 from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError
 from genplan.gan.model import (
-    Codec, Constraints, SamplerModel, check_fields, check_model_fits, default_config as gan_default_config, models_dir,
-    prepare_training,
+    NATIVE_NOISE_MAX, Codec, Constraints, SamplerModel, check_fields, check_model_fits,
+    default_config as gan_default_config, feature_dim, models_dir, prepare_training,
+    train_command as gan_train_command,
 )
-from genplan.robots import PRESETS_DIR, Robot, load
+from genplan.robots import Robot, load
 
 FORMAT = "genplan-flow/1"
 #: the descriptive keys a flow card may hold (besides format, config and weights_sha256)
@@ -203,6 +204,10 @@ class FlowModel(SamplerModel):
             int(seed),
         )
 
+    def draw_native(self, native: Any, targets: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.float64]:
+        noise = np.clip(rng.standard_normal((len(targets), self.codec.dim)), -NATIVE_NOISE_MAX, NATIVE_NOISE_MAX)
+        return native.generate(noise, targets)  # type: ignore[no-any-return]
+
     def save(self, path: str | Path) -> tuple[Path, Path]:
         """Write ``path`` (.safetensors) and its card (.json beside it)."""
         from genplan.model_files import write_model
@@ -217,7 +222,7 @@ class FlowModel(SamplerModel):
 
 def tensor_shapes(cfg: FlowConfig, robot: Robot) -> dict[str, tuple[int, ...]]:
     """The tensors of a flow file for ``cfg`` and ``robot``: name -> shape."""
-    dim = robot.nq - int(robot.floating_base)
+    dim = feature_dim(robot)
     dims = [dim + 4, *cfg.hidden, dim]
     shapes: dict[str, tuple[int, ...]] = {}
     for i, (a, b) in enumerate(zip(dims[:-1], dims[1:])):
@@ -230,11 +235,7 @@ def tensor_shapes(cfg: FlowConfig, robot: Robot) -> dict[str, tuple[int, ...]]:
 
 def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0) -> str:
     """The CLI command that trains a flow for ``robot`` and ``task`` (as the GAN's)."""
-    if isinstance(robot, str):
-        target = robot
-    else:
-        target = robot.name if robot.source is None or robot.source.parent == PRESETS_DIR else str(robot.source)
-    return f"genplan train flow --robot {target}" + (f" --task {task}" if task else "") + f" --seed {seed}"
+    return gan_train_command(robot, task, seed, model="flow")
 
 
 def is_flow_file(path: Path) -> bool:

@@ -357,6 +357,12 @@ class SamplerModel:
         """The model run natively (Rust): what the planner uses."""
         raise NotImplementedError
 
+    def draw_native(self, native: Any, targets: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.float64]:
+        """One configuration per target (n, 3), from ``native`` (this model's
+        :meth:`native_sampler`) with its random inputs (noise clipped to :data:`NATIVE_NOISE_MAX`)
+        drawn from ``rng``: (n, nq)."""
+        raise NotImplementedError
+
     def target_limits(self) -> NDArray[np.float64]:
         """The box of targets the model answers for, [[xmin, ymin, zmin], [xmax, ymax, zmax]]: its
         target box widened by :data:`TARGET_MARGIN` on every side. Farther targets are refused
@@ -476,6 +482,11 @@ class GanModel(SamplerModel):
             int(seed),
         )
 
+    def draw_native(self, native: Any, targets: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.float64]:
+        members = rng.integers(0, self.config.n_net, size=len(targets)).tolist()
+        noise = np.clip(rng.standard_normal((len(targets), self.config.noise_dim)), -NATIVE_NOISE_MAX, NATIVE_NOISE_MAX)
+        return native.generate(members, noise, targets)  # type: ignore[no-any-return]
+
     def save(self, path: str | Path) -> tuple[Path, Path]:
         """Write ``path`` (.safetensors) and its card (.json beside it)."""
         from genplan.model_files import write_model
@@ -566,14 +577,15 @@ def _comparable(task: dict[str, Any]) -> str:
     return json.dumps(task, sort_keys=True, default=str)
 
 
-def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0) -> str:
-    """The CLI command that trains a GAN for ``robot`` (a Robot: its preset name or robot file;
-    or the --robot argument as given) and ``task`` (the --task argument, None for the default)."""
+def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0, model: str = "gan") -> str:
+    """The CLI command that trains a ``model`` ("gan", or "flow": :mod:`genplan.gan.flow`) for
+    ``robot`` (a Robot: its preset name or robot file; or the --robot argument as given) and
+    ``task`` (the --task argument, None for the default)."""
     if isinstance(robot, str):
         target = robot
     else:
         target = robot.name if robot.source is None or robot.source.parent == PRESETS_DIR else str(robot.source)
-    return f"genplan train gan --robot {target}" + (f" --task {task}" if task else "") + f" --seed {seed}"
+    return f"genplan train {model} --robot {target}" + (f" --task {task}" if task else "") + f" --seed {seed}"
 
 
 @dataclass

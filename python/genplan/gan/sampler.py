@@ -30,7 +30,7 @@ from genplan._threads import resolve, torch_threads
 from genplan.errors import ModelFileError, SettingsError, ShapeError
 from genplan.gan.flow import FlowModel
 from genplan.gan.loading import load_sampler_model
-from genplan.gan.model import GanModel
+from genplan.gan.model import GanModel, SamplerModel
 from genplan.robots import Robot
 
 #: rows per chunk (the last chunk takes the rest, up to ``2 * CHUNK_ROWS - 1`` rows): the shipped
@@ -62,10 +62,10 @@ class GanSampler:
                  box: ArrayLike | None = None, seed: int | None = None, *, task: Any = None,
                  threads: int | None = None) -> None:
         self.robot = robot
-        self.model = model if isinstance(model, (GanModel, FlowModel)) else load_sampler_model(robot, model, task)
+        self.model = model if isinstance(model, SamplerModel) else load_sampler_model(robot, model, task)
         if self.model.config.robot != robot.name:
             raise ModelFileError(f"the GAN is for '{self.model.config.robot}', not '{robot.name}'")
-        if task is not None and isinstance(model, (GanModel, FlowModel)):
+        if task is not None and isinstance(model, SamplerModel):
             from genplan import projection as P
 
             name = P.load_task(task, robot).name

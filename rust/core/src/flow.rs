@@ -1,4 +1,4 @@
-//! Native inference of a trained conditional flow-matching sampler (python/genplan/flow.py).
+//! Native inference of a trained conditional flow-matching sampler (python/genplan/gan/flow.py).
 //!
 //! The model is a velocity field `v(x, t, c)` over the standardised features `x` (see
 //! `crate::codec`), conditioned on the standardised target position `c`: a sample starts from
@@ -86,6 +86,7 @@ impl Flow {
     pub fn generate(&self, noise: &[f64], targets: &[f64], out: &mut [f64]) {
         let (dim, nq) = (self.codec.dim(), self.nq());
         let n = targets.len() / 3;
+        let mut x = vec![0.0; dim]; // a sample's features, float64 for the codec
         for start in (0..n).step_by(BLOCK) {
             let m = BLOCK.min(n - start);
             // column j: [x, t, c] of sample start + j
@@ -110,7 +111,7 @@ impl Flow {
                 }
             }
             for j in 0..m {
-                let x: Vec<f64> = input.column(j).iter().take(dim).map(|&v| f64::from(v)).collect();
+                x.iter_mut().zip(input.column(j).iter()).for_each(|(a, &v)| *a = f64::from(v));
                 self.codec.decode(&x, &mut out[(start + j) * nq..(start + j + 1) * nq]);
             }
         }
@@ -172,8 +173,7 @@ impl Sampler for FlowSampler {
                 noise[i * dim + k] = crate::planning::standard_normal(&mut self.rng);
             }
         }
-        let flow = self.flow.clone();
-        flow.generate(&noise, &targets, &mut out[..n * flow.nq()]);
+        self.flow.generate(&noise, &targets, &mut out[..n * self.flow.nq()]);
         Ok(())
     }
 }

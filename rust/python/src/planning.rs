@@ -222,8 +222,6 @@ impl PyUniformSampler {
     }
 }
 
-/// n configurations (rows of nq) from a native sampler shared with the planner, drawn in
-/// chunks (the same stream as one call) without the GIL, Ctrl-C answered between chunks.
 /// A native sampler shared with Python (`what` names it in errors), used by one plan at a time.
 struct Shared<S>(Arc<Mutex<S>>, &'static str);
 
@@ -234,6 +232,8 @@ impl<S: Sampler> Sampler for Shared<S> {
     }
 }
 
+/// n configurations (rows of nq) from a native sampler shared with the planner, drawn in
+/// chunks (the same stream as one call) without the GIL, Ctrl-C answered between chunks.
 fn sample_in_chunks<S: Sampler>(py: Python<'_>, sampler: &Mutex<S>, n: usize, nq: usize, what: &str) -> PyResult<Vec<f64>> {
     let mut out = vec![0.0; n * nq];
     for_chunks(py, n, |rows| {
@@ -242,7 +242,6 @@ fn sample_in_chunks<S: Sampler>(py: Python<'_>, sampler: &Mutex<S>, n: usize, nq
     })?;
     Ok(out)
 }
-
 
 /// A trained GAN generator run natively: samples conditioned on targets uniform in a box.
 /// Built by `genplan.gan.GanModel.native_sampler()` from the torch weights.
@@ -342,7 +341,6 @@ impl PyGanSampler {
     }
 }
 
-
 /// A trained flow-matching sampler run natively: samples conditioned on targets uniform in a box.
 /// Built by `genplan.gan.flow.FlowModel.native_sampler()` from the torch weights.
 #[pyclass(name = "FlowSampler", module = "genplan._core", frozen)]
@@ -428,7 +426,6 @@ impl PyFlowSampler {
         to_array(py, &out, nq)
     }
 }
-
 
 /// Draws from `primary` with probability `p`, else from `secondary` (each native or Python):
 /// the paper's hybrid sampler.
