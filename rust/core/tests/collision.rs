@@ -37,8 +37,8 @@ fn world(srdf: Option<&str>) -> CollisionWorld {
 #[test]
 fn self_collision_and_signed_distance_of_two_spheres() {
     let w = world(None);
-    assert_eq!(w.geometries.len(), 3);
-    assert_eq!(w.self_pairs.len(), 3);
+    assert_eq!(w.geometries().len(), 3);
+    assert_eq!(w.self_pairs().len(), 3);
     // cart at x: distance between sphere centres is |x|, so signed distance |x| - 0.2
     for &x in &[0.05, 0.15, 0.19, 0.21, 0.5, 1.5] {
         let q = [x, 0.0];
@@ -58,7 +58,7 @@ fn srdf_disabled_pairs_are_not_checked() {
         r#"<robot name="slider"><disable_collisions link1="cart" link2="base" reason="Adjacent"/>
            <disable_collisions link1="cart" link2="not_a_link" reason="Never"/></robot>"#,
     ));
-    assert_eq!(w.self_pairs.len(), 2);
+    assert_eq!(w.self_pairs().len(), 2);
     assert!(!w.in_collision(&[0.0, 0.0]).unwrap());
 }
 

@@ -37,16 +37,16 @@ type Pair = (Isometry3<f64>, SharedShape, Isometry3<f64>, SharedShape, String, S
 fn all_pairs(w: &CollisionWorld, q: &[f64]) -> Vec<Pair> {
     let mut links = Vec::new();
     w.model.forward_kinematics(q, &mut links).unwrap();
-    let poses: Vec<Isometry3<f64>> = w.geometries.iter().map(|g| links[g.link] * g.offset).collect();
+    let poses: Vec<Isometry3<f64>> = w.geometries().iter().map(|g| links[g.link] * g.offset).collect();
     let mut out = Vec::new();
-    for (i, g) in w.geometries.iter().enumerate() {
+    for (i, g) in w.geometries().iter().enumerate() {
         for o in w.obstacles.iter() {
             out.push((poses[i], g.shape.clone(), o.pose, o.shape.clone(), g.name.clone(), o.name.clone()));
         }
     }
     if w.check_self {
-        for &(i, j) in &w.self_pairs {
-            let (a, b) = (&w.geometries[i], &w.geometries[j]);
+        for &(i, j) in w.self_pairs() {
+            let (a, b) = (&w.geometries()[i], &w.geometries()[j]);
             out.push((poses[i], a.shape.clone(), poses[j], b.shape.clone(), a.name.clone(), b.name.clone()));
         }
     }

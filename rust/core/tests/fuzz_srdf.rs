@@ -80,9 +80,9 @@ fn check_text(text: &str) -> Result<(), TestCaseError> {
         .filter_map(|(a, b)| Some((model.link_index(a).ok()?, model.link_index(b).ok()?)))
         .flat_map(|(a, b)| [(a, b), (b, a)])
         .collect();
-    let kept: HashSet<(usize, usize)> = world.self_pairs.iter().copied().collect();
-    for &(i, j) in &all.self_pairs {
-        let links = (all.geometries[i].link, all.geometries[j].link);
+    let kept: HashSet<(usize, usize)> = world.self_pairs().iter().copied().collect();
+    for &(i, j) in all.self_pairs() {
+        let links = (all.geometries()[i].link, all.geometries()[j].link);
         prop_assert_eq!(kept.contains(&(i, j)), !disabled.contains(&links), "pair {:?}", world.self_pair_names());
     }
     // the locked joint takes its reference value

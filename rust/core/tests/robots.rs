@@ -28,7 +28,7 @@ fn presets_load_and_default_postures_are_collision_free() {
         if let Some(e) = expected {
             assert_eq!((model.nq, model.nv), e, "{name}");
         }
-        assert!(!world.geometries.is_empty() && !world.self_pairs.is_empty(), "{name}");
+        assert!(!world.geometries().is_empty() && !world.self_pairs().is_empty(), "{name}");
         for (_, link) in &d.frames {
             model.link_index(link).unwrap();
         }

@@ -478,13 +478,13 @@ impl PyCollisionWorld {
     }
     #[getter]
     fn geometry_names(&self) -> Vec<String> {
-        self.inner.geometries.iter().map(|g| g.name.clone()).collect()
+        self.inner.geometries().iter().map(|g| g.name.clone()).collect()
     }
     /// Link name of each geometry.
     #[getter]
     fn geometry_links(&self) -> Vec<String> {
         self.inner
-            .geometries
+            .geometries()
             .iter()
             .map(|g| self.inner.model.link_names[g.link].clone())
             .collect()
@@ -576,8 +576,8 @@ impl PyCollisionWorld {
     fn __repr__(&self) -> String {
         format!(
             "CollisionWorld(geometries={}, self_pairs={}, obstacles={}, check_self={})",
-            self.inner.geometries.len(),
-            self.inner.self_pairs.len(),
+            self.inner.geometries().len(),
+            self.inner.self_pairs().len(),
             self.inner.obstacles.len(),
             self.inner.check_self
         )

@@ -133,7 +133,7 @@ impl CollisionWorld {
 }
 
 /// An oriented bounding box in the world: centre, axes (columns) and half extents.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub(super) struct Obb {
     center: Vector3<f64>,
     axes: Matrix3<f64>,

@@ -5,9 +5,13 @@
 //!
 //! Hill climbing finds the global maximum of `dot(v, dir)` over a convex polytope's vertices:
 //! at a vertex that is not a maximiser some edge from it increases the dot product (the simplex
-//! method's argument), so a climb that stops has found a maximiser. It starts from the vertex
-//! extreme along the coordinate axis closest to `dir` (precomputed), which leaves a few steps
-//! for most directions. Every other query (point projection, ray casts, mass) is the inner
+//! method's argument), so a climb that stops has found a maximiser. It starts from a
+//! precomputed maximiser for a nearby direction: the directions are cut into the cells of a
+//! cube map (each face of the cube around the origin in `CELLS` x `CELLS` squares), and each
+//! cell stores the maximiser for the direction through its centre, which leaves zero to two
+//! steps for most directions. (Starting from the vertex extreme along the nearest coordinate
+//! axis took several steps on the large Talos hulls, and support points were 40 % of a Talos
+//! self-collision check: benches/collision.rs.) Every other query (point projection, ray casts, mass) is the inner
 //! `ConvexPolyhedron`'s, and the support points are the same vertices (up to ties), so every
 //! answer matches parry's hull (tested against it in the module's tests).
 
@@ -24,8 +28,39 @@ pub struct Hull {
     /// Neighbours of each vertex along the hull's edges (CSR: `adj[start[i]..start[i + 1]]`).
     start: Vec<u32>,
     adj: Vec<u32>,
-    /// The vertex extreme along +x, -x, +y, -y, +z, -z.
-    axis_extreme: [u32; 6],
+    /// Per cube-map cell (see the module text and [`cell`]): a vertex maximising the dot
+    /// product with the direction through the cell's centre.
+    starts: Vec<u32>,
+}
+
+/// Cube-map cells per face side: 6 x 8 x 8 = 384 start vertices per hull.
+const CELLS: usize = 8;
+
+/// The cube-map cell of a direction: the face of its largest component (+x, -x, +y, -y, +z,
+/// -z), then the square of the other two components divided by that one's magnitude. Any
+/// input gives a valid index (a zero or non-finite direction some cell).
+#[inline]
+fn cell(dir: &Vector<Real>) -> usize {
+    let ax = dir.iamax();
+    let m = dir[ax].abs();
+    let face = 2 * ax + usize::from(dir[ax] < 0.0);
+    let scale = 0.5 * CELLS as f64 / m;
+    // (u / m + 1) / 2 * CELLS, clamped; NaN (m = 0) casts to 0
+    let iu = ((dir[(ax + 1) % 3] * scale + 0.5 * CELLS as f64) as usize).min(CELLS - 1);
+    let iv = ((dir[(ax + 2) % 3] * scale + 0.5 * CELLS as f64) as usize).min(CELLS - 1);
+    (face * CELLS + iu) * CELLS + iv
+}
+
+/// The direction through the centre of cube-map cell `c` (the inverse of [`cell`] there).
+fn cell_center(c: usize) -> Vector<Real> {
+    let (face, iu, iv) = (c / (CELLS * CELLS), (c / CELLS) % CELLS, c % CELLS);
+    let (ax, sign) = (face / 2, if face % 2 == 1 { -1.0 } else { 1.0 });
+    let coord = |i: usize| (i as f64 + 0.5) / CELLS as f64 * 2.0 - 1.0;
+    let mut d = Vector::zeros();
+    d[ax] = sign;
+    d[(ax + 1) % 3] = coord(iu);
+    d[(ax + 2) % 3] = coord(iv);
+    d
 }
 
 impl Hull {
@@ -55,12 +90,15 @@ impl Hull {
             adj.extend(list);
         }
         start.push(adj.len() as u32);
-        let pts = inner.points();
-        let extreme = |axis: usize, sign: f64| {
-            (0..n).max_by(|&i, &j| (sign * pts[i][axis]).total_cmp(&(sign * pts[j][axis]))).unwrap_or(0) as u32
-        };
-        let axis_extreme = [extreme(0, 1.0), extreme(0, -1.0), extreme(1, 1.0), extreme(1, -1.0), extreme(2, 1.0), extreme(2, -1.0)];
-        Hull { inner, start, adj, axis_extreme }
+        let mut hull = Hull { inner, start, adj, starts: vec![0; 6 * CELLS * CELLS] };
+        // each cell's maximiser by a climb from the previous cell's (neighbouring cells have
+        // nearby answers), the first from vertex 0: the climb is exact from any start
+        let mut from = 0;
+        for c in 0..hull.starts.len() {
+            from = hull.climb(from, &cell_center(c));
+            hull.starts[c] = from as u32;
+        }
+        hull
     }
 
     /// The parry hull inside.
@@ -71,10 +109,13 @@ impl Hull {
     /// The index of a vertex maximising `dot(v, dir)`.
     #[inline]
     fn support_index(&self, dir: &Vector<Real>) -> usize {
+        self.climb(self.starts[cell(dir)] as usize, dir)
+    }
+
+    /// Climb from vertex `best` to a vertex maximising `dot(v, dir)`.
+    #[inline]
+    fn climb(&self, mut best: usize, dir: &Vector<Real>) -> usize {
         let pts = self.inner.points();
-        // the start: the extreme vertex along the axis of dir's largest component
-        let ax = dir.iamax();
-        let mut best = self.axis_extreme[2 * ax + usize::from(dir[ax] < 0.0)] as usize;
         let mut best_dot = pts[best].coords.dot(dir);
         loop {
             let mut moved = false;
@@ -185,6 +226,24 @@ mod tests {
                 Point::from(v.map(|x: f64| (x * 40.0).round() / 40.0))
             })
             .collect()
+    }
+
+    /// Every direction has a cell (zero and non-finite ones too), and a cell's centre is in it.
+    #[test]
+    fn cube_map_cells() {
+        for c in 0..6 * CELLS * CELLS {
+            assert_eq!(cell(&cell_center(c)), c);
+        }
+        let mut rng = StdRng::seed_from_u64(3);
+        let mut seen = vec![false; 6 * CELLS * CELLS];
+        for _ in 0..100_000 {
+            let d = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+            seen[cell(&d)] = true;
+        }
+        assert!(seen.iter().all(|&s| s), "every cell is reached");
+        for d in [Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 1.0), Vector3::new(f64::INFINITY, 1.0, -f64::INFINITY), Vector3::new(1e-300, -1e-300, 0.0)] {
+            assert!(cell(&d) < 6 * CELLS * CELLS, "{d:?}");
+        }
     }
 
     /// The climb finds the scan's maximum for every direction (the same dot product; ties may

@@ -18,6 +18,7 @@
 pub mod allowed;
 mod broad_phase;
 mod geometry;
+mod groups;
 mod hull;
 mod motion;
 mod obstacles;

@@ -11,6 +11,7 @@ use parry3d_f64::query;
 use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, HalfSpace, SharedShape};
 
 use super::broad_phase::{self_pairs, Obb, Target};
+use super::groups::{GroupPair, LinkGroups};
 use super::obstacles::Obstacles;
 use super::geometry::{bounding_sphere, load_mesh_vertices, robot_geometries};
 use super::{Hull, RobotGeometry};
@@ -71,10 +72,13 @@ pub struct PairDistance {
 pub struct CollisionWorld {
     /// The robot's kinematics.
     pub model: Arc<KinematicModel>,
-    /// The robot's collision geometry.
-    pub geometries: Vec<RobotGeometry>,
-    /// Self-collision pairs, as indices into `geometries`.
-    pub self_pairs: Vec<(usize, usize)>,
+    /// The robot's collision geometry ([`geometries`](Self::geometries)).
+    pub(super) geometries: Vec<RobotGeometry>,
+    /// Self-collision pairs, as indices into `geometries` ([`self_pairs`](Self::self_pairs)).
+    pub(super) self_pairs: Vec<(usize, usize)>,
+    /// The geometries grouped by link, and the self pairs by link pair (`groups.rs`), built
+    /// with the two fields above, which never change afterwards.
+    pub(super) groups: LinkGroups,
     /// The obstacles, in the order they were added, with the hierarchy over them (read-only:
     /// they change through `add_*`, [`remove_obstacle`](Self::remove_obstacle) and
     /// [`clear_obstacles`](Self::clear_obstacles)).
@@ -94,13 +98,26 @@ impl CollisionWorld {
     ) -> Result<CollisionWorld> {
         let geometries = robot_geometries(&model, urdf, package_dirs)?;
         let self_pairs = self_pairs(&model, &geometries, srdf);
+        let groups = LinkGroups::new(&geometries, &self_pairs);
         Ok(CollisionWorld {
             model,
             geometries,
             self_pairs,
+            groups,
             obstacles: Obstacles::default(),
             check_self: true,
         })
+    }
+
+    /// The robot's collision geometry (fixed when the world is built).
+    pub fn geometries(&self) -> &[RobotGeometry] {
+        &self.geometries
+    }
+
+    /// The self-collision pairs, as indices into [`geometries`](Self::geometries) (fixed when
+    /// the world is built; [`check_self`](Self::check_self) turns them off).
+    pub fn self_pairs(&self) -> &[(usize, usize)] {
+        &self.self_pairs
     }
 
     fn add_obstacle(&mut self, name: &str, pose: Isometry3<f64>, shape: SharedShape) -> Result<()> {
@@ -258,21 +275,57 @@ impl CollisionWorld {
     /// World poses and bounding boxes of the robot geometries for a checked q.
     pub(super) fn geometry_poses(&self, q: &[f64], s: &mut Scratch) {
         self.model.forward_kinematics_unchecked(q, &mut s.links);
-        s.poses.clear();
-        s.aabbs.clear();
-        s.obbs.clear();
+        s.resize(self.geometries.len(), self.groups.groups.len());
         let mut all = Aabb::new_invalid();
-        for g in &self.geometries {
-            let pose = s.links[g.link] * g.offset;
-            let obb = Obb::new(&g.local_aabb, &pose);
-            let aabb = obb.aabb();
-            all.mins = all.mins.inf(&aabb.mins);
-            all.maxs = all.maxs.sup(&aabb.maxs);
-            s.aabbs.push(aabb);
-            s.obbs.push(obb);
-            s.poses.push(pose);
+        for i in 0..self.geometries.len() {
+            self.pose_geometry(i, s);
+            all.merge(&s.aabbs[i]);
         }
         s.robot_aabb = all;
+    }
+
+    /// World pose, oriented box and world box of geometry `i` from the link poses in `s`.
+    #[inline]
+    fn pose_geometry(&self, i: usize, s: &mut Scratch) {
+        let g = &self.geometries[i];
+        let pose = s.links[g.link] * g.offset;
+        let obb = Obb::new(&g.local_aabb, &pose);
+        s.aabbs[i] = obb.aabb();
+        s.obbs[i] = obb;
+        s.poses[i] = pose;
+        s.posed[i] = true;
+    }
+
+    /// Pose the geometries of link group `k` that are not posed yet.
+    #[inline]
+    fn pose_group(&self, k: usize, s: &mut Scratch) {
+        for &i in &self.groups.groups[k].geometries {
+            if !s.posed[i] {
+                self.pose_geometry(i, s);
+            }
+        }
+    }
+
+    /// Compute the oriented box of link group `k` unless this query already has.
+    #[inline]
+    fn group_obb(&self, k: usize, s: &mut Scratch) {
+        if !s.group_obb_done[k] {
+            let g = &self.groups.groups[k];
+            s.group_obbs[k] = Obb::new(&g.local_aabb, &s.links[g.link]);
+            s.group_obb_done[k] = true;
+        }
+    }
+
+    /// Can the two link groups of `gp` touch (their spheres, then their oriented boxes, overlap)?
+    #[inline]
+    fn groups_may_touch(&self, gp: &GroupPair, s: &mut Scratch) -> bool {
+        let (a, b) = (gp.a as usize, gp.b as usize);
+        if (s.group_centers[a] - s.group_centers[b]).norm_squared() > gp.reach2 {
+            return false;
+        }
+        self.group_obb(a, s);
+        self.group_obb(b, s);
+        !s.group_obbs[a].separated(&s.group_obbs[b])
     }
 
     /// Does robot geometry `i` intersect target `t`? The bounding-volume filters (boxes, spheres,
@@ -309,43 +362,87 @@ impl CollisionWorld {
 
     /// [`in_collision`](Self::in_collision) without input checks, reusing buffers.
     ///
-    /// The obstacles looked at are those the hierarchy over them (`obstacles.rs`) finds near the
-    /// robot: first the ones whose box meets the box around the whole robot; when there are more
-    /// than 24 of them (`NEAR_LINEAR_MAX`), each geometry asks the hierarchy for its own. Each
-    /// candidate pair then goes through the same filters and narrow phase as in an exhaustive
-    /// loop, so the answer is the exhaustive loop's.
+    /// Link volumes first (`groups.rs`): each link's bounding sphere is placed in the world; a
+    /// link is tested against the obstacles whose box meets the box around its sphere (found by
+    /// the hierarchy over the obstacles, `obstacles.rs`: first those near the whole robot; when
+    /// there are more than 24 of them (`NEAR_LINEAR_MAX`), each link asks for its own), and a
+    /// link pair's geometry pairs are tested only when the links' spheres and oriented boxes
+    /// overlap. A link's geometries are posed when first needed. Each geometry pair left goes
+    /// through the same filters and narrow phase as in an exhaustive loop, and the link volumes
+    /// contain their geometries, so the answer is the exhaustive loop's.
     pub fn in_collision_unchecked(&self, q: &[f64], s: &mut Scratch) -> bool {
-        self.geometry_poses(q, s);
-        let mut near = std::mem::take(&mut s.near);
-        self.obstacles.overlapping(&s.robot_aabb, &mut near);
-        let mut hit = false;
-        if near.len() <= NEAR_LINEAR_MAX {
-            'outer: for i in 0..self.geometries.len() {
-                for &k in &near {
-                    if self.pair_intersects(i, Target::Obstacle(k), s) {
-                        hit = true;
-                        break 'outer;
-                    }
-                }
-            }
-        } else {
-            let mut mine = std::mem::take(&mut s.candidates);
-            'outer2: for i in 0..self.geometries.len() {
-                self.obstacles.overlapping(&s.aabbs[i], &mut mine);
-                for &k in &mine {
-                    if self.pair_intersects(i, Target::Obstacle(k), s) {
-                        hit = true;
-                        break 'outer2;
-                    }
-                }
-            }
-            s.candidates = mine;
+        self.model.forward_kinematics_unchecked(q, &mut s.links);
+        let groups = &self.groups.groups;
+        s.resize(self.geometries.len(), groups.len());
+        let mut all = Aabb::new_invalid();
+        for g in groups {
+            let c = s.links[g.link] * g.center;
+            s.group_centers.push(c);
+            all.merge(&sphere_aabb(&c, g.radius));
         }
-        s.near = near;
-        if hit {
+        s.robot_aabb = all;
+        if self.collides_with_obstacles(s) {
             return true;
         }
-        self.check_self && self.self_pairs.iter().any(|&(i, j)| self.pair_intersects(i, Target::Robot(j), s))
+        self.check_self && self.collides_with_itself(s)
+    }
+
+    /// The obstacle part of [`in_collision_unchecked`](Self::in_collision_unchecked), after its
+    /// link spheres are placed.
+    fn collides_with_obstacles(&self, s: &mut Scratch) -> bool {
+        let mut near = std::mem::take(&mut s.near);
+        self.obstacles.overlapping(&s.robot_aabb, &mut near);
+        let mut mine = std::mem::take(&mut s.candidates);
+        let mut hit = false;
+        if !near.is_empty() {
+            'groups: for (k, g) in self.groups.groups.iter().enumerate() {
+                let (c, r) = (s.group_centers[k], g.radius);
+                let b = sphere_aabb(&c, r);
+                let list = if near.len() <= NEAR_LINEAR_MAX {
+                    &near
+                } else {
+                    self.obstacles.overlapping(&b, &mut mine);
+                    &mine
+                };
+                for &o in list {
+                    let obstacle = &self.obstacles[o];
+                    if let Some(ob) = &obstacle.aabb {
+                        let rr = r + obstacle.radius;
+                        if !b.intersects(ob) || (c - obstacle.center).norm_squared() > rr * rr {
+                            continue;
+                        }
+                    }
+                    self.pose_group(k, s);
+                    for &i in &g.geometries {
+                        if self.pair_intersects(i, Target::Obstacle(o), s) {
+                            hit = true;
+                            break 'groups;
+                        }
+                    }
+                }
+            }
+        }
+        s.near = near;
+        s.candidates = mine;
+        hit
+    }
+
+    /// The self-collision part of [`in_collision_unchecked`](Self::in_collision_unchecked),
+    /// after its link spheres are placed.
+    fn collides_with_itself(&self, s: &mut Scratch) -> bool {
+        for gp in &self.groups.group_pairs {
+            if !self.groups_may_touch(gp, s) {
+                continue;
+            }
+            self.pose_group(gp.a as usize, s);
+            self.pose_group(gp.b as usize, s);
+            for &(i, j) in &self.groups.pairs[gp.start as usize..gp.end as usize] {
+                if self.pair_intersects(i, Target::Robot(j), s) {
+                    return true;
+                }
+            }
+        }
+        false
     }
 
     /// [`in_collision`](Self::in_collision) with every pair through the exact narrow phase (no
@@ -577,6 +674,37 @@ pub struct Scratch {
     /// Obstacles near the whole robot, and near one geometry (indices, ascending).
     near: Vec<usize>,
     candidates: Vec<usize>,
+    /// Which geometries this query has posed (`poses`, `aabbs`, `obbs` hold stale values for
+    /// the others).
+    pub(super) posed: Vec<bool>,
+    /// Per link group (`groups.rs`): the sphere's world centre, the oriented box and whether
+    /// this query has computed it.
+    group_centers: Vec<Point3<f64>>,
+    group_obbs: Vec<Obb>,
+    group_obb_done: Vec<bool>,
+}
+
+impl Scratch {
+    /// Size the buffers for `ng` geometries and `nk` link groups and mark everything unposed
+    /// (the link poses are kept).
+    fn resize(&mut self, ng: usize, nk: usize) {
+        self.poses.resize(ng, Isometry3::identity());
+        self.aabbs.resize(ng, Aabb::new_invalid());
+        self.obbs.resize(ng, Obb::default());
+        self.posed.clear();
+        self.posed.resize(ng, false);
+        self.group_centers.clear();
+        self.group_obbs.resize(nk, Obb::default());
+        self.group_obb_done.clear();
+        self.group_obb_done.resize(nk, false);
+    }
+}
+
+/// The world box around a sphere.
+#[inline]
+fn sphere_aabb(c: &Point3<f64>, r: f64) -> Aabb {
+    let e = Vector3::repeat(r);
+    Aabb::new(c - e, c + e)
 }
 
 impl Default for Scratch {
@@ -589,6 +717,10 @@ impl Default for Scratch {
             robot_aabb: Aabb::new_invalid(),
             near: Vec::new(),
             candidates: Vec::new(),
+            posed: Vec::new(),
+            group_centers: Vec::new(),
+            group_obbs: Vec::new(),
+            group_obb_done: Vec::new(),
         }
     }
 }
