@@ -156,6 +156,13 @@ impl Obb {
         Aabb::new((self.center - e).into(), (self.center + e).into())
     }
 
+    /// The smallest value of `dot(n, x)` over the box's points `x`.
+    #[inline]
+    pub(super) fn lowest_along(&self, n: &Vector3<f64>) -> f64 {
+        let along = self.axes.tr_mul(n); // n in the box's axes
+        n.dot(&self.center) - along.abs().dot(&self.half)
+    }
+
     /// True when a separating axis exists (the boxes do not overlap): the 15-axis test of
     /// Gottschalk, Lin and Manocha (1996), with a small epsilon on the cross-product axes so
     /// that near-parallel edges never separate by round-off (the test only errs towards
@@ -214,6 +221,23 @@ mod tests {
         let t = Vector3::new(rng.random_range(-spread..spread), rng.random_range(-spread..spread), rng.random_range(-spread..spread));
         let axis = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
         Isometry3::new(t, axis * rng.random_range(0.0..3.0))
+    }
+
+    #[test]
+    fn lowest_along_is_the_lowest_corner() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        for _ in 0..1000 {
+            let h = Vector3::new(rng.random_range(0.01..0.5), rng.random_range(0.01..0.5), rng.random_range(0.01..0.5));
+            let pose = random_pose(&mut rng, 1.0);
+            let n = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize();
+            let obb = Obb::new(&Aabb::new((-h).into(), h.into()), &pose);
+            let corners = (0..8).map(|k| {
+                let c = Vector3::new(if k & 1 == 0 { -h.x } else { h.x }, if k & 2 == 0 { -h.y } else { h.y }, if k & 4 == 0 { -h.z } else { h.z });
+                n.dot(&(pose * nalgebra::Point3::from(c)).coords)
+            });
+            let lowest = corners.fold(f64::INFINITY, f64::min);
+            assert!((obb.lowest_along(&n) - lowest).abs() < 1e-12, "{} vs {lowest}", obb.lowest_along(&n));
+        }
     }
 
     #[test]

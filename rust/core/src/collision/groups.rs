@@ -48,6 +48,8 @@ pub(super) struct LinkGroups {
     pub groups: Vec<LinkGroup>,
     /// The world's self pairs, reordered so that each [`GroupPair`]'s are contiguous.
     pub pairs: Vec<(usize, usize)>,
+    /// For each of `pairs`, its index in the world's self pairs (where per-pair margins are).
+    pub index: Vec<usize>,
     pub group_pairs: Vec<GroupPair>,
 }
 
@@ -92,17 +94,19 @@ impl LinkGroups {
             group.radius = r * (1.0 + 1e-9) + 1e-12;
             group.local_aabb = aabb.loosened(1e-12 + 1e-9 * aabb.half_extents().amax());
         }
-        let mut keyed: Vec<((usize, usize), (usize, usize))> = self_pairs
+        let mut keyed: Vec<((usize, usize), (usize, usize), usize)> = self_pairs
             .iter()
-            .map(|&(i, j)| {
+            .enumerate()
+            .map(|(p, &(i, j))| {
                 let (a, b) = (group_of[i], group_of[j]);
-                ((a.min(b), a.max(b)), (i, j))
+                ((a.min(b), a.max(b)), (i, j), p)
             })
             .collect();
-        keyed.sort_by_key(|&(key, _)| key);
+        keyed.sort_by_key(|&(key, _, p)| (key, p));
         let mut group_pairs: Vec<GroupPair> = Vec::new();
         let mut pairs = Vec::with_capacity(keyed.len());
-        for (p, &(key, pair)) in keyed.iter().enumerate() {
+        let mut index = Vec::with_capacity(keyed.len());
+        for (p, &(key, pair, original)) in keyed.iter().enumerate() {
             match group_pairs.last_mut() {
                 Some(gp) if (gp.a as usize, gp.b as usize) == key => gp.end = p as u32 + 1,
                 _ => {
@@ -111,8 +115,9 @@ impl LinkGroups {
                 }
             }
             pairs.push(pair);
+            index.push(original);
         }
-        LinkGroups { groups, pairs, group_pairs }
+        LinkGroups { groups, pairs, index, group_pairs }
     }
 }
 
@@ -145,6 +150,9 @@ mod tests {
             pairs.sort_unstable();
             expected.sort_unstable();
             assert_eq!(pairs, expected, "{name}: the same self pairs");
+            for (p, &k) in lg.pairs.iter().zip(&lg.index) {
+                assert_eq!(*p, world.self_pairs()[k]);
+            }
             let mut covered = 0;
             for gp in &lg.group_pairs {
                 let (a, b, start, end) = (gp.a as usize, gp.b as usize, gp.start as usize, gp.end as usize);

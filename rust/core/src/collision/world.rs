@@ -54,6 +54,17 @@ pub struct Obstacle {
     pub(super) aabb: Option<Aabb>,
     /// World oriented bounding box: the shape's local box at its pose (None for a half-space).
     pub(super) obb: Option<Obb>,
+    /// For a half-space {x : n.x <= offset}: its unit normal n and offset (None otherwise).
+    pub(super) plane: Option<(Vector3<f64>, f64)>,
+}
+
+impl Obstacle {
+    /// How far a sphere (world centre `c`, radius `r`) stands above this half-space's plane
+    /// (negative when it reaches below it); None for an obstacle that is not a half-space.
+    #[inline]
+    pub(super) fn plane_clearance(&self, c: &Point3<f64>, r: f64) -> Option<f64> {
+        self.plane.map(|(n, offset)| n.dot(&c.coords) - offset - r)
+    }
 }
 
 /// The answer to a distance query about one pair.
@@ -130,6 +141,10 @@ impl CollisionWorld {
             let (c, r) = bounding_sphere(&shape);
             (pose * c, r, Some(shape.compute_aabb(&pose)), Some(Obb::new(&shape.compute_local_aabb(), &pose)))
         };
+        let plane = shape.as_halfspace().map(|h| {
+            let n = pose.rotation * h.normal.into_inner();
+            (n, n.dot(&pose.translation.vector))
+        });
         self.obstacles.push(Obstacle {
             name: name.to_string(),
             pose,
@@ -138,6 +153,7 @@ impl CollisionWorld {
             radius: r,
             aabb,
             obb,
+            plane,
         });
         Ok(())
     }
@@ -282,6 +298,16 @@ impl CollisionWorld {
             all.merge(&s.aabbs[i]);
         }
         s.robot_aabb = all;
+        self.place_group_spheres(s);
+    }
+
+    /// The world centres of the link groups' spheres (`s.group_centers`), from the link poses.
+    #[inline]
+    fn place_group_spheres(&self, s: &mut Scratch) {
+        s.group_centers.clear();
+        for g in &self.groups.groups {
+            s.group_centers.push(s.links[g.link] * g.center);
+        }
     }
 
     /// World pose, oriented box and world box of geometry `i` from the link poses in `s`.
@@ -341,6 +367,14 @@ impl CollisionWorld {
         if rb.is_finite() && (ca - cb).norm() > g.radius + rb {
             return false;
         }
+        if let Target::Obstacle(k) = t {
+            // a half-space: the bounding sphere, then the oriented box, above its plane
+            if let Some((n, offset)) = self.obstacles[k].plane {
+                if n.dot(&ca.coords) - offset > g.radius || s.obbs[i].lowest_along(&n) > offset {
+                    return false;
+                }
+            }
+        }
         // The shapes' boxes in their own frames are much tighter than world-aligned boxes on
         // tilted links: a separating axis between them rules the pair out before GJK.
         if let Some(b) = self.target_obb(t, s) {
@@ -374,11 +408,10 @@ impl CollisionWorld {
         self.model.forward_kinematics_unchecked(q, &mut s.links);
         let groups = &self.groups.groups;
         s.resize(self.geometries.len(), groups.len());
+        self.place_group_spheres(s);
         let mut all = Aabb::new_invalid();
-        for g in groups {
-            let c = s.links[g.link] * g.center;
-            s.group_centers.push(c);
-            all.merge(&sphere_aabb(&c, g.radius));
+        for (g, c) in groups.iter().zip(&s.group_centers) {
+            all.merge(&sphere_aabb(c, g.radius));
         }
         s.robot_aabb = all;
         if self.collides_with_obstacles(s) {
@@ -411,6 +444,8 @@ impl CollisionWorld {
                         if !b.intersects(ob) || (c - obstacle.center).norm_squared() > rr * rr {
                             continue;
                         }
+                    } else if obstacle.plane_clearance(&c, r).is_some_and(|h| h > 0.0) {
+                        continue;
                     }
                     self.pose_group(k, s);
                     for &i in &g.geometries {
@@ -488,12 +523,15 @@ impl CollisionWorld {
 
     /// [`min_distance`](Self::min_distance) without input checks, reusing buffers.
     ///
-    /// Pairs are visited in the exhaustive loop's order (each geometry in turn against the
-    /// obstacles in index order, then the self pairs) and skipped by the same tests, so the
-    /// value is the exhaustive loop's; the hierarchy over the obstacles only leaves out, for each
-    /// geometry, the obstacles whose box is already farther than the best distance so far (which
-    /// that loop would skip too). The first geometry's list, asked for before any distance is
-    /// known, is asked for again after the first one.
+    /// Obstacle pairs are visited in the exhaustive loop's order (each geometry in turn against
+    /// the obstacles in index order) and skipped by the same tests; the hierarchy over the
+    /// obstacles only leaves out, for each geometry, the obstacles whose box is already farther
+    /// than the best distance so far (which that loop would skip too). The first geometry's
+    /// list, asked for before any distance is known, is asked for again after the first one.
+    /// Self pairs are visited link pair by link pair (`groups.rs`), skipping the link pairs
+    /// whose spheres are at least the best distance so far apart. Every pair left out is one
+    /// whose lower bound cannot beat the minimum, so the value is the exhaustive loop's (to the
+    /// narrow phase's rounding: tests/collision_broad_phase.rs).
     pub fn min_distance_unchecked(&self, q: &[f64], s: &mut Scratch) -> f64 {
         self.geometry_poses(q, s);
         let mut best = f64::INFINITY;
@@ -519,8 +557,17 @@ impl CollisionWorld {
         }
         s.candidates = cands;
         if self.check_self {
-            for &(i, j) in &self.self_pairs {
-                best = self.pair_min_distance(i, Target::Robot(j), s, best);
+            // link pairs whose spheres are at least `best` apart hold no closer pair
+            let lg = &self.groups;
+            for gp in &lg.group_pairs {
+                let (a, b) = (gp.a as usize, gp.b as usize);
+                let gap = (s.group_centers[a] - s.group_centers[b]).norm() - lg.groups[a].radius - lg.groups[b].radius;
+                if gap >= best {
+                    continue;
+                }
+                for &(i, j) in &lg.pairs[gp.start as usize..gp.end as usize] {
+                    best = self.pair_min_distance(i, Target::Robot(j), s, best);
+                }
             }
         }
         best
@@ -578,6 +625,13 @@ impl CollisionWorld {
             if self.aabb_gap(i, t, s) > m {
                 return true;
             }
+            if let Target::Obstacle(k) = t {
+                if let Some((n, offset)) = self.obstacles[k].plane {
+                    if n.dot(&ca.coords) - offset - g.radius > m || s.obbs[i].lowest_along(&n) - offset > m {
+                        return true;
+                    }
+                }
+            }
             if let Some(b) = self.target_obb(t, s) {
                 if s.obbs[i].separated_by(b, m) {
                     return true;
@@ -588,22 +642,48 @@ impl CollisionWorld {
                 Ok(query::ClosestPoints::Disjoint)
             )
         };
+        // Link spheres first (`groups.rs`): a link whose sphere, grown by its geometries'
+        // largest margin, is clear of an obstacle's sphere or box, or a link pair whose spheres,
+        // grown by the pairs' largest margin, are apart, is far by every margin of its pairs.
         let mut near = std::mem::take(&mut s.near);
         let mut clear = true;
-        'outer: for (i, &m) in geometry.iter().enumerate() {
-            self.obstacles.overlapping(&s.aabbs[i].loosened(m), &mut near);
-            for &k in &near {
-                if !far(i, Target::Obstacle(k), m, s) {
-                    clear = false;
-                    break 'outer;
+        'outer: for (k, g) in self.groups.groups.iter().enumerate() {
+            let mk = g.geometries.iter().map(|&i| geometry[i]).fold(0.0, f64::max);
+            let c = s.group_centers[k];
+            self.obstacles.overlapping(&sphere_aabb(&c, g.radius + mk), &mut near);
+            for &o in &near {
+                let obstacle = &self.obstacles[o];
+                if obstacle.radius.is_finite() && (c - obstacle.center).norm() - g.radius - obstacle.radius > mk {
+                    continue;
+                }
+                if obstacle.plane_clearance(&c, g.radius).is_some_and(|h| h > mk) {
+                    continue;
+                }
+                for &i in &g.geometries {
+                    let m = geometry[i];
+                    if obstacle.aabb.as_ref().is_some_and(|b| !s.aabbs[i].loosened(m).intersects(b)) {
+                        continue;
+                    }
+                    if !far(i, Target::Obstacle(o), m, s) {
+                        clear = false;
+                        break 'outer;
+                    }
                 }
             }
         }
         s.near = near;
-        if !clear {
-            return false;
+        if !clear || !self.check_self {
+            return clear;
         }
-        !self.check_self || self.self_pairs.iter().zip(pairs).all(|(&(i, j), &m)| far(i, Target::Robot(j), m, s))
+        let lg = &self.groups;
+        lg.group_pairs.iter().all(|gp| {
+            let (start, end) = (gp.start as usize, gp.end as usize);
+            let m = lg.index[start..end].iter().map(|&p| pairs[p]).fold(0.0, f64::max);
+            let (a, b) = (gp.a as usize, gp.b as usize);
+            let reach = lg.groups[a].radius + lg.groups[b].radius + m;
+            (s.group_centers[a] - s.group_centers[b]).norm_squared() > reach * reach
+                || lg.pairs[start..end].iter().zip(&lg.index[start..end]).all(|(&(i, j), &p)| far(i, Target::Robot(j), pairs[p], s))
+        })
     }
 
     /// Every checked pair closer than `margin` (signed distance < margin), with its distance.
