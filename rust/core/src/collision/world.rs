@@ -447,6 +447,12 @@ impl CollisionWorld {
                     } else if obstacle.plane_clearance(&c, r).is_some_and(|h| h > 0.0) {
                         continue;
                     }
+                    if let Some(ob) = &obstacle.obb {
+                        self.group_obb(k, s);
+                        if s.group_obbs[k].separated(ob) {
+                            continue;
+                        }
+                    }
                     self.pose_group(k, s);
                     for &i in &g.geometries {
                         if self.pair_intersects(i, Target::Obstacle(o), s) {
