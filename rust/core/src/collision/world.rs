@@ -292,12 +292,9 @@ impl CollisionWorld {
     pub(super) fn geometry_poses(&self, q: &[f64], s: &mut Scratch) {
         self.model.forward_kinematics_unchecked(q, &mut s.links);
         s.resize(self.geometries.len(), self.groups.groups.len());
-        let mut all = Aabb::new_invalid();
         for i in 0..self.geometries.len() {
             self.pose_geometry(i, s);
-            all.merge(&s.aabbs[i]);
         }
-        s.robot_aabb = all;
         self.place_group_spheres(s);
     }
 
@@ -354,6 +351,15 @@ impl CollisionWorld {
         !s.group_obbs[a].separated(&s.group_obbs[b])
     }
 
+    /// True when obstacle `k` is a half-space and robot geometry `i` (bounding sphere centred at
+    /// `ca`, then its oriented box) stands more than `margin` above its plane.
+    #[inline]
+    fn above_plane(&self, i: usize, ca: &Point3<f64>, k: usize, margin: f64, s: &Scratch) -> bool {
+        let o = &self.obstacles[k];
+        o.plane_clearance(ca, self.geometries[i].radius).is_some_and(|h| h > margin)
+            || o.plane.is_some_and(|(n, offset)| s.obbs[i].lowest_along(&n) - offset > margin)
+    }
+
     /// Does robot geometry `i` intersect target `t`? The bounding-volume filters (boxes, spheres,
     /// oriented boxes), then the exact narrow phase.
     #[inline]
@@ -368,11 +374,8 @@ impl CollisionWorld {
             return false;
         }
         if let Target::Obstacle(k) = t {
-            // a half-space: the bounding sphere, then the oriented box, above its plane
-            if let Some((n, offset)) = self.obstacles[k].plane {
-                if n.dot(&ca.coords) - offset > g.radius || s.obbs[i].lowest_along(&n) > offset {
-                    return false;
-                }
+            if self.above_plane(i, &ca, k, 0.0, s) {
+                return false;
             }
         }
         // The shapes' boxes in their own frames are much tighter than world-aligned boxes on
@@ -409,22 +412,21 @@ impl CollisionWorld {
         let groups = &self.groups.groups;
         s.resize(self.geometries.len(), groups.len());
         self.place_group_spheres(s);
-        let mut all = Aabb::new_invalid();
+        let mut robot = Aabb::new_invalid();
         for (g, c) in groups.iter().zip(&s.group_centers) {
-            all.merge(&sphere_aabb(c, g.radius));
+            robot.merge(&sphere_aabb(c, g.radius));
         }
-        s.robot_aabb = all;
-        if self.collides_with_obstacles(s) {
+        if self.collides_with_obstacles(&robot, s) {
             return true;
         }
         self.check_self && self.collides_with_itself(s)
     }
 
     /// The obstacle part of [`in_collision_unchecked`](Self::in_collision_unchecked), after its
-    /// link spheres are placed.
-    fn collides_with_obstacles(&self, s: &mut Scratch) -> bool {
+    /// link spheres are placed (`robot`: the box around them).
+    fn collides_with_obstacles(&self, robot: &Aabb, s: &mut Scratch) -> bool {
         let mut near = std::mem::take(&mut s.near);
-        self.obstacles.overlapping(&s.robot_aabb, &mut near);
+        self.obstacles.overlapping(robot, &mut near);
         let mut mine = std::mem::take(&mut s.candidates);
         let mut hit = false;
         if !near.is_empty() {
@@ -632,10 +634,8 @@ impl CollisionWorld {
                 return true;
             }
             if let Target::Obstacle(k) = t {
-                if let Some((n, offset)) = self.obstacles[k].plane {
-                    if n.dot(&ca.coords) - offset - g.radius > m || s.obbs[i].lowest_along(&n) - offset > m {
-                        return true;
-                    }
+                if self.above_plane(i, &ca, k, m, s) {
+                    return true;
                 }
             }
             if let Some(b) = self.target_obb(t, s) {
@@ -755,8 +755,6 @@ pub struct Scratch {
     pub(super) poses: Vec<Isometry3<f64>>,
     pub(super) aabbs: Vec<Aabb>,
     pub(super) obbs: Vec<Obb>,
-    /// The box around every robot geometry.
-    pub(super) robot_aabb: Aabb,
     /// Obstacles near the whole robot, and near one geometry (indices, ascending).
     near: Vec<usize>,
     candidates: Vec<usize>,
@@ -800,7 +798,6 @@ impl Default for Scratch {
             poses: Vec::new(),
             aabbs: Vec::new(),
             obbs: Vec::new(),
-            robot_aabb: Aabb::new_invalid(),
             near: Vec::new(),
             candidates: Vec::new(),
             posed: Vec::new(),
