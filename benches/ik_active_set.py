@@ -49,7 +49,7 @@ def main() -> None:
 
         def attempt(tk: Any, iterations: int, mu: float, active: bool) -> Any:
             return solve_ik(robot, tk, targets, init=starts, restarts=0, iterations=iterations, parallel=False,
-                            settings=SolverSettings(mu=mu, active_set=active))
+                            settings=SolverSettings(mu=mu, active_set=active), nominal="start")
 
         for label, tk in (("paper task", task), ("without JointLimits", no_limits)):
             for iterations in (50, 200):

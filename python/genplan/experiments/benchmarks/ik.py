@@ -7,10 +7,12 @@ targets, and ``PlanResult.trajectory`` on Panda shelf plans.
 IK: the targets are the condition frame's positions (forward kinematics) of configurations on the
 IK task's manifold drawn with seed 2000 + seed (genplan.gan.data.valid_configurations; the GANs
 were trained on seed 0, the coverage benchmark holds out 1000 + seed), hence reachable and never
-seen in training. Rows: one GAN-initialised attempt (the paper's protocol), and ``solve_ik`` with
-retries and a per-target time budget; the same from uniform random starts (one attempt of 50
-iterations with the paper's clipped step and with ``SolverSettings(active_set=True)``, the joint
-limits as bounds of the step: the peers' protocol; ``solve_ik(init="uniform")`` with retries). Times are per target, one target after the other on one
+seen in training. Rows: one GAN-initialised attempt of 50 iterations with the paper's solver (the
+paper's protocol: ``settings=SolverSettings(), nominal="start"``) and with solve_ik's own
+(``IK_SETTINGS``, the posture towards the joint-range middle), and ``solve_ik`` with retries and a
+per-target time budget; the same from uniform random starts (one attempt of 50 iterations with the
+paper's solver, with ``SolverSettings(active_set=True)`` (the joint limits as bounds of the step)
+and with solve_ik's: the peers' protocol; ``solve_ik(init="uniform")`` with retries). Times are per target, one target after the other on one
 core (``parallel=False``): its solves plus its share of the GAN sampling; "within budget" counts a
 target solved with its time at most the budget.
 
@@ -37,10 +39,11 @@ from genplan.experiments.common import machine, table, write_json
 TASKS = {"panda": "panda_ik", "talos": "talos_ik"}
 #: [planner]'s targets (issue 17): IK success and mean time, trajectory parameterisation time.
 TARGETS = {"ik_success_within_budget_percent": 99.9, "ik_mean_ms_panda": 0.2, "trajectory_parameterisation_ms": 5.0}
-#: The IK rows of each robot: GAN warm starts (one attempt; solve_ik's retries), uniform random
-#: starts (one attempt with the paper's clipped step; with the joint limits as an active set;
-#: solve_ik's uniform retries).
-IK_ROWS = ("gan_one_attempt", "solve_ik", "uniform_one_attempt", "uniform_one_attempt_active_set", "solve_ik_uniform")
+#: The IK rows of each robot: GAN warm starts (one attempt with the paper's solver; with
+#: solve_ik's; solve_ik's retries), uniform random starts (one attempt with the paper's solver;
+#: with the joint limits as an active set; with solve_ik's; solve_ik's uniform retries).
+IK_ROWS = ("gan_one_attempt", "gan_one_attempt_ik_solver", "solve_ik", "uniform_one_attempt",
+           "uniform_one_attempt_active_set", "uniform_one_attempt_ik_solver", "solve_ik_uniform")
 
 
 def reachable_targets(robot: genplan.Robot, task: Any, n: int, seed: int) -> np.ndarray:
@@ -75,21 +78,27 @@ def run_ik(robots: list[str], n: int, seed: int, budget_s: float, restarts: int)
         task = load_task(TASKS[name], robot)
         targets = reachable_targets(robot, task, n, 2000 + seed)
         model = load_model(robot, None, task=task)
+        paper = {"settings": SolverSettings(), "nominal": "start"}
+        # the paper's protocol: one attempt, the solver's 50 iterations; then solve_ik's solver
         once = genplan.solve_ik(robot, task, targets, restarts=0, model=model, seed=seed, iterations=50,
-                                parallel=False)  # the paper's protocol: one attempt, the solver's 50 iterations
+                                parallel=False, **paper)
+        once_ik = genplan.solve_ik(robot, task, targets, restarts=0, model=model, seed=seed, iterations=50,
+                                   parallel=False)
         retried = genplan.solve_ik(robot, task, targets, restarts=restarts, time_budget_s=budget_s, model=model,
                                    seed=seed, parallel=False)
         # from uniform random starts, one attempt of the solver's 50 iterations ([core-speed] item 4:
-        # the paper's clipped step vs the joint limits as an active set; the peers' protocol), and
-        # solve_ik's uniform retries within the budget
+        # the paper's clipped step, the joint limits as an active set, solve_ik's solver; the
+        # peers' protocol), and solve_ik's uniform retries within the budget
         uniform = {f"uniform_one_attempt{suffix}": _summary(
             genplan.solve_ik(robot, task, targets, init="uniform", restarts=0, seed=seed, iterations=50,
-                             parallel=False, settings=SolverSettings(active_set=active)), budget_s)
-            for suffix, active in (("", False), ("_active_set", True))}
+                             parallel=False, **kw), budget_s)
+            for suffix, kw in (("", paper), ("_active_set", {**paper, "settings": SolverSettings(active_set=True)}),
+                               ("_ik_solver", {}))}
         uniform_retried = genplan.solve_ik(robot, task, targets, init="uniform", restarts=restarts,
                                            time_budget_s=budget_s, seed=seed, parallel=False)
         out[name] = {"task": task.name, "targets": n, "target_seed": 2000 + seed,
                      "gan_one_attempt": _summary(once, budget_s),
+                     "gan_one_attempt_ik_solver": _summary(once_ik, budget_s),
                      "solve_ik": {**_summary(retried, budget_s), "restarts": restarts, "time_budget_ms": budget_s * 1e3},
                      **uniform,
                      "solve_ik_uniform": {**_summary(uniform_retried, budget_s), "restarts": restarts,
