@@ -72,8 +72,8 @@ def test_quick_run_without_the_peers_skips_them_with_the_extra(monkeypatch, tmp_
     assert set(payload["skipped"]) == set(PEERS)
     assert all("genplan[peers]" in v or "placo" in v for v in payload["skipped"].values())
     ik = payload["ik"]["panda"]["solvers"]
-    assert list(ik) == ["genplan", "genplan_retries"] and ik["genplan"]["problems"] == bench.QUICK.ik_targets
-    assert list(payload["ik"]["talos"]["solvers"]) == ["genplan", "genplan_retries"]
+    assert list(ik) == ["genplan", "genplan_paper_solver", "genplan_retries"] and ik["genplan"]["problems"] == bench.QUICK.ik_targets
+    assert list(payload["ik"]["talos"]["solvers"]) == ["genplan", "genplan_paper_solver", "genplan_retries"]
     # solve_ik's retries (uniform redraws) solve about what one attempt from the same start does, or
     # more (one target of slack: its 5 ms budget may cut the retries on a loaded machine)
     assert ik["genplan_retries"]["success_percent"] >= ik["genplan"]["success_percent"] - 100 / bench.QUICK.ik_targets
@@ -98,7 +98,8 @@ def test_quick_run_with_the_installed_peers(tmp_path) -> None:
         assert "placo" in solvers and "placo" in payload["ik"]["talos"]["solvers"]
     fk = payload["fk"]
     assert {"genplan", "pinocchio"} == set(fk["panda_hand_single"])
-    assert {"genplan_1_thread", "genplan_2_thread", "pinocchio_loop"} == set(fk["talos_all_links_batch"])
+    assert {"genplan_1_thread", "genplan_2_thread", "genplan_1_thread_out", "genplan_2_thread_out",
+            "pinocchio_loop"} == set(fk["talos_all_links_batch"])
     for name in ("panda", "talos"):
         col = payload["collision"][name]
         assert col["agreement_hulls"]["agreement"] >= 0.99

@@ -20,8 +20,10 @@ process (one thread; torch at 1 thread).
 
 * **fk**: one call from Python, the Panda hand: ``robot.link_poses(q, [hand])`` vs
   ``pin.forwardKinematics`` + ``pin.updateFramePlacement`` (its result left in ``data.oMf``);
-  batched Panda hand and Talos all links (``robot.link_poses(Q, links)``) vs the same Pinocchio
-  calls in a Python loop (Talos: ``pin.framesForwardKinematics``, every frame), microseconds per
+  batched Panda hand and Talos all links (``robot.link_poses(Q, links)``; Talos also into one
+  preallocated array reused across calls, ``out=``: the 10,000 x 60 poses are 77 MB, which a new
+  array per call first has to fault in) vs the same Pinocchio calls in a Python loop (Talos:
+  ``pin.framesForwardKinematics``, every frame, left in ``data.oMf``), microseconds per
   configuration.
 * **collision**: the Panda against itself and the table of the ``panda_shelf`` scene, Talos
   against itself; ``world.in_collision(Q)`` vs Pinocchio + coal with the same pairs
@@ -36,7 +38,10 @@ process (one thread; torch at 1 thread).
   every solver, one attempt each, judged by one test
   (:func:`genplan.experiments.peers.ik.success`); the problems are split in ``repeats`` chunks and
   the solvers alternate chunk by chunk. genplan: ``genplan.solve_ik(init=starts, restarts=0,
-  iterations=ik_iterations, parallel=False)``, the peers' step cap; and ``genplan_retries``, the
+  iterations=ik_iterations, parallel=False)``, the peers' step cap (solve_ik's solver:
+  ``genplan.ik.IK_SETTINGS``, the posture towards the joint-range middle); the same with the
+  paper's solver (``genplan_paper_solver``: ``settings=SolverSettings(), nominal="start"``); and
+  ``genplan_retries``, the
   user's call ``solve_ik(init=starts, time_budget_s=0.005)`` (first attempt from the same start,
   failed ones redrawn from uniform starts as TRAC-IK's random restarts do; its time per target
   includes every attempt), beside the peers' one start. Talos' whole-body IK task the
@@ -53,6 +58,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
+import itertools
 import multiprocessing
 import os
 import statistics
@@ -104,7 +110,11 @@ def _median(xs: list[float]) -> dict[str, Any]:
 
 
 def interleaved(sides: dict[str, Callable[[], float]], repeats: int) -> dict[str, dict[str, Any]]:
-    """Each side (returning microseconds per item) once per repeat, in turn; medians."""
+    """Each side (returning microseconds per item) once untimed (a warm-up: a worker's first
+    large output faults its pages in, 13-24 us per Talos configuration instead of 2.5 on the first
+    calls), then once per repeat, in turn; medians."""
+    for f in sides.values():
+        f()
     runs: dict[str, list[float]] = {k: [] for k in sides}
     for _ in range(repeats):
         for k, f in sides.items():
@@ -200,8 +210,15 @@ def _genplan_batch(job: tuple[str, str, int, int]) -> float:
         world.in_collision(qs)
     else:
         links = [robot.frames["hand"]] if kind == "fk_hand" else None
+        # "fk_all_out": into one preallocated array, reused across calls (``out=``), as a user
+        # repeating batches would; otherwise a new array per call
+        out = None
+        if kind == "fk_all_out":
+            if (job, "out") not in _CACHE:
+                _CACHE[(job, "out")] = np.empty((n, len(robot.kinematics.link_names), 4, 4))
+            out = _CACHE[(job, "out")]
         t0 = time.perf_counter()
-        robot.link_poses(qs, links)
+        robot.link_poses(qs, links, out=out)
     return (time.perf_counter() - t0) / n * 1e6
 
 
@@ -270,6 +287,9 @@ def run_fk(sizes: Sizes, repeats: int, seed: int, pools: dict[int, Any]) -> dict
         sides: dict[str, Callable[[], float]] = {
             f"genplan_{k}_thread": functools.partial(pools[k].apply, _genplan_batch, ((kind, name, sizes.fk_batch, seed),))
             for k in pools}
+        if kind == "fk_all":
+            sides.update({f"genplan_{k}_thread_out": functools.partial(
+                pools[k].apply, _genplan_batch, (("fk_all_out", name, sizes.fk_batch, seed),)) for k in pools})
         f = m.getFrameId(robot.frames["hand"]) if kind == "fk_hand" else 0
 
         def loop() -> float:
@@ -371,12 +391,22 @@ def _compare_ik(pb: Any, peers: tuple[str, ...], sizes: Sizes, repeats: int, pla
     """genplan and ``peers`` on the same problems, the solvers alternating chunk by chunk."""
     from genplan.experiments.peers import ik as K
     from genplan.ik import solve_ik
+    from genplan.projection import SolverSettings
 
     def genplan_ik(p: K.IKProblems) -> K.IKOutcome:
         res = solve_ik(p.robot, p.task, p.positions, init=p.starts, restarts=0, parallel=False,
                        iterations=sizes.ik_iterations)
         return K.IKOutcome("genplan", res.q, K.success(p, res.q), res.time_s,
                            note=f"solve_ik(init=starts, restarts=0, iterations={sizes.ik_iterations}), one core")
+
+    def genplan_paper_solver(p: K.IKProblems) -> K.IKOutcome:
+        # the same call with the paper's solver (line search, posture towards the start): before
+        # solve_ik's own defaults (genplan.ik.IK_SETTINGS, nominal "mid")
+        res = solve_ik(p.robot, p.task, p.positions, init=p.starts, restarts=0, parallel=False,
+                       iterations=sizes.ik_iterations, settings=SolverSettings(), nominal="start")
+        return K.IKOutcome("genplan_paper_solver", res.q, K.success(p, res.q), res.time_s,
+                           note=f"solve_ik(init=starts, restarts=0, iterations={sizes.ik_iterations}, "
+                                "settings=SolverSettings(), nominal='start'): the paper's solver, one core")
 
     def genplan_retries(p: K.IKProblems) -> K.IKOutcome:
         # the user's call: the first attempt from the same start, a failed one redrawn from a
@@ -386,7 +416,8 @@ def _compare_ik(pb: Any, peers: tuple[str, ...], sizes: Sizes, repeats: int, pla
                            note=f"solve_ik(init=starts, time_budget_s={IK_RETRY_BUDGET_S}): defaults "
                                 "(restarts=20, iterations=20), retries from uniform starts, one core")
 
-    solvers: dict[str, Callable[[K.IKProblems], K.IKOutcome]] = {"genplan": genplan_ik, "genplan_retries": genplan_retries}
+    solvers: dict[str, Callable[[K.IKProblems], K.IKOutcome]] = {
+        "genplan": genplan_ik, "genplan_paper_solver": genplan_paper_solver, "genplan_retries": genplan_retries}
     for name in peers:
         mod = _peer_module(name)
         if not (mod.available(placo_python) if name == "placo" else mod.available()):
@@ -515,10 +546,11 @@ def summary_rows(payload: dict[str, Any]) -> list[list[str]]:
                      _ratio(_med(s["pinocchio"]), _med(s["genplan"]))])
         for key, what in (("panda_hand_batch", "Panda hand FK"), ("talos_all_links_batch", f"Talos all {fk['talos_links']} link poses")):
             b = fk[key]
-            for k in THREADS:
-                g = b.get(f"genplan_{k}_thread")
+            for k, suffix in itertools.product(THREADS, ("", "_out")):
+                g = b.get(f"genplan_{k}_thread{suffix}")
                 if g:
-                    rows.append([f"{what}, batch {fk['batch']}, genplan {k} thread(s)", _us(_med(g)) + "/config",
+                    into = ", into a reused out= array" if suffix else ""
+                    rows.append([f"{what}, batch {fk['batch']}, genplan {k} thread(s){into}", _us(_med(g)) + "/config",
                                  f"Pinocchio loop {_us(_med(b['pinocchio_loop']))}", _ratio(_med(b["pinocchio_loop"]), _med(g))])
     col = payload.get("collision")
     if col:
@@ -564,6 +596,13 @@ def summary_rows(payload: dict[str, Any]) -> list[list[str]]:
             peers_ran = {k: v for k, v in sol.items() if not k.startswith("genplan")}
             if not peers_ran:
                 rows.append([f"{what}, {r['targets']} reachable targets", mine, "no peer ran", "-"])
+            pp = sol.get("genplan_paper_solver")
+            if pp:
+                ratio = (f"{pp['ms_per_solved'] / g['ms_per_solved']:.2g}x per solved"
+                         if pp["ms_per_solved"] and g["ms_per_solved"] else "-")
+                rows.append([f"{what}, {r['targets']} reachable targets, vs genplan with the paper's solver "
+                             "(line search, posture towards the start)", mine,
+                             f"{pp['success_percent']:.1f} %, {_ms(pp['ms_per_solved'])}/solved", ratio])
             rr = sol.get("genplan_retries")
             if rr:
                 best = max(peers_ran.values(), key=lambda s: s["success_percent"], default=None)
@@ -615,7 +654,7 @@ def markdown(payload: dict[str, Any]) -> str:
     lines = [f"# genplan bench peers ({m['git']}, {m['date']})", "",
              f"Command: `{payload['command']}`  ",
              f"Machine: {m['cpu']}, {m['cores']} cores; load (1 min) {payload['load_before']:.2f} -> "
-             f"{payload['load_after']:.2f}; repeats {payload['repeats']} (sides interleaved, medians); "
+             f"{payload['load_after']:.2f}; repeats {payload['repeats']} (after one warm-up call per side; sides interleaved, medians); "
              "genplan batched calls in workers with RAYON_NUM_THREADS 1 and 2, single calls and peers on one thread.",
              "", "Ratio: the peer's time / genplan's (> 1: genplan is faster).", "",
              table(["work", "genplan", "best peer", "ratio"], summary_rows(payload)), "",
