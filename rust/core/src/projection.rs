@@ -25,7 +25,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Matrix6, SMatrix, Vector3};
 
 use crate::error::{check_finite, check_vector, Error, Result};
 use crate::kinematics::KinematicModel;
@@ -444,25 +444,22 @@ impl Projector {
             TermKind::FramePose { link, target, mask } => {
                 self.model.frame_jacobian_local(&s.poses, *link, frame_jac);
                 let jl = jlog6(&(target.inverse() * s.poses[*link]));
-                let mut j = DMatrix::from_fn(6, 6, |r, c| jl[(r, c)]) * &*frame_jac;
-                for r in 0..6 {
-                    j.row_mut(r).scale_mut(mask[r]);
-                }
-                j
+                let m = Matrix6::from_fn(|r, c| jl[(r, c)] * mask[r]);
+                small_times_columns(&m, frame_jac, 0)
             }
             TermKind::FramePosition { link, mask, .. } => {
                 self.model.frame_jacobian_local(&s.poses, *link, frame_jac);
                 let rot = s.poses[*link].rotation.to_rotation_matrix().into_inner();
-                let rot = DMatrix::from_fn(3, 3, |r, c| rot[(r, c)] * mask[r]);
-                rot * frame_jac.rows(0, 3)
+                let m = Matrix3::from_fn(|r, c| rot[(r, c)] * mask[r]);
+                small_times_columns(&m, frame_jac, 0)
             }
             TermKind::FrameOrientation { link, target, offset, mask } => {
                 self.model.frame_jacobian_local(&s.poses, *link, frame_jac);
                 let rel = target.transpose() * s.poses[*link].rotation.to_rotation_matrix().into_inner() * offset;
                 let (w, theta) = log3(&rel);
                 let m = jlog3(&w, theta) * offset.transpose();
-                let m = DMatrix::from_fn(3, 3, |r, c| m[(r, c)] * mask[r]);
-                m * frame_jac.rows(3, 3)
+                let m = Matrix3::from_fn(|r, c| m[(r, c)] * mask[r]);
+                small_times_columns(&m, frame_jac, 3)
             }
             TermKind::JointLimits { margin } => {
                 let mut j = DMatrix::zeros(self.bounded.len(), nv);
@@ -497,7 +494,8 @@ impl Projector {
     /// The terms' unweighted residuals and, when `with_jac`, their weighted Jacobians stacked.
     fn stack(&self, terms: &[Term], s: &State, noms: &[Vec<f64>], with_jac: bool) -> TermResult<Stacked> {
         let nv = self.model.nv;
-        let mut frame_jac = DMatrix::zeros(6, nv);
+        // only a Jacobian needs the frame Jacobian's buffer (an empty matrix allocates nothing)
+        let mut frame_jac = if with_jac { DMatrix::zeros(6, nv) } else { DMatrix::zeros(0, 0) };
         let mut raws = Vec::with_capacity(terms.len());
         let mut jacs = Vec::new();
         for (t, n) in terms.iter().zip(noms) {
@@ -535,6 +533,16 @@ impl Projector {
         // per term, the indices of the rows kept (a column-major scan of its Jacobian)
         let mut kept: Vec<Vec<usize>> = Vec::with_capacity(terms.len());
         for ((t, n), r) in terms.iter().zip(noms).zip(raws) {
+            if let TermKind::JointLimits { margin } = t.kind {
+                // one unit entry per row at most: the rows kept are listed without the dense
+                // Jacobian (bounded joints x nv, nearly all zero), which the copy below writes
+                let rows = self.bounded.iter().enumerate().filter(|&(row, &(iq, _, lo, hi))| {
+                    r[row] != 0.0 || s.q[iq] - margin < lo || s.q[iq] + margin > hi
+                });
+                kept.push(rows.map(|(row, _)| row).collect());
+                jacs.push(DMatrix::zeros(0, 0));
+                continue;
+            }
             let j = match &t.kind {
                 TermKind::Custom(_) => self.eval(t, s, n, true, frame_jac)?.1.unwrap_or_else(|| unreachable!("eval with_jac returns a Jacobian")),
                 _ => self.jacobian(t, s, n, frame_jac),
@@ -555,6 +563,18 @@ impl Projector {
         for (((t, r), j), kept) in terms.iter().zip(raws).zip(&jacs).zip(&kept) {
             for (dst, &i) in r1.as_mut_slice()[k0..k0 + kept.len()].iter_mut().zip(kept) {
                 *dst = t.weight * r[i];
+            }
+            if let TermKind::JointLimits { margin } = t.kind {
+                // the row's entry is 1 at the joint's column when it is within the margin (as
+                // `jacobian` writes it), else the row is kept for its residual alone
+                for (k, &i) in kept.iter().enumerate() {
+                    let (iq, iv, lo, hi) = self.bounded[i];
+                    if s.q[iq] - margin < lo || s.q[iq] + margin > hi {
+                        j1[(k0 + k, iv)] = t.weight;
+                    }
+                }
+                k0 += kept.len();
+                continue;
             }
             for c in 0..nv {
                 let (src, col) = (j.column(c), &mut j1.as_mut_slice()[c * rows..(c + 1) * rows]);
@@ -866,8 +886,8 @@ impl DampedPinv {
     /// `J^+ v` (`j` the matrix this was made from).
     fn apply(&self, j: &DMatrix<f64>, v: &DVector<f64>) -> DVector<f64> {
         match (&self.ch, self.wide) {
-            (Some(ch), true) => j.transpose() * ch.solve(v),
-            (Some(ch), false) => ch.solve(&(j.transpose() * v)),
+            (Some(ch), true) => j.tr_mul(&ch.solve(v)),
+            (Some(ch), false) => ch.solve(&j.tr_mul(v)),
             (None, _) => DVector::zeros(j.ncols()),
         }
     }
@@ -900,6 +920,18 @@ impl DampedPinv {
         out.gemm(-1.0, &bt, &bt.transpose(), 1.0);
         out
     }
+}
+
+/// `m * rows(r0 .. r0 + D)` of the 6 x nv `frame_jac`, column by column with fixed-size
+/// products (a general matrix product of such small factors spent most of its time packing).
+fn small_times_columns<const D: usize>(m: &SMatrix<f64, D, D>, frame_jac: &DMatrix<f64>, r0: usize) -> DMatrix<f64> {
+    let nv = frame_jac.ncols();
+    let mut out = DMatrix::zeros(D, nv);
+    for c in 0..nv {
+        let col = frame_jac.fixed_view::<D, 1>(r0, c);
+        out.fixed_view_mut::<D, 1>(0, c).copy_from(&(m * col));
+    }
+    out
 }
 
 /// `a * b` for a sparse `a` (a posture Jacobian: diagonal but for the free-flyer's block): each
