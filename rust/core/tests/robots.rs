@@ -155,3 +155,45 @@ fn bounding_volume_filters_never_change_a_collision_verdict() {
         assert!(hits > 0 && hits < n, "{name}: {hits} of {n} in collision");
     }
 }
+
+/// One `Scratch` reused across queries keeps, per pair of hulls, the axis that last separated
+/// them (src/collision/world.rs, `self_pair_intersects`): the verdicts stay the exhaustive ones,
+/// at random configurations and along straight motions (where the kept axes are nearly right),
+/// through contacts.
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn kept_separating_axes_never_change_a_collision_verdict() {
+    use genplan_core::Scratch;
+    use rand::{Rng, SeedableRng};
+
+    let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+    for name in ["talos", "ur5", "panda"] {
+        let (model, world) = preset(name).unwrap().load().unwrap();
+        let mut draw = |rng: &mut rand::rngs::StdRng| -> Vec<f64> {
+            let mut q: Vec<f64> =
+                model.lower.iter().zip(&model.upper).map(|(l, u)| if l.is_finite() { rng.random_range(*l..=*u) } else { 0.0 }).collect();
+            if model.floating_base {
+                q[2] = 1.0;
+                q[6] = 1.0;
+            }
+            q
+        };
+        let mut s = Scratch::default();
+        let (mut hits, mut n, mut changes) = (0, 0, 0);
+        for _ in 0..200 {
+            let (a, b) = (draw(&mut rng), draw(&mut rng));
+            let mut last = None;
+            for k in 0..=20 {
+                let t = k as f64 / 20.0;
+                let q: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + t * (y - x)).collect();
+                let hit = world.in_collision_unchecked(&q, &mut s);
+                assert_eq!(hit, world.in_collision_exhaustive(&q).unwrap(), "{name} {q:?}");
+                changes += (last.is_some_and(|l| l != hit)) as usize;
+                last = Some(hit);
+                hits += hit as usize;
+                n += 1;
+            }
+        }
+        assert!(hits > 0 && hits < n && changes > 0, "{name}: {hits} of {n} in collision, {changes} changes along motions");
+    }
+}
