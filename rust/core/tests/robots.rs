@@ -168,7 +168,7 @@ fn kept_separating_axes_never_change_a_collision_verdict() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(4);
     for name in ["talos", "ur5", "panda"] {
         let (model, world) = preset(name).unwrap().load().unwrap();
-        let mut draw = |rng: &mut rand::rngs::StdRng| -> Vec<f64> {
+        let draw = |rng: &mut rand::rngs::StdRng| -> Vec<f64> {
             let mut q: Vec<f64> =
                 model.lower.iter().zip(&model.upper).map(|(l, u)| if l.is_finite() { rng.random_range(*l..=*u) } else { 0.0 }).collect();
             if model.floating_base {
