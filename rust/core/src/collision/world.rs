@@ -835,10 +835,11 @@ impl Scratch {
     }
 }
 
-/// How many separating axes a self pair of hulls keeps (`Scratch::axes`). On 5,000 random Talos
-/// configurations one kept axis proved 35 % of the pairs GJK would have tested apart, three 70 %;
-/// criterion (`collision_check/talos`, the builds interleaved by benches/criterion_ab.py) found
-/// 4 faster than 1, 3 and 6.
+/// How many separating axes a self pair of hulls keeps (`Scratch::axes`). Criterion
+/// (`collision_check/talos`, the builds interleaved by benches/criterion_ab.py,
+/// benches/results/criterion_ab_kept_axes_count.json), against none: on collision-free
+/// configurations (every pair tested) 1.11x with 1 axis, 1.21x with 3, 1.29x with 4; on random
+/// ones 1.30x, 1.13x, 1.24x; 6 slower than 4 on both.
 const AXES: usize = 4;
 
 /// The world box around a sphere.
