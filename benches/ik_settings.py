@@ -8,8 +8,9 @@ damping ``mu``, on tuning targets (seeds 1 and 2; the tables report seed 0).
 For each robot's paper IK task: reachable targets (as ``genplan bench ik``: the condition frame at
 configurations on the task's manifold, seed 3000 + seed), one attempt each from the same warm
 starts (uniform random, seed ``seed``; the task's shipped GAN, seed ``seed``), of each of
-``--iterations`` iterations (20: solve_ik's attempts; 100: the peers'), rows solved on all cores. Prints and writes the success rate, the mean iterations and
-the mean solve time per target (on all cores, so indicative only).
+``--iterations`` iterations (20: solve_ik's attempts; 100: the peers'), rows solved on all cores.
+Prints and writes the success rate and the mean solve time per target (on all cores, so
+indicative only).
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ The solver is the projector's damped Gauss-Newton with two changes for IK (beyon
 Measured on tuning targets (seeds 1 / 2; the tables report seed 0), one attempt of 100
 iterations from uniform random starts: Panda 70.2 / 72.6 % with the paper's solver, 94.8 / 96.0 %
 with both changes (79.0 / 81.0 % with the posture change alone, 85.8 / 89.4 % with whole steps
-alone); Talos 94.0 / 94.8 % -> 99.8 / 99.6 %; from GAN starts, Panda 92.8 / 94.6 % -> 97.8 / 98.4 %,
+alone at the same ``mu``); Talos 94.0 / 94.8 % -> 99.8 / 99.6 %; from GAN starts, Panda 92.8 / 94.6 % -> 97.8 / 98.4 %,
 Talos 99.8 / 100 % -> 100 / 100 %, with fewer iterations (``python benches/ik_settings.py --seeds 1
 2 --out benches/results/ik_settings.json``).
 """

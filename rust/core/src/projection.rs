@@ -464,7 +464,7 @@ impl Projector {
             TermKind::JointLimits { margin } => {
                 let mut j = DMatrix::zeros(self.bounded.len(), nv);
                 for (row, &(iq, iv, lo, hi)) in self.bounded.iter().enumerate() {
-                    if s.q[iq] - margin < lo || s.q[iq] + margin > hi {
+                    if within_margin(s.q[iq], *margin, lo, hi) {
                         j[(row, iv)] = 1.0;
                     }
                 }
@@ -537,7 +537,7 @@ impl Projector {
                 // one unit entry per row at most: the rows kept are listed without the dense
                 // Jacobian (bounded joints x nv, nearly all zero), which the copy below writes
                 let rows = self.bounded.iter().enumerate().filter(|&(row, &(iq, _, lo, hi))| {
-                    r[row] != 0.0 || s.q[iq] - margin < lo || s.q[iq] + margin > hi
+                    r[row] != 0.0 || within_margin(s.q[iq], margin, lo, hi)
                 });
                 kept.push(rows.map(|(row, _)| row).collect());
                 jacs.push(DMatrix::zeros(0, 0));
@@ -569,7 +569,7 @@ impl Projector {
                 // `jacobian` writes it), else the row is kept for its residual alone
                 for (k, &i) in kept.iter().enumerate() {
                     let (iq, iv, lo, hi) = self.bounded[i];
-                    if s.q[iq] - margin < lo || s.q[iq] + margin > hi {
+                    if within_margin(s.q[iq], margin, lo, hi) {
                         j1[(k0 + k, iv)] = t.weight;
                     }
                 }
@@ -920,6 +920,13 @@ impl DampedPinv {
         out.gemm(-1.0, &bt, &bt.transpose(), 1.0);
         out
     }
+}
+
+/// A joint at `q` is within `margin` of a limit of `[lo, hi]`: its `JointLimits` row is active
+/// (a Jacobian entry of 1; the residual is non-zero only beyond the limit).
+#[inline]
+fn within_margin(q: f64, margin: f64, lo: f64, hi: f64) -> bool {
+    q - margin < lo || q + margin > hi
 }
 
 /// `m * rows(r0 .. r0 + D)` of the 6 x nv `frame_jac`, column by column with fixed-size

@@ -366,9 +366,12 @@ impl CollisionWorld {
     /// oriented boxes), then the exact narrow phase.
     #[inline]
     pub(super) fn pair_intersects(&self, i: usize, t: Target, s: &Scratch) -> bool {
-        if self.ruled_out(i, t, s) {
-            return false;
-        }
+        !self.ruled_out(i, t, s) && self.narrow_phase(i, t, s)
+    }
+
+    /// parry's intersection test of robot geometry `i` and target `t` at their poses in `s`.
+    #[inline]
+    fn narrow_phase(&self, i: usize, t: Target, s: &Scratch) -> bool {
         let (pose_b, shape_b, _, _) = self.target(t, &s.poses);
         // Unsupported shape pairs cannot occur with the shapes built here; count them as
         // colliding to stay on the safe side.
@@ -389,7 +392,7 @@ impl CollisionWorld {
         }
         let (a, b) = (&*self.geometries[i].shape, &*self.geometries[j].shape);
         let (Some(ha), Some(hb)) = (a.as_shape::<Hull>(), b.as_shape::<Hull>()) else {
-            return query::intersection_test(&s.poses[i], a, &s.poses[j], b).unwrap_or(true);
+            return self.narrow_phase(i, Target::Robot(j), s);
         };
         let pos12 = s.poses[i].inv_mul(&s.poses[j]);
         for m in 0..AXES {
