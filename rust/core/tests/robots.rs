@@ -156,8 +156,9 @@ fn bounding_volume_filters_never_change_a_collision_verdict() {
     }
 }
 
-/// One `Scratch` reused across queries keeps, per pair of hulls, the axis that last separated
-/// them (src/collision/world.rs, `self_pair_intersects`): the verdicts stay the exhaustive ones,
+/// One `Scratch` reused across queries keeps, per pair of hulls, the axes that last separated
+/// them (src/collision/world.rs, `self_pair_intersects`), and the order of the link pairs, the
+/// last in contact first (`collides_with_itself`): the verdicts stay the exhaustive ones,
 /// along 40 straight motions per robot (where the kept axes are nearly right), through contacts.
 #[test]
 #[ignore = "needs example-robot-data (scripts/test runs it)"]

@@ -9,6 +9,8 @@
 //! remain go through the same filters and narrow phase as before, so the answer is unchanged
 //! (tests/collision_broad_phase.rs compares it with an exhaustive loop).
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use nalgebra::Point3;
 use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 
@@ -31,7 +33,7 @@ pub(super) struct LinkGroup {
 /// The self pairs between the geometries of two link groups `a <= b` (`a == b` cannot happen
 /// with a URDF model, whose geometries on one link share a body, but is kept general):
 /// `pairs[start..end]` of [`LinkGroups::pairs`]. Compact (24 bytes), as a check scans them all.
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct GroupPair {
     pub a: u32,
     pub b: u32,
@@ -51,7 +53,14 @@ pub(super) struct LinkGroups {
     /// For each of `pairs`, its index in the world's self pairs (where per-pair margins are).
     pub index: Vec<usize>,
     pub group_pairs: Vec<GroupPair>,
+    /// Unique to this grouping (clones share it): what a `Scratch` holding copies of
+    /// `group_pairs` checks they came from (1, 2, ... in the order groupings are built; 0 for
+    /// the empty default).
+    pub id: u64,
 }
+
+/// The last [`LinkGroups::id`] handed out.
+static LAST_ID: AtomicU64 = AtomicU64::new(0);
 
 impl LinkGroups {
     /// Group `geometries` by link and `self_pairs` (indices into `geometries`) by link pair.
@@ -117,7 +126,8 @@ impl LinkGroups {
             pairs.push(pair);
             index.push(original);
         }
-        LinkGroups { groups, pairs, index, group_pairs }
+        let id = LAST_ID.fetch_add(1, Ordering::Relaxed) + 1;
+        LinkGroups { groups, pairs, index, group_pairs, id }
     }
 }
 
