@@ -34,3 +34,19 @@ def test_ik_settings_refuses_the_report_seed(monkeypatch, capsys) -> None:
     with pytest.raises(SystemExit):
         _run("ik_settings.py", ["--seeds", "0", "--targets", "2"], monkeypatch)
     assert "seed 0" in capsys.readouterr().err
+
+
+def test_hard_queries_lists_the_failures_and_retries_each(tmp_path, monkeypatch, capsys) -> None:
+    out = tmp_path / "hard.json"
+    # one extension per attempt: the queries fail, and each is retried with the larger budget
+    _run("hard_queries.py", ["--env", "panda_shelf", "--queries", "2", "--max-extensions", "1", "--budget", "300",
+                             "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    from genplan.planning import ALGORITHMS
+
+    assert set(data["failed"]) == {f"{a}/{s}" for a in ALGORITHMS for s in ("uniform", "gan", "hybrid")}
+    hard = sorted({i for bad in data["failed"].values() for i in bad})
+    assert hard and all(0 <= i < 2 for i in hard)
+    assert [(r["query"], r["algorithm"]) for r in data["retried"]] == [(i, a) for i in hard for a in ALGORITHMS]
+    assert any(r["success"] for r in data["retried"]) and data["table_settings"]["max_extensions"] == 1
+    assert "max_extensions 300" in capsys.readouterr().out
