@@ -562,9 +562,9 @@ impl CollisionWorld {
         }
         self.pose_group(gp.a as usize, s);
         self.pose_group(gp.b as usize, s);
-        // two links of one shape each: the shapes' own boxes and spheres are the links' (up to
-        // the links' slack), which have just been found to overlap, and the filters of the pair
-        // never rule it out (Talos, where every link has one shape: benches/collision.rs)
+        // two links of one shape each: the links' box and sphere are built around the shape's
+        // own, and have just been found to overlap, so the pair's filters would mostly repeat
+        // those tests (skipping filters never changes the answer; every Talos link has one shape)
         let filter = self.groups.groups[gp.a as usize].geometries.len() > 1 || self.groups.groups[gp.b as usize].geometries.len() > 1;
         for k in gp.start as usize..gp.end as usize {
             let (i, j) = self.groups.pairs[k];
