@@ -581,13 +581,7 @@ impl CollisionWorld {
         self.model.check_configuration(q)?;
         let mut s = Scratch::default();
         self.geometry_poses(q, &mut s);
-        for (i, t) in self.pair_iter() {
-            let (pose_b, shape_b, _, _) = self.target(t, &s.poses);
-            if query::intersection_test(&s.poses[i], &*self.geometries[i].shape, &pose_b, &**shape_b).unwrap_or(true) {
-                return Ok(true);
-            }
-        }
-        Ok(false)
+        Ok(self.pair_iter().any(|(i, t)| self.narrow_phase(i, t, &s)))
     }
 
     /// Signed distance of one pair of shapes (negative: penetration depth).
@@ -995,6 +989,17 @@ mod tests {
     use crate::robot::preset;
     use rand::{Rng, SeedableRng};
 
+    /// A configuration drawn uniformly within the joint limits (0 for an unbounded joint), a
+    /// floating base upright at 1 m.
+    fn draw(model: &KinematicModel, rng: &mut rand::rngs::StdRng) -> Vec<f64> {
+        let mut q: Vec<f64> =
+            model.lower.iter().zip(&model.upper).map(|(l, u)| if l.is_finite() { rng.random_range(*l..=*u) } else { 0.0 }).collect();
+        if model.floating_base {
+            (q[2], q[6]) = (1.0, 1.0);
+        }
+        q
+    }
+
     /// After a check that finds a self contact, the link pair in contact is first in
     /// `Scratch::order` (and the order stays a permutation); the verdicts, in whatever order
     /// the pairs are visited, stay the exhaustive ones.
@@ -1005,9 +1010,7 @@ mod tests {
         let mut s = Scratch::default();
         let (mut hits, mut moved) = (0, 0);
         for _ in 0..300 {
-            let mut q: Vec<f64> =
-                model.lower.iter().zip(&model.upper).map(|(l, u)| if l.is_finite() { rng.random_range(*l..=*u) } else { 0.0 }).collect();
-            (q[2], q[6]) = (1.0, 1.0);
+            let q = draw(&model, &mut rng);
             let before = s.order.first().map(|gp| gp.start);
             let hit = world.in_collision_unchecked(&q, &mut s);
             assert_eq!(hit, world.in_collision_exhaustive(&q).unwrap());
@@ -1046,14 +1049,6 @@ mod tests {
         assert_ne!(a.groups.id, b.groups.id);
         assert_eq!(a.groups.group_pairs.len(), b.groups.group_pairs.len());
         let mut rng = rand::rngs::StdRng::seed_from_u64(12);
-        let draw = |model: &KinematicModel, rng: &mut rand::rngs::StdRng| -> Vec<f64> {
-            let mut q: Vec<f64> =
-                model.lower.iter().zip(&model.upper).map(|(l, u)| if l.is_finite() { rng.random_range(*l..=*u) } else { 0.0 }).collect();
-            if model.floating_base {
-                (q[2], q[6]) = (1.0, 1.0);
-            }
-            q
-        };
         let mut s = Scratch::default();
         let mut hits = 0;
         for _ in 0..100 {
