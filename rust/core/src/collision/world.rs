@@ -829,8 +829,8 @@ impl CollisionWorld {
 /// them.
 const NEAR_LINEAR_MAX: usize = 24;
 
-/// Reusable buffers for repeated queries.
-#[derive(Clone)]
+/// Reusable buffers for repeated queries (empty by default: sized by the first query).
+#[derive(Clone, Default)]
 pub struct Scratch {
     pub(super) links: Vec<Isometry3<f64>>,
     pub(super) poses: Vec<Isometry3<f64>>,
@@ -905,26 +905,6 @@ fn spheres_overlapping(pairs: &[GroupPair], centers: &[Point3<f64>]) -> u64 {
 fn sphere_aabb(c: &Point3<f64>, r: f64) -> Aabb {
     let e = Vector3::repeat(r);
     Aabb::new(c - e, c + e)
-}
-
-impl Default for Scratch {
-    fn default() -> Scratch {
-        Scratch {
-            links: Vec::new(),
-            poses: Vec::new(),
-            aabbs: Vec::new(),
-            obbs: Vec::new(),
-            near: Vec::new(),
-            candidates: Vec::new(),
-            posed: Vec::new(),
-            group_centers: Vec::new(),
-            group_obbs: Vec::new(),
-            group_obb_done: Vec::new(),
-            axes: Vec::new(),
-            order: Vec::new(),
-            order_of: 0,
-        }
-    }
 }
 
 /// An obstacle's pose: finite, its translation within [`MAX_OBSTACLE_EXTENT`] of the origin in
