@@ -6,7 +6,7 @@
 
 use std::collections::HashMap;
 
-use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{DMatrix, Isometry3, Matrix3, Matrix6, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
 
 use crate::error::{check_finite, check_vector, unknown, Error, Result};
 use crate::lie::{action, exp6, jlog6, log6, skew, stable_norm, unit_quaternion, unit_vector};
@@ -684,13 +684,20 @@ impl KinematicModel {
         }
     }
 
-    /// d difference(q0, q1) / d q1 (nv x nv): identity but for the free-flyer block, Jlog6.
+    /// d difference(q0, q1) / d q1 (nv x nv): identity but for the free-flyer block
+    /// ([`difference_jacobian_base`](Self::difference_jacobian_base)).
     pub fn difference_jacobian(&self, q0: &[f64], q1: &[f64]) -> DMatrix<f64> {
         let mut out = DMatrix::identity(self.nv, self.nv);
-        if self.floating_base {
-            let j = jlog6(&(Self::base_pose(q0).inverse() * Self::base_pose(q1)));
+        if let Some(j) = self.difference_jacobian_base(q0, q1) {
             out.view_mut((0, 0), (6, 6)).copy_from(&j);
         }
         out
+    }
+
+    /// The free-flyer's block of [`difference_jacobian`](Self::difference_jacobian) (its first 6
+    /// rows and columns, Jlog6 of the relative base pose), or None without a free-flyer: every
+    /// other entry is the identity's.
+    pub fn difference_jacobian_base(&self, q0: &[f64], q1: &[f64]) -> Option<Matrix6<f64>> {
+        self.floating_base.then(|| jlog6(&(Self::base_pose(q0).inverse() * Self::base_pose(q1))))
     }
 }

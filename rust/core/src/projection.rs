@@ -543,15 +543,26 @@ impl Projector {
                 jacs.push(DMatrix::zeros(0, 0));
                 continue;
             }
+            if let TermKind::Posture { weights, .. } = &t.kind {
+                // row i of its Jacobian is weights[i] times row i of the difference Jacobian (a
+                // unit row, or a row of the free-flyer's invertible block), zero exactly when
+                // weights[i] is: the rows kept are listed, and written by the copy below, without
+                // the dense nv x nv Jacobian (a residual that is not finite is kept, as below)
+                kept.push((0..r.len()).filter(|&i| weights[i] != 0.0 || r[i] != 0.0).collect());
+                jacs.push(DMatrix::zeros(0, 0));
+                continue;
+            }
             let j = match &t.kind {
                 TermKind::Custom(_) => self.eval(t, s, n, true, frame_jac)?.1.unwrap_or_else(|| unreachable!("eval with_jac returns a Jacobian")),
                 _ => self.jacobian(t, s, n, frame_jac),
             };
             // the sum of a row's absolute values is 0 exactly when the row is (NaN stays NaN,
-            // kept); summed column by column, which vectorises
+            // kept); summed over the contiguous columns, which vectorises
             let mut mass: Vec<f64> = r.iter().map(|x| x.abs()).collect();
-            for col in j.column_iter() {
-                mass.iter_mut().zip(col.iter()).for_each(|(m, x)| *m += x.abs());
+            if !mass.is_empty() {
+                for col in j.as_slice().chunks_exact(mass.len()) {
+                    mass.iter_mut().zip(col).for_each(|(m, x)| *m += x.abs());
+                }
             }
             jacs.push(j);
             kept.push((0..mass.len()).filter(|&i| mass[i] != 0.0).collect());
@@ -560,7 +571,7 @@ impl Projector {
         let mut r1 = DVector::zeros(rows);
         let mut j1 = DMatrix::zeros(rows, nv);
         let mut k0 = 0;
-        for (((t, r), j), kept) in terms.iter().zip(raws).zip(&jacs).zip(&kept) {
+        for ((((t, n), r), j), kept) in terms.iter().zip(noms).zip(raws).zip(&jacs).zip(&kept) {
             for (dst, &i) in r1.as_mut_slice()[k0..k0 + kept.len()].iter_mut().zip(kept) {
                 *dst = t.weight * r[i];
             }
@@ -571,6 +582,19 @@ impl Projector {
                     let (iq, iv, lo, hi) = self.bounded[i];
                     if within_margin(s.q[iq], margin, lo, hi) {
                         j1[(k0 + k, iv)] = t.weight;
+                    }
+                }
+                k0 += kept.len();
+                continue;
+            }
+            if let TermKind::Posture { weights, .. } = &t.kind {
+                // the entries `jacobian` writes for these rows: weights[i] on the diagonal, or
+                // weights[i] times the free-flyer block's row
+                let base = if kept.first().is_some_and(|&i| i < 6) { self.model.difference_jacobian_base(n, &s.q) } else { None };
+                for (k, &i) in kept.iter().enumerate() {
+                    match &base {
+                        Some(jb) if i < 6 => (0..6).for_each(|c| j1[(k0 + k, c)] = t.weight * (jb[(i, c)] * weights[i])),
+                        _ => j1[(k0 + k, i)] = t.weight * weights[i],
                     }
                 }
                 k0 += kept.len();
@@ -877,10 +901,8 @@ struct DampedPinv {
 
 impl DampedPinv {
     fn new(j: &DMatrix<f64>, lam: f64) -> DampedPinv {
-        let (m, n) = j.shape();
-        let wide = m <= n;
-        let a = if wide { j * j.transpose() + DMatrix::identity(m, m) * lam } else { j.transpose() * j + DMatrix::identity(n, n) * lam };
-        DampedPinv { ch: a.cholesky(), wide }
+        let wide = j.nrows() <= j.ncols();
+        DampedPinv { ch: damped_gram(j, lam, wide).cholesky(), wide }
     }
 
     /// `J^+ v` (`j` the matrix this was made from).
@@ -920,6 +942,47 @@ impl DampedPinv {
         out.gemm(-1.0, &bt, &bt.transpose(), 1.0);
         out
     }
+}
+
+/// The damped Gram matrix of `j`: `J J^T + lambda I` when `wide`, else `J^T J + lambda I`.
+/// A primary step's J is small and mostly zeros (Talos: about 20 x 38, a sole's rows touching
+/// the base and one leg, a posture row one joint), and a general matrix product spent its time
+/// packing and allocating there (a sixth of a Talos edge state): a wide J with at most a quarter
+/// of its entries non-zero adds, per column, the outer product of that column's non-zero entries
+/// (the lower triangle, then mirrored). A denser J (the posture step's, nv x nv) goes through
+/// the general product, whose vectorised kernel wins there.
+fn damped_gram(j: &DMatrix<f64>, lam: f64, wide: bool) -> DMatrix<f64> {
+    let (m, n) = j.shape();
+    let js = j.as_slice();
+    let sparse = wide && 4 * js.iter().filter(|&&x| x != 0.0).count() <= m * n;
+    if !sparse {
+        let mut a = if wide { j * j.transpose() } else { j.tr_mul(j) };
+        for k in 0..a.nrows() {
+            a[(k, k)] += lam;
+        }
+        return a;
+    }
+    let mut a = DMatrix::zeros(m, m);
+    let out = a.as_mut_slice();
+    // the non-zero entries of one column: (row, value), rows ascending
+    let mut nz: Vec<(usize, f64)> = Vec::with_capacity(m);
+    for col in js.chunks_exact(m.max(1)).take(n) {
+        nz.clear();
+        nz.extend(col.iter().enumerate().filter(|&(_, &x)| x != 0.0).map(|(i, &x)| (i, x)));
+        for (p, &(k, xk)) in nz.iter().enumerate() {
+            // column k of the lower triangle: rows i >= k gain J[i, c] J[k, c]
+            for &(i, xi) in &nz[p..] {
+                out[k * m + i] += xi * xk;
+            }
+        }
+    }
+    for k in 0..m {
+        out[k * m + k] += lam;
+        for i in k + 1..m {
+            out[i * m + k] = out[k * m + i];
+        }
+    }
+    a
 }
 
 /// A joint at `q` is within `margin` of a limit of `[lo, hi]`: its `JointLimits` row is active
@@ -1128,6 +1191,78 @@ mod tests {
         assert!(d.ch.is_none());
         assert_eq!(d.apply(&j, &DVector::from_element(4, 1.0)), DVector::zeros(6));
         assert_eq!(d.null_space(&j), DMatrix::identity(6, 6));
+    }
+
+    /// The posture rows `active_rows` writes without the dense Jacobian are the dense
+    /// Jacobian's rows (`jacobian`), weighted: on a free-flyer (its block's rows and the joints'),
+    /// rows of weight 0 dropped, beside a frame term.
+    #[test]
+    fn posture_rows_are_the_dense_jacobian_rows() {
+        let urdf = Urdf::parse(
+            r#"<robot name="r"><link name="a"/><link name="b"/><link name="c"/>
+              <joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+                <origin xyz="0.1 0 0.2"/><limit lower="-2" upper="2"/></joint>
+              <joint name="j2" type="revolute"><parent link="b"/><child link="c"/><axis xyz="0 1 0"/>
+                <origin xyz="0 0.3 0"/><limit lower="-2" upper="2"/></joint></robot>"#,
+        )
+        .unwrap();
+        let model = Arc::new(KinematicModel::from_urdf(&urdf, &ModelOptions { floating_base: true, ..Default::default() }).unwrap());
+        let c = model.link_index("c").unwrap();
+        let q = [0.1, -0.2, 0.3, 0.2, -0.1, 0.3, 0.9273618495495703, 0.4, -0.7];
+        let q_nom = [0.0, 0.1, 0.2, 0.0, 0.0, 0.0, 1.0, 0.0, 0.2];
+        for weights in [vec![1.0, 0.5, 2.0, 1.0, 1.0, 3.0, 0.7, 1.5], vec![0.0, 2.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.5]] {
+            let posture = Term {
+                name: "posture".into(),
+                kind: TermKind::Posture { q_nom: Some(q_nom.to_vec()), weights: weights.clone(), overrides: vec![] },
+                weight: 3.0,
+                tolerance: 1e-3,
+            };
+            let frame = Term {
+                name: "c".into(),
+                kind: TermKind::FramePosition { link: c, target: Vector3::new(0.5, 0.0, 1.0), mask: [1.0; 3] },
+                weight: 2.0,
+                tolerance: 1e-4,
+            };
+            let p = Projector::new(model.clone(), vec![frame, posture], Vec::new(), Settings::default()).unwrap();
+            let s = p.state(q.to_vec());
+            let noms = nominals(&p.primary, &q);
+            let (raws, dense) = p.stack(&p.primary, &s, &noms, true).unwrap();
+            let dense = dense.unwrap();
+            let mut frame_jac = DMatrix::zeros(6, model.nv);
+            let (r1, j1) = p.active_rows(&p.primary, &s, &noms, &raws, &mut frame_jac).unwrap();
+            let rows: Vec<usize> = (0..3).chain((0..8).filter(|&i| weights[i] != 0.0).map(|i| 3 + i)).collect();
+            assert_eq!(j1.nrows(), rows.len());
+            let weighted = Projector::weighted(&p.primary, &raws);
+            for (k, &i) in rows.iter().enumerate() {
+                assert_eq!(r1[k], weighted[i], "residual row {i}");
+                assert_eq!(j1.row(k), dense.row(i), "Jacobian row {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn damped_gram_is_the_product() {
+        // wide and tall; dense, a third non-zero (the general product) and a seventh non-zero
+        // (the sparse sum), with a row and a column of zeros, as a step's J has
+        let cases = [(19, 38, 1e-4, 1), (38, 19, 1e-4, 2), (6, 6, 0.0, 3), (1, 4, 0.5, 4), (0, 5, 0.1, 5), (38, 38, 1e-6, 6)];
+        for ((rows, cols, lam, seed), keep) in cases.into_iter().flat_map(|c| [1, 3, 7].map(|k| (c, k))) {
+            let mut j = random_matrix(rows, cols, seed);
+            for (k, x) in j.iter_mut().enumerate() {
+                if k % keep != 0 {
+                    *x = 0.0;
+                }
+            }
+            if rows > 2 && cols > 2 {
+                j.row_mut(1).fill(0.0);
+                j.column_mut(2).fill(0.0);
+            }
+            let wide = rows <= cols;
+            let expected = if wide { &j * j.transpose() + DMatrix::identity(rows, rows) * lam } else { j.transpose() * &j + DMatrix::identity(cols, cols) * lam };
+            let got = damped_gram(&j, lam, wide);
+            assert_eq!(got.shape(), expected.shape(), "{rows}x{cols}, 1 in {keep}");
+            assert!(got.iter().zip(expected.iter()).all(|(a, b)| (a - b).abs() <= 1e-12 * (1.0 + b.abs())), "{rows}x{cols}, 1 in {keep}");
+            assert_eq!(got, got.transpose(), "{rows}x{cols}, 1 in {keep}: symmetric");
+        }
     }
 
     #[test]
