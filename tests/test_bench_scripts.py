@@ -50,3 +50,28 @@ def test_hard_queries_lists_the_failures_and_retries_each(tmp_path, monkeypatch,
     assert [(r["query"], r["algorithm"]) for r in data["retried"]] == [(i, a) for i in hard for a in ALGORITHMS]
     assert any(r["success"] for r in data["retried"]) and data["table_settings"]["max_extensions"] == 1
     assert "max_extensions 300" in capsys.readouterr().out
+
+
+def test_plan_ab_plans_the_same_queries_with_both_builds(tmp_path, monkeypatch, capsys) -> None:
+    import shutil
+
+    import genplan
+
+    # "before" is a copy of the installed package: the same code, so the same trees
+    before = tmp_path / "before"
+    shutil.copytree(Path(genplan.__file__).parent, before / "genplan", ignore=shutil.ignore_patterns("__pycache__"))
+    out = tmp_path / "ab.json"
+    _run("plan_ab.py", ["--before", str(before), "--env", "panda_shelf", "--queries", "2", "--rounds", "2",
+                        "--out", str(out)], monkeypatch)
+    (row,) = json.loads(out.read_text())["rows"]
+    assert (row["env"], row["sampler"], row["algorithm"]) == ("panda_shelf", "gan", "rrt_connect")
+    assert row["packages"] == {"before": str(before / "genplan"), "after": str(Path(genplan.__file__).parent)}
+    assert row["same_counts"] and row["extensions"]["before"] == row["extensions"]["after"] > 0
+    assert row["t_ave_s"]["before"] > 0 and row["t_ave_s"]["after"] > 0
+    assert "same counts: True" in capsys.readouterr().out
+
+
+def test_plan_ab_refuses_a_folder_without_a_package(tmp_path, monkeypatch, capsys) -> None:
+    with pytest.raises(SystemExit):
+        _run("plan_ab.py", ["--before", str(tmp_path), "--queries", "1"], monkeypatch)
+    assert "--before: expected a folder holding a genplan package" in capsys.readouterr().err
