@@ -1193,11 +1193,13 @@ mod tests {
         assert_eq!(d.null_space(&j), DMatrix::identity(6, 6));
     }
 
-    /// The posture rows `active_rows` writes without the dense Jacobian are the dense
-    /// Jacobian's rows (`jacobian`), weighted: on a free-flyer (its block's rows and the joints'),
-    /// rows of weight 0 dropped, beside a frame term.
+    /// The rows `active_rows` writes without the dense Jacobian (posture and joint limits) are
+    /// the dense Jacobian's rows (`jacobian`), weighted, and every row it drops is zero in both
+    /// the residual and the dense Jacobian: on a free-flyer (its block's rows and the joints'),
+    /// with posture weights of 0, a joint within the limits' margin and one outside it, beside a
+    /// frame term.
     #[test]
-    fn posture_rows_are_the_dense_jacobian_rows() {
+    fn rows_written_without_the_dense_jacobian_are_its_rows() {
         let urdf = Urdf::parse(
             r#"<robot name="r"><link name="a"/><link name="b"/><link name="c"/>
               <joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
@@ -1208,6 +1210,7 @@ mod tests {
         .unwrap();
         let model = Arc::new(KinematicModel::from_urdf(&urdf, &ModelOptions { floating_base: true, ..Default::default() }).unwrap());
         let c = model.link_index("c").unwrap();
+        // j1 = 0.4 is 1.6 from its limits, j2 = -0.7 1.3: with a margin of 1.5 only j2's row is active
         let q = [0.1, -0.2, 0.3, 0.2, -0.1, 0.3, 0.9273618495495703, 0.4, -0.7];
         let q_nom = [0.0, 0.1, 0.2, 0.0, 0.0, 0.0, 1.0, 0.0, 0.2];
         for weights in [vec![1.0, 0.5, 2.0, 1.0, 1.0, 3.0, 0.7, 1.5], vec![0.0, 2.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.5]] {
@@ -1223,19 +1226,24 @@ mod tests {
                 weight: 2.0,
                 tolerance: 1e-4,
             };
-            let p = Projector::new(model.clone(), vec![frame, posture], Vec::new(), Settings::default()).unwrap();
+            let limits = Term { name: "limits".into(), kind: TermKind::JointLimits { margin: 1.5 }, weight: 4.0, tolerance: 1e-3 };
+            let p = Projector::new(model.clone(), vec![frame, limits, posture], Vec::new(), Settings::default()).unwrap();
             let s = p.state(q.to_vec());
             let noms = nominals(&p.primary, &q);
             let (raws, dense) = p.stack(&p.primary, &s, &noms, true).unwrap();
             let dense = dense.unwrap();
             let mut frame_jac = DMatrix::zeros(6, model.nv);
             let (r1, j1) = p.active_rows(&p.primary, &s, &noms, &raws, &mut frame_jac).unwrap();
-            let rows: Vec<usize> = (0..3).chain((0..8).filter(|&i| weights[i] != 0.0).map(|i| 3 + i)).collect();
-            assert_eq!(j1.nrows(), rows.len());
+            // rows of the stack: 3 frame, 2 limits (j1, j2), 8 posture
+            let kept: Vec<usize> = (0..3).chain([4]).chain((0..8).filter(|&i| weights[i] != 0.0).map(|i| 5 + i)).collect();
+            assert_eq!(j1.nrows(), kept.len());
             let weighted = Projector::weighted(&p.primary, &raws);
-            for (k, &i) in rows.iter().enumerate() {
+            for (k, &i) in kept.iter().enumerate() {
                 assert_eq!(r1[k], weighted[i], "residual row {i}");
                 assert_eq!(j1.row(k), dense.row(i), "Jacobian row {i}");
+            }
+            for i in (0..dense.nrows()).filter(|i| !kept.contains(i)) {
+                assert!(weighted[i] == 0.0 && dense.row(i).iter().all(|&x| x == 0.0), "dropped row {i} is not zero");
             }
         }
     }
