@@ -95,7 +95,11 @@ def main() -> None:
                         env_vars["PYTHONPATH"] = os.pathsep.join(filter(None, [args.before, env_vars.get("PYTHONPATH")]))
                     cmd = [sys.executable, __file__, "--worker", str(qfile), "--env", env_name, "--seed", str(args.seed),
                            "--sampler", *args.sampler, "--algorithm", *args.algorithm]
-                    out = subprocess.run(cmd, env=env_vars, capture_output=True, text=True, check=True).stdout
+                    proc = subprocess.run(cmd, env=env_vars, capture_output=True, text=True)
+                    if proc.returncode != 0:
+                        raise SystemExit(f"the {side} build failed on {env_name} (exit {proc.returncode}):\n"
+                                         + proc.stderr[-2000:])
+                    out = proc.stdout
                     for row in json.loads(out.strip().splitlines()[-1]):
                         runs.setdefault((env_name, row["sampler"], row["algorithm"], side), []).append(row)
                     print(f"{env_name} round {r + 1}/{args.rounds} {side}: done", file=sys.stderr)

@@ -75,3 +75,12 @@ def test_plan_ab_refuses_a_folder_without_a_package(tmp_path, monkeypatch, capsy
     with pytest.raises(SystemExit):
         _run("plan_ab.py", ["--before", str(tmp_path), "--queries", "1"], monkeypatch)
     assert "--before: expected a folder holding a genplan package" in capsys.readouterr().err
+
+
+def test_plan_ab_says_which_build_failed(tmp_path, monkeypatch) -> None:
+    # a "before" package that cannot be imported: the error names the build and carries its stderr
+    (tmp_path / "genplan").mkdir()
+    (tmp_path / "genplan" / "__init__.py").write_text("raise ImportError('this build is broken')\n")
+    with pytest.raises(SystemExit, match="(?s)the before build failed on panda_shelf.*this build is broken"):
+        _run("plan_ab.py", ["--before", str(tmp_path), "--env", "panda_shelf", "--queries", "1", "--rounds", "1"],
+             monkeypatch)
