@@ -945,7 +945,7 @@ impl DampedPinv {
 }
 
 /// The damped Gram matrix of `j`: `J J^T + lambda I` when `wide`, else `J^T J + lambda I`.
-/// A primary step's J is small and mostly zeros (Talos: about 20 x 38, a sole's rows touching
+/// A primary step's J is small and mostly zeros (Talos: about 20 x 34, a sole's rows touching
 /// the base and one leg, a posture row one joint), and a general matrix product spent its time
 /// packing and allocating there (with the posture rows of `active_rows`, a Talos edge state went
 /// from 43.4 to 33.2 us: benches/results/criterion_ab_gram.json): a wide J with at most a quarter
