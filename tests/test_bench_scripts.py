@@ -4,6 +4,7 @@ runs are documented in each script and in the README)."""
 from __future__ import annotations
 
 import json
+import re
 import runpy
 import sys
 from pathlib import Path
@@ -84,3 +85,15 @@ def test_plan_ab_says_which_build_failed(tmp_path, monkeypatch) -> None:
     with pytest.raises(SystemExit, match="(?s)the before build failed on panda_shelf.*this build is broken"):
         _run("plan_ab.py", ["--before", str(tmp_path), "--env", "panda_shelf", "--queries", "1", "--rounds", "1"],
              monkeypatch)
+
+
+def test_plan_ab_refuses_a_before_that_is_the_installed_package(monkeypatch, capsys) -> None:
+    import genplan
+
+    # the folder the installed package is imported from: both builds are one package, refused
+    # after the first round rather than after all of them
+    installed = Path(genplan.__file__).parent
+    with pytest.raises(SystemExit, match=re.escape(f"--before: both builds imported genplan from {installed}")):
+        _run("plan_ab.py", ["--before", str(installed.parent), "--env", "panda_shelf", "--queries", "1",
+                            "--rounds", "3"], monkeypatch)
+    assert "round 2/3" not in capsys.readouterr().err
