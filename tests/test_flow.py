@@ -12,7 +12,7 @@ import torch
 import genplan
 from genplan import _core
 from genplan.errors import GenplanError, ModelFileError, SettingsError
-from genplan.gan.flow import FlowConfig, FlowModel, FlowNet, default_config, load_flow, train
+from genplan.gan.flow import FlowConfig, FlowModel, FlowNet, default_config, distill, load_flow, train
 from genplan.gan.loading import load_sampler_model as load_model
 from genplan.gan.sampler import GanSampler
 from genplan.planning import Planner, environment, make_sampler
@@ -149,3 +149,76 @@ def test_a_flow_plans_samples_and_warm_starts_ik_where_a_gan_does(tiny_flow, pan
     targets = panda.link_poses(np.asarray(query.goals)[:3], [panda.frames["hand"]])[:, 0, :3, 3]
     ik = genplan.solve_ik(panda, "panda_ik", targets, init="gan", model=tiny_flow, time_budget_s=0.05)
     assert ik.success.all()
+
+
+@pytest.fixture(scope="module")
+def tiny_student(tiny_flow, tmp_path_factory) -> FlowModel:
+    mp = pytest.MonkeyPatch()
+    mp.setenv("GENPLAN_CACHE", str(tmp_path_factory.mktemp("cache")))
+    cfg = default_config("panda", iterations=300, data_size=400, hidden=(32, 32), steps=1, w_cost=0.0, pairs=2000,
+                         seed=3, teacher="tiny_teacher.safetensors")
+    student = distill(cfg, tiny_flow, progress=False, log_every=100)
+    mp.undo()
+    return student
+
+
+def test_a_distilled_student_learns_its_teachers_map_in_one_step(tiny_flow, tiny_student) -> None:
+    """The student (one Euler step, started from the teacher's weights) moves towards the
+    teacher's samples for noise and targets it was not trained on."""
+    assert tiny_student.config.steps == 1 and tiny_student.codec is tiny_flow.codec
+    log = tiny_student.card["training"]["loss_log"]
+    assert log[-1]["held_out_mse"] < 0.5 * log[0]["held_out_mse"]
+    rng = np.random.default_rng(11)
+    t = rng.uniform(*np.asarray(tiny_flow.config.target_box), size=(500, 3))
+    z = rng.standard_normal((500, tiny_flow.codec.dim))
+    ref = tiny_flow.generate(z, t)
+    untrained = FlowModel(tiny_student.config, tiny_flow.robot, tiny_flow.net, tiny_flow.codec, tiny_flow.target_mean,
+                          tiny_flow.target_std)  # the teacher's field in one step: where the student started
+    gap = lambda m: float(np.mean((m.generate(z, t) - ref) ** 2))  # noqa: E731
+    assert gap(tiny_student) < 0.5 * gap(untrained)
+    teacher = tiny_student.card["training"]["teacher"]
+    assert teacher["file"] == "tiny_teacher.safetensors" and teacher["steps"] == 3
+    assert "--distill-from tiny_teacher.safetensors" in tiny_student.card["command"]
+
+
+def test_a_student_file_loads_and_samples_natively_as_one_pass(tiny_student, panda, tmp_path) -> None:
+    import os
+
+    umask = os.umask(0o022)
+    try:
+        weights, card = tiny_student.save(tmp_path / "s.safetensors")
+    finally:
+        os.umask(umask)
+    # written under temporary names and renamed (none left), readable by others as the umask allows
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["s.json", "s.safetensors"]
+    assert weights.stat().st_mode & 0o777 == card.stat().st_mode & 0o777 == 0o644
+    loaded = load_model(panda, weights)
+    assert isinstance(loaded, FlowModel) and loaded.config == tiny_student.config
+    t = np.array([[0.4, 0.1, 0.5], [0.3, -0.2, 0.6]])
+    z = np.random.default_rng(0).standard_normal((2, loaded.codec.dim))
+    np.testing.assert_allclose(loaded.native_sampler(seed=0).generate(z, t), tiny_student.generate(z, t), atol=2e-5)
+
+
+def test_distillation_refuses_a_teacher_of_other_settings_before_work(tiny_flow) -> None:
+    base = {"iterations": 5, "hidden": (32, 32), "steps": 1, "w_cost": 0.0, "pairs": 10}
+    with pytest.raises(SettingsError, match="FlowConfig.data_size is 25000, the teacher's 400"):
+        distill(default_config("panda", **base), tiny_flow, progress=False)
+    with pytest.raises(SettingsError, match="FlowConfig.robot is 'talos', the teacher's 'panda'"):
+        distill(default_config("talos", data_size=400, **base), tiny_flow, progress=False)
+    with pytest.raises(SettingsError, match="FlowConfig.pairs"):
+        default_config("panda", pairs=0)
+
+
+def test_train_flow_cli_distils_only_from_a_flow_of_its_robot(tiny_flow, tmp_path, capsys, monkeypatch) -> None:
+    from genplan.cli import main
+
+    weights, _ = tiny_flow.save(tmp_path / "teacher.safetensors")
+    assert main(["train", "flow", "--robot", "panda", "--pairs", "10", "--out", str(tmp_path / "s")]) == 2
+    assert "--pairs: only with --distill-from" in capsys.readouterr().err
+    assert main(["train", "flow", "--robot", "talos", "--distill-from", str(weights), "--out",
+                 str(tmp_path / "s")]) != 0
+    assert "is a flow for robot 'panda', not 'talos'" in capsys.readouterr().err
+    assert main(["train", "flow", "--robot", "panda", "--distill-from", str(weights), "--data-size", "50",
+                 "--out", str(tmp_path / "s")]) == 2
+    assert "--data-size: a student's data are its teacher's" in capsys.readouterr().err
+    assert not (tmp_path / "s.safetensors").exists()

@@ -70,7 +70,9 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
     """Write ``path`` (.safetensors, torch tensors) and its card (.json beside it).
 
     The card gets ``metadata["format"]``, the config (a dataclass) and the weights' sha256, which
-    the loaders check. A card key outside ``card_keys`` or a non-finite tensor raises
+    the loaders check. Each file is written under a temporary name and renamed (the weights
+    first: a write cut short between the two leaves a pair the loaders refuse as not matching,
+    never half a file), readable by all as the umask allows. A card key outside ``card_keys`` or a non-finite tensor raises
     :class:`~genplan.errors.ModelFileError` before anything is written (it could not be loaded).
     """
     from safetensors.torch import save_file
@@ -84,13 +86,19 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
         why = _bad_tensor(name, t)
         if why:
             raise ModelFileError(f"cannot write {kind} model {path}: {why}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    save_file({k: v.detach().contiguous() for k, v in tensors.items()}, str(path), metadata=metadata)
+    import os
+
+    from genplan._files import atomic_path, write_text
+
+    with atomic_path(path) as tmp:
+        save_file({k: v.detach().contiguous() for k, v in tensors.items()}, str(tmp), metadata=metadata)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # safetensors makes the file private; a model is meant to be shared
+        sha = hashlib.sha256(tmp.read_bytes()).hexdigest()
     card = dict(card)
-    card.update({"format": metadata["format"], "config": dataclasses.asdict(config),
-                 "weights_sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
-    card_path = path.with_suffix(".json")
-    card_path.write_text(json.dumps(card, indent=2, default=json_default) + "\n")
+    card.update({"format": metadata["format"], "config": dataclasses.asdict(config), "weights_sha256": sha})
+    card_path = write_text(path.with_suffix(".json"), json.dumps(card, indent=2, default=json_default) + "\n")
     return path, card_path
 
 

@@ -38,8 +38,12 @@ def test_variants_are_valid_configs_and_parsed_by_name() -> None:
 
     for name in C.VARIANTS:
         family, cfg, overrides = C.variant_config("panda", name, iterations=7)  # validated: every variant trains
-        assert isinstance(cfg, FlowConfig if family == "flow" else GanConfig), name
-        assert cfg.iterations == 7 and all(getattr(cfg, k) == v for k, v in overrides.items()), name
+        assert isinstance(cfg, FlowConfig if family in ("flow", "distill") else GanConfig), name
+        assert cfg.iterations == 7 * C.VARIANTS[name].get("iterations_factor", 1), name
+        assert all(getattr(cfg, k) == v for k, v in overrides.items()), name
+        if family == "distill":  # the teacher is another variant, a flow of the same robot and data
+            teacher_family, teacher, _ = C.variant_config("panda", cfg.teacher, iterations=7)
+            assert teacher_family == "flow" and teacher.data_size == cfg.data_size and teacher.steps > cfg.steps
     assert {"flow", "flow_pure"} <= set(C.VARIANTS)
     assert set(C.PAPER_VARIANTS) <= set(C.VARIANTS)
     assert C.variant_list("default, wgan_gp,default") == ["default", "wgan_gp"]

@@ -85,3 +85,29 @@ def test_bench_plan_certified_edges(tmp_path) -> None:
     (row,) = data["rows"]
     assert row["success_rate"] == 100.0
     assert row["motion_certificates"] > 0
+
+
+def test_bench_plan_with_another_learned_sampler_file(tmp_path, monkeypatch) -> None:
+    """--model ROBOT=FILE: the gan rows of that robot's environments use the file (here a tiny flow,
+    which plans otherwise than the shipped GAN), and the JSON names it with its hash; the uniform
+    rows are untouched."""
+    from genplan.gan.flow import default_config, train
+
+    monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
+    model = train(default_config("panda", iterations=20, data_size=300, hidden=(16,), steps=2, w_cost=0.0, seed=1),
+                  progress=False)
+    weights, card = model.save(tmp_path / "tiny_flow.safetensors")
+    rows = {}
+    for name, extra in (("shipped", []), ("flow", ["--model", f"panda={weights}"])):
+        out = tmp_path / f"{name}.json"
+        assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "all", "--queries", "2", "--seed", "3",
+                     *extra, "--out", str(out)]) == 0
+        data = json.loads(out.read_text())
+        rows[name] = {r["sampler"]: r for r in data["rows"]}
+        if name == "flow":
+            assert data["models"] == {"panda": {"file": str(weights), "format": "genplan-flow/1",
+                                                "weights_sha256": json.loads(card.read_text())["weights_sha256"]}}
+        else:
+            assert data["models"] == {}
+    assert rows["flow"]["uniform"]["projections"] == rows["shipped"]["uniform"]["projections"]
+    assert rows["flow"]["gan"]["projections"] != rows["shipped"]["gan"]["projections"]

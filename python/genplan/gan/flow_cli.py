@@ -4,6 +4,12 @@ and write the model and its card. The file goes wherever a GAN file does (``--mo
 
     genplan train flow --robot talos --seed 0 --steps 8 --w-cost 0 --iterations 10000
     genplan train flow --robot my_robot.toml --task my_task.toml --out my_flow.safetensors
+
+``--distill-from TEACHER`` trains a one-step student of a flow file instead
+(:func:`genplan.gan.flow.distill`): the teacher's samples, solved onto the task at their
+targets, regressed on; the student costs one network pass per sample.
+
+    genplan train flow --robot talos --seed 0 --distill-from teacher.safetensors --out student.safetensors
 """
 
 from __future__ import annotations
@@ -35,6 +41,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--w-cost", type=A.non_negative_float, default=None,
                    help="weight of the GAN's target, limit and constraint costs on generated samples against "
                         "the flow-matching loss (default 0.05; 0: pure flow matching, widest coverage)")
+    p.add_argument("--distill-from", type=A.existing_file, default=None, metavar="TEACHER",
+                   help="distil a student of --steps Euler steps (default 1) from this flow file (its robot's and "
+                        "task's) instead of training by flow matching; --w-cost then weighs the task's costs "
+                        "against the regression (default 0)")
+    p.add_argument("--pairs", type=A.positive_int, default=None,
+                   help="with --distill-from: teacher samples solved onto the task to regress on (default 100,000)")
     p.add_argument("--data-size", type=A.positive_int, default=None, help="valid configurations (default 25,000)")
     p.add_argument("--eval-targets", type=A.positive_int, default=500,
                    help="held-out targets of the card's evaluation (default 500)")
@@ -56,14 +68,32 @@ def main(args: argparse.Namespace) -> int:
     task = P.load_task(args.task if args.task is not None else default_task_name(robot), robot)
     if args.out is None and not (args.task is None or args.task in P.task_names()):
         raise A.UsageError("--out: give the model's path (a task file's flow has no shipped place)")
-    overrides = {k: getattr(args, k) for k in ("iterations", "hidden", "steps", "w_cost", "data_size")
-                 if getattr(args, k) is not None}
+    given = {k: getattr(args, k) for k in ("iterations", "hidden", "steps", "w_cost", "data_size", "pairs")
+             if getattr(args, k) is not None}
+    overrides = dict(given)
+    if args.pairs is not None and args.distill_from is None:
+        raise A.UsageError("--pairs: only with --distill-from (the pairs a student is regressed on)")
+    teacher = None
+    if args.distill_from is not None:
+        from genplan.gan.flow import load_flow
+
+        teacher = load_flow(robot, args.distill_from, task)  # another robot's or task's flow: refused here
+        if "data_size" in given:
+            raise A.UsageError("--data-size: a student's data are its teacher's (it has "
+                               f"{teacher.config.data_size:,} configurations)")
+        overrides = {"steps": 1, "w_cost": 0.0, **overrides, "teacher": str(args.distill_from),
+                     "data_size": teacher.config.data_size, "data_seed": teacher.config.data_seed}
     cfg = default_config(robot, task, **overrides, seed=args.seed)  # errors (no [condition], ...) before any work
     out = args.out or A.check_output_file(shipped_path(robot), "--out")
     t0 = time.perf_counter()
-    model = train(cfg, progress=True, robot=robot, task=task, threads=args.threads)
-    extra = "".join(f" --{k.replace('_', '-')} {','.join(map(str, v)) if isinstance(v, tuple) else v}"
-                    for k, v in overrides.items())
+    if teacher is not None:
+        from genplan.gan.flow import distill
+
+        model = distill(cfg, teacher, progress=True, task=task, threads=args.threads)
+    else:
+        model = train(cfg, progress=True, robot=robot, task=task, threads=args.threads)
+    extra = (f" --distill-from {args.distill_from}" if teacher is not None else "") + "".join(
+        f" --{k.replace('_', '-')} {','.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in given.items())
     model.card["command"] = train_command(args.robot, args.task, args.seed) + extra
     model.card["evaluation"] = evaluate(model, task, n=args.eval_targets, progress=True)
     model.card["training"]["total_seconds_including_data"] = time.perf_counter() - t0

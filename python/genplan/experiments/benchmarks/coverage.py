@@ -225,8 +225,9 @@ def _plot_planar(held_out: NDArray[np.float64], samples: dict[int, NDArray[np.fl
 
 #: the named variants ``--variants`` picks from: GanConfig overrides of the robot's default
 #: (genplan.gan.model.default_config), or, with ``"family": "flow"``, FlowConfig overrides of the
-#: flow sampler's (genplan.gan.flow.default_config). The first three are the paper's ablations
-#: (Fig. 4).
+#: flow sampler's (genplan.gan.flow.default_config), or with ``"family": "distill"`` those of a
+#: student (genplan.gan.flow.distill) whose ``teacher`` is another variant's label. The first
+#: three are the paper's ablations (Fig. 4).
 VARIANTS: dict[str, dict[str, Any]] = {
     "default": {},
     "no_discriminator": {"use_discriminator": False},
@@ -241,6 +242,9 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "flow": {"family": "flow"},
     "flow_pure": {"family": "flow", "w_cost": 0.0, "steps": 8},
     "flow_pure_small": {"family": "flow", "w_cost": 0.0, "steps": 4, "hidden": (128, 128, 128)},
+    # a one-step student of the variant named by "teacher" (trained in the same run, or first), for
+    # three times the run's iterations
+    "flow_distilled": {"family": "distill", "teacher": "flow_pure", "steps": 1, "w_cost": 0.0, "iterations_factor": 3},
 }
 #: the variants of the shipped coverage.json (the paper's ablations)
 PAPER_VARIANTS = ("default", "no_discriminator", "n_net_1")
@@ -262,7 +266,10 @@ def variant_config(robot: str, label: str, **settings: Any) -> tuple[str, Any, d
 
     overrides = dict(VARIANTS[label])
     family = overrides.pop("family", "gan")
-    if family == "flow":
+    factor = overrides.pop("iterations_factor", 1)
+    if "iterations" in settings:
+        settings = {**settings, "iterations": settings["iterations"] * factor}
+    if family in ("flow", "distill"):
         from genplan.gan.flow import default_config as flow_config
 
         return family, flow_config(robot, **settings, **overrides), overrides
@@ -291,17 +298,29 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
     out: dict[str, Any] = {"iterations": iterations, "held_out_size": len(held_out), "seed": seed}
     projected = {}
     solver = P.GaussNewtonProjector(robot, P.paper_task(robot, "projection"))
-    for label in variants:
-        family, cfg, overrides = variant_config(name, label, iterations=iterations, seed=seed)
+    models: dict[str, Any] = {}
+
+    def trained(label: str) -> tuple[Any, float, float]:
+        """Variant ``label``'s model, its training seconds and the load when it started."""
+        family, cfg, _ = variant_config(name, label, iterations=iterations, seed=seed)
         trainer: Callable[..., Any] = train
-        if family == "flow":
+        if family in ("flow", "distill"):
             from genplan.gan import flow
 
             trainer = flow.train
-        t0 = time.perf_counter()
         load_start = os.getloadavg()[0]
-        model = trainer(cfg, data=data, progress=progress, threads=threads)
-        train_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        if family == "distill":
+            teacher = models.get(cfg.teacher) or trained(cfg.teacher)[0]
+            model = flow.distill(cfg, teacher, progress=progress, threads=threads)
+        else:
+            model = trainer(cfg, data=data, progress=progress, threads=threads)
+        models[label] = model
+        return model, time.perf_counter() - t0, load_start
+
+    for label in variants:
+        family, cfg, overrides = variant_config(name, label, iterations=iterations, seed=seed)
+        model, train_s, load_start = trained(label)
         rng = np.random.default_rng(seed)
         q = model.sample(targets, rng, threads=threads)  # one sample per held-out target: same conditioning
         res = solver.solve_batch(q)
@@ -311,6 +330,7 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
             "mmd": mmd(ref, s, np.random.default_rng(seed)),
             "projection_success": float(res.success.mean()),
             "projection_steps_mean": float(res.iterations[res.success].mean()) if res.success.any() else None,
+            **({"teacher": cfg.teacher} if family == "distill" else {}),
             **(member_diagnostics(model, targets, ref, scale, free, seed) if family == "gan"
                else {"mmd_free_features": mmd(ref[:, free], s[:, free], np.random.default_rng(seed))}),
             "native_sample_us": native_sample_us(model, seed),
@@ -319,7 +339,7 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
             "overrides": overrides,
             "family": family,
             "config": {k: v for k, v in dataclasses.asdict(cfg).items()
-                       if k in ("n_net", "use_discriminator", "iterations", "hidden", "steps", "w_cost", *overrides)},
+                       if k in ("n_net", "use_discriminator", "iterations", "hidden", "steps", "w_cost", "pairs", *overrides)},
         }
         projected[label] = s
         if on_variant is not None:

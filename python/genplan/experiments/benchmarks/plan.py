@@ -4,6 +4,11 @@
     genplan bench plan --env all --sampler all --planner all --queries 100 --out F.json
     genplan bench plan --env panda_shelf --sampler gan --seeds 0..4 --out F.json   # per-seed + medians
     genplan bench plan --env all --sampler all --algorithm all --queries 100 --out F.json
+    genplan bench plan --env all --model panda=P.safetensors --model talos=T.safetensors --out F.json
+
+``--model ROBOT=FILE`` plans that robot's environments with another learned sampler's file (a GAN
+or a flow, genplan.gan.load_sampler_model) for the gan, hybrid and adaptive rows; the JSON names
+each file and its weights' hash.
 
 ``--algorithm`` picks genplan's search: ``crrt`` (the paper's constrained RRT, default),
 ``rrt_connect`` (bidirectional, on the same constrained space and components) or ``all`` (both,
@@ -90,13 +95,16 @@ def _summary(times: list[float], success: list[bool], **extra: list[float]) -> d
 
 
 def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, settings: Any, progress: bool,
-                algorithm: str = "crrt") -> dict[str, Any]:
+                algorithm: str = "crrt", model: str | None = None) -> dict[str, Any]:
     import genplan
+    from genplan.gan.loading import load_sampler_model
     from genplan.planning import Planner, environment
 
     env = environment(env_name)
     robot = genplan.load(env.robot)
-    planner = Planner(robot, world=env.world(robot), sampler=sampler, settings=settings, seed=seed, algorithm=algorithm)
+    learned = None if model is None or sampler == "uniform" else load_sampler_model(robot, model)
+    planner = Planner(robot, world=env.world(robot), sampler=sampler, settings=settings, seed=seed, algorithm=algorithm,
+                      gan_model=learned)
     results = []
     it = queries
     if progress:
@@ -183,7 +191,10 @@ def _ratios(rows: list[dict[str, Any]], envs: list[str], algorithm: str) -> dict
 
 
 def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed: int, ompl_time_limit: float,
-        settings: Any = None, progress: bool = True, algorithms: list[str] | None = None) -> dict[str, Any]:
+        settings: Any = None, progress: bool = True, algorithms: list[str] | None = None,
+        models: dict[str, str] | None = None) -> dict[str, Any]:
+    """Table II's rows for ``envs``; ``models`` maps a robot's name to the learned sampler's file
+    its environments use (default: the shipped GAN)."""
     import genplan
     from genplan.planning import PlannerSettings, environment
 
@@ -200,7 +211,8 @@ def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed:
         if "genplan" in planners:
             for alg in algorithms:
                 for s in samplers:
-                    rows.append(run_genplan(env_name, s, queries, seed, settings, progress, alg))
+                    rows.append(run_genplan(env_name, s, queries, seed, settings, progress, alg,
+                                            (models or {}).get(env.robot)))
         if "ompl" in planners:
             rows.append(run_ompl(env_name, queries, seed, ompl_time_limit, progress))
     for r in rows:
@@ -214,6 +226,7 @@ def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed:
         "goals_per_query": 10,
         "settings": settings.to_dict(),
         "algorithms": algorithms,
+        "models": model_files(models or {}),
         "ompl_time_limit_s": ompl_time_limit,
         "query_generation_s": query_s,
         "units": {"t_*": "seconds per query (all queries, retries included)", "success_rate": "percent",
@@ -246,6 +259,29 @@ def print_table(payload: dict[str, Any]) -> None:
             print(f"{alg}: uniform_over_gan geometric mean over {len(gm)} environments {geometric_mean(gm):.2f}x")
 
 
+def model_files(models: dict[str, str]) -> dict[str, Any]:
+    """``--model``'s files as the JSON records them: robot -> file and weights' sha256 (its card's)."""
+    import json
+    from pathlib import Path
+
+    out: dict[str, Any] = {}
+    for robot, path in models.items():
+        card = json.loads(Path(path).with_suffix(".json").read_text())
+        out[robot] = {"file": str(path), "format": card.get("format"), "weights_sha256": card.get("weights_sha256")}
+    return out
+
+
+def model_option(text: str) -> tuple[str, str]:
+    """``--model ROBOT=FILE``: a preset robot of the environments and an existing file."""
+    from genplan.planning import environment
+
+    robot, sep, path = text.partition("=")
+    robots = sorted({environment(e).robot for e in ENVS})
+    if not sep or robot not in robots:
+        raise argparse.ArgumentTypeError(f"expected ROBOT=FILE with ROBOT among {', '.join(robots)}, got {text!r}")
+    return robot, str(A.existing_file(path))
+
+
 def run_seed(job: dict[str, Any]) -> dict[str, Any]:
     """One seed of a sweep (a shard: module-level, so that a process or Ray worker can run it)."""
     return run(**job, progress=False)
@@ -258,7 +294,8 @@ def sweep(envs: list[str], samplers: list[str], planners: list[str], args: argpa
     from genplan.experiments.sweeps import median_of, run_seeds
 
     jobs = [dict(envs=envs, samplers=samplers, planners=planners, n=args.queries, seed=s,
-                 ompl_time_limit=args.ompl_time_limit, settings=settings, algorithms=algorithms(args)) for s in args.seeds]
+                 ompl_time_limit=args.ompl_time_limit, settings=settings, algorithms=algorithms(args),
+                 models=dict(args.model or [])) for s in args.seeds]
     # genplan's planner releases the GIL (threads); OMPL's callbacks run in Python (processes)
     runs, ex = run_seeds(run_seed, jobs, workers=args.workers, ray=args.ray,
                          kind="process" if "ompl" in planners else "thread", desc="bench plan")
@@ -311,6 +348,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--edge-check", default="sampled", choices=EDGE_CHECKS,
                    help="genplan edges: states checked at the resolution (sampled, default) or every motion between "
                         "them certified collision-free (certified, PlannerSettings.edge_check)")
+    p.add_argument("--model", type=model_option, action="append", default=None, metavar="ROBOT=FILE",
+                   help="the learned sampler's file (GAN or flow) for ROBOT's environments (repeatable; default: "
+                        "the shipped GAN)")
     p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
 
 
@@ -330,7 +370,8 @@ def main(args: argparse.Namespace) -> int:
         return 0
     if args.workers is not None or args.ray is not None:
         raise A.UsageError("--workers/--ray: they run the seeds of --seeds A..B; give --seeds")
-    payload = run(envs, samplers, planners, args.queries, args.seed, args.ompl_time_limit, settings, algorithms=algorithms(args))
+    payload = run(envs, samplers, planners, args.queries, args.seed, args.ompl_time_limit, settings,
+                  algorithms=algorithms(args), models=dict(args.model or []))
     print_table(payload)
     write_json(args.out, payload)
     return 0
