@@ -222,3 +222,30 @@ def test_train_flow_cli_distils_only_from_a_flow_of_its_robot(tiny_flow, tmp_pat
                  "--out", str(tmp_path / "s")]) == 2
     assert "--data-size: a student's data are its teacher's" in capsys.readouterr().err
     assert not (tmp_path / "s.safetensors").exists()
+
+
+def test_the_shipped_talos_flow_and_its_teacher(talos) -> None:
+    """models/talos_flow.safetensors: a one-step student whose card names the shipped teacher (its
+    hash too), whose retraining commands README documents, and whose samples project onto the
+    Talos manifold; the native twin matches torch."""
+    from pathlib import Path
+
+    from genplan import projection as P
+    from genplan.gan.flow import shipped_path
+    from genplan.gan.model import models_dir
+
+    student = load_model(talos, shipped_path(talos))
+    assert isinstance(student, FlowModel) and student.config.steps == 1
+    teacher_info = student.card["training"]["teacher"]
+    teacher = load_flow(talos, models_dir() / Path(teacher_info["file"]).name)
+    assert teacher_info["weights_sha256"] == teacher.card["weights_sha256"] and teacher.config.steps == 8
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    for card in (student.card, teacher.card):
+        assert card["command"].split(" --")[0] in readme and "--distill-from models/talos_flow_teacher" in readme
+    rng = np.random.default_rng(0)
+    t = rng.uniform(*np.asarray(student.config.target_box), size=(64, 3))
+    z = rng.standard_normal((64, student.codec.dim))
+    q = student.generate(z, t)
+    np.testing.assert_allclose(student.native_sampler(seed=0).generate(z, t), q, atol=2e-5)
+    res = P.GaussNewtonProjector(talos, P.paper_task(talos, "projection")).solve_batch(q)
+    assert res.success.all()

@@ -421,10 +421,10 @@ def distill(cfg: FlowConfig, teacher: FlowModel, progress: bool = True, log_ever
     the teacher's (SettingsError naming the field).
 
     Regressing onto the teacher's samples solved onto the task (at their target, or onto the
-    manifold alone) was tried first, in exploratory runs, and is not offered: the solver's
-    correction is a rougher function of the noise than the teacher's map, and a one-step student
-    of the same width fitted it with a held-out error 2.5-5 times that on the teacher's own
-    samples (Panda), landing farther from the manifold than the teacher did.
+    manifold alone) was tried first, in exploratory runs (Panda), and is not offered: the
+    solver's correction is a rougher function of the noise than the teacher's map, and a one-step
+    student of the same width fitted it worse than the teacher's own samples, landing farther
+    from the manifold than the teacher did.
     """
     rob = teacher.robot
     for name in ("robot", "task_name", "target_frame", "data_size", "data_seed"):

@@ -53,7 +53,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--edge-check", choices=EDGE_CHECKS, default="sampled",
                    help="sampled: edge states checked 0.025 rad apart (default); certified: every motion between "
                         "them certified collision-free as well (PlannerSettings.edge_check; slower)")
-    p.add_argument("--model", type=A.existing_file, default=None, help="the GAN for --sampler gan or hybrid")
+    p.add_argument("--model", type=A.existing_file, default=None, help="the learned sampler's file (a GAN or a flow) for --sampler gan, hybrid or adaptive")
     p.add_argument("--seed", type=A.seed, default=0)
     p.add_argument("--out", type=A.output_file, required=True, help="the plan as JSON")
     p.add_argument("--html", type=A.output_file, default=None,

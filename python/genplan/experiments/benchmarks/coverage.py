@@ -226,8 +226,8 @@ def _plot_planar(held_out: NDArray[np.float64], samples: dict[int, NDArray[np.fl
 #: the named variants ``--variants`` picks from: GanConfig overrides of the robot's default
 #: (genplan.gan.model.default_config), or, with ``"family": "flow"``, FlowConfig overrides of the
 #: flow sampler's (genplan.gan.flow.default_config), or with ``"family": "distill"`` those of a
-#: student (genplan.gan.flow.distill) whose ``teacher`` is another variant's label. The first
-#: three are the paper's ablations (Fig. 4).
+#: student (genplan.gan.flow.distill) whose ``teacher`` is another variant's label, or with
+#: ``"family": "shipped"`` the shipped GAN itself. The first three are the paper's ablations (Fig. 4).
 VARIANTS: dict[str, dict[str, Any]] = {
     "default": {},
     "no_discriminator": {"use_discriminator": False},
@@ -245,6 +245,8 @@ VARIANTS: dict[str, dict[str, Any]] = {
     # a one-step student of the variant named by "teacher" (trained in the same run, or first), for
     # three times the run's iterations
     "flow_distilled": {"family": "distill", "teacher": "flow_pure", "steps": 1, "w_cost": 0.0, "iterations_factor": 3},
+    # the robot's shipped GAN (models/<robot>_gan.safetensors), measured as it is, not trained
+    "shipped_gan": {"family": "shipped"},
 }
 #: the variants of the shipped coverage.json (the paper's ablations)
 PAPER_VARIANTS = ("default", "no_discriminator", "n_net_1")
@@ -313,6 +315,10 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
         if family == "distill":
             teacher = models.get(cfg.teacher) or trained(cfg.teacher)[0]
             model = flow.distill(cfg, teacher, progress=progress, threads=threads)
+        elif family == "shipped":
+            from genplan.gan.model import load_model
+
+            model = load_model(robot)
         else:
             model = trainer(cfg, data=data, progress=progress, threads=threads)
         models[label] = model
@@ -321,6 +327,8 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
     for label in variants:
         family, cfg, overrides = variant_config(name, label, iterations=iterations, seed=seed)
         model, train_s, load_start = trained(label)
+        if family == "shipped":
+            cfg, train_s = model.config, float(model.card["training"]["seconds"])  # the card's training
         rng = np.random.default_rng(seed)
         q = model.sample(targets, rng, threads=threads)  # one sample per held-out target: same conditioning
         res = solver.solve_batch(q)
@@ -331,7 +339,8 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
             "projection_success": float(res.success.mean()),
             "projection_steps_mean": float(res.iterations[res.success].mean()) if res.success.any() else None,
             **({"teacher": cfg.teacher} if family == "distill" else {}),
-            **(member_diagnostics(model, targets, ref, scale, free, seed) if family == "gan"
+            **({"train_s_from": "the shipped model's card"} if family == "shipped" else {}),
+            **(member_diagnostics(model, targets, ref, scale, free, seed) if family in ("gan", "shipped")
                else {"mmd_free_features": mmd(ref[:, free], s[:, free], np.random.default_rng(seed))}),
             "native_sample_us": native_sample_us(model, seed),
             "train_s": train_s,
@@ -419,7 +428,7 @@ def _plot_robot(name: str, ref: NDArray[np.float64], samples: dict[str, NDArray[
     for ax, (label, s) in zip(axes, samples.items()):
         s2 = (s - mean) @ proj
         ax.scatter(r2[:, 0], r2[:, 1], s=2, c="tab:red", alpha=0.3, label="valid (held out)")
-        ax.scatter(s2[:, 0], s2[:, 1], s=3, c="tab:blue", marker="x", alpha=0.4, label="GAN samples")
+        ax.scatter(s2[:, 0], s2[:, 1], s=3, c="tab:blue", marker="x", alpha=0.4, label="samples")
         ax.set_title(f"{name}: {label.replace('_', ' ')}")
         ax.set_xlabel("principal component 1")
         ax.legend(loc="upper right", fontsize=7)
