@@ -87,8 +87,8 @@ class FlowConfig:
     data_size: int = 25_000
     data_seed: int = 0
     seed: int = 0
-    #: distillation (:func:`distill`): the teacher flow's file as given (``""``: trained by flow
-    #: matching on the data, :func:`train`)
+    #: distillation (:func:`distill`): the teacher flow's file as given (``genplan bench coverage``:
+    #: the teacher variant's label; ``""``: trained by flow matching on the data, :func:`train`)
     teacher: str = ""
     #: distillation: teacher samples (noise, target, configuration) the student is regressed on
     pairs: int = 100_000
