@@ -221,6 +221,11 @@ def test_train_flow_cli_distils_only_from_a_flow_of_its_robot(tiny_flow, tmp_pat
     assert main(["train", "flow", "--robot", "panda", "--distill-from", str(weights), "--data-size", "50",
                  "--out", str(tmp_path / "s")]) == 2
     assert "--data-size: a student's data are its teacher's" in capsys.readouterr().err
+    from genplan.gan.model import models_dir
+
+    assert main(["train", "flow", "--robot", "panda", "--distill-from", str(models_dir() / "panda_gan.safetensors"),
+                 "--out", str(tmp_path / "s")]) == 2
+    assert "a teacher is a flow file (genplan train flow), this is a GAN's" in capsys.readouterr().err
     assert not (tmp_path / "s.safetensors").exists()
 
 

@@ -15,6 +15,7 @@ targets, regressed on; the student costs one network pass per sample.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 from genplan import _cli_args as A
@@ -57,6 +58,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "overrides it too)")
 
 
+def _card_format(path: "os.PathLike[str] | str") -> object:
+    """The ``format`` of the card beside ``path`` (None when it cannot be read: the loader names why)."""
+    import json
+    from pathlib import Path
+
+    try:
+        card = json.loads(Path(path).with_suffix(".json").read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
+    return card.get("format") if isinstance(card, dict) else None
+
+
 def main(args: argparse.Namespace) -> int:
     from genplan import projection as P
     from genplan.gan.costs import default_task_name
@@ -75,8 +88,12 @@ def main(args: argparse.Namespace) -> int:
         raise A.UsageError("--pairs: only with --distill-from (the pairs a student is regressed on)")
     teacher = None
     if args.distill_from is not None:
-        from genplan.gan.flow import load_flow
+        from genplan.gan.flow import is_flow_file, load_flow
+        from genplan.gan.model import FORMAT as GAN_FORMAT
 
+        if not is_flow_file(args.distill_from) and _card_format(args.distill_from) == GAN_FORMAT:
+            raise A.UsageError(f"--distill-from {args.distill_from}: a teacher is a flow file (genplan train flow), "
+                               "this is a GAN's")
         teacher = load_flow(robot, args.distill_from, task)  # another robot's or task's flow: refused here
         if "data_size" in given:
             raise A.UsageError("--data-size: a student's data are its teacher's (it has "
