@@ -207,6 +207,8 @@ def test_distillation_refuses_a_teacher_of_other_settings_before_work(tiny_flow)
         distill(default_config("talos", data_size=400, **base), tiny_flow, progress=False)
     with pytest.raises(SettingsError, match="FlowConfig.pairs"):
         default_config("panda", pairs=0)
+    with pytest.raises(SettingsError, match="FlowConfig.pairs is 10: a student needs at least 100 pairs"):
+        distill(default_config("panda", data_size=400, **base), tiny_flow, progress=False)
 
 
 def test_train_flow_cli_distils_only_from_a_flow_of_its_robot(tiny_flow, tmp_path, capsys, monkeypatch) -> None:

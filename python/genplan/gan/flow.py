@@ -431,6 +431,8 @@ def distill(cfg: FlowConfig, teacher: FlowModel, progress: bool = True, log_ever
         if getattr(cfg, name) != getattr(teacher.config, name):
             raise SettingsError(f"FlowConfig.{name} is {getattr(cfg, name)!r}, the teacher's "
                                 f"{getattr(teacher.config, name)!r}: a student shares its teacher's robot, task and data")
+    if cfg.pairs < 100:
+        raise SettingsError(f"FlowConfig.pairs is {cfg.pairs}: a student needs at least 100 pairs (2 % are held out)")
     task = P.load_task(cfg.task_name, rob) if task is None else task
     if task.name != cfg.task_name:
         raise SettingsError(f"FlowConfig.task is '{cfg.task_name}', the task given '{task.name}'")
