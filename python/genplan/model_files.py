@@ -32,7 +32,8 @@ import numpy as np
 
 from genplan.errors import GenplanError, ModelFileError
 
-__all__ = ["REQUIRED_CARD_KEYS", "write_model", "read_model", "read_config", "check_tensors", "json_default"]
+__all__ = ["REQUIRED_CARD_KEYS", "write_model", "read_model", "read_config", "check_tensors", "json_default",
+           "peek_card"]
 
 T = TypeVar("T")
 
@@ -86,20 +87,26 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
         why = _bad_tensor(name, t)
         if why:
             raise ModelFileError(f"cannot write {kind} model {path}: {why}")
-    import os
-
-    from genplan._files import atomic_path, write_text
+    from genplan._files import atomic_path, shared, write_text
 
     with atomic_path(path) as tmp:
         save_file({k: v.detach().contiguous() for k, v in tensors.items()}, str(tmp), metadata=metadata)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # safetensors makes the file private; a model is meant to be shared
+        shared(tmp)  # safetensors makes the file private; a model is meant to be shared
         sha = hashlib.sha256(tmp.read_bytes()).hexdigest()
     card = dict(card)
     card.update({"format": metadata["format"], "config": dataclasses.asdict(config), "weights_sha256": sha})
     card_path = write_text(path.with_suffix(".json"), json.dumps(card, indent=2, default=json_default) + "\n")
     return path, card_path
+
+
+def peek_card(path: str | Path) -> dict[str, Any] | None:
+    """The card beside model file ``path`` as JSON, or None when it is missing, unreadable or not
+    an object (a quick look, checking nothing: :func:`read_model` names the problem)."""
+    try:
+        card = json.loads(Path(path).with_suffix(".json").read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
+    return card if isinstance(card, dict) else None
 
 
 def _safetensors_metadata(data: bytes) -> dict[str, str]:

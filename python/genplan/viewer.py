@@ -44,6 +44,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from genplan._files import shared
 from genplan._arrays import error_class
 from genplan.errors import GenplanError, RobotFileError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
@@ -554,9 +555,7 @@ def export_html(
         fd, tmp = tempfile.mkstemp(prefix=out_path.name + ".", suffix=".tmp", dir=out_path.parent)
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(page)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; a page is meant to be shared
+        shared(tmp)  # mkstemp makes it private; a page is meant to be shared
         os.replace(tmp, out_path)
         tmp = None
     except OSError as exc:

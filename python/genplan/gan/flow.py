@@ -249,13 +249,9 @@ def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0) 
 def is_flow_file(path: Path) -> bool:
     """True when the card beside ``path`` says it is a flow (a missing or unreadable card: False,
     the GAN loader then names the problem)."""
-    import json
+    from genplan.model_files import peek_card
 
-    try:
-        card = json.loads(Path(path).with_suffix(".json").read_text())
-    except (OSError, ValueError, UnicodeDecodeError):
-        return False
-    return isinstance(card, dict) and card.get("format") == FORMAT
+    return (peek_card(path) or {}).get("format") == FORMAT
 
 
 def load_flow(robot: str | Robot, path: str | Path, task: "str | os.PathLike[str] | P.Task | None" = None) -> FlowModel:

@@ -6,8 +6,8 @@ and write the model and its card. The file goes wherever a GAN file does (``--mo
     genplan train flow --robot my_robot.toml --task my_task.toml --out my_flow.safetensors
 
 ``--distill-from TEACHER`` trains a one-step student of a flow file instead
-(:func:`genplan.gan.flow.distill`): the teacher's samples, solved onto the task at their
-targets, regressed on; the student costs one network pass per sample.
+(:func:`genplan.gan.flow.distill`), regressed on the teacher's samples; the student costs one
+network pass per sample.
 
     genplan train flow --robot talos --seed 0 --distill-from teacher.safetensors --out student.safetensors
 """
@@ -15,7 +15,6 @@ targets, regressed on; the student costs one network pass per sample.
 from __future__ import annotations
 
 import argparse
-import os
 import time
 
 from genplan import _cli_args as A
@@ -47,7 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "task's) instead of training by flow matching; --w-cost then weighs the task's costs "
                         "against the regression (default 0)")
     p.add_argument("--pairs", type=A.positive_int, default=None,
-                   help="with --distill-from: teacher samples solved onto the task to regress on (default 100,000)")
+                   help="with --distill-from: teacher samples (noise, target, configuration) to regress on (default 100,000)")
     p.add_argument("--data-size", type=A.positive_int, default=None, help="valid configurations (default 25,000)")
     p.add_argument("--eval-targets", type=A.positive_int, default=500,
                    help="held-out targets of the card's evaluation (default 500)")
@@ -56,18 +55,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threads", type=A.positive_int, default=None,
                    help="torch threads (default: genplan's choice for training, one; $GENPLAN_TORCH_THREADS "
                         "overrides it too)")
-
-
-def _card_format(path: "os.PathLike[str] | str") -> object:
-    """The ``format`` of the card beside ``path`` (None when it cannot be read: the loader names why)."""
-    import json
-    from pathlib import Path
-
-    try:
-        card = json.loads(Path(path).with_suffix(".json").read_text())
-    except (OSError, ValueError, UnicodeDecodeError):
-        return None
-    return card.get("format") if isinstance(card, dict) else None
 
 
 def main(args: argparse.Namespace) -> int:
@@ -88,10 +75,11 @@ def main(args: argparse.Namespace) -> int:
         raise A.UsageError("--pairs: only with --distill-from (the pairs a student is regressed on)")
     teacher = None
     if args.distill_from is not None:
-        from genplan.gan.flow import is_flow_file, load_flow
+        from genplan.gan.flow import load_flow
         from genplan.gan.model import FORMAT as GAN_FORMAT
+        from genplan.model_files import peek_card
 
-        if not is_flow_file(args.distill_from) and _card_format(args.distill_from) == GAN_FORMAT:
+        if (peek_card(args.distill_from) or {}).get("format") == GAN_FORMAT:
             raise A.UsageError(f"--distill-from {args.distill_from}: a teacher is a flow file (genplan train flow), "
                                "this is a GAN's")
         teacher = load_flow(robot, args.distill_from, task)  # another robot's or task's flow: refused here

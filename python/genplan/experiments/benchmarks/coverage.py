@@ -303,32 +303,33 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
     models: dict[str, Any] = {}
 
     def trained(label: str) -> tuple[Any, float, float]:
-        """Variant ``label``'s model, its training seconds and the load when it started."""
-        family, cfg, _ = variant_config(name, label, iterations=iterations, seed=seed)
-        trainer: Callable[..., Any] = train
-        if family in ("flow", "distill"):
-            from genplan.gan import flow
+        """Variant ``label``'s model (a distilled one's teacher trained first unless this run has
+        it, its seconds then counted too), its training seconds (the shipped GAN's: its card's)
+        and the load when it started."""
+        from genplan.gan import flow
+        from genplan.gan.model import load_model
 
-            trainer = flow.train
+        family, cfg, _ = variant_config(name, label, iterations=iterations, seed=seed)
         load_start = os.getloadavg()[0]
         t0 = time.perf_counter()
+        model: Any
         if family == "distill":
-            teacher = models.get(cfg.teacher) or trained(cfg.teacher)[0]
+            teacher = models[cfg.teacher] if cfg.teacher in models else trained(cfg.teacher)[0]
             model = flow.distill(cfg, teacher, progress=progress, threads=threads)
         elif family == "shipped":
-            from genplan.gan.model import load_model
-
             model = load_model(robot)
         else:
+            trainer: Callable[..., Any] = flow.train if family == "flow" else train
             model = trainer(cfg, data=data, progress=progress, threads=threads)
+        train_s = float(model.card["training"]["seconds"]) if family == "shipped" else time.perf_counter() - t0
         models[label] = model
-        return model, time.perf_counter() - t0, load_start
+        return model, train_s, load_start
 
     for label in variants:
         family, cfg, overrides = variant_config(name, label, iterations=iterations, seed=seed)
         model, train_s, load_start = trained(label)
         if family == "shipped":
-            cfg, train_s = model.config, float(model.card["training"]["seconds"])  # the card's training
+            cfg = model.config  # the shipped model's, not a default's
         rng = np.random.default_rng(seed)
         q = model.sample(targets, rng, threads=threads)  # one sample per held-out target: same conditioning
         res = solver.solve_batch(q)

@@ -261,12 +261,11 @@ def print_table(payload: dict[str, Any]) -> None:
 
 def model_files(models: dict[str, str]) -> dict[str, Any]:
     """``--model``'s files as the JSON records them: robot -> file and weights' sha256 (its card's)."""
-    import json
-    from pathlib import Path
+    from genplan.model_files import peek_card
 
     out: dict[str, Any] = {}
     for robot, path in models.items():
-        card = json.loads(Path(path).with_suffix(".json").read_text())
+        card = peek_card(path) or {}  # the planner loaded the file: its card was checked then
         out[robot] = {"file": str(path), "format": card.get("format"), "weights_sha256": card.get("weights_sha256")}
     return out
 
