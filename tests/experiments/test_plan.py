@@ -3,6 +3,8 @@ documented)."""
 
 import json
 
+import pytest
+
 from genplan.cli import main
 
 
@@ -111,3 +113,23 @@ def test_bench_plan_with_another_learned_sampler_file(tmp_path, monkeypatch) -> 
             assert data["models"] == {}
     assert rows["flow"]["uniform"]["projections"] == rows["shipped"]["uniform"]["projections"]
     assert rows["flow"]["gan"]["projections"] != rows["shipped"]["gan"]["projections"]
+
+
+def test_bench_plan_rows_name_their_failed_queries() -> None:
+    """Each row lists the indices of the queries that failed, in the environment's query order, so
+    that a failure can be replayed: with a budget too small for some queries, the listed ones are
+    exactly those a fresh planner with the same seed fails again."""
+    import genplan
+    from genplan.experiments.benchmarks.plan import run_genplan
+    from genplan.planning import Planner, PlannerSettings, environment
+
+    env = environment("panda_shelf")
+    robot = genplan.load(env.robot)
+    queries = env.queries(robot, n=6, seed=3)
+    tight = PlannerSettings(max_extensions=20, retries=0)
+    row = run_genplan("panda_shelf", "uniform", queries, 3, tight, progress=False)
+    planner = Planner(robot, world=env.world(robot), sampler="uniform", settings=tight, seed=3)
+    replay = [i for i, q in enumerate(queries) if not planner.plan(q.start, q.goals).success]
+    assert row["failed_queries"] == replay
+    assert 0 < len(replay) < len(queries), replay  # the budget fails some queries, not all
+    assert row["success_rate"] == pytest.approx(100.0 * (len(queries) - len(replay)) / len(queries))

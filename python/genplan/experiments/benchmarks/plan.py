@@ -83,6 +83,9 @@ def _summary(times: list[float], success: list[bool], **extra: list[float]) -> d
     out: dict[str, Any] = {
         "queries": len(t),
         "success_rate": 100.0 * float(np.mean(success)),
+        # which queries failed (their indices in the environment's seeded query list), so a
+        # failure can be replayed: benches/hard_queries.py, Planner.plan(queries[i].start, ...)
+        "failed_queries": [i for i, ok in enumerate(success) if not ok],
         "t_ave_s": float(t.mean()),
         "t_std_s": float(t.std()),
         "t_median_s": float(np.median(t)),
