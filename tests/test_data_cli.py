@@ -126,7 +126,7 @@ def test_train_gan_from_a_data_set_checks_robot_and_task(tmp_path, capsys, monke
                  "--eval-targets", "5", "--out", str(model)]) == 0
     card = json.loads(model.with_suffix(".json").read_text())
     assert card["training"]["data_set"]["sha256"] == m["sha256"] and card["config"]["data_size"] == N
-    assert card["command"].endswith(f"--data {d}")
+    assert card["command"].endswith(f"--data {d} --out {model}")
     capsys.readouterr()
     # another robot's data set
     talos = tmp_path / "talos"

@@ -211,6 +211,26 @@ def test_distillation_refuses_a_teacher_of_other_settings_before_work(tiny_flow)
         distill(default_config("panda", data_size=400, **base), tiny_flow, progress=False)
 
 
+def test_train_flow_cli_card_command_retrains_the_same_file(tmp_path, capsys, monkeypatch) -> None:
+    """The card's command names every setting given, the seed and the file: run again, it rewrites
+    that file with the same weights (and not the robot's shipped flow)."""
+    from genplan.cli import main
+
+    monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "f.safetensors"
+    assert main(["train", "flow", "--robot", "panda", "--seed", "2", "--iterations", "5", "--data-size", "300",
+                 "--hidden", "16", "--steps", "2", "--eval-targets", "5", "--threads", "1", "--out", str(out)]) == 0
+    card = json.loads(out.with_suffix(".json").read_text())
+    assert card["command"] == (f"genplan train flow --robot panda --seed 2 --iterations 5 --hidden 16 --steps 2 "
+                               f"--data-size 300 --out {out}")
+    first = card["weights_sha256"]
+    out.unlink()
+    argv = card["command"].split()[1:]
+    assert main([*argv, "--eval-targets", "5", "--threads", "1"]) == 0
+    assert json.loads(out.with_suffix(".json").read_text())["weights_sha256"] == first
+    capsys.readouterr()
+
+
 def test_train_flow_cli_distils_only_from_a_flow_of_its_robot(tiny_flow, tmp_path, capsys, monkeypatch) -> None:
     from genplan.cli import main
 
@@ -247,8 +267,12 @@ def test_the_shipped_talos_flow_and_its_teacher(talos) -> None:
     teacher = load_flow(talos, models_dir() / Path(teacher_info["file"]).name)
     assert teacher_info["weights_sha256"] == teacher.card["weights_sha256"] and teacher.config.steps == 8
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    for card in (student.card, teacher.card):
+    for card, path in ((student.card, shipped_path(talos)), (teacher.card, models_dir() / Path(teacher_info["file"]).name)):
         assert card["command"].split(" --")[0] in readme and "--distill-from models/talos_flow_teacher" in readme
+        # the card's command rewrites this very file: its --out, or the shipped place by default
+        words = card["command"].split()
+        written = Path(words[words.index("--out") + 1]) if "--out" in words else Path("models") / shipped_path(talos).name
+        assert written.name == path.name, card["command"]
     rng = np.random.default_rng(0)
     t = rng.uniform(*np.asarray(student.config.target_box), size=(64, 3))
     z = rng.standard_normal((64, student.codec.dim))

@@ -292,7 +292,7 @@ def test_train_command(tmp_path, monkeypatch, capsys) -> None:
     assert card["config"]["n_net"] == 2 and card["config"]["seed"] == 1 and card["config"]["task"] == "panda_ik"
     assert (card["config"]["loss"], card["config"]["w_diversity"], card["config"]["member_init"]) == ("wgan_gp", 1.0, "data")
     assert card["command"] == ("genplan train gan --robot panda --seed 1 --iterations 5 --n-net 2 --data-size 300 "
-                               "--loss wgan_gp --w-diversity 1.0 --member-init data")
+                               f"--loss wgan_gp --w-diversity 1.0 --member-init data --out {out}")
     ev = card["evaluation"]
     for init in ("gan", "uniform"):
         for kind in ("projection", "ik"):

@@ -176,6 +176,13 @@ def check_output_file(path: Path, what: str) -> Path:
     return path
 
 
+def out_option(out: Path, default: Path) -> str:
+    """The ``--out`` of a model's retraining command (its card's ``command``): `` --out PATH``
+    unless ``out`` is where the command writes by default (the robot's shipped place), so the
+    command rewrites that same file and no other."""
+    return "" if Path(out).resolve() == Path(default).resolve() else f" --out {out}"
+
+
 def output_actions(parser: argparse.ArgumentParser) -> list[tuple[str, str, Output]]:
     """(dest, option, type) of every output argument of ``parser``."""
     return [(a.dest, a.option_strings[0] if a.option_strings else a.dest, a.type)

@@ -89,7 +89,8 @@ def main(args: argparse.Namespace) -> int:
         overrides = {"steps": 1, "w_cost": 0.0, **overrides, "teacher": str(args.distill_from),
                      "data_size": teacher.config.data_size, "data_seed": teacher.config.data_seed}
     cfg = default_config(robot, task, **overrides, seed=args.seed)  # errors (no [condition], ...) before any work
-    out = args.out or A.check_output_file(shipped_path(robot), "--out")
+    default_out = shipped_path(robot)
+    out = args.out or A.check_output_file(default_out, "--out")
     t0 = time.perf_counter()
     if teacher is not None:
         from genplan.gan.flow import distill
@@ -99,7 +100,7 @@ def main(args: argparse.Namespace) -> int:
         model = train(cfg, progress=True, robot=robot, task=task, threads=args.threads)
     extra = (f" --distill-from {args.distill_from}" if teacher is not None else "") + "".join(
         f" --{k.replace('_', '-')} {','.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in given.items())
-    model.card["command"] = train_command(args.robot, args.task, args.seed) + extra
+    model.card["command"] = train_command(args.robot, args.task, args.seed) + extra + A.out_option(out, default_out)
     model.card["evaluation"] = evaluate(model, task, n=args.eval_targets, progress=True)
     model.card["training"]["total_seconds_including_data"] = time.perf_counter() - t0
     weights, card = model.save(out)

@@ -118,7 +118,8 @@ def main(args: argparse.Namespace) -> int:
         data_set = {"folder": str(args.data), "sha256": manifest["sha256"], "data_size": len(data),
                     "seed": manifest["seed"], "shard_size": manifest["shard_size"]}
     cfg = default_config(robot, task, **overrides, seed=seeds[0])  # errors (no [condition], ...) before any work
-    out = args.out or A.check_output_file(models_dir() / f"{robot.name}_gan.safetensors", "--out")
+    default_out = models_dir() / f"{robot.name}_gan.safetensors"
+    out = args.out or A.check_output_file(default_out, "--out")
     extra = "".join(f" --{k} {getattr(args, k.replace('-', '_'))}" for k in ("iterations", "n-net", "data-size", "data", "loss",
                                                                          "w-diversity", "member-init")
                     if getattr(args, k.replace("-", "_")) is not None) + (" --no-discriminator" if args.no_discriminator else "")
@@ -126,7 +127,8 @@ def main(args: argparse.Namespace) -> int:
     jobs = [{"robot": args.robot, "task": args.task, "overrides": {**overrides, "seed": s}, "data": data,
              "data_set": data_set, "eval_targets": args.eval_targets, "threads": args.threads,
              "progress": not parallel, "out": out if args.seeds is None else seed_path(out, s),
-             "command": train_command(args.robot, args.task, s) + extra} for s in seeds]
+             "command": train_command(args.robot, args.task, s) + extra
+             + A.out_option(out if args.seeds is None else seed_path(out, s), default_out)} for s in seeds]
     if args.seeds is None:
         print(train_one(jobs[0]))
         return 0
