@@ -9,6 +9,7 @@ import runpy
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 BENCHES = Path(__file__).resolve().parents[1] / "benches"
@@ -16,6 +17,7 @@ BENCHES = Path(__file__).resolve().parents[1] / "benches"
 
 def _run(script: str, args: list[str], monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(sys, "argv", [script, *args])
+    monkeypatch.syspath_prepend(str(BENCHES))  # as `python benches/<script>.py`: its siblings import
     runpy.run_path(str(BENCHES / script), run_name="__main__")
 
 
@@ -97,3 +99,39 @@ def test_plan_ab_refuses_a_before_that_is_the_installed_package(monkeypatch, cap
         _run("plan_ab.py", ["--before", str(installed.parent), "--env", "panda_shelf", "--queries", "1",
                             "--rounds", "3"], monkeypatch)
     assert "round 2/3" not in capsys.readouterr().err
+
+
+def test_distill_constraint_sweep_measures_the_teacher_and_each_student(tmp_path, monkeypatch, capsys) -> None:
+    out = tmp_path / "sweep.json"
+    _run("distill_constraint_sweep.py", ["--robot", "panda", "--seed", "5", "--w-cost", "0,0.5", "--iterations", "5",
+                                         "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    assert [(r["model"], r["steps"], r["w_cost"]) for r in data["rows"]] == [("teacher", 8, 0.0), ("student", 1, 0.0),
+                                                                            ("student", 1, 0.5)]
+    for r in data["rows"]:
+        assert 0.0 <= r["cluster_coverage"] <= 1.0 and 0.0 <= r["projection_success"] <= 1.0
+        assert r["native_sample_us"] > 0 and r["train_s"] > 0
+    assert data["command"].startswith("python benches/distill_constraint_sweep.py --robot panda --seed 5 --w-cost 0.0,0.5")
+    with pytest.raises(SystemExit):
+        _run("distill_constraint_sweep.py", ["--w-cost", "0.1,-1"], monkeypatch)
+    assert "non-negative weights" in capsys.readouterr().err
+
+
+def test_data_sampler_plan_plans_with_the_data_set_beside_uniform_and_the_gan(tmp_path, monkeypatch, capsys) -> None:
+    out = tmp_path / "data.json"
+    _run("data_sampler_plan.py", ["--env", "panda_shelf", "--queries", "2", "--seed", "3", "--out", str(out)],
+         monkeypatch)
+    data = json.loads(out.read_text())
+    rows = {(r["protocol"], r["sampler"]): r for r in data["rows"]}
+    assert set(rows) == {(p, s) for p in ("nodes", "edges") for s in ("uniform", "gan", "data", "data_box")}
+    assert all(r["success_rate"] == 100.0 and r["uniform_over_this"] > 0 for r in rows.values())
+    # the Python sampler was called back from the native planner, and its samples counted
+    assert rows[("nodes", "data")]["sampler_s"] > 0 and rows[("nodes", "data")]["extensions"] > 0
+    assert set(data["summary"]) == {f"{p}/{s}" for p in ("nodes", "edges") for s in ("uniform", "gan", "data", "data_box")}
+    assert 0 < data["data_box_rows"]["panda_shelf"] < 25_000
+    # a data sampler draws rows of its data set, and only those
+    mod = runpy.run_path(str(BENCHES / "data_sampler_plan.py"))
+    rows_in = np.arange(12.0).reshape(4, 3)
+    drawn = mod["DataSampler"](rows_in, seed=0).sample(50)
+    assert drawn.shape == (50, 3) and {tuple(r) for r in drawn} <= {tuple(r) for r in rows_in}
+    assert len({tuple(r) for r in drawn}) == 4
