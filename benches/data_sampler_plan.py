@@ -15,8 +15,8 @@ query.
 
 Prints and writes, per environment, protocol and sampler: success %, mean extensions, mean
 projection steps and mean plan time; uniform time / sampler time and, per sampler and protocol,
-the geometric mean over the environments. The "data" sampler is a Python object called back from
-the native planner (its call cost is in ``sampler_s``). Extensions and projections are
+the geometric mean over the environments. The data samplers are the library's
+(genplan.planning.data_sampler, native). Extensions and projections are
 deterministic for a seed; times vary with the machine's load (recorded).
 """
 
@@ -27,28 +27,13 @@ import os
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
-
 import genplan
 from genplan.experiments.benchmarks.plan import model_option
 from genplan.experiments.common import machine, write_json
-from genplan.gan.data import valid_configurations
 from genplan.gan.loading import load_sampler_model
-from genplan.planning import ENVIRONMENT_NAMES, Planner, environment
+from genplan.planning import ENVIRONMENT_NAMES, Planner, data_sampler, environment
 
 from adaptive_half_life import PROTOCOLS, record, summarize  # benches/: run as python benches/<script>.py
-
-
-class DataSampler:
-    """Uniform draws (with replacement) from rows of valid configurations."""
-
-    def __init__(self, rows: NDArray[np.float64], seed: int) -> None:
-        self.rows = np.ascontiguousarray(rows, dtype=np.float64)
-        self.rng = np.random.default_rng(seed)
-
-    def sample(self, n: int) -> NDArray[np.float64]:
-        return self.rows[self.rng.integers(0, len(self.rows), size=n)]
 
 
 def main() -> None:
@@ -71,18 +56,13 @@ def main() -> None:
         robot = genplan.load(env.robot)
         world = env.world(robot)
         queries = env.queries(robot, n=args.queries, seed=args.seed)
-        data = valid_configurations(robot, 25_000, 0, progress=True)  # the shipped samplers' training data
-        # the rows whose target frame lies in the box the shipped GAN draws its targets from when
-        # planning (its task-space region of interest): the data set conditioned as the GAN is
-        gan = load_sampler_model(robot, None)
-        frame = robot.frames[gan.config.target_frame]
-        lo, hi = np.asarray(gan.config.target_box, dtype=np.float64)
-        pos = robot.link_poses(data, [frame])[:, 0, :3, 3]
-        in_box = data[np.all((pos >= lo) & (pos <= hi), axis=1)]
-        boxed[env_name] = len(in_box)
         for protocol, settings in PROTOCOLS:
-            kinds: dict[str, Any] = {"uniform": "uniform", "gan": "gan", "data": DataSampler(data, args.seed),
-                                     "data_box": DataSampler(in_box, args.seed)}
+            # the shipped samplers' training data (25,000 rows, seed 0), all of it, and the rows whose
+            # target frame lies in the box the shipped GAN draws its targets from when planning
+            everything = data_sampler(robot, in_box=False, seed=args.seed, progress=True)
+            in_box = data_sampler(robot, seed=args.seed)
+            boxed[env_name] = len(in_box)
+            kinds: dict[str, Any] = {"uniform": "uniform", "gan": "gan", "data": everything, "data_box": in_box}
             planners = {k: Planner(robot, world=world, sampler=s, settings=settings, seed=args.seed)
                         for k, s in kinds.items()}
             if robot.name in models:

@@ -9,7 +9,6 @@ import runpy
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 BENCHES = Path(__file__).resolve().parents[1] / "benches"
@@ -125,13 +124,6 @@ def test_data_sampler_plan_plans_with_the_data_set_beside_uniform_and_the_gan(tm
     rows = {(r["protocol"], r["sampler"]): r for r in data["rows"]}
     assert set(rows) == {(p, s) for p in ("nodes", "edges") for s in ("uniform", "gan", "data", "data_box")}
     assert all(r["success_rate"] == 100.0 and r["uniform_over_this"] > 0 for r in rows.values())
-    # the Python sampler was called back from the native planner, and its samples counted
     assert rows[("nodes", "data")]["sampler_s"] > 0 and rows[("nodes", "data")]["extensions"] > 0
     assert set(data["summary"]) == {f"{p}/{s}" for p in ("nodes", "edges") for s in ("uniform", "gan", "data", "data_box")}
     assert 0 < data["data_box_rows"]["panda_shelf"] < 25_000
-    # a data sampler draws rows of its data set, and only those
-    mod = runpy.run_path(str(BENCHES / "data_sampler_plan.py"))
-    rows_in = np.arange(12.0).reshape(4, 3)
-    drawn = mod["DataSampler"](rows_in, seed=0).sample(50)
-    assert drawn.shape == (50, 3) and {tuple(r) for r in drawn} <= {tuple(r) for r in rows_in}
-    assert len({tuple(r) for r in drawn}) == 4

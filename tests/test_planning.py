@@ -14,8 +14,8 @@ from genplan import _core
 from genplan import projection as P
 from genplan.errors import (CallbackError, GenplanError, InvalidGoalError, InvalidStartError, NonFiniteError, SettingsError,
                             ShapeError, UnknownNameError)
-from genplan.planning import (ALGORITHMS, EDGE_CHECKS, ENVIRONMENT_NAMES, Planner, PlannerSettings, environment, make_sampler,
-                              uniform_base_box)
+from genplan.planning import (ALGORITHMS, EDGE_CHECKS, ENVIRONMENT_NAMES, Planner, PlannerSettings, data_sampler, environment,
+                              make_sampler, uniform_base_box)
 from tests.interrupt import MAX_LATENCY_S, ctrl_c_latency
 
 
@@ -271,6 +271,48 @@ def test_native_samplers_draw_the_same_stream_in_any_batch_size(panda, kind) -> 
     sampler = make_sampler(panda, kind, seed=5)
     pieces = np.vstack([sampler.sample(n) for n in (1, 0, 999, 1000)])
     np.testing.assert_array_equal(once, pieces)
+
+
+def test_the_data_sampler_draws_rows_of_its_data_in_its_box(panda, talos, shelf) -> None:
+    """data_sampler: rows of the data given (or of the learned sampler's training data), only those
+    whose target frame is in the box, every one reachable; the planner plans with it natively."""
+    from genplan.gan.data import valid_configurations
+    from genplan.gan.model import default_config
+
+    data = valid_configurations(panda, 25_000, 0, progress=False)
+    cfg = default_config(panda)
+    hand = lambda q: panda.link_poses(q, [panda.frames[cfg.target_frame]])[:, 0, :3, 3]  # noqa: E731
+    lo, hi = np.asarray(cfg.target_box)
+    inside = np.all((hand(data) >= lo) & (hand(data) <= hi), axis=1)
+    assert 0 < inside.sum() < len(data)  # the box keeps some rows, not all
+    default = data_sampler(panda, seed=2)
+    assert len(default) == inside.sum() and len(data_sampler(panda, in_box=False)) == len(data)
+    drawn = default.sample(3000)
+    rows = {tuple(r) for r in data[inside]}
+    assert all(tuple(r) in rows for r in drawn)
+    np.testing.assert_array_equal(drawn, data_sampler(panda, seed=2).sample(3000))  # seeded
+    # a box of one's own, over data of one's own
+    few = data[:40]
+    box = np.array([hand(few).min(0), hand(few).mean(0)])
+    mine = data_sampler(panda, few, box=box)
+    kept = np.all((hand(few) >= box[0]) & (hand(few) <= box[1]), axis=1)
+    assert len(mine) == kept.sum() and {tuple(r) for r in mine.sample(400)} == {tuple(r) for r in few[kept]}
+    # bad input: named, before any work
+    with pytest.raises(ShapeError, match="data"):
+        data_sampler(panda, few[:, :6])
+    with pytest.raises(NonFiniteError, match="data"):
+        data_sampler(panda, np.where(np.arange(7) == 3, np.nan, few))
+    with pytest.raises(SettingsError, match="box"):
+        data_sampler(panda, few, box=[[5, 5, 5], [6, 6, 6]])
+    with pytest.raises(ShapeError, match="box"):
+        data_sampler(panda, few, box=[0, 0, 0])
+    # the planner draws from it natively; a sampler of another robot's rows is refused
+    env, world, queries = shelf
+    res = Planner(panda, world=world, sampler=default, seed=1).plan(queries[0].start, queries[0].goals)
+    assert res.success and res.stats.sampler_s > 0
+    other = _core.DataSampler(np.zeros((3, talos.nq)))
+    with pytest.raises(ShapeError, match="data rows of length"):
+        Planner(panda, world=world, sampler=other).plan(queries[0].start, queries[0].goals)
 
 
 def test_ctrl_c_interrupts_a_long_native_sampling(panda) -> None:

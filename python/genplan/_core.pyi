@@ -15,7 +15,7 @@ __all__ = [
     "__version__", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "Projector",
     "SolverSettings", "read_robot_file", "robot_description", "load_robot", "srdf_disabled_pairs",
     "disabled_pairs_srdf", "time_optimal", "sample_timed_spline", "Planner", "PlannerSettings", "PlanStats",
-    "PlanResult", "UniformSampler", "MixtureSampler", "GanSampler", "FlowSampler", "Dynamics", "SpatulaSimulation",
+    "PlanResult", "UniformSampler", "DataSampler", "MixtureSampler", "GanSampler", "FlowSampler", "Dynamics", "SpatulaSimulation",
     "spatula_defaults", "pancake_phi",
 ]
 
@@ -229,6 +229,14 @@ class UniformSampler:
     def __new__(cls, model: KinematicModel, base: list[float] | None = None, seed: int = 0,
                  base_box: list[list[float]] | None = None) -> Self: ...
     def sample(self, n: int) -> NDArray[np.float64]: ...
+
+@final
+class DataSampler:
+    """Rows of a data set (n, nq), each drawn uniformly at random (genplan.planning.data_sampler)."""
+
+    def __new__(cls, rows: NDArray[np.float64], seed: int = 0) -> Self: ...
+    def sample(self, n: int) -> NDArray[np.float64]: ...
+    def __len__(self) -> int: ...
 
 @final
 class GanSampler:

@@ -21,8 +21,9 @@ Python object, called back in batches:
 * ``sampler``: ``"uniform"``, ``"gan"`` (the shipped GAN's generator, run natively),
   ``"hybrid"`` (GAN with probability ``hybrid_p``, default 0.8, else uniform), ``"adaptive"``
   (GAN at first, its share halving every ``half_life`` samples of a plan: complete, and as fast
-  as the GAN where it covers the query), or any object with
-  ``sample(n) -> (n, nq)`` (e.g. :class:`genplan.gan.GanSampler`, which runs torch);
+  as the GAN where it covers the query), :func:`data_sampler` (rows of the data set a learned
+  sampler is trained on, native, no training: about as fast as the GAN on Table II's queries), or
+  any object with ``sample(n) -> (n, nq)`` (e.g. :class:`genplan.gan.GanSampler`, which runs torch);
 * ``projector``: a :class:`~genplan.projection.GaussNewtonProjector` (its native solver is used) or
   any object with ``project(qs, q_noms) -> (q, success[, iterations])``;
 * ``checker``: a :class:`~genplan.collision.CollisionWorld` (native) or any object with
@@ -67,6 +68,7 @@ __all__ = [
     "Query",
     "SAMPLERS",
     "environment",
+    "data_sampler",
     "make_query",
     "make_sampler",
     "plan",
@@ -197,6 +199,44 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
     if kind == "adaptive":  # the GAN paper's future work: p = 1 at first, decaying towards uniform
         return _core.MixtureSampler(gan, uniform, 1.0, seed, half_life)
     return _core.MixtureSampler(gan, uniform, hybrid_p, seed)
+
+
+def data_sampler(robot: Robot, data: ArrayLike | None = None, *, task: "str | os.PathLike[str] | Task | None" = None,
+                 box: ArrayLike | None = None, in_box: bool = True, size: int = 25_000, data_seed: int = 0,
+                 seed: int = 0, progress: bool = False) -> _core.DataSampler:
+    """A sampler that needs no training: rows of a data set of valid configurations, each drawn
+    uniformly at random, natively (pass it as a :class:`Planner`'s ``sampler``).
+
+    ``data`` (n, nq): the configurations; default: the data set a learned sampler of ``robot`` and
+    ``task`` is trained on (:func:`genplan.gan.data.valid_configurations`, ``size`` rows of seed
+    ``data_seed``, made once and cached), i.e. uniform configurations projected onto the task's
+    manifold. With ``in_box`` (default) only the rows whose target frame (the learned sampler's,
+    :func:`genplan.gan.default_config`) lies in ``box`` are kept; default box: the one the learned
+    sampler draws its targets from when planning. On the Table II queries this plans about as fast
+    as the shipped GAN (README, "What coverage can buy in planning"). Raises ShapeError or
+    NonFiniteError for bad ``data``, SettingsError when the box keeps no row.
+    """
+    from genplan._arrays import as_box, as_configurations
+    from genplan.gan.data import valid_configurations
+    from genplan.gan.model import default_config
+
+    if data is None:
+        rows = valid_configurations(robot, size, data_seed, progress=progress,
+                                    task=None if task is None else P.load_task(task, robot))
+    else:
+        rows = as_configurations(data, robot.nq, "data")
+        if rows.ndim != 2:
+            raise ShapeError(f"data: expected shape (n, {robot.nq}), got {rows.shape}")
+    if in_box:
+        cfg = default_config(robot, task)
+        lo, hi = as_box(cfg.target_box if box is None else box, "box")
+        pos = robot.link_poses(rows, [robot.frames[cfg.target_frame]])[:, 0, :3, 3]
+        keep = np.all((pos >= lo) & (pos <= hi), axis=1)
+        if not keep.any():
+            raise SettingsError(f"box: none of the {len(rows)} configurations has its frame '{cfg.target_frame}' in "
+                                f"{[lo.tolist(), hi.tolist()]} (give another box, or in_box=False)")
+        rows = rows[keep]
+    return _core.DataSampler(np.ascontiguousarray(rows), seed)
 
 
 def _check_algorithm(algorithm: str) -> str:

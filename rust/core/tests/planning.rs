@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use fixtures::{no_interrupt, panda_horizontal_gripper, Band, CubeSampler, SphereProjector, WithPosture};
 use genplan_core::planning::{
-    Algorithm, Components, EuclideanSpace, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner, Projection,
+    Algorithm, Components, DataSampler, EuclideanSpace, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner, Projection,
     Projector, Sampler, Settings, Space, UniformSampler, ValidityChecker,
 };
 use genplan_core::robot::preset;
@@ -382,6 +382,38 @@ fn uniform_sampler_draws_a_free_flyer_base_in_its_box() {
     let (panda, _) = preset("panda").unwrap().load().unwrap();
     let fixed_base = UniformSampler::new(panda, None, 5).unwrap().with_base_box(lo, hi);
     assert!(matches!(fixed_base, Err(PlanError::Input(m)) if m.contains("free-flyer")));
+}
+
+/// The data sampler draws whole rows of its data, every row in time, the same stream for the same
+/// seed; bad data are refused with the reason.
+#[test]
+fn data_sampler_draws_whole_rows_of_its_data() {
+    let nq = 3;
+    let rows: Vec<f64> = (0..5 * nq).map(|i| i as f64).collect();
+    let mut s = DataSampler::new(rows.clone(), nq, 7).unwrap();
+    assert_eq!(s.len(), 5);
+    let mut out = vec![f64::NAN; 200 * nq];
+    s.sample(200, &mut out).unwrap();
+    let mut seen = [false; 5];
+    for r in out.chunks(nq) {
+        let i = (r[0] / nq as f64) as usize;
+        assert_eq!(r, &rows[i * nq..(i + 1) * nq], "a drawn row is a row of the data");
+        seen[i] = true;
+    }
+    assert!(seen.iter().all(|&b| b), "200 draws reach each of 5 rows");
+    let mut again = vec![0.0; 200 * nq];
+    DataSampler::new(rows.clone(), nq, 7).unwrap().sample(200, &mut again).unwrap();
+    assert_eq!(out, again);
+    let mut small = vec![0.0; nq];
+    assert!(matches!(s.sample(2, &mut small), Err(PlanError::Input(m)) if m.contains("do not fit")));
+    for (data, n, why) in [
+        (vec![], 3, "one or more rows"),
+        (vec![1.0; 4], 3, "rows of 3"),
+        (vec![1.0; 3], 0, "nq = 0"),
+        (vec![0.0, 1.0, 2.0, 3.0, f64::NAN, 5.0], 3, "row 1"),
+    ] {
+        assert!(matches!(DataSampler::new(data, n, 0), Err(PlanError::Input(m)) if m.contains(why)), "{why}");
+    }
 }
 
 /// A sampler that fills every row with one value (0 or 1): which sampler a mixture row came from.

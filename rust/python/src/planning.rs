@@ -222,6 +222,37 @@ impl PyUniformSampler {
     }
 }
 
+/// Rows of a data set (n, nq), each drawn uniformly at random: `genplan.planning.data_sampler`.
+#[pyclass(name = "DataSampler", module = "genplan._core", frozen)]
+pub(crate) struct PyDataSampler {
+    inner: Arc<Mutex<planning::DataSampler>>,
+    nq: usize,
+    rows: usize,
+}
+
+#[pymethods]
+impl PyDataSampler {
+    #[new]
+    #[pyo3(signature = (rows, seed=0))]
+    fn new(rows: PyReadonlyArray2<'_, f64>, seed: u64) -> PyResult<Self> {
+        let [n, nq] = [rows.shape()[0], rows.shape()[1]];
+        let data: Vec<f64> = rows.as_array().iter().copied().collect();
+        let s = planning::DataSampler::new(data, nq, seed).map_err(plan_error_to_py)?;
+        Ok(Self { inner: Arc::new(Mutex::new(s)), nq, rows: n })
+    }
+
+    /// n configurations, (n, nq).
+    fn sample<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        let out = sample_in_chunks(py, &self.inner, n, self.nq, "data sampler")?;
+        to_array(py, &out, self.nq)
+    }
+
+    /// The number of rows drawn from.
+    fn __len__(&self) -> usize {
+        self.rows
+    }
+}
+
 /// A native sampler shared with Python (`what` names it in errors), used by one plan at a time.
 struct Shared<S>(Arc<Mutex<S>>, &'static str);
 
@@ -474,6 +505,13 @@ fn sampler_from(py: Python<'_>, obj: &Bound<'_, PyAny>, nq: usize) -> PyResult<B
         }
         return Ok(Box::new(Shared(u.inner.clone(), "uniform sampler")));
     }
+    if let Ok(d) = obj.cast::<PyDataSampler>() {
+        let d = d.get();
+        if d.nq != nq {
+            return Err(err(Kind::Shape, format!("sampler: data rows of length {} for a model of nq = {nq}", d.nq)));
+        }
+        return Ok(Box::new(Shared(d.inner.clone(), "data sampler")));
+    }
     if let Ok(g) = obj.cast::<PyGanSampler>() {
         let g = g.get();
         if g.generator.nq() != nq {
@@ -721,6 +759,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyPlanStats>()?;
     m.add_class::<PyPlanResult>()?;
     m.add_class::<PyUniformSampler>()?;
+    m.add_class::<PyDataSampler>()?;
     m.add_class::<PyMixtureSampler>()?;
     m.add_class::<PyGanSampler>()?;
     m.add_class::<PyFlowSampler>()?;

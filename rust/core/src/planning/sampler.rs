@@ -1,6 +1,7 @@
 //! Samplers: the [`Sampler`] trait and the native ones, uniform within the joint limits
-//! ([`UniformSampler`], optionally with a free-flyer base drawn in a box) and the paper's hybrid
-//! ([`MixtureSampler`]); [`valid_box`] checks the boxes they (and the GAN sampler) draw in.
+//! ([`UniformSampler`], optionally with a free-flyer base drawn in a box), rows of a data set
+//! ([`DataSampler`]) and the paper's hybrid ([`MixtureSampler`]); [`valid_box`] checks the boxes
+//! they (and the GAN sampler) draw in.
 
 use std::sync::Arc;
 
@@ -147,6 +148,57 @@ impl Sampler for UniformSampler {
                     _ => row[i] = self.rng.random_range(m.lower[i]..=m.upper[i]),
                 }
             }
+        }
+        Ok(())
+    }
+}
+
+/// Rows of a fixed set of configurations, each drawn uniformly at random (with replacement): the
+/// data set a learned sampler is trained on, used as it is. It needs no training, its rows are on
+/// the manifold already (to the data's tolerance), and it covers what the data cover and nothing
+/// else (README, "What coverage can buy in planning").
+#[derive(Debug, Clone)]
+pub struct DataSampler {
+    rows: Arc<Vec<f64>>,
+    nq: usize,
+    rng: StdRng,
+}
+
+impl DataSampler {
+    /// A sampler of the rows of `rows` (row-major, rows of `nq` >= 1 finite numbers, at least
+    /// one row); `seed` seeds its random numbers.
+    pub fn new(rows: Vec<f64>, nq: usize, seed: u64) -> PlanResult<DataSampler> {
+        if nq == 0 {
+            return input("data sampler: configurations need at least one number (nq = 0)");
+        }
+        if rows.is_empty() || rows.len() % nq != 0 {
+            return input(format!("data sampler: expected one or more rows of {nq} numbers, got {} numbers", rows.len()));
+        }
+        if let Some(i) = rows.iter().position(|x| !x.is_finite()) {
+            return input(format!("data sampler: row {} holds a number that is not finite ({})", i / nq, rows[i]));
+        }
+        Ok(DataSampler { rows: Arc::new(rows), nq, rng: StdRng::seed_from_u64(seed) })
+    }
+
+    /// The number of rows drawn from.
+    pub fn len(&self) -> usize {
+        self.rows.len() / self.nq
+    }
+
+    /// Never true (a data sampler has one row at least).
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+}
+
+impl Sampler for DataSampler {
+    fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+        let nq = self.nq;
+        check_out("data sampler", n, nq, out)?;
+        let m = self.len();
+        for row in out.chunks_mut(nq).take(n) {
+            let i = self.rng.random_range(0..m);
+            row.copy_from_slice(&self.rows[i * nq..(i + 1) * nq]);
         }
         Ok(())
     }
