@@ -310,6 +310,10 @@ def test_the_data_sampler_draws_rows_of_its_data_in_its_box(panda, talos, shelf)
     env, world, queries = shelf
     res = Planner(panda, world=world, sampler=default, seed=1).plan(queries[0].start, queries[0].goals)
     assert res.success and res.stats.sampler_s > 0
+    by_name = Planner(panda, world=world, sampler="data", seed=1).plan(queries[0].start, queries[0].goals)
+    by_object = Planner(panda, world=world, sampler=data_sampler(panda, seed=1), seed=1).plan(queries[0].start,
+                                                                                              queries[0].goals)
+    assert by_name.success and by_name.extensions == by_object.extensions  # the same rows, the same seed
     other = _core.DataSampler(np.zeros((3, talos.nq)))
     with pytest.raises(ShapeError, match="data rows of length"):
         Planner(panda, world=world, sampler=other).plan(queries[0].start, queries[0].goals)

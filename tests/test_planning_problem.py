@@ -59,6 +59,25 @@ def test_plan_keeps_the_cup_upright_around_the_box(sampler: str, algorithm: str,
     json.dumps(data)  # JSON-able
 
 
+def test_plan_with_the_tasks_data_needs_no_model(arm: genplan.Robot, cup: P.Task, tmp_path, capsys) -> None:
+    """sampler="data": rows of this task's data set (not the robot's shipped task's: the xArm7 has
+    none), no model; a model given with it is refused."""
+    out = plan(arm, cup, scene=SCENE, start="default", target=(0.45, -0.3, 0.25), sampler="data", seed=0)
+    assert out.result.success and out.to_dict()["sampler"] == "data"
+    assert np.abs(_upright(arm, out.result.path) - [0, 0, -1]).max() < 2e-3
+    assert not np.asarray(out.world.in_collision(out.result.path)).any()
+    from genplan.planning import data_sampler
+
+    drawn = data_sampler(arm, task=cup, seed=1).sample(200)  # the rows are on the cup task's manifold
+    assert np.abs(_upright(arm, drawn) - [0, 0, -1]).max() < 1e-2
+    with pytest.raises(SettingsError, match="sampler 'data' .* takes no model"):
+        plan(arm, cup, target=(0.45, -0.3, 0.25), sampler="data", model=MODEL)
+    js = tmp_path / "plan.json"
+    assert main(["plan", "--robot", str(ROBOT), "--task", str(TASK), "--scene", str(SCENE), "--target", "0.45", "-0.3",
+                 "0.25", "--sampler", "data", "--out", str(js)]) == 0
+    assert json.loads(js.read_text())["success"] and "data sampler" in capsys.readouterr().out
+
+
 def test_queries_start_on_the_manifold_and_goals_by_ik(arm: genplan.Robot, cup: P.Task) -> None:
     world = arm.collision_world()
     world.add_scene(SCENE)

@@ -133,3 +133,12 @@ def test_bench_plan_rows_name_their_failed_queries() -> None:
     assert row["failed_queries"] == replay
     assert 0 < len(replay) < len(queries), replay  # the budget fails some queries, not all
     assert row["success_rate"] == pytest.approx(100.0 * (len(queries) - len(replay)) / len(queries))
+
+
+def test_bench_plan_data_sampler_rows(tmp_path) -> None:
+    """--sampler data: rows of the data set in the learned sampler's box, no model."""
+    out = tmp_path / "data.json"
+    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "data", "--queries", "2", "--seed", "3",
+                 "--out", str(out)]) == 0
+    (row,) = json.loads(out.read_text())["rows"]
+    assert row["sampler"] == "data" and row["success_rate"] == 100.0 and row["sampler_s"] > 0

@@ -76,7 +76,7 @@ __all__ = [
 ]
 
 #: Sampler names accepted by :class:`Planner`.
-SAMPLERS = ("uniform", "gan", "hybrid", "adaptive")
+SAMPLERS = ("uniform", "gan", "hybrid", "adaptive", "data")
 #: Search algorithms (``PlannerSettings.algorithm``, ``Planner(..., algorithm=)``): the paper's
 #: constrained RRT (default) and the bidirectional constrained RRT-Connect.
 ALGORITHMS = ("crrt", "rrt_connect")
@@ -169,7 +169,8 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
                  base_box: ArrayLike | None = None) -> Any:
     """A sampler the planner understands: "uniform" (native), "gan", "hybrid" (the GAN with
     probability ``hybrid_p``, else uniform), "adaptive" (the GAN with probability 0.5^(k /
-    ``half_life``) for the k-th sample of a plan, else uniform), or an object with ``sample(n)``
+    ``half_life``) for the k-th sample of a plan, else uniform), "data" (:func:`data_sampler` of the
+    robot's shipped task, its box ``gan_box``), or an object with ``sample(n)``
     (returned as is). The GAN conditions on end-effector targets drawn uniformly in
     ``gan_box`` ([[x, y, z] min, max]; default: the model's task-space region of interest). Uniform
     samples hold a free-flyer base at the robot's default placement, its position drawn uniformly
@@ -191,6 +192,8 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
     uniform = _core.UniformSampler(robot.kinematics, base, seed, box)
     if kind == "uniform":
         return uniform
+    if kind == "data":
+        return data_sampler(robot, box=gan_box, seed=seed)
     from genplan.gan.sampler import GanSampler
 
     gan = GanSampler(robot, gan_model, box=gan_box, seed=seed).native(seed)
@@ -340,8 +343,9 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
     """Plan for ``robot`` (a Robot or what :func:`genplan.load` takes) on the manifold of ``task``
     (a Task, shipped name or task file, with a [condition]) among ``scene`` (a Scene, a shipped
     scene's name or a scene file; None: no obstacles, self-collision only), from ``start`` to
-    ``goal`` or to IK goals for ``target`` (:func:`make_query`). ``sampler``: "uniform", "gan" or
-    "hybrid" (the GAN of ``model``, which must be trained for this robot and task); ``algorithm``:
+    ``goal`` or to IK goals for ``target`` (:func:`make_query`). ``sampler``: "uniform", "gan",
+    "hybrid" or "adaptive" (the learned sampler of ``model``, which must be trained for this robot
+    and task), or "data" (:func:`data_sampler` of this task: no model, no training); ``algorithm``:
     one of :data:`ALGORITHMS` (default: ``settings.algorithm``, "crrt").
 
     Not finding a path within the settings' budget is ``outcome.result.success == False``."""
@@ -355,7 +359,12 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
     if sampler not in SAMPLERS:
         raise UnknownNameError(f"unknown sampler '{sampler}' (known: {', '.join(SAMPLERS)})")
     gan_model = None
-    if sampler != "uniform":
+    chosen: str | Any = sampler
+    if sampler == "data":
+        if model is not None:
+            raise SettingsError("model: sampler 'data' draws rows of the task's data set and takes no model "
+                                "(give sampler 'gan', 'hybrid' or 'adaptive' to plan with it)")
+    elif sampler != "uniform":
         if model is None:
             raise SettingsError(f"sampler '{sampler}' needs a model: a GAN trained for robot '{rob.name}' and task "
                                 f"'{t.name}' (genplan train gan --robot ... --task ...)")
@@ -371,7 +380,9 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
         world.add_scene(scene_obj)
     manifold = manifold_task(t, rob)
     query = make_query(rob, t, world, start, goal, target, k=k, seed=seed)
-    planner = Planner(rob, world=world, task=manifold, sampler=sampler, gan_model=gan_model, seed=seed,
+    if sampler == "data":  # this task's data, not the robot's shipped task's
+        chosen = data_sampler(rob, task=t, seed=seed, progress=True)
+    planner = Planner(rob, world=world, task=manifold, sampler=chosen, gan_model=gan_model, seed=seed,
                       settings=settings, parallel=parallel, algorithm=algorithm)
     result = planner.plan(query.start, query.goals)
     return Outcome(rob, t, manifold, world, query, result, sampler, scene_obj, planner.settings.algorithm)

@@ -65,9 +65,9 @@ PAPER_TABLE_II: dict[tuple[str, str], tuple[float, float, float, float]] = {
 
 ENVS = ("panda_shelf", "talos_task1", "talos_task2", "talos_task3")
 SAMPLERS = ("uniform", "gan", "hybrid")
-#: beyond the paper: the adaptive hybrid (genplan.planning.make_sampler); --sampler adaptive, or
-#: --sampler all+ for the paper's three and it
-EXTRA_SAMPLERS = ("adaptive",)
+#: beyond the paper: the adaptive hybrid and the data set's rows (genplan.planning.make_sampler,
+#: data_sampler); --sampler adaptive or data, or --sampler all+ for the paper's three and these
+EXTRA_SAMPLERS = ("adaptive", "data")
 PLANNERS = ("genplan", "ompl")
 
 
@@ -105,7 +105,7 @@ def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, sett
 
     env = environment(env_name)
     robot = genplan.load(env.robot)
-    learned = None if model is None or sampler == "uniform" else load_sampler_model(robot, model)
+    learned = None if model is None or sampler in ("uniform", "data") else load_sampler_model(robot, model)
     planner = Planner(robot, world=env.world(robot), sampler=sampler, settings=settings, seed=seed, algorithm=algorithm,
                       gan_model=learned)
     results = []
@@ -334,7 +334,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     p.add_argument("--env", default="all", choices=[*ENVS, "all"])
     p.add_argument("--sampler", default="all", choices=[*SAMPLERS, *EXTRA_SAMPLERS, "all", "all+"],
-                   help="all: the paper's uniform, gan and hybrid; all+: those and adaptive (default all)")
+                   help="all: the paper's uniform, gan and hybrid; all+: those, adaptive and data (default all)")
     p.add_argument("--planner", default="genplan", choices=[*PLANNERS, "all"])
     p.add_argument("--algorithm", default="crrt", choices=[*ALGORITHMS, "all"],
                    help="genplan's search: crrt (the paper's constrained RRT, default), rrt_connect, or all (both)")
