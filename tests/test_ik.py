@@ -55,6 +55,25 @@ def test_uniform_init_and_given_warm_starts(panda, task, targets) -> None:
     assert (given.attempts == 1).all()
 
 
+def test_data_init_starts_from_the_nearest_rows_of_the_tasks_data(panda, task, targets) -> None:
+    """init="data": the first attempt starts at the data row whose hand is nearest the target (the
+    same start as given explicitly); no model."""
+    from scipy.spatial import cKDTree
+
+    from genplan.gan.data import valid_configurations
+
+    data = valid_configurations(panda, 25_000, 0, progress=False, task=task)
+    frame = condition_term(task).frame
+    hand = panda.link_poses(data, [panda.frames.get(frame, frame)])[:, 0, :3, 3]
+    _, nearest = cKDTree(hand).query(targets[:30], k=1)
+    once = solve_ik(panda, task, targets[:30], init="data", restarts=0, seed=0)
+    given = solve_ik(panda, task, targets[:30], init=data[nearest], restarts=0, seed=0)
+    np.testing.assert_array_equal(once.q, given.q)
+    assert once.success.mean() >= 0.9
+    # with retries every target is reached (the next nearest rows, then uniform)
+    assert solve_ik(panda, task, targets, init="data", restarts=20, seed=0).success.all()
+
+
 def test_solver_settings_are_used_with_the_attempt_iterations(panda, task, targets) -> None:
     """``settings`` replaces the solver's defaults (``iterations`` still caps each attempt): an
     active-set solve reaches the same targets' tolerances, and no damping at all still solves."""

@@ -10,7 +10,9 @@ were trained on seed 0, the coverage benchmark holds out 1000 + seed), hence rea
 seen in training. Rows: one GAN-initialised attempt of 50 iterations with the paper's solver (the
 paper's protocol: ``settings=SolverSettings(), nominal="start"``) and with solve_ik's own
 (``IK_SETTINGS``, the posture towards the joint-range middle), and ``solve_ik`` with retries and a
-per-target time budget; the same from uniform random starts (one attempt of 50 iterations with the
+per-target time budget; the same from the rows of the IK task's data set nearest each target
+(``init="data"``: the data a GAN is trained on, seed 0, no model); the same from uniform random
+starts (one attempt of 50 iterations with the
 paper's solver, with ``SolverSettings(active_set=True)`` (the joint limits as bounds of the step)
 and with solve_ik's: the peers' protocol; ``solve_ik(init="uniform")`` with retries). Times are per target, one target after the other on one
 core (``parallel=False``): its solves plus its share of the GAN sampling; "within budget" counts a
@@ -40,9 +42,11 @@ TASKS = {"panda": "panda_ik", "talos": "talos_ik"}
 #: [planner]'s targets (issue 17): IK success and mean time, trajectory parameterisation time.
 TARGETS = {"ik_success_within_budget_percent": 99.9, "ik_mean_ms_panda": 0.2, "trajectory_parameterisation_ms": 5.0}
 #: The IK rows of each robot: GAN warm starts (one attempt with the paper's solver; with
-#: solve_ik's; solve_ik's retries), uniform random starts (one attempt with the paper's solver;
+#: solve_ik's; solve_ik's retries), the nearest rows of the task's data set (the same three),
+#: uniform random starts (one attempt with the paper's solver;
 #: with the joint limits as an active set; with solve_ik's; solve_ik's uniform retries).
-IK_ROWS = ("gan_one_attempt", "gan_one_attempt_ik_solver", "solve_ik", "uniform_one_attempt",
+IK_ROWS = ("gan_one_attempt", "gan_one_attempt_ik_solver", "solve_ik", "data_one_attempt",
+           "data_one_attempt_ik_solver", "solve_ik_data", "uniform_one_attempt",
            "uniform_one_attempt_active_set", "uniform_one_attempt_ik_solver", "solve_ik_uniform")
 
 
@@ -86,6 +90,15 @@ def run_ik(robots: list[str], n: int, seed: int, budget_s: float, restarts: int)
                                    parallel=False)
         retried = genplan.solve_ik(robot, task, targets, restarts=restarts, time_budget_s=budget_s, model=model,
                                    seed=seed, parallel=False)
+        # from the data set's row nearest each target (no model), as from the GAN
+        data = {"data_one_attempt": _summary(genplan.solve_ik(robot, task, targets, init="data", restarts=0, seed=seed,
+                                                              iterations=50, parallel=False, **paper), budget_s),
+                "data_one_attempt_ik_solver": _summary(genplan.solve_ik(robot, task, targets, init="data", restarts=0,
+                                                                        seed=seed, iterations=50, parallel=False),
+                                                       budget_s),
+                "solve_ik_data": {**_summary(genplan.solve_ik(robot, task, targets, init="data", restarts=restarts,
+                                                              time_budget_s=budget_s, seed=seed, parallel=False),
+                                             budget_s), "restarts": restarts, "time_budget_ms": budget_s * 1e3}}
         # from uniform random starts, one attempt of the solver's 50 iterations ([core-speed] item 4:
         # the paper's clipped step, the joint limits as an active set, solve_ik's solver; the
         # peers' protocol), and solve_ik's uniform retries within the budget
@@ -100,7 +113,7 @@ def run_ik(robots: list[str], n: int, seed: int, budget_s: float, restarts: int)
                      "gan_one_attempt": _summary(once, budget_s),
                      "gan_one_attempt_ik_solver": _summary(once_ik, budget_s),
                      "solve_ik": {**_summary(retried, budget_s), "restarts": restarts, "time_budget_ms": budget_s * 1e3},
-                     **uniform,
+                     **data, **uniform,
                      "solve_ik_uniform": {**_summary(uniform_retried, budget_s), "restarts": restarts,
                                           "time_budget_ms": budget_s * 1e3}}
     return out
