@@ -136,9 +136,16 @@ def test_bench_plan_rows_name_their_failed_queries() -> None:
 
 
 def test_bench_plan_data_sampler_rows(tmp_path) -> None:
-    """--sampler data: rows of the data set in the learned sampler's box, no model."""
+    """--sampler all+: the paper's samplers, adaptive and data (rows of the data set in the learned
+    sampler's box, no model), each with its ratio to uniform."""
     out = tmp_path / "data.json"
-    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "data", "--queries", "2", "--seed", "3",
+    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "all+", "--queries", "2", "--seed", "3",
                  "--out", str(out)]) == 0
-    (row,) = json.loads(out.read_text())["rows"]
-    assert row["sampler"] == "data" and row["success_rate"] == 100.0 and row["sampler_s"] > 0
+    data = json.loads(out.read_text())
+    rows = {r["sampler"]: r for r in data["rows"]}
+    assert set(rows) == {"uniform", "gan", "hybrid", "adaptive", "data"}
+    row = rows["data"]
+    assert row["success_rate"] == 100.0 and row["sampler_s"] > 0
+    ratios = data["ratios"]["panda_shelf"]
+    assert ratios["uniform_over_data"] == rows["uniform"]["t_ave_s"] / row["t_ave_s"]
+    assert ratios["uniform_over_adaptive"] == rows["uniform"]["t_ave_s"] / rows["adaptive"]["t_ave_s"]

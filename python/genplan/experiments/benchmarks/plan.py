@@ -172,7 +172,7 @@ def run_ompl(env_name: str, queries: list[Any], seed: int, time_limit: float, pr
 
 
 def _ratios(rows: list[dict[str, Any]], envs: list[str], algorithm: str) -> dict[str, Any]:
-    """Per environment: uniform / GAN, uniform / hybrid (and adaptive) of ``algorithm``'s rows,
+    """Per environment: uniform / GAN, uniform / hybrid (and adaptive, data) of ``algorithm``'s rows,
     OMPL over each sampler."""
     ratios: dict[str, Any] = {}
     for env_name in envs:
@@ -187,9 +187,10 @@ def _ratios(rows: list[dict[str, Any]], envs: list[str], algorithm: str) -> dict
             "ompl_over_hybrid": None if not (o and h) else o["t_ave_s"] / h["t_ave_s"],
             "ompl_over_uniform": None if not (o and u) else o["t_ave_s"] / u["t_ave_s"],
         }
-        a = by.get(("genplan", "adaptive"))
-        if a is not None:
-            ratios[env_name]["uniform_over_adaptive"] = None if not u else u["t_ave_s"] / a["t_ave_s"]
+        for extra in EXTRA_SAMPLERS:
+            x = by.get(("genplan", extra))
+            if x is not None:
+                ratios[env_name][f"uniform_over_{extra}"] = None if not u else u["t_ave_s"] / x["t_ave_s"]
     return ratios
 
 
