@@ -33,7 +33,6 @@ import io
 import logging
 import math
 import os
-import tempfile
 import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -44,7 +43,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from genplan._files import shared
+from genplan._files import write_text
 from genplan._arrays import error_class
 from genplan.errors import GenplanError, RobotFileError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
@@ -550,20 +549,10 @@ def export_html(
     legend = _legend(name, trail_frame if trail is not None else None, bool(obstacles or shapes))
     i = page.rfind("</body>")
     page = page[:i] + legend + page[i:] if i >= 0 else page + legend
-    tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=out_path.name + ".", suffix=".tmp", dir=out_path.parent)
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(page)
-        shared(tmp)  # mkstemp makes it private; a page is meant to be shared
-        os.replace(tmp, out_path)
-        tmp = None
+        write_text(out_path, page)  # under a temporary name, then renamed: never half a page
     except OSError as exc:
         raise OSError(f"out: cannot write {out_path}: {exc.strerror or exc}") from exc
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
     return out_path
 
 
