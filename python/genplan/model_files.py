@@ -66,6 +66,23 @@ def _bad_tensor(name: str, t: Any) -> str | None:
     return None
 
 
+def _canonical_header(raw: bytes) -> bytes:
+    """``raw`` (a safetensors file) with its header's metadata in sorted key order. safetensors
+    writes the metadata map in an arbitrary order that changes from run to run, so the same
+    weights would get another sha256 each time they are written (a retrained model could never be
+    told equal to its card's); sorted, the bytes depend on the tensors and metadata only. The
+    header keeps its length (the data offsets are relative to its end)."""
+    n = int.from_bytes(raw[:8], "little")
+    header = json.loads(raw[8:8 + n])
+    meta = header.pop("__metadata__", None)
+    if meta is None:
+        return raw
+    text = json.dumps({"__metadata__": dict(sorted(meta.items())), **header}, separators=(",", ":")).encode()
+    if len(text) > n:  # cannot happen for the same keys and values; keep the file as written
+        return raw
+    return raw[:8] + text + b" " * (n - len(text)) + raw[8 + n:]
+
+
 def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, str], card: dict[str, Any],
                 config: Any, card_keys: frozenset[str], kind: str) -> tuple[Path, Path]:
     """Write ``path`` (.safetensors, torch tensors) and its card (.json beside it).
@@ -92,7 +109,9 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
     with atomic_path(path) as tmp:
         save_file({k: v.detach().contiguous() for k, v in tensors.items()}, str(tmp), metadata=metadata)
         shared(tmp)  # safetensors makes the file private; a model is meant to be shared
-        sha = hashlib.sha256(tmp.read_bytes()).hexdigest()
+        raw = _canonical_header(tmp.read_bytes())
+        tmp.write_bytes(raw)
+        sha = hashlib.sha256(raw).hexdigest()
     card = dict(card)
     card.update({"format": metadata["format"], "config": dataclasses.asdict(config), "weights_sha256": sha})
     card_path = write_text(path.with_suffix(".json"), json.dumps(card, indent=2, default=json_default) + "\n")
