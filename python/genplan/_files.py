@@ -11,7 +11,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_path", "read_toml", "shared", "write_text"]
+__all__ = ["atomic_path", "read_toml", "write_text"]
 
 
 @contextmanager
@@ -27,14 +27,6 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
-
-
-def shared(path: str | os.PathLike[str]) -> None:
-    """Give ``path`` the mode a new file gets from the umask (``0o666 & ~umask``): for files a
-    writer made private (mkstemp, safetensors) that are meant to be shared."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, 0o666 & ~umask)
 
 
 def write_text(path: str | os.PathLike[str], text: str) -> Path:

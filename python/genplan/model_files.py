@@ -66,14 +66,20 @@ def _bad_tensor(name: str, t: Any) -> str | None:
     return None
 
 
+def _header(raw: bytes) -> tuple[int, Any]:
+    """A safetensors file's header: its length and its JSON (the file opens with the length as
+    8 little-endian bytes, then the JSON)."""
+    n = int.from_bytes(raw[:8], "little")
+    return n, json.loads(raw[8:8 + n])
+
+
 def _canonical_header(raw: bytes) -> bytes:
     """``raw`` (a safetensors file) with its header's metadata in sorted key order. safetensors
     writes the metadata map in an arbitrary order that changes from run to run, so the same
     weights would get another sha256 each time they are written (a retrained model could never be
     told equal to its card's); sorted, the bytes depend on the tensors and metadata only. The
     header keeps its length (the data offsets are relative to its end)."""
-    n = int.from_bytes(raw[:8], "little")
-    header = json.loads(raw[8:8 + n])
+    n, header = _header(raw)
     meta = header.pop("__metadata__", None)
     if meta is None:
         return raw
@@ -93,7 +99,7 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
     never half a file), readable by all as the umask allows. A card key outside ``card_keys`` or a non-finite tensor raises
     :class:`~genplan.errors.ModelFileError` before anything is written (it could not be loaded).
     """
-    from safetensors.torch import save_file
+    from safetensors.torch import save
 
     path = Path(path).with_suffix(".safetensors")
     unknown = _unknown_keys(card, card_keys)
@@ -104,14 +110,12 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
         why = _bad_tensor(name, t)
         if why:
             raise ModelFileError(f"cannot write {kind} model {path}: {why}")
-    from genplan._files import atomic_path, shared, write_text
+    from genplan._files import atomic_path, write_text
 
+    raw = _canonical_header(save({k: v.detach().contiguous() for k, v in tensors.items()}, metadata=metadata))
     with atomic_path(path) as tmp:
-        save_file({k: v.detach().contiguous() for k, v in tensors.items()}, str(tmp), metadata=metadata)
-        shared(tmp)  # safetensors makes the file private; a model is meant to be shared
-        raw = _canonical_header(tmp.read_bytes())
-        tmp.write_bytes(raw)
-        sha = hashlib.sha256(raw).hexdigest()
+        tmp.write_bytes(raw)  # a new file: readable by all as the umask allows
+    sha = hashlib.sha256(raw).hexdigest()
     card = dict(card)
     card.update({"format": metadata["format"], "config": dataclasses.asdict(config), "weights_sha256": sha})
     card_path = write_text(path.with_suffix(".json"), json.dumps(card, indent=2, default=json_default) + "\n")
@@ -130,8 +134,7 @@ def peek_card(path: str | Path) -> dict[str, Any] | None:
 
 def _safetensors_metadata(data: bytes) -> dict[str, str]:
     """The ``__metadata__`` of a safetensors file's header (8-byte length, then JSON)."""
-    n = int.from_bytes(data[:8], "little")
-    header = json.loads(data[8:8 + n])
+    _, header = _header(data)
     meta = header.get("__metadata__", {}) if isinstance(header, dict) else None
     if not isinstance(meta, dict):
         raise ValueError("the header's __metadata__ is not an object")
