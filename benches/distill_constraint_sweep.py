@@ -55,7 +55,7 @@ def main() -> None:
     robot = genplan.load(args.robot)
     data = valid_configurations(robot, 25_000, 0, progress=True)
     held_out = valid_configurations(robot, 3000, 1000 + args.seed, progress=True)  # as genplan bench coverage
-    targets = robot.link_poses(held_out, [robot.frames[default_config(args.robot).target_frame]])[:, 0, :3, 3]
+    targets = robot.frame_positions(held_out, default_config(args.robot).target_frame)
     feats = Codec.features(robot, held_out)
     scale = np.maximum(feats.std(0), 0.05)
     ref = feats / scale

@@ -34,9 +34,7 @@ from adaptive_half_life import PROTOCOLS, record, summarize  # benches/: run as 
 def query_box(robot: genplan.Robot, gan: GanSampler, start: np.ndarray, goals: np.ndarray, margin: float) -> np.ndarray:
     """The box of the condition frame's positions at the start and goals, widened by ``margin``,
     within the model's target limits."""
-    frame = gan.model.config.target_frame
-    q = np.vstack([start[None], goals])
-    p = robot.link_poses(q, [robot.frames.get(frame, frame)])[:, 0, :3, 3]
+    p = robot.frame_positions(np.vstack([start[None], goals]), gan.model.config.target_frame)
     lo, hi = p.min(axis=0) - margin, p.max(axis=0) + margin
     limits = np.asarray(gan.model.target_limits(), dtype=np.float64)
     return np.array([np.clip(lo, limits[0], limits[1]), np.clip(hi, limits[0], limits[1])])

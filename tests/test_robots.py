@@ -69,6 +69,18 @@ def test_frame_errors(panda: genplan.Robot) -> None:
         panda.frame_placement(np.zeros((2, 7)), "hand")
 
 
+def test_frame_positions_by_role_or_link_name(panda: genplan.Robot) -> None:
+    """frame_positions: one configuration gives (3,), a batch (n, 3); a role and its link agree,
+    and with Pinocchio's placement."""
+    q = panda.random_configurations(5, 0)
+    by_role = panda.frame_positions(q, "hand")
+    assert by_role.shape == (5, 3) and panda.frame_positions(q[0], "hand").shape == (3,)
+    np.testing.assert_array_equal(by_role, panda.frame_positions(q, panda.frames["hand"]))
+    np.testing.assert_allclose(by_role[2], panda.frame_placement(q[2], "hand").translation, atol=1e-9)
+    with pytest.raises(UnknownNameError, match="foot"):
+        panda.frame_positions(q, "foot")
+
+
 def test_robots_dir_override(monkeypatch, tmp_path) -> None:
     monkeypatch.setenv("GENPLAN_ROBOTS_DIR", str(tmp_path / "missing"))
     with pytest.raises(FileNotFoundError, match="GENPLAN_ROBOTS_DIR"):

@@ -162,8 +162,7 @@ def _nearest_rows(robot: Robot, task: Any, targets: NDArray[np.float64],
     from genplan.projection import condition_term
 
     data = valid_configurations(robot, 25_000, 0, progress=False, task=task)
-    frame = condition_term(task).frame
-    tree = cKDTree(robot.link_poses(data, [robot.frames.get(frame, frame)])[:, 0, :3, 3])
+    tree = cKDTree(robot.frame_positions(data, condition_term(task).frame))
     k = min(k, len(data))
     t0 = time.perf_counter()
     _, idx = tree.query(targets, k=k)

@@ -261,6 +261,11 @@ class Robot:
         """
         return self.kinematics.forward_kinematics(q, links, dtype, out)
 
+    def frame_positions(self, q: Any, frame: str) -> NDArray[np.float64]:
+        """World positions of ``frame`` (a role such as "hand", or a link name) from the Rust
+        kinematics: q of shape (nq,) gives (3,), (n, nq) gives (n, 3)."""
+        return self.link_poses(q, [self.frames.get(frame, frame)])[..., 0, :3, 3]
+
     def frame_placement(self, q: ArrayLike, frame: str) -> pin.SE3:
         """Pinocchio placement of a frame (role or name) at one configuration."""
         fid = self.frame_id(frame)

@@ -46,8 +46,7 @@ def evaluate(model: SamplerModel, task: P.Task, n: int = 500, seed: int = 1, pro
     starts = {"gan": model.sample(np.clip(targets, *model.target_limits()), rng)}
     sample_ms = (time.perf_counter() - t0) * 1e3 / n
     starts["uniform"] = robot.random_configurations(n, rng)
-    frame = robot.frames.get(model.config.target_frame, model.config.target_frame)
-    reached = robot.link_poses(starts["gan"], [frame])[:, 0, :3, 3]
+    reached = robot.frame_positions(starts["gan"], model.config.target_frame)
     err = np.linalg.norm(reached - targets, axis=1)
     projector = P.GaussNewtonProjector(robot, manifold_task(task, robot))
     ik = P.GaussNewtonProjector(robot, task)

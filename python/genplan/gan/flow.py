@@ -388,8 +388,7 @@ def teacher_pairs(teacher: FlowModel, n: int, rng: np.random.Generator, box: Any
     robot = teacher.robot
     data = valid_configurations(robot, teacher.config.data_size, teacher.config.data_seed, progress=progress,
                                 task=P.load_task(teacher.config.task_name, robot))
-    frame = robot.frames.get(teacher.config.target_frame, teacher.config.target_frame)
-    reached = robot.link_poses(data, [frame])[:, 0, :3, 3]
+    reached = robot.frame_positions(data, teacher.config.target_frame)
     half = n // 2
     b = as_box(box)
     targets = np.concatenate([reached[rng.integers(0, len(reached), size=half)],

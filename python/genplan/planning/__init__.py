@@ -233,7 +233,7 @@ def data_sampler(robot: Robot, data: ArrayLike | None = None, *, task: "str | os
     if in_box:
         cfg = default_config(robot, task)
         lo, hi = as_box(cfg.target_box if box is None else box, "box")
-        pos = robot.link_poses(rows, [robot.frames.get(cfg.target_frame, cfg.target_frame)])[:, 0, :3, 3]
+        pos = robot.frame_positions(rows, cfg.target_frame)
         keep = np.all((pos >= lo) & (pos <= hi), axis=1)
         if not keep.any():
             raise SettingsError(f"box: none of the {len(rows)} configurations has its frame '{cfg.target_frame}' in "

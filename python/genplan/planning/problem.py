@@ -82,11 +82,6 @@ def _condition_frame(robot: Robot, task: P.Task) -> str:
     return condition_term(task).frame
 
 
-def _frame_position(robot: Robot, frame: str, q: NDArray[np.float64]) -> NDArray[np.float64]:
-    link = robot.frames.get(frame, frame)
-    return np.asarray(robot.link_poses(q[None], [link])[0, 0, :3, 3], dtype=np.float64)
-
-
 def _project_free(robot: Robot, proj: P.GaussNewtonProjector, world: CollisionWorld, q: ArrayLike, what: str,
                   error: type[GenplanError]) -> NDArray[np.float64]:
     q0 = robot.check_configuration(q, what)
@@ -133,7 +128,7 @@ def make_query(robot: Robot, task: P.Task, world: CollisionWorld, start: ArrayLi
         rows = g.reshape(-1, robot.nq)
         goals = np.array([_project_free(robot, proj, world, row, f"goal[{i}]" if len(rows) > 1 else "goal",
                                         InvalidGoalError) for i, row in enumerate(rows)])
-        goal_target = _frame_position(robot, frame, goals[0])
+        goal_target = robot.frame_positions(goals[0], frame)
     else:
         t = np.asarray(target, dtype=np.float64).reshape(-1)
         if t.shape != (3,) or not np.all(np.isfinite(t)):
@@ -144,4 +139,4 @@ def make_query(robot: Robot, task: P.Task, world: CollisionWorld, start: ArrayLi
             raise InvalidGoalError(f"target {t.tolist()}: no collision-free IK solution of task '{task.name}' in "
                                    f"{max_tries} tries (out of reach, or blocked by the scene)")
         goal_target = t
-    return Query(start=s, goals=goals, start_target=_frame_position(robot, frame, s), goal_target=goal_target)
+    return Query(start=s, goals=goals, start_target=robot.frame_positions(s, frame), goal_target=goal_target)

@@ -291,8 +291,7 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
     robot = genplan.load(name)
     data = valid_configurations(robot, 25_000, 0, progress=progress)
     held_out = valid_configurations(robot, 3000, 1000 + seed, progress=progress)
-    frame = robot.frames[default_config(name).target_frame]
-    targets = robot.link_poses(held_out, [frame])[:, 0, :3, 3]
+    targets = robot.frame_positions(held_out, default_config(name).target_frame)
     feats_ref = Codec.features(robot, held_out)
     scale = np.maximum(feats_ref.std(0), 0.05)
     ref = feats_ref / scale

@@ -57,8 +57,7 @@ def reachable_targets(robot: genplan.Robot, task: Any, n: int, seed: int) -> np.
     from genplan.projection import condition_term
 
     q = valid_configurations(robot, n, seed, progress=False, task=task)
-    frame = condition_term(task).frame
-    return robot.link_poses(q, [robot.frames.get(frame, frame)])[:, 0, :3, 3]
+    return robot.frame_positions(q, condition_term(task).frame)
 
 
 def _summary(res: Any, budget_s: float | None) -> dict[str, Any]:
