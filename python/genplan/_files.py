@@ -4,6 +4,7 @@ task, scene: TOML) read with errors that name the file."""
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
 from collections.abc import Iterator
@@ -18,13 +19,25 @@ __all__ = ["atomic_path", "read_toml", "write_text"]
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """A temporary name beside ``path`` (same suffix) to write to; renamed to ``path`` when the
     block ends without an error, removed otherwise. A reader never sees half a file, and a failed
-    write leaves the old file in place. The folder is created if missing."""
+    write leaves the old file in place. The folder is created if missing.
+
+    Errors name ``path``, the file the caller asked for, never the temporary one: ``path`` being
+    a folder is an IsADirectoryError before anything is written, and an OSError of the write
+    (permission, read-only file system, disk full, quota), raised inside the block on the
+    temporary file or by the rename, is re-raised with ``path`` as its file name (same errno,
+    hence the same OSError subclass). Other errors of the block pass unchanged."""
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.{os.getpid()}-{secrets.token_hex(4)}.tmp{path.suffix}")
     try:
         yield tmp
         os.replace(tmp, path)
+    except OSError as exc:
+        if exc.errno is None or exc.filename not in (None, str(tmp), tmp):
+            raise
+        raise OSError(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from None
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -51,3 +64,24 @@ def read_toml(path: str | os.PathLike[str], kind: str, error: type[Exception]) -
         raise error(f"{kind} file {path}: {exc}") from None
     data.setdefault("name", path.stem)
     return data
+
+
+def missing_folders(path: str | os.PathLike[str]) -> list[Path]:
+    """The folders of ``path`` (itself included) that do not exist, deepest first: those a
+    ``mkdir(parents=True)`` of it creates."""
+    missing = []
+    folder = Path(path).absolute()
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing
+
+
+def remove_empty_folders(folders: list[Path]) -> None:
+    """Remove each of ``folders`` (deepest first) that is empty, keep the others: the folders a
+    run that failed created (:func:`missing_folders`), when it left nothing in them."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            pass
