@@ -177,9 +177,33 @@ pub struct TimedSpline<'a> {
 /// Sample times, then `q`, `qd`, `qdd` (rows of n), of [`sample`].
 pub type Samples = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
+/// The most memory the samples of one timed path may take ([`sample`]: times, `q`, `qd`, `qdd`,
+/// 8 bytes each): 1 GiB, 1.7 hours of a 7-joint arm at 1 kHz.
+pub const MAX_SAMPLE_BYTES: usize = 1 << 30;
+
+/// The bytes the samples of a timed path `total` seconds long take at `rate` Hz with `n`
+/// joints, at most (every tick from 0, and the end when it falls between two): the bound
+/// [`sample`] checks against [`MAX_SAMPLE_BYTES`] before it allocates anything. Not finite when
+/// the count is not.
+pub fn sample_bytes(total: f64, rate: f64, n: usize) -> f64 {
+    ((total * rate + 1e-9).floor() + 2.0) * ((1 + 3 * n) * 8) as f64
+}
+
+/// `len` zeros, allocated fallibly: an allocation that fails is an error naming what it was
+/// for, not an abort.
+fn zeros(len: usize, what: &dyn Fn() -> String) -> Result<Vec<f64>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| Error::Settings { field: "rate", msg: format!("{}: could not be allocated (out of memory)", what()) })?;
+    v.resize(len, 0.0);
+    Ok(v)
+}
+
 /// The samples of a timed path at `rate` Hz, its timing stretched by `scale` (`t -> scale t`),
 /// from 0 to the end (the end itself appended when it falls between two ticks): times, then
-/// `q`, `qd`, `qdd` (rows of n): the samples of `python/genplan/trajectory.py`.
+/// `q`, `qd`, `qdd` (rows of n): the samples of `python/genplan/trajectory.py`. Samples that
+/// would take more than [`MAX_SAMPLE_BYTES`] ([`sample_bytes`]) are refused before anything is
+/// allocated, and an allocation that fails is an error ([`Error::Settings`] naming `rate`
+/// either way), never an abort.
 pub fn sample(p: &TimedSpline<'_>, n: usize, rate: f64, scale: f64) -> Result<Samples> {
     let (m, points) = (p.x.len().saturating_sub(1), p.grid.len());
     if m == 0 || n == 0 || p.c.len() != m * 4 * n {
@@ -201,16 +225,28 @@ pub fn sample(p: &TimedSpline<'_>, n: usize, rate: f64, scale: f64) -> Result<Sa
     }
     let end = p.knots[points - 1];
     let total = end * scale;
+    let bytes = sample_bytes(total, rate, n);
     let ticks = (total * rate + 1e-9).floor();
-    if !(ticks < 1e9) {
-        return Err(Error::Invalid(format!("{total} s at {rate} Hz: too many samples")));
+    let gib = |b: f64| b / (1u64 << 30) as f64;
+    let what = || format!("{total} s at {rate} Hz: {} samples of {n} joints, {:.2} GiB,", ticks + 1.0, gib(bytes));
+    if !(bytes <= MAX_SAMPLE_BYTES as f64) {
+        return Err(Error::Settings {
+            field: "rate",
+            msg: format!("{} more than the {:.2} GiB the samples of a trajectory may take", what(), gib(MAX_SAMPLE_BYTES as f64)),
+        });
     }
-    let mut t: Vec<f64> = (0..=ticks as usize).map(|k| k as f64 / rate).collect();
-    if total - t[t.len() - 1] > 1e-9 {
+    // within MAX_SAMPLE_BYTES: the counts fit a usize
+    let ticks = ticks as usize;
+    let mut t = zeros(ticks + 2, &what)?;
+    t.truncate(ticks + 1);
+    for (k, x) in t.iter_mut().enumerate() {
+        *x = k as f64 / rate;
+    }
+    if total - t[ticks] > 1e-9 {
         t.push(total);
     }
     let s_end = p.x[m];
-    let (mut q, mut qd, mut qdd) = (vec![0.0; t.len() * n], vec![0.0; t.len() * n], vec![0.0; t.len() * n]);
+    let (mut q, mut qd, mut qdd) = (zeros(t.len() * n, &what)?, zeros(t.len() * n, &what)?, zeros(t.len() * n, &what)?);
     let (mut i, mut j) = (0usize, 0usize);
     for (k, &tk) in t.iter().enumerate() {
         let tu = (tk / scale).min(end);
@@ -281,6 +317,30 @@ mod tests {
         assert!(sample(&bad, 1, 4.0, 1.0).unwrap_err().to_string().contains("one s'' fewer"));
         assert!(sample(&p, 2, 4.0, 1.0).unwrap_err().to_string().contains("coefficients"));
         assert!(sample(&p, 1, 0.0, 1.0).unwrap_err().to_string().contains("positive"));
+    }
+
+    /// A sample count whose samples would take more than MAX_SAMPLE_BYTES is refused before
+    /// anything is allocated (2.8 GiB aborted the process), naming the rate and the size.
+    #[test]
+    fn integrity_6_samples_beyond_the_memory_bound_are_refused_before_allocating() {
+        let (x, c) = ([0.0, 1.0], [0.0; 4 * 7]);
+        let p = TimedSpline { x: &x, c: &c, grid: &[0.0, 1.0], knots: &[0.0, 1.0], sdot: &[1.0, 1.0], sdd: &[0.0] };
+        let per_sample = sample_bytes(0.0, 1.0, 7) / 2.0; // t, q, qd, qdd: 176 bytes
+        let rate = 2.8 * (1u64 << 30) as f64 / per_sample;
+        match sample(&p, 7, rate, 1.0) {
+            Err(Error::Settings { field: "rate", msg }) => {
+                assert!(msg.contains("2.80 GiB") && msg.contains("more than the 1.00 GiB"), "{msg}")
+            }
+            other => panic!("expected a settings error, got {:?}", other.map(|s| s.0.len())),
+        }
+        for bad in [f64::MAX, 1e300] {
+            assert!(matches!(sample(&p, 7, bad, 1.0), Err(Error::Settings { field: "rate", .. })));
+        }
+        assert!(matches!(sample(&p, 7, 1e3, 1e300), Err(Error::Settings { field: "rate", .. })));
+        // 1.01 x the bound: refused; 1e5 samples: made
+        assert!(sample(&p, 7, 1.01 * MAX_SAMPLE_BYTES as f64 / per_sample, 1.0).is_err());
+        let (t, q, _, _) = sample(&p, 7, 1e5, 1.0).unwrap();
+        assert_eq!((t.len(), q.len()), (100_001, 700_007));
     }
 
     /// Curved paths of several joints: every grid point keeps the velocity limits and each

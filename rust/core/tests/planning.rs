@@ -464,3 +464,95 @@ fn an_adaptive_mixture_hands_over_to_the_secondary_sampler() {
         assert!(m.with_half_life(bad).is_err(), "half_life {bad} accepted");
     }
 }
+
+/// A start within goal_tolerance of a valid goal has reached it: one state, no search, the
+/// nearest such goal (both algorithms).
+#[test]
+fn integrity_3_a_start_at_the_goal_is_a_one_state_path() {
+    for algorithm in [Algorithm::Crrt, Algorithm::RrtConnect] {
+        let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings { algorithm, ..Settings::default() }).unwrap();
+        let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
+        let (mut projector, mut checker, mut interrupt) = (SphereProjector { radius: 1.0 }, Band, no_interrupt);
+        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+        let start = [0.0, 0.0, -1.0];
+        let sol = planner.plan(&start, &start, &mut c).unwrap();
+        assert!(sol.success, "{algorithm:?}");
+        assert_eq!((sol.path.as_slice(), sol.waypoints.as_slice(), sol.goal_index), (&start[..], &start[..], Some(0)));
+        assert_eq!((sol.stats.extensions, sol.stats.nodes, sol.stats.samples), (0, 1, 0));
+        // 5e-4 away on the sphere (within goal_tolerance 1e-3), after a far goal and a farther
+        // one within the tolerance
+        let (near, nearer) = ([(8e-4f64).sin(), 0.0, -(8e-4f64).cos()], [0.0, (5e-4f64).sin(), -(5e-4f64).cos()]);
+        let goals = [[0.0, 0.0, 1.0], near, nearer].concat();
+        let sol = planner.plan(&start, &goals, &mut c).unwrap();
+        assert!(sol.success && sol.goal_index == Some(2) && sol.path == start.to_vec(), "{algorithm:?}: {:?}", sol.goal_index);
+        // farther than the tolerance: a search, a path of many states ending at the goal
+        let far = [(0.01f64).sin(), 0.0, -(0.01f64).cos()];
+        let sol = planner.plan(&start, &far, &mut c).unwrap();
+        assert!(sol.success && sol.path.len() / 3 > 1 && sol.path[sol.path.len() - 3..] == far, "{algorithm:?}");
+    }
+}
+
+/// The unit sphere whose chords are held to `chord`: a chord's midpoint is within `chord` of
+/// the sphere (the sagitta of a chord d long is about d^2 / 8: 7.8e-5 at 0.025).
+struct ChordSphere {
+    chord: f64,
+    calls: usize,
+}
+
+impl Projector for ChordSphere {
+    fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        SphereProjector { radius: 1.0 }.project(qs, q_noms, out, reports)
+    }
+    fn check_chords(&mut self, qs: &[f64], ok: &mut [bool]) -> PlanResult<bool> {
+        self.calls += 1;
+        for (q, o) in qs.chunks(3).zip(ok.iter_mut()) {
+            *o = (q.iter().map(|x| x * x).sum::<f64>().sqrt() - 1.0).abs() <= self.chord;
+        }
+        Ok(true)
+    }
+}
+
+/// With a projector that holds chords to a tolerance, every chord of the path keeps it: the
+/// chords that stray are split at their projected midpoints (tree edges and shortcuts, both
+/// algorithms); a tolerance no chord of `edge_resolution / 8` can meet refuses every edge.
+#[test]
+fn integrity_3_every_chord_keeps_the_chord_tolerance() {
+    let sagitta = |d: f64| 1.0 - (1.0 - d * d / 4.0).sqrt();
+    for (algorithm, simplify) in [(Algorithm::Crrt, false), (Algorithm::Crrt, true), (Algorithm::RrtConnect, true)] {
+        let chord = 5e-5;
+        let settings = Settings { algorithm, simplify, ..Settings::default() };
+        let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings.clone()).unwrap();
+        let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(2) };
+        let (mut projector, mut checker, mut interrupt) = (ChordSphere { chord, calls: 0 }, Band, no_interrupt);
+        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+        let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
+        assert!(sol.success, "{algorithm:?}");
+        assert!(sol.stats.chord_checks > 0);
+        let path: Vec<&[f64]> = sol.path.chunks(3).collect();
+        let mut longest: f64 = 0.0;
+        for w in path.windows(2) {
+            let d = EuclideanSpace(3).distance(w[0], w[1]);
+            longest = longest.max(d);
+            assert!(sagitta(d) <= chord, "{algorithm:?}: a chord {d} long strays {} from the sphere", sagitta(d));
+            assert!(d <= genplan_core::planning::MAX_SPACING * settings.edge_resolution + 1e-12);
+        }
+        // the states were split: no chord as long as the resolution is left
+        assert!(longest < 0.0201, "{algorithm:?}: {longest}");
+    }
+    // the control: the same plan without the chord check has chords that stray beyond it
+    let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings::default()).unwrap();
+    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(2) };
+    let (mut projector, mut checker, mut interrupt) = (SphereProjector { radius: 1.0 }, Band, no_interrupt);
+    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
+    let path: Vec<&[f64]> = sol.path.chunks(3).collect();
+    assert!(sol.success && sol.stats.chord_checks == 0);
+    assert!(path.windows(2).any(|w| sagitta(EuclideanSpace(3).distance(w[0], w[1])) > 5e-5));
+    // chords of edge_resolution / 8 stray 1.2e-6: a tolerance of 1e-7 refuses every edge
+    let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings { max_extensions: 20, retries: 0, ..Settings::default() }).unwrap();
+    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(2) };
+    let (mut projector, mut checker, mut interrupt) = (ChordSphere { chord: 1e-7, calls: 0 }, Band, no_interrupt);
+    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
+    assert!(!sol.success && sol.stats.pruned > 0);
+}

@@ -598,12 +598,15 @@ record_class!(
     "PlanStats",
     Stats,
     [success, retries, extensions, projections, projection_calls, edge_projections, samples, samples_rejected,
-     validity_checks, motion_certificates, nodes, pruned, shortcuts, time_s, sampler_s, projector_s, checker_s]
+     validity_checks, motion_certificates, chord_checks, nodes, pruned, shortcuts, time_s, sampler_s, projector_s,
+     checker_s]
 );
 
-/// A plan's outcome. `path` is dense: from the start to the goal reached, every state is on the
-/// manifold and valid, consecutive states at most ~`edge_resolution` apart; `waypoints` are the
-/// tree nodes along it; `stats` what it cost.
+/// A plan's outcome. `path` is dense: from the start to the goal reached (the start alone when
+/// it is within `goal_tolerance` of a goal), every state is on the manifold and valid,
+/// consecutive states at most 1.25 x `edge_resolution` apart (planning::MAX_SPACING), the chords
+/// between them held to the chord tolerance when one was given; `waypoints` are the tree nodes
+/// along it; `stats` what it cost.
 #[pyclass(name = "PlanResult", module = "genplan._core", frozen)]
 pub(crate) struct PyPlanResult {
     #[pyo3(get)]
@@ -677,8 +680,12 @@ impl PyPlanner {
         Ok(Self { inner: Planner::new(space, st).map_err(plan_error_to_py)?, nq: model.inner.nq })
     }
 
-    /// Plan from `start` (nq,) to any row of `goals` (k, nq).
-    #[pyo3(signature = (start, goals, sampler, projector, checker, parallel=false))]
+    /// Plan from `start` (nq,) to any row of `goals` (k, nq). `chord_tolerance`: with a native
+    /// projector, the chords between consecutive states of every edge are held to its primary
+    /// terms' tolerances times this (GaussNewtonProjector::with_chord_tolerance); None: not
+    /// checked (a Python projector's chords never are).
+    #[pyo3(signature = (start, goals, sampler, projector, checker, parallel=false, chord_tolerance=None))]
+    #[allow(clippy::too_many_arguments)]
     fn plan<'py>(
         &self,
         py: Python<'py>,
@@ -688,6 +695,7 @@ impl PyPlanner {
         projector: &Bound<'py, PyAny>,
         checker: &Bound<'py, PyAny>,
         parallel: bool,
+        chord_tolerance: Option<f64>,
     ) -> PyResult<PyPlanResult> {
         let nq = self.nq;
         if goals.shape().len() != 2 || goals.shape()[1] != nq || goals.shape()[0] == 0 {
@@ -700,7 +708,11 @@ impl PyPlanner {
             if inner.model.nq != nq {
                 return Err(err(Kind::Generic, "projector: built for another model"));
             }
-            Box::new(GaussNewtonProjector::new(Arc::new(inner.clone()), parallel))
+            let native = GaussNewtonProjector::new(Arc::new(inner.clone()), parallel);
+            Box::new(match chord_tolerance {
+                Some(scale) => native.with_chord_tolerance(scale).map_err(plan_error_to_py)?,
+                None => native,
+            })
         } else if projector.hasattr("project")? {
             Box::new(PyProjectorAdapter { obj: projector.clone().unbind(), nq })
         } else {
@@ -753,7 +765,17 @@ impl PyPlanner {
     }
 }
 
+/// The bytes the samples of a timed path `total` seconds long take at `rate` Hz with `n` joints,
+/// at most (genplan_core::timing::sample_bytes: what `sample_timed_spline` checks against
+/// `MAX_TRAJECTORY_BYTES` before it allocates).
+#[pyfunction]
+fn sample_bytes(total: f64, rate: f64, n: usize) -> f64 {
+    genplan_core::timing::sample_bytes(total, rate, n)
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(sample_bytes, m)?)?;
+    m.add("MAX_TRAJECTORY_BYTES", genplan_core::timing::MAX_SAMPLE_BYTES)?;
     m.add_class::<PyPlanner>()?;
     m.add_class::<PyPlannerSettings>()?;
     m.add_class::<PyPlanStats>()?;

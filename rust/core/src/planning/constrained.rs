@@ -168,12 +168,16 @@ impl<'a> ConstrainedSpace<'a> {
     /// the straight line interpolated at `edge_resolution`, each intermediate state projected
     /// around its interpolation (a tree edge, at most `max_jump * step` long, with
     /// [`Projector::project_edge`]; a longer one, a shortcut, with [`Projector::project`]) and
-    /// checked. Returns the projected
+    /// checked. With a projector that holds chords to a tolerance ([`Projector::check_chords`]),
+    /// the midpoint of every chord between consecutive states is checked too, and a chord that
+    /// strays is split at its projected midpoint (`hold_chords`). Returns the projected
     /// intermediate states (rows, `a` and `b` excluded; none when `edge_resolution` is 0), or
     /// None when a projection fails, two consecutive states are more than
     /// [`MAX_SPACING`]` x edge_resolution` apart (a jump to another branch, or a chord too long
-    /// to stay on the manifold), a state is not valid, or the edge would need more than
-    /// [`Settings::MAX_EDGE_STATES`] states (only a shortcut can, never a tree edge).
+    /// to stay on the manifold), a chord strays from the manifold down to
+    /// `edge_resolution /` [`Settings::CERTIFY_REFINEMENT`], a state is not valid, or the edge
+    /// would need more than [`Settings::MAX_EDGE_STATES`] states (only a shortcut can, never a
+    /// tree edge).
     ///
     /// With [`EdgeCheck::Certified`] the motion between consecutive states is certified as well
     /// (`certify_states`: [`ValidityChecker::certify_path`]), and states are added where it cannot be.
@@ -219,8 +223,20 @@ impl<'a> ConstrainedSpace<'a> {
             }
         }
         states[n_mid * nq..].copy_from_slice(b);
-        if self.settings.edge_check == EdgeCheck::Certified && resolution > 0.0 {
-            return self.certify_states(a, states, self.is_tree_edge(dist));
+        if resolution == 0.0 {
+            // no edge validation: the end only
+            let n_check = usize::from(check_end);
+            let mut valid = vec![false; n_check];
+            self.check(&states[..n_check * nq], &mut valid)?;
+            return Ok(valid.iter().all(|&v| v).then(Vec::new));
+        }
+        let tree_edge = self.is_tree_edge(dist);
+        let Some(mut states) = self.hold_chords(a, states, tree_edge)? else {
+            return Ok(None);
+        };
+        let n_mid = states.len() / nq - 1;
+        if self.settings.edge_check == EdgeCheck::Certified {
+            return self.certify_states(a, states, tree_edge);
         }
         let n_check = n_mid + usize::from(check_end);
         let mut valid = vec![false; n_check];
@@ -231,6 +247,85 @@ impl<'a> ConstrainedSpace<'a> {
         } else {
             Ok(None)
         }
+    }
+
+    /// The chords of an edge held to the projector's chord tolerance
+    /// ([`Projector::check_chords`]; a projector without one: not checked): `rest` is the edge's
+    /// states after `a` (rows, the last one its end `b`). The midpoint of every chord between
+    /// consecutive states is checked (the chord of a manifold of bounded curvature strays
+    /// farthest from it there); a chord whose midpoint is off is split at its projected midpoint
+    /// (within [`MAX_SPACING`] half-chords of either end) and both halves are checked the same
+    /// way, down to chords of `edge_resolution /` [`Settings::CERTIFY_REFINEMENT`]. Returns the
+    /// states after `a` with those added (rows, in order, the last one still `b`), or None when a
+    /// chord still strays there, a midpoint cannot be projected, or the edge would need more than
+    /// [`Settings::MAX_EDGE_STATES`] states. Timed in `projector_s`; the midpoints checked are
+    /// counted in `chord_checks`.
+    fn hold_chords(&mut self, a: &[f64], rest: Vec<f64>, tree_edge: bool) -> PlanResult<Option<Vec<f64>>> {
+        let space = self.ambient;
+        let nq = space.nq();
+        let finest = self.settings.edge_resolution / Settings::CERTIFY_REFINEMENT;
+        let mut states = Vec::with_capacity(rest.len() + nq);
+        states.extend_from_slice(a);
+        states.extend_from_slice(&rest);
+        // the chords still to check, each by the index of its first state: all of them, then the
+        // halves of those split
+        let mut pending: Vec<usize> = (0..rest.len() / nq).collect();
+        while !pending.is_empty() {
+            let mut mids = vec![0.0; pending.len() * nq];
+            for (m, &k) in mids.chunks_mut(nq).zip(&pending) {
+                space.interpolate(&states[k * nq..(k + 1) * nq], &states[(k + 1) * nq..(k + 2) * nq], 0.5, m);
+            }
+            let mut ok = vec![true; pending.len()];
+            let t = Instant::now();
+            let checked = self.projector.check_chords(&mids, &mut ok);
+            self.stats.projector_s += t.elapsed().as_secs_f64();
+            if !checked? {
+                return Ok(Some(rest));
+            }
+            self.stats.chord_checks += pending.len();
+            let bad: Vec<usize> = (0..pending.len()).filter(|&i| !ok[i]).collect();
+            if bad.is_empty() {
+                break;
+            }
+            let n_states = states.len() / nq;
+            if n_states - 1 + bad.len() > Settings::MAX_EDGE_STATES {
+                return Ok(None);
+            }
+            let mut lin = Vec::with_capacity(bad.len() * nq);
+            for &i in &bad {
+                let k = pending[i];
+                if space.distance(&states[k * nq..(k + 1) * nq], &states[(k + 1) * nq..(k + 2) * nq]) / 2.0 < finest {
+                    return Ok(None);
+                }
+                lin.extend_from_slice(&mids[i * nq..(i + 1) * nq]);
+            }
+            let mut projected = vec![0.0; lin.len()];
+            let mut reps = vec![Projection::default(); bad.len()];
+            self.project_edge_states(&lin, tree_edge, &mut projected, &mut reps)?;
+            // the states with each projected midpoint after the first state of its chord
+            let mut next = Vec::with_capacity(states.len() + projected.len());
+            let mut halves = Vec::with_capacity(2 * bad.len());
+            let mut splits = bad.iter().map(|&i| pending[i]).zip(projected.chunks(nq)).zip(&reps).peekable();
+            for k in 0..n_states {
+                let s0 = &states[k * nq..(k + 1) * nq];
+                next.extend_from_slice(s0);
+                let Some(((_, m), r)) = splits.next_if(|((at, _), _)| *at == k) else {
+                    continue;
+                };
+                let s1 = &states[(k + 1) * nq..(k + 2) * nq];
+                let max_gap = MAX_SPACING * space.distance(s0, s1) / 2.0;
+                if !r.success || m.iter().any(|x| !x.is_finite()) || space.distance(s0, m) > max_gap || space.distance(m, s1) > max_gap {
+                    return Ok(None);
+                }
+                let first = next.len() / nq - 1;
+                next.extend_from_slice(m);
+                halves.extend([first, first + 1]);
+            }
+            states = next;
+            pending = halves;
+        }
+        states.drain(..nq);
+        Ok(Some(states))
     }
 
     /// An edge `dist` long is a tree edge (at most `max_jump * step`), not a shortcut.

@@ -39,15 +39,27 @@ pub trait Projector: Send {
     fn project_edge(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
         self.project(qs, q_noms, out, reports)
     }
+
+    /// The chord check: `ok[i]` says whether row i of `qs` (the midpoint of the straight chord
+    /// between two consecutive states of an edge) satisfies the constraint within the tolerance
+    /// the chords of a path are held to. Returns false, leaving `ok` alone, when this projector
+    /// holds the chords to no tolerance (the default): they are then not checked.
+    fn check_chords(&mut self, _qs: &[f64], _ok: &mut [bool]) -> PlanResult<bool> {
+        Ok(false)
+    }
 }
 
 /// The native damped Gauss-Newton projector; a batch runs on rayon's threads when `parallel`.
 /// Edge states ([`Projector::project_edge`]) are projected without the secondary terms (the
-/// posture step).
+/// posture step). With [`with_chord_tolerance`](Self::with_chord_tolerance) it also checks the
+/// chords between consecutive states ([`Projector::check_chords`]).
 pub struct GaussNewtonProjector {
     inner: Arc<crate::projection::Projector>,
     /// `inner` without its secondary terms.
     primary_only: Arc<crate::projection::Projector>,
+    /// The chord check: the primary terms at their tolerances times the chord tolerance, no
+    /// iteration (an evaluation), or None.
+    chords: Option<Arc<crate::projection::Projector>>,
     /// Project the configurations of a batch on rayon's threads.
     pub parallel: bool,
 }
@@ -62,7 +74,28 @@ impl GaussNewtonProjector {
             p.secondary.clear();
             Arc::new(p)
         };
-        GaussNewtonProjector { inner, primary_only, parallel }
+        GaussNewtonProjector { inner, primary_only, chords: None, parallel }
+    }
+
+    /// This projector, holding the chords between consecutive states of every edge to its
+    /// primary terms' tolerances times `scale` ([`Projector::check_chords`]). A planner whose
+    /// projector solves a task with its tolerances tightened by a factor f (as
+    /// `genplan.planning.Planner` does, f = 0.1) passes 1 / f: every chord of the path then
+    /// satisfies the task at its own tolerances. `scale` must be positive and finite
+    /// ([`PlanError::Settings`] naming `chord_tolerance`).
+    pub fn with_chord_tolerance(mut self, scale: f64) -> PlanResult<GaussNewtonProjector> {
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(PlanError::Settings { field: "chord_tolerance", msg: format!("chord_tolerance must be positive and finite, got {scale}") });
+        }
+        let mut p = (*self.primary_only).clone();
+        for t in &mut p.primary {
+            t.tolerance *= scale;
+        }
+        // an evaluation where the configuration stands: no iteration, no clipping
+        p.settings.max_iterations = 0;
+        p.settings.clip_to_limits = false;
+        self.chords = Some(Arc::new(p));
+        Ok(self)
     }
 
     /// The solver and its task.
@@ -84,6 +117,21 @@ impl Projector for GaussNewtonProjector {
     /// [`project`](Projector::project) with the primary terms only (no posture step).
     fn project_edge(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
         solve_batch(&self.primary_only, self.parallel, qs, q_noms, out, reports)
+    }
+
+    /// Each point's primary residuals against the tolerances times the chord tolerance (one
+    /// forward kinematics per point, no solver step), when the projector has one.
+    fn check_chords(&mut self, qs: &[f64], ok: &mut [bool]) -> PlanResult<bool> {
+        let Some(chords) = &self.chords else {
+            return Ok(false);
+        };
+        let mut out = vec![0.0; qs.len()];
+        let mut reports = vec![Projection::default(); ok.len()];
+        solve_batch(chords, self.parallel, qs, qs, &mut out, &mut reports)?;
+        for (o, r) in ok.iter_mut().zip(&reports) {
+            *o = r.success;
+        }
+        Ok(true)
     }
 }
 

@@ -269,6 +269,9 @@ pub struct Stats {
     pub validity_checks: usize,
     /// Motions the checker was asked to certify (edge chords, with certified edges).
     pub motion_certificates: usize,
+    /// Chord midpoints checked against the projector's chord tolerance (with a projector that
+    /// holds the chords to one: [`Projector::check_chords`]).
+    pub chord_checks: usize,
     /// Tree nodes at the end of the last attempt.
     pub nodes: usize,
     /// Nodes pruned because an edge above them failed (lazy) validation.
@@ -370,6 +373,9 @@ impl Planner {
     /// * valid (the checker): an invalid start is refused; invalid goals are dropped, and
     ///   refused only when none is left ([`Solution::goal_index`] says which goal was reached).
     ///
+    /// A start within `goal_tolerance` of a valid goal has reached it: the solution is the start
+    /// alone (one state, one waypoint, the nearest such goal), with no search.
+    ///
     /// A solution is checked once more before it is returned: its path starts at the start and
     /// ends at the goal reached (its edges were validated as they were built).
     pub fn plan(&self, start: &[f64], goals: &[f64], c: &mut Components<'_>) -> PlanResult<Solution> {
@@ -402,6 +408,22 @@ impl Planner {
         let valid_goals: Vec<usize> = (0..goal_ok.len()).filter(|&i| goal_ok[i]).collect();
         if valid_goals.is_empty() {
             return Err(PlanError::InvalidGoal("goals: none of the goal configurations is valid (in collision or outside the joint limits)".into()));
+        }
+        // the start within goal_tolerance of a valid goal (the nearest such one) has reached it:
+        // a path of one state, without a search (which would grow a tree away and back)
+        let at_goal = valid_goals
+            .iter()
+            .map(|&g| (g, space.distance(start, &goals[g * nq..(g + 1) * nq])))
+            .filter(|&(_, d)| d <= self.settings.goal_tolerance)
+            .min_by(|x, y| x.1.total_cmp(&y.1));
+        if let Some((g, _)) = at_goal {
+            let mut stats = run.space.stats;
+            stats.success = true;
+            stats.nodes = 1;
+            stats.time_s = t0.elapsed().as_secs_f64();
+            let path = start.to_vec();
+            self.check_solution(&path, start, &goals[g * nq..(g + 1) * nq])?;
+            return Ok(Solution { success: true, waypoints: path.clone(), path, goal_index: Some(g), stats });
         }
 
         let mut solution = None;
