@@ -127,3 +127,13 @@ def test_data_sampler_plan_plans_with_the_data_set_beside_uniform_and_the_gan(tm
     assert rows[("nodes", "data")]["sampler_s"] > 0 and rows[("nodes", "data")]["extensions"] > 0
     assert set(data["summary"]) == {f"{p}/{s}" for p in ("nodes", "edges") for s in ("uniform", "gan", "data", "data_box")}
     assert 0 < data["data_box_rows"]["panda_shelf"] < 25_000
+
+
+def test_trajectory_check_times_the_checks_or_names_the_refusal(tmp_path, monkeypatch, capsys) -> None:
+    out = tmp_path / "trajectory_check.json"
+    _run("trajectory_check.py", ["--plans", "1", "--seed", "1", "--repeats", "1", "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    assert data["command"] == "python benches/trajectory_check.py --plans 1 --seed 1 --repeats 1"
+    row = data["rows"][0]
+    assert "refused" in row or 0 < row["collision_check_ms"] <= row["check_ms"]
+    assert data["summary"]["timed"] + data["summary"]["refused"] <= 1 and "median:" in capsys.readouterr().out

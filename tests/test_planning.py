@@ -534,3 +534,65 @@ def test_the_adaptive_sampler_starts_as_the_gan_and_ends_uniform(panda) -> None:
         make_sampler(panda, "adaptive", half_life=0.0)
     with pytest.raises(SettingsError, match="half_life must be a finite number > 0"):
         make_sampler(panda, "adaptive", half_life=float("nan"))
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_integrity_3_a_start_at_the_goal_is_a_one_state_path(panda, shelf, algorithm) -> None:
+    """A start already at a goal (or within goal_tolerance of one) is reached: a path of one state,
+    no search, no detour; the goal reached is that goal, even after others."""
+    env, world, queries = shelf
+    q = queries[0]
+    planner = Planner(panda, world=world, seed=0, algorithm=algorithm)
+    res = planner.plan(q.start, q.start[None])
+    assert res.success and res.goal_index == 0
+    np.testing.assert_array_equal(res.path, q.start[None])
+    np.testing.assert_array_equal(res.waypoints, q.start[None])
+    assert res.extensions == 0 and res.stats.nodes == 1
+    # 5e-4 rad of the base joint away (on the manifold: the gripper stays horizontal), after two far goals
+    near = q.start.copy()
+    near[0] += 5e-4
+    res = planner.plan(q.start, np.vstack([q.goals[:2], near]))
+    assert res.success and res.goal_index == 2 and res.path.shape == (1, 7)
+    np.testing.assert_array_equal(res.path[0], q.start)
+    # its trajectory stands still
+    traj = res.trajectory()
+    assert len(traj) == 1 and traj.duration == 0.0
+
+
+def test_integrity_3_plan_to_the_start_stays(panda, shelf) -> None:
+    """The front end (`genplan plan --goal` the start): one state, not a detour."""
+    from genplan.planning import plan
+
+    start = shelf[2][0].start
+    outcome = plan(panda, "panda_ik", "panda_shelf", start=start, goal=start)
+    r = outcome.result
+    assert r.success and r.path.shape == (1, 7)
+    np.testing.assert_array_equal(r.path[0], outcome.query.start)
+
+
+def _chord_ratio(robot: genplan.Robot, task: P.Task, a: np.ndarray, b: np.ndarray) -> float:
+    """The largest primary residual / tolerance of ``task`` at the midpoint of the chord a-b."""
+    return _task_violation(robot, task, pin.interpolate(robot.model, a, b, 0.5))
+
+
+def _task_violation(robot: genplan.Robot, task: P.Task, x: np.ndarray) -> float:
+    s = P._State(robot, x, False)
+    return max((float(np.abs(r).max()) / t.tolerance for t in task.primary if (r := t.bind(robot).residual(s)).size),
+               default=0.0)
+
+
+def test_integrity_3_shortcut_chords_keep_the_constraint(panda, shelf) -> None:
+    """A seeded shortcut plan (uniform sampler, seed 3, the second query of seed 0) whose chords
+    once left the tolerance (1.05x): every chord's midpoint is on the manifold within the task's
+    tolerance, every step at most 1.25 x edge_resolution."""
+    env, world, _ = shelf
+    q = env.queries(panda, n=2, seed=0)[1]
+    planner = Planner(panda, world=world, sampler="uniform", seed=3, settings=PlannerSettings(simplify=True))
+    res = planner.plan(q.start, q.goals)
+    assert res.success and res.stats.shortcuts > 0
+    path = res.path
+    worst = max(_chord_ratio(panda, planner.task, a, b) for a, b in zip(path[:-1], path[1:]))
+    assert worst < 1.0, f"a chord's midpoint leaves the tolerance: {worst:.3f}x"
+    steps = np.linalg.norm([pin.difference(panda.model, a, b) for a, b in zip(path[:-1], path[1:])], axis=1)
+    assert steps.max() <= 1.25 * PlannerSettings().edge_resolution + 1e-12
+    assert res.stats.chord_checks > 0

@@ -7,6 +7,15 @@ that fails its own validity check.
   invalid), or it reports ``success=False`` with an empty path, or every state of its path
   satisfies the paper's projection task within its tolerances, collides with nothing, and the
   path runs from the start to the goal it names.
+  A success's trajectory (``res.trajectory()``) is either refused with an
+  InvalidTrajectoryError naming a sample that indeed fails a check, or every one of its samples
+  is within the joint limits with no tolerance, within the velocity and acceleration limits, on
+  the manifold and collision-free; the midpoint of every chord of the path is on the manifold. A
+  goal equal to the start is reached by a path of one state.
+* Timing any path (``parameterize``: seeded random states within the limits, some exactly at a
+  limit, with duplicates; random rates and scales): a trajectory whose every sample is within
+  the joint, velocity and acceleration limits with no tolerance, from the first state to the
+  last; or a typed error.
 * The projector (the native Gauss-Newton solver, Panda and Talos tasks, random starting points
   including far outside the joint limits, random IK targets including unreachable ones, few
   iterations or many): a row is reported successful exactly when the residuals of its answer,
@@ -19,6 +28,7 @@ file runs in seconds on a shared machine.
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -28,7 +38,7 @@ from hypothesis import strategies as st
 
 import genplan
 from genplan import projection as P
-from genplan.errors import InvalidGoalError, InvalidStartError
+from genplan.errors import InvalidGoalError, InvalidStartError, InvalidTrajectoryError
 from genplan.planning import Planner, PlannerSettings, environment
 from genplan.planning.queries import TOLERANCE_FACTOR
 
@@ -66,6 +76,8 @@ def moved(kind: str, q: np.ndarray, joint: int, size: float, robot: genplan.Robo
     manifold, or "lot"), a random configuration, or the colliding one on the manifold."""
     if kind == "exact":
         return q
+    if kind == "start":  # a goal: the start itself (given here as q)
+        return q.copy()
     if kind == "random":
         return robot.random_configurations(1, rng)[0]
     if kind == "colliding":
@@ -79,7 +91,7 @@ inputs = st.sampled_from(["exact", "exact", "little", "lot", "random", "collidin
 
 
 @settings(PROPERTY, max_examples=25)
-@given(query=st.integers(0, 1), start_kind=inputs, goal_kinds=st.lists(inputs, min_size=1, max_size=4),
+@given(query=st.integers(0, 1), start_kind=inputs, goal_kinds=st.lists(inputs | st.just("start"), min_size=1, max_size=4),
        joint=st.integers(0, 6), size=st.floats(0.002, 0.6), negative=st.booleans(), seed=st.integers(0, 2**32 - 1))
 def test_the_planner_never_claims_a_path_that_fails_its_checks(panda, shelf, query, start_kind, goal_kinds, joint,
                                                                 size, negative, seed) -> None:
@@ -89,7 +101,8 @@ def test_the_planner_never_claims_a_path_that_fails_its_checks(panda, shelf, que
     rng = np.random.default_rng(seed)
     q = queries[query]
     start = moved(start_kind, q.start, joint, size, panda, colliding, rng)
-    goals = np.array([moved(kind, q.goals[i], (joint + i) % 7, size, panda, colliding, rng) for i, kind in enumerate(goal_kinds)])
+    goals = np.array([moved(kind, start if kind == "start" else q.goals[i], (joint + i) % 7, size, panda, colliding, rng)
+                      for i, kind in enumerate(goal_kinds)])
     try:
         res = planner.plan(start, goals)
     except (InvalidStartError, InvalidGoalError) as exc:
@@ -118,6 +131,78 @@ def test_the_planner_never_claims_a_path_that_fails_its_checks(panda, shelf, que
     assert worst < 1.0, f"a state of the path violates the constraint {worst:.1f}x its tolerance"
     assert not np.any(world.in_collision(path))
     assert np.all(path >= panda.lower - 1e-9) and np.all(path <= panda.upper + 1e-9)
+    if any(np.array_equal(g, start) for g in goals):
+        event("a goal at the start")
+        assert len(path) == 1, "a goal at the start is reached without a detour"
+    chords = max((violation(panda, task, pin.interpolate(panda.model, a, b, 0.5)) for a, b in zip(path[:-1], path[1:])),
+                 default=0.0)
+    assert chords < 1.0, f"a chord's midpoint violates the constraint {chords:.2f}x its tolerance"
+    check_trajectory(panda, task, world, res)
+
+
+def check_trajectory(robot: genplan.Robot, task: P.Task, world: Any, res: Any) -> None:
+    """A success's trajectory: refused naming a sample that indeed fails, or every sample within
+    every limit with no tolerance, on the manifold (every 7th, evaluated with Pinocchio) and
+    collision-free."""
+    try:
+        traj = res.trajectory()
+    except InvalidTrajectoryError as exc:
+        event("trajectory refused")
+        m = re.search(r"sample (\d+) \(t = ", str(exc))
+        assert m, str(exc)
+        # the refusal is honest: retimed the same way, that sample fails the check named
+        from genplan.trajectory import parameterize
+
+        again = parameterize(robot, res.path)
+        i = int(m.group(1))
+        x = again.q[i]
+        if "in collision" in str(exc):
+            assert world.in_collision(x)
+        elif "off the task's manifold" in str(exc):
+            assert violation(robot, task, x) > 1.0
+        else:
+            raise AssertionError(f"unexpected refusal: {exc}")
+        return
+    event("trajectory")
+    assert (traj.q >= robot.lower).all() and (traj.q <= robot.upper).all()
+    assert (np.abs(traj.qd) <= traj.velocity_limits).all() and (np.abs(traj.qdd) <= traj.acceleration_limits).all()
+    np.testing.assert_array_equal(traj.q[0], res.path[0])
+    np.testing.assert_array_equal(traj.q[-1], res.path[-1])
+    assert not np.any(world.in_collision(traj.q))
+    assert max(violation(robot, task, x) for x in traj.q[::7]) <= 1.0
+
+
+# -- timing any path ---------------------------------------------------------------------------
+
+
+@settings(PROPERTY, max_examples=40)
+@given(states=st.integers(1, 6), at_limit=st.floats(0.0, 1.0), repeats=st.integers(1, 2),
+       rate=st.sampled_from([50.0, 1000.0, 4000.0]), velocity_scale=st.sampled_from([0.05, 0.5, 1.0]),
+       acceleration_scale=st.sampled_from([0.1, 1.0, 3.0]), seed=st.integers(0, 2**32 - 1))
+def test_any_path_within_the_limits_is_timed_within_every_limit(panda, states, at_limit, repeats, rate, velocity_scale,
+                                                                acceleration_scale, seed) -> None:
+    from genplan.errors import SettingsError
+    from genplan.trajectory import parameterize
+
+    rng = np.random.default_rng(seed)
+    path = panda.random_configurations(states, rng)
+    # some joints exactly at a limit (where the spline through them would overshoot)
+    hit = rng.random(path.shape) < at_limit * 0.3
+    path = np.where(hit, np.where(rng.random(path.shape) < 0.5, panda.lower, panda.upper), path)
+    path = np.repeat(path, repeats, axis=0)
+    try:
+        traj = parameterize(panda, path, rate_hz=rate, velocity_scale=velocity_scale,
+                            acceleration_scale=acceleration_scale)
+    except (InvalidTrajectoryError, SettingsError) as exc:
+        event(f"refused: {type(exc).__name__}")
+        raise AssertionError(f"a path of {states} states within the limits was not timed: {exc}") from None
+    event(f"timed, {traj.stats['path_states']} distinct states")
+    assert (traj.q >= panda.lower).all() and (traj.q <= panda.upper).all()
+    assert (np.abs(traj.qd) <= traj.velocity_limits).all() and (np.abs(traj.qdd) <= traj.acceleration_limits).all()
+    np.testing.assert_array_equal(traj.q[0], path[0])
+    np.testing.assert_array_equal(traj.q[-1], path[-1])
+    distinct = 1 + int(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-12))
+    assert (traj.duration > 0) == (distinct > 1)
 
 
 # -- the projector -----------------------------------------------------------------------------

@@ -109,7 +109,7 @@ def test_bad_arguments(result, kwargs, error, words) -> None:
 
 
 def test_a_failed_plan_has_no_trajectory(panda, result) -> None:
-    failed = PlanResult(result.native, panda, result.task)
+    failed = PlanResult(result.native, panda, result.task, result.world)
     object.__setattr__(failed, "native", type("Failed", (), {"success": False, "path": np.zeros((0, 7))})())
     with pytest.raises(GenplanError, match="no path"):
         failed.trajectory()
@@ -208,3 +208,194 @@ def test_the_native_topp_ra_refuses_bad_input() -> None:
         _core.time_optimal([0.0, 0.5, 0.5], d, d, [1.0, 1.0], [1.0, 1.0])
     with pytest.raises(ValueError, match="d1 and d2"):
         _core.time_optimal(grid, d[:2], d, [1.0, 1.0], [1.0, 1.0])
+
+
+# -- a trajectory is a success only when every sample passes its checks ------------------------
+
+
+def _sweep(panda, joint: int = 0, length: float = 1.0, states: int = 41) -> np.ndarray:
+    """A dense straight path from the default configuration, ``joint`` moved by ``length``."""
+    path = np.tile(panda.q_default, (states, 1))
+    path[:, joint] += np.linspace(0.0, length, states)
+    return path
+
+
+def test_integrity_3_a_plan_keeps_its_world_and_its_trajectory_is_checked_against_it(panda) -> None:
+    """A nodes-only plan (edge_resolution 0; seed 0, the first shelf query of seed 1): the chords
+    between its states leave the manifold and pass through the shelf, and 51 of its trajectory's
+    samples were in contact (the first, 8019). The trajectory is refused, naming the first bad
+    sample; checked against the world alone, the first sample in contact and the pair."""
+    from genplan.errors import InvalidTrajectoryError
+    from genplan.trajectory import parameterize
+
+    env = environment("panda_shelf")
+    world = env.world(panda)
+    q = env.queries(panda, n=1, seed=1)[0]
+    res = Planner(panda, world=world, sampler="uniform", seed=0,
+                  settings=PlannerSettings(edge_resolution=0.0)).plan(q.start, q.goals)
+    assert res.success and res.world is world
+    with pytest.raises(InvalidTrajectoryError, match=r"trajectory: sample \d+ \(t = \d+\.\d+ s\) is "):
+        res.trajectory()
+    timed = parameterize(panda, res.path)
+    first = int(np.argmax(np.asarray(world.in_collision(timed.q), dtype=bool)))
+    assert first > 0
+    with pytest.raises(InvalidTrajectoryError, match=rf"sample {first} \(t = {timed.t[first]:.3f} s\) is in collision: "
+                                                     r"panda_\w+ and \w+"):
+        parameterize(panda, res.path, world=world)
+
+
+def test_integrity_3_samples_in_collision_are_an_error_naming_the_first(panda) -> None:
+    from genplan.errors import InvalidTrajectoryError
+
+    path = _sweep(panda)
+    world = panda.collision_world()
+    world.add_sphere("ball", 0.02, panda.frame_positions(path[20], "tcp"))  # states 14-26 in contact
+    free = panda.collision_world()
+    traj = parameterize(panda, path, world=free)
+    first = int(np.argmax(np.asarray(world.in_collision(traj.q), dtype=bool)))
+    assert 0 < first < len(traj)
+    with pytest.raises(InvalidTrajectoryError, match=rf"sample {first} \(t = {traj.t[first]:.3f} s\) is in collision: "
+                                                     r"panda_\w+ and ball"):
+        parameterize(panda, path, world=world)
+    with pytest.raises(InvalidTrajectoryError, match=rf"sample {first} .* and ball"):  # the native world alike
+        parameterize(panda, path, world=world.native)
+
+
+def test_integrity_3_a_python_checker_checks_the_samples(panda) -> None:
+    """A plan checked by a Python checker: its trajectory's samples go through the same checker."""
+    from genplan.errors import InvalidTrajectoryError
+
+    class Calls:
+        def __init__(self, limit: float) -> None:
+            self.limit, self.rows = limit, 0
+
+        def is_valid(self, qs: np.ndarray) -> np.ndarray:
+            self.rows += len(qs)
+            return qs[:, 0] < self.limit
+
+    path = _sweep(panda)
+    ok = Calls(2.0)
+    traj = parameterize(panda, path, world=ok)
+    assert ok.rows == len(traj)
+    with pytest.raises(InvalidTrajectoryError, match=r"sample \d+ \(t = \d+\.\d+ s\) is not valid \(the checker Calls\)"):
+        parameterize(panda, path, world=Calls(0.5))
+
+
+@pytest.mark.parametrize("values", [(-0.3, -0.05, 0.0, -0.2, -0.25), (-0.2, -0.02, 0.0, 0.0, -0.1)])
+def test_integrity_3_samples_stay_within_the_joint_limits_with_no_tolerance(panda, values) -> None:
+    """A path with a state at a joint's upper limit: the not-a-knot spline through it overshot the
+    limit by 2-4 mrad; now every sample is within the limits, exactly, the joint at rest on its
+    limit where the spline would have left it."""
+    j = 3
+    path = np.tile(panda.q_default, (5, 1))
+    path[:, j] = panda.upper[j] + np.asarray(values)
+    path[:, 0] = np.linspace(0.0, 0.5, 5)
+    traj = parameterize(panda, path)
+    assert (traj.q >= panda.lower).all() and (traj.q <= panda.upper).all()
+    on = traj.q[:, j] == panda.upper[j]
+    assert on.sum() > 10 and 0 < traj.stats["samples_into_limits"] <= on.sum()
+    assert not traj.qd[on, j].any() and not traj.qdd[on, j].any()
+    # elsewhere qd is still the derivative of q
+    fd = (traj.q[2:, j] - traj.q[:-2, j]) / (traj.t[2:] - traj.t[:-2])
+    away = ~(on[2:] | on[1:-1] | on[:-2])
+    assert np.abs(fd - traj.qd[1:-1, j])[away].max() < 0.02 * np.abs(traj.qd[:, j]).max()
+    assert (np.abs(traj.qd) <= traj.velocity_limits).all() and (np.abs(traj.qdd) <= traj.acceleration_limits).all()
+
+
+def test_integrity_3_parameterize_refuses_states_outside_the_limits(panda) -> None:
+    from genplan.errors import InvalidTrajectoryError
+
+    path = _sweep(panda, states=5)
+    path[3, 2] = panda.upper[2] + 5.0
+    with pytest.raises(InvalidTrajectoryError, match=r"path\[3\]: joint 2 \(panda_joint3\) at 7\.\d+ is outside its "
+                                                     r"limits \[-2\.\d+, 2\.\d+\]"):
+        parameterize(panda, path)
+    path[3, 2] = panda.lower[2] - 1e-12  # no tolerance
+    with pytest.raises(InvalidTrajectoryError, match=r"path\[3\]: joint 2"):
+        parameterize(panda, path)
+
+
+@pytest.mark.parametrize("repeat", [1, 3])
+def test_integrity_3_two_distinct_states_are_timed(panda, repeat) -> None:
+    """Any path of two or more distinct states is timed (duplicates dropped first): from rest to
+    rest along the straight line, within every limit."""
+    a = panda.q_default
+    b = a + np.linspace(0.1, 0.4, 7)
+    traj = parameterize(panda, np.array([a] * repeat + [b] * repeat))
+    assert traj.duration > 0 and len(traj) > 10 and traj.stats["path_states"] == 2
+    np.testing.assert_array_equal(traj.q[0], a)
+    np.testing.assert_array_equal(traj.q[-1], b)
+    # on the segment: every sample a convex combination of a and b
+    s = (traj.q - a) @ (b - a) / ((b - a) @ (b - a))
+    np.testing.assert_allclose(traj.q, a + s[:, None] * (b - a), atol=1e-12)
+    assert (np.abs(traj.qd) <= traj.velocity_limits).all() and (np.abs(traj.qdd) <= traj.acceleration_limits).all()
+    assert traj.max_velocity_ratio > 0.5 or traj.max_acceleration_ratio > 0.9
+
+
+def test_integrity_3_a_trajectory_off_the_manifold_is_an_error(panda) -> None:
+    """Samples that leave the task's tolerance are an error naming the term and the first sample,
+    not a warning."""
+    from genplan.errors import InvalidTrajectoryError
+    from genplan.projection import paper_task
+
+    task = paper_task(panda, "projection")
+    path = _sweep(panda, joint=5, length=0.6, states=3)  # the wrist tilts the gripper
+    with pytest.raises(InvalidTrajectoryError, match=r"sample \d+ \(t = \d+\.\d+ s\) is off the task's manifold: "
+                                                     r"term '\w+' residual .* > tolerance"):
+        parameterize(panda, path, task)
+
+
+_ALLOCATION_SCRIPT = """
+import resource, sys
+import numpy as np
+import genplan
+from genplan.errors import GenplanError
+from genplan.trajectory import parameterize
+
+panda = genplan.load("panda")
+path = np.tile(panda.q_default, (41, 1))
+path[:, 0] += np.linspace(0.0, 1.0, 41)
+duration = parameterize(panda, path).duration
+want, limit = float(sys.argv[1]) * 2**30, int(float(sys.argv[2]) * 2**30)
+rate = want / (duration * (1 + 3 * 7) * 8)  # samples of t, q, qd, qdd: 8 bytes each
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+try:
+    parameterize(panda, path, rate_hz=rate)
+    print("no error")
+except GenplanError as e:
+    print(type(e).__name__, e)
+"""
+
+
+@pytest.mark.parametrize("gib, limit_gib, words", [
+    (2.8, 2.5, r"SettingsError rate_hz: .* 2\.8\d GiB, more than the 1\.00 GiB"),   # over the bound: refused before allocating
+    (0.9, 1.0, r"SettingsError rate_hz: .* could not be allocated"),                 # under it, but out of memory
+])
+def test_integrity_6_a_trajectory_too_large_to_allocate_is_a_typed_error(gib, limit_gib, words) -> None:
+    """A sample count that needs more memory than there is aborted the interpreter (a Rust
+    allocation failure, SIGABRT); now the count is bounded from the duration and the rate before
+    anything is allocated, and the allocation itself is fallible: a typed error naming rate_hz
+    and the size."""
+    import re
+    import subprocess
+    import sys
+
+    run = subprocess.run([sys.executable, "-c", _ALLOCATION_SCRIPT, str(gib), str(limit_gib)], capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
+    assert re.search(words, run.stdout), run.stdout
+
+
+def test_integrity_3_genplan_plan_to_its_start_stays(panda, tmp_path, capsys) -> None:
+    """`genplan plan` with the goal at the start: one state (it was a 237-state detour swinging
+    1.8 rad), and a trajectory that stands still."""
+    from genplan.cli import main
+
+    start = " ".join(map(repr, map(float, environment("panda_shelf").queries(panda, n=1, seed=0)[0].start)))
+    argv = ["plan", "--robot", "panda", "--task", "panda_ik", "--scene", "panda_shelf", "--start", start, "--goal", start,
+            "--out", str(tmp_path / "p.json"), "--trajectory", str(tmp_path / "t.npz")]
+    assert main(argv) == 0
+    assert "found: 1 states" in capsys.readouterr().out
+    assert len(json.loads((tmp_path / "p.json").read_text())["path"]) == 1
+    back = Trajectory.load(tmp_path / "t.npz")
+    assert len(back) == 1 and back.duration == 0.0

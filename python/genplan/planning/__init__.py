@@ -101,15 +101,18 @@ PlannerSettings = _core.PlannerSettings
 class PlanResult:
     """A plan's outcome: the native result (``_core.PlanResult``: ``success``, dense ``path``,
     ``waypoints``, ``goal_index``, ``time_s``, ``projections``, ``extensions``, ``retries`` and its
-    :class:`PlanStats`), whose attributes it delegates, with the robot and the manifold's task it
-    was planned for, so that it can be turned into a trajectory (:meth:`trajectory`)."""
+    :class:`PlanStats`), whose attributes it delegates, with the robot, the manifold's task and
+    the world it was planned in (``world``: the collision world, or the checker, that said which
+    states are valid), so that it can be turned into a trajectory checked the same way
+    (:meth:`trajectory`)."""
 
-    __slots__ = ("native", "robot", "task")
+    __slots__ = ("native", "robot", "task", "world")
 
-    def __init__(self, native: _core.PlanResult, robot: Robot, task: Task) -> None:
+    def __init__(self, native: _core.PlanResult, robot: Robot, task: Task, world: Any) -> None:
         self.native = native
         self.robot = robot
         self.task = task
+        self.world = world
 
     success = property(lambda self: self.native.success, doc="a path was found")
     path = property(lambda self: self.native.path, doc="(m, nq) dense path: every state on the manifold and valid")
@@ -137,18 +140,23 @@ class PlanResult:
         by TOPP-RA (native, rust/core/src/timing.rs) along a spline through every state of the dense
         path. The dense path, not the waypoints, is the geometric path: a spline through the
         waypoints alone would leave the manifold; plan with ``PlannerSettings(simplify=True)``
-        for the shortcut path (fewer corners, a shorter trajectory). Every sample's residual is
-        checked against the task (``traj.residuals``, ``traj.within_tolerance``; a warning when
-        outside). See :func:`genplan.trajectory.parameterize`.
+        for the shortcut path (fewer corners, a shorter trajectory). Every sample is checked as
+        the path's states were: within the joint limits (no tolerance), on the task's manifold
+        (``traj.residuals``), and valid in the plan's ``world`` (not in collision, or the plan's
+        checker's ``is_valid``); also within the velocity and acceleration limits. See
+        :func:`genplan.trajectory.parameterize`.
 
-        Raises GenplanError when there is no path (``success`` is False)."""
+        Raises GenplanError when there is no path (``success`` is False);
+        :class:`~genplan.errors.InvalidTrajectoryError` naming the first sample that fails a
+        check (its index, time, and the joint limit, term or pair in contact)."""
         from genplan.errors import GenplanError
         from genplan.trajectory import parameterize
 
         if not self.native.success:
             raise GenplanError("trajectory: the plan found no path (success is False)")
         return parameterize(self.robot, self.native.path, self.task, rate_hz=rate_hz, velocity_scale=velocity_scale,
-                            acceleration_scale=acceleration_scale, acceleration_limits=acceleration_limits)
+                            acceleration_scale=acceleration_scale, acceleration_limits=acceleration_limits,
+                            world=self.world)
 
 
 #: What a plan cost (counts and times), read-only; ``to_dict()`` for JSON.
@@ -256,8 +264,12 @@ class Planner:
     ``task`` (default: the paper's projection task for the robot) defines the manifold; the
     native Gauss-Newton projector solves it unless ``projector`` is given, with every tolerance
     multiplied by ``tolerance_factor`` (default 0.1): states are projected ten times tighter than
-    the constraint requires, so that the straight chord between two consecutive states of the
-    returned path (at most ``edge_resolution`` apart) satisfies the constraint too. ``world`` (default:
+    the constraint requires, and the midpoint of every straight chord between two consecutive
+    states of an edge (at most 1.25 x ``edge_resolution`` apart) is checked against the task's own
+    tolerances (1 / ``tolerance_factor`` times the projector's), a chord that strays being split at
+    its projected midpoint (rust/core/src/planning/constrained.rs, ``hold_chords``): so the chords
+    of the returned path satisfy the constraint too (``stats.chord_checks`` counts the midpoints;
+    a ``projector`` given by the caller has no such check). ``world`` (default:
     the robot's collision world, self-collision included) checks validity unless ``checker`` is
     given. ``parallel=True`` lets native projections and collision checks of one batch use all
     cores (off by default: the benchmarks compare one core against one core).
@@ -286,8 +298,12 @@ class Planner:
         self.base_box = uniform_base_box(robot, self.task)
         self.sampler = make_sampler(robot, sampler, seed=seed, gan_model=gan_model, hybrid_p=hybrid_p, half_life=half_life,
                                     base_box=self.base_box)
+        # the chords between the states are held to the task's own tolerances: 1 / tolerance_factor
+        # times the projector's (unknown for a projector given by the caller: no chord check)
+        self._chord_tolerance: float | None = None
         if projector is None:
             projector = GaussNewtonProjector(robot, self.task.with_tolerances_scaled(tolerance_factor))
+            self._chord_tolerance = 1.0 / float(tolerance_factor)
         self.projector = projector
         self._projector_arg = projector.native if isinstance(projector, GaussNewtonProjector) and projector.native is not None else projector
         if checker is None:
@@ -325,15 +341,19 @@ class Planner:
 
         On success, ``result.path`` runs from the start to ``goals[result.goal_index]`` (each as
         projected above), every state of it on the manifold and valid, consecutive states at most
-        ``1.25 * edge_resolution`` apart."""
+        ``1.25 * edge_resolution`` apart, the midpoint of the chord between them on the manifold
+        within the task's tolerances (with the planner's own projector). A start within
+        ``settings.goal_tolerance`` of a valid goal has reached it: ``result.path`` is the start
+        alone (one state; its trajectory stands still)."""
         q0 = self.robot.check_configuration(start, "start")
         if q0.ndim != 1:
             raise ShapeError(f"start: expected shape ({self.robot.nq},), got {q0.shape}")
         g = self.robot.check_configuration(goals, "goals")
         g = np.ascontiguousarray(g.reshape(-1, self.robot.nq))
         smp = self.sampler if sampler is None else make_sampler(self.robot, sampler, base_box=self.base_box)
-        native = self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel)
-        return PlanResult(native, self.robot, self.task)
+        native = self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel,
+                                   self._chord_tolerance)
+        return PlanResult(native, self.robot, self.task, self.checker)
 
 
 def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike[str], scene: Any = None, *,
@@ -349,7 +369,7 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
     one of :data:`ALGORITHMS` (default: ``settings.algorithm``, "crrt").
 
     Not finding a path within the settings' budget is ``outcome.result.success == False``."""
-    from genplan.gan.costs import manifold_task
+    from genplan.projection import manifold_task
     from genplan.robots import load
 
     if algorithm is not None:

@@ -9,7 +9,8 @@ configuration (``--goal``, nq numbers) or IK solutions for a target of the task'
 (``--target X Y Z``). The JSON holds the query, the path and the planner's statistics; the HTML
 view draws the robot, the scene and the trail of the task's condition frame. ``--trajectory
 F.npz|.json|.csv`` writes the path time-parameterised at 1 kHz (``PlanResult.trajectory``), which
-the HTML view then plays in real time. ``--edge-check certified`` certifies every motion between
+the HTML view then plays in real time; a trajectory that fails its check (a sample in collision,
+off the manifold, ...) is not written, the first bad sample is named and the exit status is 1. ``--edge-check certified`` certifies every motion between
 the path's states collision-free, not only the states (PlannerSettings.edge_check).
 """
 
@@ -65,6 +66,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from genplan._files import write_text
+    from genplan.errors import InvalidTrajectoryError
     from genplan.planning import PlannerSettings, plan
 
     if args.trajectory is not None and args.trajectory.suffix.lower() not in (".npz", ".json", ".csv"):
@@ -81,7 +83,11 @@ def main(args: argparse.Namespace) -> int:
         if not r.success:
             print("no path: no trajectory written")
             return 1
-        traj = r.trajectory()
+        try:
+            traj = r.trajectory()
+        except InvalidTrajectoryError as e:  # a path found, but its timed samples fail their check
+            print(f"{e}; no trajectory written")
+            return 1
         traj.save(args.trajectory)
         print(f"trajectory: {traj.duration:.3f} s at {traj.rate_hz:g} Hz, max velocity ratio {traj.max_velocity_ratio:.3f}, "
               f"max residual ratio {traj.max_residual_ratio:.3f}, parameterised in "
