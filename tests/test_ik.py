@@ -133,12 +133,13 @@ def test_mid_nominal_keeps_a_free_flyer_base_at_the_warm_start(talos) -> None:
 
 def test_time_budget_stops_retries(panda, task) -> None:
     far = np.array([[3.0, 0.0, 0.5]] * 4)  # 3 m away: out of reach
-    budget = 0.002
-    res = solve_ik(panda, task, far, restarts=1000, time_budget_s=budget, seed=0)
-    assert not res.success.any()
-    # no new attempt once a target's time reached the budget: at most one attempt past it
-    one_attempt = solve_ik(panda, task, far[:1], restarts=0).time_s[0]
-    assert (res.time_s < budget + 5 * one_attempt + 0.002).all()
+    budget = 0.02
+    res = solve_ik(panda, task, far, init="uniform", restarts=1000, time_budget_s=budget, seed=0)
+    assert not res.success.any() and (res.attempts > 1).all()
+    # no round starts once the call's wall clock reached the budget: at most one round past it
+    one_call = solve_ik(panda, task, far, init="uniform", restarts=0).wall_s
+    assert res.wall_s < budget + 2 * one_call + 0.005
+    assert (res.time_s <= res.wall_s).all() and (res.solve_s < res.time_s).all()
     assert (res.attempts < 1001).all()
 
 
@@ -183,3 +184,22 @@ def test_bad_input_raises_typed_errors_naming_the_argument(panda, task, kwargs, 
 def test_a_task_without_condition_is_refused(panda) -> None:
     with pytest.raises(genplan.errors.GenplanError, match="condition"):
         solve_ik(panda, "panda_projection", [[0.5, 0.0, 0.6]], init="uniform")
+
+
+@pytest.mark.parametrize("init", ["uniform", "data"])
+def test_integrity_8_the_time_budget_is_the_calls_wall_clock(panda, task, init) -> None:
+    """An unreachable target with restarts to spare: the call returns once its wall-clock budget
+    is spent (it took 2-4 x the budget, more on a loaded machine, while time_s said the budget);
+    time_s is the real time elapsed until the target was settled, solve_s its solver time."""
+    import time
+
+    budget = 0.3
+    solve_ik(panda, task, [0.5, 0.0, 0.5], init=init, restarts=0)  # the data set and k-d tree: built once, cached
+    t0 = time.perf_counter()
+    res = solve_ik(panda, task, [3.0, 0.0, 0.5], init=init, restarts=10**6, time_budget_s=budget, seed=0)
+    wall = time.perf_counter() - t0
+    assert not res.success.any() and res.attempts[0] > 10
+    assert wall <= budget + 0.05, f"{wall:.3f} s for a {budget} s budget"
+    assert res.time_s[0] <= res.wall_s <= wall
+    assert res.time_s[0] >= budget - 0.01  # it tried until the budget was spent
+    assert 0 < res.solve_s[0] < res.time_s[0]
