@@ -159,3 +159,176 @@ def test_seed_ranges(text, ok) -> None:
             seed_range(text)
     else:
         assert seed_range(text) == ok
+
+
+# -- integrity: one run per folder, no mixed data sets, nothing left by a failed run, sizes bounded
+
+
+def _lock(out, **fields) -> None:
+    """A lock file as another run writes it (see genplan.gan.data.LOCK)."""
+    import socket
+
+    record = {"run": "0123456789abcdef", "host": socket.gethostname(), "pid": 1, "started": "2024-01-01T00:00:00Z",
+              "command": "genplan data ...", **fields}
+    out.mkdir(parents=True, exist_ok=True)
+    (out / D.LOCK).write_text(json.dumps(record))
+
+
+def _dead_pid() -> int:
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+def test_integrity_2_a_folder_is_written_by_one_run_at_a_time(tmp_path, monkeypatch, capsys) -> None:
+    import threading
+
+    out = tmp_path / "d"
+    real = D.project_shard
+    started, go = threading.Event(), threading.Event()
+
+    def held(shard):
+        if shard.seed == 2:  # the first run's shards wait until the second run was refused
+            started.set()
+            assert go.wait(60)
+        return real(shard)
+
+    monkeypatch.setattr(D, "project_shard", held)
+    first: list[int] = []
+    t = threading.Thread(target=lambda: first.append(main(["data", "--robot", "panda", "--data-size", str(N),
+                                                            "--shard-size", str(SIZE), "--seed", "2", "--workers", "1",
+                                                            "--out", str(out)])))
+    t.start()
+    try:
+        assert started.wait(60)
+        # a second run into the same folder, with another seed: refused, naming the first
+        assert main(["data", "--robot", "panda", "--data-size", str(N), "--shard-size", str(SIZE), "--seed", "0",
+                     "--workers", "1", "--out", str(out)]) == 2
+        err = capsys.readouterr().err  # the first run's progress bar, then the error
+        lock = json.loads((out / D.LOCK).read_text())
+        assert (f"genplan: error: {out} is being written by another run (host {lock['host']}, pid {lock['pid']}, "
+                f"started {lock['started']})") in err, err
+        assert "--force" in err
+    finally:
+        go.set()
+        t.join(120)
+    assert first == [0]
+    monkeypatch.setattr(D, "project_shard", real)
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["seed"] == 2 and m["complete"] and not (out / D.LOCK).exists()
+    assert m["sha256"] == make(tmp_path / "fresh")["sha256"]  # not mixed with the refused run's shards
+    capsys.readouterr()
+
+    # a lock left by a process that is gone (this host) is taken over, with a message
+    _lock(tmp_path / "stale", pid=_dead_pid())
+    make(tmp_path / "stale")
+    assert "taking over the lock of run 0123456789abcdef" in capsys.readouterr().out
+    assert not (tmp_path / "stale" / D.LOCK).exists()
+    # one of another host cannot be checked: refused, then taken with --force
+    _lock(tmp_path / "far", host="node-17.cluster", pid=4242)
+    argv = ["data", "--robot", "panda", "--data-size", "20", "--shard-size", "10", "--out", str(tmp_path / "far")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert ("is being written by another run (host node-17.cluster, pid 4242, started 2024-01-01T00:00:00Z): "
+            "if that run is gone, rerun with --force") in err, err
+    assert not (tmp_path / "far" / "manifest.json").exists()
+    assert main([*argv, "--force"]) == 0
+    assert "taking over the lock of run 0123456789abcdef (host node-17.cluster, pid 4242" in capsys.readouterr().out
+    # a lock that is not a lock genplan wrote: refused, naming the file
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / D.LOCK).write_text("{not json")
+    assert main(["data", "--robot", "panda", "--data-size", "20", "--out", str(tmp_path / "junk")]) == 2
+    assert f"{tmp_path / 'junk' / D.LOCK}: not a genplan lock file" in capsys.readouterr().err
+
+
+def test_integrity_2_another_data_set_is_refused_and_overwrite_replaces_it(tmp_path, capsys) -> None:
+    out = tmp_path / "d"
+    make(out)
+    (out / "notes.txt").write_text("mine")
+    argv = ["data", "--robot", "panda", "--data-size", str(N), "--shard-size", str(SIZE), "--seed", "0",
+            "--workers", "2", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{out} holds another data set (seed 2 there, 0 here): give another folder, or --overwrite to " \
+           "replace it" in err, err
+    assert json.loads((out / "manifest.json").read_text())["seed"] == 2  # untouched
+    assert main([*argv, "--overwrite"]) == 0
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["seed"] == 0 and m["complete"] and m["last_run"]["shards_computed"] == 4
+    ref = D.valid_configurations(genplan.load("panda"), N, seed=0, use_cache=False, progress=False, shard_size=SIZE)
+    assert m["sha256"] == hashlib.sha256(ref.tobytes()).hexdigest()
+    assert (out / "notes.txt").read_text() == "mine"  # --overwrite removes only what genplan wrote
+    # a manifest.json that genplan did not write is not removed by --overwrite
+    (tmp_path / "web").mkdir()
+    (tmp_path / "web" / "manifest.json").write_text('{"name": "my app"}')
+    assert main(["data", "--robot", "panda", "--data-size", "20", "--out", str(tmp_path / "web"), "--overwrite"]) == 2
+    assert "not a genplan data set manifest" in capsys.readouterr().err
+    assert (tmp_path / "web" / "manifest.json").read_text() == '{"name": "my app"}'
+
+
+def test_integrity_2_a_run_that_fails_before_its_first_shard_leaves_nothing(tmp_path, monkeypatch, capsys) -> None:
+    out = tmp_path / "new" / "d"
+    assert main(["data", "--robot", "talos", "--task", "panda_ik", "--data-size", "100", "--out", str(out)]) == 2
+    assert "no frame 'hand'" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()  # the folders the run created are gone
+    existing = tmp_path / "existing"
+    existing.mkdir()
+    real = D.project_shard
+
+    def broken(shard):
+        raise RuntimeError("node lost")
+
+    monkeypatch.setattr(D, "project_shard", broken)
+    assert main(["data", "--robot", "panda", "--data-size", "20", "--workers", "1", "--out", str(existing)]) == 2
+    assert existing.is_dir() and list(existing.iterdir()) == []  # a folder given is kept, and left empty
+    monkeypatch.setattr(D, "project_shard", real)
+    # the corrected run into the same place
+    assert main(["data", "--robot", "talos", "--data-size", "20", "--shard-size", "10", "--out", str(out)]) == 0
+    capsys.readouterr()
+    # a run that failed after some shards keeps them for a rerun of itself; another data set needs --overwrite
+    failing = tmp_path / "failing"
+
+    def third_fails(shard):
+        if shard.index == 2:
+            raise genplan.errors.GenplanError("out of reach")
+        return real(shard)
+
+    monkeypatch.setattr(D, "project_shard", third_fails)
+    assert main(["data", "--robot", "panda", "--data-size", str(N), "--shard-size", str(SIZE), "--seed", "2",
+                 "--workers", "1", "--out", str(failing)]) == 2
+    monkeypatch.setattr(D, "project_shard", real)
+    assert not json.loads((failing / "manifest.json").read_text())["complete"]
+    argv = ["data", "--robot", "panda", "--data-size", "40", "--shard-size", "20", "--out", str(failing)]
+    assert main(argv) == 2
+    assert "holds another data set" in capsys.readouterr().err
+    assert main([*argv, "--overwrite"]) == 0
+    assert sorted(p.name for p in failing.iterdir()) == ["manifest.json", "shard_00000.npy", "shard_00001.npy"]
+
+
+def test_integrity_2_sizes_are_bounded_before_any_allocation(panda: genplan.Robot, tmp_path, monkeypatch,
+                                                              capsys) -> None:
+    import time
+
+    t0 = time.perf_counter()
+    assert main(["data", "--robot", "panda", "--data-size", "1000000000000", "--out", str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err
+    assert time.perf_counter() - t0 < 5
+    assert "--data-size 1000000000000: the data set needs 56.0 TB on disk (1000000000000 x 7 float64)" in err, err
+    assert not (tmp_path / "d").exists()
+    # a shard must fit in memory on every worker
+    monkeypatch.setattr(D, "available_memory", lambda: 10_000_000)
+    assert main(["data", "--robot", "panda", "--data-size", "200000", "--shard-size", "200000", "--workers", "2",
+                 "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "--shard-size 200000: 2 workers hold a shard of 11.2 MB each" in err, err
+    # the in-memory data set (genplan train gan --data-size, valid_configurations)
+    with pytest.raises(genplan.errors.SettingsError, match=r"data size 1000000000: 1000000000 configurations of "
+                                                           r"panda need 56.0 GB in memory"):
+        D.valid_configurations(panda, 10**9, use_cache=False, progress=False)
+    t0 = time.perf_counter()
+    with pytest.raises(genplan.errors.SettingsError, match="data size"):
+        D.write_dataset(tmp_path / "f", panda, 10**12, progress=False)
+    assert time.perf_counter() - t0 < 5 and not (tmp_path / "f").exists()
