@@ -2,6 +2,7 @@
 the command starts work; a bug keeps its traceback (exit code 1)."""
 
 import importlib
+import os
 import subprocess
 import sys
 import time
@@ -249,3 +250,176 @@ def test_help_still_exits_0(capsys) -> None:
     with pytest.raises(SystemExit) as info:
         main(["train", "gan", "--help"])
     assert info.value.code == 0 and "--iterations" in capsys.readouterr().out
+
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "xarm7"
+
+
+def _run_cli(argv: list[str], cwd: Path, **kwargs) -> subprocess.CompletedProcess:
+    """``genplan ARGV`` in a fresh interpreter; its stderr's last line says whether torch was imported."""
+    code = ("import sys; from genplan.cli import main\n"
+            "try:\n    rc = main(sys.argv[1:])\n"
+            "finally:\n    print('torch imported:', 'torch' in sys.modules, file=sys.stderr)\n"
+            "sys.exit(rc)")
+    return subprocess.run([sys.executable, "-c", code, *argv], cwd=cwd, capture_output=True, text=True, timeout=120,
+                          **kwargs)
+
+
+@pytest.mark.parametrize("argv", [
+    ["data", "--robot", "panda", "--data-size", "20", "--shard-size", "10", "--workers", "1", "--out", "d"],
+    ["plan", "--robot", str(EXAMPLES / "xarm7.toml"), "--task", str(EXAMPLES / "upright_cup.toml"), "--scene",
+     str(EXAMPLES / "table_box.toml"), "--target", "0.45", "-0.3", "0.25", "--sampler", "uniform", "--out", "plan.json"],
+], ids=["data", "plan-uniform"])
+def test_integrity_6_commands_that_need_no_model_import_no_torch(argv, tmp_path) -> None:
+    proc = _run_cli(argv, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.splitlines()[-1] == "torch imported: False", proc.stderr[-2000:]
+
+
+def _package_files() -> dict[str, bytes]:
+    """Every file of the installed package's shipped models, by name."""
+    from genplan.gan.model import models_dir
+
+    return {p.name: p.read_bytes() for p in sorted(models_dir().iterdir())}
+
+
+@pytest.fixture
+def no_training(monkeypatch):
+    """Training fails the test if it starts (and so cannot write anything)."""
+    import genplan.gan.flow as flow
+    import genplan.gan.model as gan_model
+    import genplan.pancake.model as seq_model
+
+    def started(*args, **kwargs):
+        pytest.fail("training started")
+
+    for module in (gan_model, flow, seq_model):
+        monkeypatch.setattr(module, "train", started)
+
+
+@pytest.mark.parametrize("argv, name", [
+    (["train", "gan", "--robot", "panda"], "panda_gan.safetensors"),
+    (["train", "flow", "--robot", "talos"], "talos_flow.safetensors"),
+    (["train", "seq2seq"], "pancake_seq2seq.safetensors"),
+], ids=["gan", "flow", "seq2seq"])
+def test_integrity_1_training_without_out_never_writes_into_the_package(argv, name, capsys, no_training) -> None:
+    """Before: `genplan train gan --robot panda` trained and wrote over the installed package's
+    models/panda_gan.*, which every default use of the Panda GAN loads. Now --out is needed
+    (a one-line error naming it and suggesting a path), before any work."""
+    before = _package_files()
+    assert main(argv) == 2
+    line = one_error_line(capsys)
+    assert line.startswith("--out: ") and f"--out {name}" in line and "installed genplan package" in line, line
+    assert _package_files() == before
+
+
+@pytest.mark.parametrize("command", ["gan", "flow", "seq2seq"])
+def test_integrity_1_an_out_inside_the_package_is_refused(command, monkeypatch, capsys, no_training) -> None:
+    """The repository's `models` links to the package's models: `--out models/x.safetensors` from
+    the repository's root would write into the package; refused like the default."""
+    from genplan.gan.model import models_dir
+
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])
+    robot = [] if command == "seq2seq" else ["--robot", "panda"]
+    for out in ("models/panda_gan.safetensors", str(models_dir() / "new.safetensors")):
+        before = _package_files()
+        assert main(["train", command, *robot, "--out", out]) == 2
+        line = one_error_line(capsys)
+        assert line.startswith(f"--out {out}: ") and "inside the installed genplan package" in line, line
+        assert _package_files() == before
+
+
+@pytest.mark.parametrize("command", ["gan", "flow", "seq2seq"])
+def test_integrity_1_replacing_a_model_says_so_and_keeps_it_until_the_new_one_is_complete(command, tmp_path,
+                                                                                          monkeypatch, capsys) -> None:
+    import genplan.gan.flow as flow
+    import genplan.gan.model as gan_model
+    import genplan.pancake.model as seq_model
+
+    class Interrupted(Exception):
+        pass
+
+    def cut_short(*args, **kwargs):
+        raise Interrupted
+
+    for module in (gan_model, flow, seq_model):
+        monkeypatch.setattr(module, "train", cut_short)
+    out = tmp_path / "m.safetensors"
+    out.write_bytes(b"old weights")
+    out.with_suffix(".json").write_text("old card")
+    robot = [] if command == "seq2seq" else ["--robot", "panda"]
+    with pytest.raises(Interrupted):
+        main(["train", command, *robot, "--out", str(out)])
+    assert f"genplan: {out} exists: replaced once the new model is complete (kept until then)\n" in capsys.readouterr().err
+    assert out.read_bytes() == b"old weights" and out.with_suffix(".json").read_text() == "old card"
+    fresh = tmp_path / "new.safetensors"
+    with pytest.raises(Interrupted):
+        main(["train", command, *robot, "--out", str(fresh)])
+    assert "exists" not in capsys.readouterr().err
+
+
+def _fsize_limit(limit: int):
+    """A preexec_fn: a file size limit of ``limit`` bytes (``ulimit -f``) in the child."""
+    def set_limit() -> None:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return set_limit
+
+
+def _temporary_files(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.rglob(".*") if ".tmp" in p.name)
+
+
+def test_integrity_6_a_write_that_fails_is_one_line_naming_the_file(tmp_path) -> None:
+    # a data shard past the file size limit (ulimit -f): EFBIG, not SIGXFSZ killing the process
+    proc = _run_cli(["data", "--robot", "panda", "--data-size", "300", "--shard-size", "150", "--workers", "1",
+                     "--out", "d"], tmp_path, preexec_fn=_fsize_limit(4096))
+    lines = proc.stderr.splitlines()
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert lines[-2].endswith(f"genplan: error: {Path('d') / 'shard_00000.npy'}: File too large"), lines[-2]
+    assert not (tmp_path / "d").exists()  # nothing half-written, no folder left behind
+    # a --trajectory file: the plan's JSON (90 kB) is written, the trajectory (~1 MB) is not
+    argv = ["plan", "--robot", str(EXAMPLES / "xarm7.toml"), "--task", str(EXAMPLES / "upright_cup.toml"), "--scene",
+            str(EXAMPLES / "table_box.toml"), "--target", "0.45", "-0.3", "0.25", "--out", "plan.json",
+            "--trajectory", "plan.npz"]
+    proc = _run_cli(argv, tmp_path, preexec_fn=_fsize_limit(300_000))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert proc.stderr.splitlines()[-2] == "genplan: error: plan.npz: File too large", proc.stderr[-3000:]
+    assert (tmp_path / "plan.json").is_file() and not (tmp_path / "plan.npz").exists()
+    assert _temporary_files(tmp_path) == []
+
+
+def test_integrity_6_a_training_output_that_cannot_be_written_is_one_line(tmp_path) -> None:
+    env = {**os.environ, "GENPLAN_CACHE": str(tmp_path / "cache"), "GENPLAN_TORCH_THREADS": "1"}
+    proc = _run_cli(["train", "gan", "--robot", "panda", "--iterations", "2", "--n-net", "2", "--data-size", "200",
+                     "--eval-targets", "5", "--out", "m.safetensors"], tmp_path, preexec_fn=_fsize_limit(60_000),
+                    env=env)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert proc.stderr.splitlines()[-2] == "genplan: error: m.safetensors: File too large", proc.stderr[-3000:]
+    assert not (tmp_path / "m.safetensors").exists() and not (tmp_path / "m.json").exists()
+    assert _temporary_files(tmp_path) == []
+
+
+def test_integrity_6_ctrl_c_is_one_line_exit_130_and_the_data_set_resumes(tmp_path) -> None:
+    import json
+    import signal
+
+    code = ("import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            "from genplan.cli import main; sys.exit(main(sys.argv[1:]))")
+    argv = ["data", "--robot", "panda", "--data-size", "60000", "--shard-size", "500", "--workers", "1", "--out", "d"]
+    proc = subprocess.Popen([sys.executable, "-c", code, *argv], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    t0 = time.perf_counter()
+    while not (tmp_path / "d" / "manifest.json").exists() and proc.poll() is None and time.perf_counter() - t0 < 60:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err[-3000:]
+    assert err.splitlines()[-1].endswith("genplan: interrupted") and "Traceback" not in err, err[-3000:]
+    m = json.loads((tmp_path / "d" / "manifest.json").read_text())
+    assert not m["complete"] and 1 <= m["shards_done"] < m["shards_total"]
+    assert _temporary_files(tmp_path) == [] and not (tmp_path / "d" / "genplan.lock").exists()
+    proc = _run_cli(argv, tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert f"resuming d: {m['shards_done']} of 120 shards finished and verified" in proc.stdout

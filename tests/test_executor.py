@@ -161,3 +161,75 @@ def test_the_data_set_is_identical_on_1_and_2_workers_processes_and_ray(panda: g
         assert manifest["last_run"]["executor"] == ("ray" if "--ray" in flags else "local-threads")
     # a different seed is a different data set
     assert D.dataset_sha256([D.generate(panda, n, 4, shard_size=size, progress=False)]) != digest
+
+
+# -- Ctrl-C
+
+
+def wait_for_stop(seconds: float) -> str:
+    """A shard that runs ``seconds`` unless its run is interrupted (it polls stopping())."""
+    from genplan.executor import stopping
+
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        if stopping():
+            raise KeyboardInterrupt("stopped")
+        time.sleep(0.01)
+    return "finished"
+
+
+def test_integrity_6_ctrl_c_stops_worker_threads_that_poll_stopping() -> None:
+    from genplan.executor import stopping
+    from tests.interrupt import MAX_LATENCY_S, ctrl_c_latency
+
+    t0 = time.perf_counter()
+    with LocalExecutor(2) as ex:
+        latency = ctrl_c_latency(lambda: ex.map(wait_for_stop, [30.0] * 4, progress=False), after=0.3)
+    assert latency < MAX_LATENCY_S and not stopping()
+    assert time.perf_counter() - t0 < 0.3 + 2 * MAX_LATENCY_S  # the threads ended too, not after 30 s
+    # a data shard stops between pieces of its projections
+    panda = genplan.load("panda")
+    shard = D.shards(panda, 2000, shard_size=2000)[0]
+    import genplan.executor as E
+
+    E._STOP.set()
+    try:
+        with pytest.raises(KeyboardInterrupt, match="shard 0: the run was interrupted"):
+            D.project_shard(shard)
+    finally:
+        E._STOP.clear()
+
+
+@pytest.mark.parametrize("after", [0.05, 0.3, 2.0])
+def test_integrity_6_ctrl_c_ends_worker_processes_without_a_traceback(after: float) -> None:
+    import signal
+    import subprocess
+    import sys
+
+    code = ("import signal, sys, time\n"
+            "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            "from genplan.executor import LocalExecutor\n"
+            "print('start', flush=True)\n"
+            "try:\n"
+            "    with LocalExecutor(2, 'process') as ex:\n"
+            "        ex.map(time.sleep, [30, 30, 30], progress=False)\n"
+            "except KeyboardInterrupt:\n"
+            "    sys.exit(130)\n")
+    # a session of its own: the Ctrl-C goes to the whole process group, as a terminal sends it
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    assert proc.stdout.readline().strip() == "start"
+    time.sleep(after)
+    t0 = time.perf_counter()
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and time.perf_counter() - t0 < 10
+    assert err == "", err  # no worker printed a traceback
+    for _ in range(100):  # and none is left running
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        pytest.fail("worker processes outlived the interrupted run")

@@ -6,7 +6,9 @@ argparse error naming the option before anything runs. Output locations (:data:`
 the command starts (:func:`check_outputs`): the folder is created if missing (the commands' writers
 do the same) and a temporary file is created and removed in it, so a read-only or impossible place
 fails in a fraction of a second instead of after the work. A command whose output has a computed
-default checks it itself, first, with :func:`check_output_file` / :func:`check_output_folder`.
+default checks it itself, first, with :func:`check_output_file` / :func:`check_output_folder`;
+a training command's model file goes through :func:`model_output`, which refuses any place inside
+the installed package (its shipped models are never written by a command).
 User errors found inside a command raise :class:`UsageError`; ``genplan.cli.main`` prints any
 :class:`~genplan.errors.GenplanError` as one line and exits with code 2.
 """
@@ -17,9 +19,11 @@ import argparse
 import math
 import os
 import secrets
+import sys
 from pathlib import Path
 from typing import Any
 
+from genplan._files import missing_folders, remove_empty_folders
 from genplan.errors import GenplanError
 
 #: largest seed the commands accept (numpy, torch and the Rust samplers all take it)
@@ -176,11 +180,56 @@ def check_output_file(path: Path, what: str) -> Path:
     return path
 
 
-def out_option(out: Path, default: Path) -> str:
-    """The ``--out`` of a model's retraining command (its card's ``command``): `` --out PATH``
-    unless ``out`` is where the command writes by default (the robot's shipped place), so the
-    command rewrites that same file and no other."""
-    return "" if Path(out).resolve() == Path(default).resolve() else f" --out {out}"
+def package_dir() -> Path:
+    """The installed genplan package's folder (its shipped models, presets and code)."""
+    return Path(__file__).resolve().parent
+
+
+def inside_package(path: str | os.PathLike[str]) -> bool:
+    """True when ``path``, symbolic links followed (a repository checkout's ``models`` links to
+    the package's models), lies inside the installed genplan package."""
+    return Path(path).resolve().is_relative_to(package_dir())
+
+
+def _elsewhere(name: str) -> str:
+    """``name`` in the current folder, or in the home folder when the current one lies inside
+    the package: a place to suggest for a model file."""
+    return name if not inside_package(name) else str(Path.home() / name)
+
+
+def model_output(out: Path | None, default: Path) -> Path:
+    """The model file a training command writes: ``--out`` as given, or ``default`` when it is
+    None and ``default`` lies outside the installed package; checked as :func:`check_output_file`
+    does. The package's files (the shipped models, which every default use loads) are never
+    written by a command: without ``--out`` when the default lies inside it, or with an ``--out``
+    inside it, :class:`UsageError` naming ``--out`` and suggesting a path elsewhere."""
+    if out is None:
+        if not inside_package(default):
+            return check_output_file(default, "--out")
+        raise UsageError(f"--out: give the model's path, e.g. --out {_elsewhere(default.name)} (the default, "
+                         f"{default}, is a model shipped inside the installed genplan package, which training "
+                         "never overwrites)")
+    if inside_package(out):
+        raise UsageError(f"--out {out}: inside the installed genplan package ({package_dir()}), whose shipped "
+                         f"models training never overwrites; write elsewhere, e.g. --out {_elsewhere(Path(out).name)}")
+    return Path(out)
+
+
+def announce_replacement(paths: list[Path]) -> None:
+    """One line on stderr when any of the model files ``paths`` (written as .safetensors plus a
+    .json card) exists: it is replaced once its new model is complete, and kept until then."""
+    found = [p for p in (Path(p).with_suffix(".safetensors") for p in paths)
+             if p.exists() or p.with_suffix(".json").exists()]
+    if found:
+        what = f"{found[0]} exists" if len(found) == 1 else f"{len(found)} models exist ({found[0]}, ...)"
+        print(f"genplan: {what}: replaced once the new model is complete (kept until then)", file=sys.stderr)
+
+
+def out_option(out: Path) -> str:
+    """The ``--out`` of a model's retraining command (its card's ``command``): `` --out PATH``,
+    the path as given, so the command rewrites that same file and no other (never the shipped
+    place: :func:`model_output`)."""
+    return f" --out {out}"
 
 
 def output_actions(parser: argparse.ArgumentParser) -> list[tuple[str, str, Output]]:
@@ -189,13 +238,21 @@ def output_actions(parser: argparse.ArgumentParser) -> list[tuple[str, str, Outp
             for a in parser._actions if isinstance(a.type, Output)]
 
 
-def check_outputs(args: argparse.Namespace, actions: list[tuple[str, str, Output]]) -> None:
-    """Check every output location given in ``args`` (see :func:`output_actions`)."""
+def check_outputs(args: argparse.Namespace, actions: list[tuple[str, str, Output]]) -> list[Path]:
+    """Check every output location given in ``args`` (see :func:`output_actions`); returns the
+    folders the checks created, deepest first (a command that fails removes those left empty)."""
+    created: list[Path] = []
     for dest, option, out in actions:
         value = getattr(args, dest, None)
         for path in value if isinstance(value, list) else [value]:
             if path is not None:
-                out.check(Path(path), option)
+                created += missing_folders(path if out.kind == "folder" else Path(path).parent)
+                try:
+                    out.check(Path(path), option)
+                except BaseException:
+                    remove_empty_folders(sorted(created, key=lambda p: len(p.parts), reverse=True))
+                    raise
+    return sorted(created, key=lambda p: len(p.parts), reverse=True)
 
 
 def add_robot_and_task(p: argparse.ArgumentParser, task_default: str | None, *, task_required: bool = False) -> None:

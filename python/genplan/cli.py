@@ -4,27 +4,41 @@ Every user error (a bad argument, an output location that cannot be written, a m
 input file, any :class:`genplan.errors.GenplanError`) is one line on stderr,
 ``genplan: error: ...``, and exit code 2, before the command starts when the arguments alone
 show it. Arguments are checked by the argparse types of :mod:`genplan._cli_args`; outputs are
-checked by :func:`main` once all arguments parsed. Anything else is a bug and keeps its traceback
-(exit code 1).
+checked by :func:`main` once all arguments parsed. A write that fails (disk full, quota, file
+size limit, permission, read-only file system) is such an error too, naming the file: every file
+is written under a temporary name and renamed when whole (:mod:`genplan._files`), so nothing is
+left half-written. Ctrl-C prints ``genplan: interrupted`` and exits with code 130. A command that
+fails or is interrupted removes the output folders it created, when it left them empty. Anything
+else is a bug and keeps its traceback (exit code 1).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import importlib.metadata
 import platform
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
 
 from genplan._cli_args import UsageError, check_outputs, output_actions
+from genplan._files import remove_empty_folders
 from genplan.errors import GenplanError
 
 #: errors of the user's making: one line and exit code 2 (OSErrors: on a path the user gave)
 USER_ERRORS = (GenplanError, FileNotFoundError, PermissionError, IsADirectoryError, NotADirectoryError)
+#: errnos of an OSError that is the machine's or the user's doing, not a bug: one line and exit
+#: code 2 like USER_ERRORS (a write that fails: disk full, quota, file size limit, read-only)
+USER_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EACCES, errno.EPERM, errno.EROFS,
+                         errno.ENOENT, errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENAMETOOLONG, errno.EIO})
+#: the exit code of an interrupted command (128 + SIGINT, as a shell reports it)
+INTERRUPTED = 130
 
 
 def _version(dist: str) -> str:
@@ -125,16 +139,33 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``genplan ARGV``; returns the exit code (2 and one line on stderr for a user error)."""
-    parser = build_parser()
+    """Run ``genplan ARGV``; returns the exit code (2 and one line on stderr for a user error,
+    130 and ``genplan: interrupted`` for Ctrl-C)."""
+    if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
+        # past a file size limit (ulimit -f) a write fails with EFBIG, reported as an error, instead
+        # of the signal's default action killing the process
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    created: list[Path] = []
     try:
+        parser = build_parser()
         args = parser.parse_args(argv)
         if not hasattr(args, "func"):
             parser.print_help()
             return 2
-        check_outputs(args, getattr(args, "outputs_", []))
+        created = check_outputs(args, getattr(args, "outputs_", []))
         return int(args.func(args))
+    except KeyboardInterrupt:
+        remove_empty_folders(created)
+        print("genplan: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    except OSError as exc:
+        if not isinstance(exc, USER_ERRORS) and exc.errno not in USER_ERRNOS:
+            raise
+        remove_empty_folders(created)
+        print(f"genplan: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
     except USER_ERRORS as exc:
+        remove_empty_folders(created)
         print(f"genplan: error: {_one_line(exc)}", file=sys.stderr)
         return 2
 

@@ -17,6 +17,12 @@ the order of the items whatever order they finished in.
 * :class:`RayExecutor` runs each shard as a Ray task of one CPU (``pip install 'genplan[ray]'``).
   The functions and items are pickled; genplan must be installed on a cluster's nodes.
 
+Ctrl-C (KeyboardInterrupt in ``map``): no new shard starts; worker processes are ended at once
+(SIGINT is blocked while they are spawned and ignored in them, so a terminal's Ctrl-C, sent to
+the whole process group, prints no traceback of theirs); worker
+threads cannot be ended, so a long shard function polls :func:`stopping` between pieces of its
+work and stops early; Ray tasks are cancelled. The KeyboardInterrupt then reaches the caller.
+
 Failures: a shard that raises, or whose worker dies, is retried up to ``retries`` times; a
 :class:`~genplan.errors.GenplanError` (the input's fault: the same on every attempt) is not
 retried and stops the run. A run that cannot finish raises :class:`ShardsFailedError` naming
@@ -30,6 +36,8 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing
 import os
+import signal
+import threading
 import traceback
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar
@@ -39,7 +47,7 @@ import numpy as np
 from genplan.errors import GenplanError, MissingExtraError, ShardsFailedError
 
 __all__ = ["Executor", "LocalExecutor", "MissingExtraError", "RayExecutor", "RETRIES", "ShardsFailedError",
-           "chunks", "executor", "shard_rng", "shard_seed"]
+           "chunks", "executor", "shard_rng", "shard_seed", "stopping"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -60,6 +68,22 @@ def shard_seed(seed: int, index: int) -> np.random.SeedSequence:
 def shard_rng(seed: int, index: int) -> np.random.Generator:
     """The generator of shard ``index`` of a run seeded ``seed`` (:func:`shard_seed`)."""
     return np.random.default_rng(shard_seed(seed, index))
+
+
+#: set while an interrupted run waits for its worker threads (:func:`stopping`)
+_STOP = threading.Event()
+
+
+def stopping() -> bool:
+    """True while an interrupted run (Ctrl-C in :meth:`Executor.map`) waits for its worker
+    threads: a long shard function polls it between pieces of its work and, when it is True,
+    raises KeyboardInterrupt instead of finishing."""
+    return _STOP.is_set()
+
+
+def _ignore_sigint() -> None:
+    """A worker process's initializer: Ctrl-C is the parent's to handle (it ends the workers)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _describe(exc: BaseException) -> str:
@@ -108,6 +132,9 @@ class Executor:
     def _in_flight(self) -> int:
         return self.workers
 
+    def _interrupt(self, handles: list[Any]) -> None:
+        """Stop the shards ``handles`` (running) and those not started, after a Ctrl-C."""
+
     def map(self, fn: Callable[[T], R], items: Sequence[T], *, desc: str = "shards", progress: bool = True,
             retries: int = RETRIES, on_result: Callable[[int, R], Any] | None = None,
             weights: Sequence[float] | None = None, unit: str = "shard") -> list[Any]:
@@ -118,6 +145,7 @@ class Executor:
         run need not keep them). ``weights``: what each shard adds to the progress bar (default
         1, ``unit``). Raises :class:`ShardsFailedError` when a shard fails ``1 + retries`` times
         or raises a GenplanError."""
+        _STOP.clear()  # a run starts unstopped (after an interrupted one whose wait was cut short)
         n = len(items)
         out: list[Any] = [None] * n
         attempts = [0] * n
@@ -162,12 +190,19 @@ class Executor:
                         continue
                     out[i] = on_result(i, value) if on_result is not None else value
                     bar.update(weights[i] if weights is not None else 1)
+        except KeyboardInterrupt:
+            self._interrupt(list(running))
+            raise
         finally:
             bar.close()
         if failures:
-            lines = "; ".join(f"shard {i}: {why}" for i, why in sorted(failures.items()))
-            head = f"{len(failures)} of {n} shards failed" if fatal is None else f"stopped at an input error ({fatal})"
-            raise ShardsFailedError(f"{desc}: {head}: {lines}", failures)
+            if fatal is None:
+                lines = "; ".join(f"shard {i}: {why}" for i, why in sorted(failures.items()))
+                raise ShardsFailedError(f"{desc}: {len(failures)} of {n} shards failed: {lines}", failures)
+            others = "; ".join(f"shard {i}: {why}" for i, why in sorted(failures.items())
+                               if not fatal.startswith(f"shard {i}: "))
+            raise ShardsFailedError(f"{desc}: stopped at an input error: {fatal}"
+                                    + (f" (also failed: {others})" if others else ""), failures)
         return out
 
 
@@ -189,12 +224,31 @@ class LocalExecutor(Executor):
         if self.kind == "thread":
             return cf.ThreadPoolExecutor(self.workers, thread_name_prefix="genplan-shard")
         # spawned, not forked: torch and Rust thread pools do not survive a fork
-        return cf.ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"))
+        return cf.ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                      initializer=_ignore_sigint)
 
     def _start(self, fn: Callable[[Any], Any], item: Any) -> cf.Future:
         if self._pool is None:
             self._pool = self._make()
-        return self._pool.submit(fn, item)
+        if (self.kind == "thread" or not hasattr(signal, "pthread_sigmask")
+                or threading.current_thread() is not threading.main_thread()):
+            return self._pool.submit(fn, item)
+        # A submit may spawn workers. They inherit SIGINT blocked (the mask of the thread that
+        # forks them), so a terminal's Ctrl-C, sent to the whole process group, interrupts none of
+        # them, even while they start. Here the Ctrl-C is held until the submit returned (another
+        # thread may take the signal, so blocking it in this one is not enough: a handler that
+        # records it), so that no worker is left half-started.
+        held: list[int] = []
+        handler = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            future = self._pool.submit(fn, item)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+            signal.signal(signal.SIGINT, handler)
+        if held:
+            raise KeyboardInterrupt
+        return future
 
     def _wait(self, handles: list[Any]) -> list[Any]:
         done, _ = cf.wait(handles, return_when=cf.FIRST_COMPLETED)
@@ -213,6 +267,20 @@ class LocalExecutor(Executor):
         if self._pool is not None:
             self._pool.shutdown(wait=False, cancel_futures=True)
             self._pool = None
+
+    def _interrupt(self, handles: list[Any]) -> None:
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        if self.kind == "process":
+            # no public way to end a pool's busy workers before Python 3.14 (terminate_workers)
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
+            pool.shutdown(wait=False, cancel_futures=True)
+            return
+        _STOP.set()  # the running shards stop at their next check (stopping())
+        pool.shutdown(wait=True, cancel_futures=True)
+        _STOP.clear()  # left set if a second Ctrl-C cut the wait short: the process is ending
 
     def close(self) -> None:
         if self._pool is not None:
@@ -273,6 +341,13 @@ class RayExecutor(Executor):
         from ray import exceptions as rex
 
         return isinstance(exc, (rex.WorkerCrashedError, rex.NodeDiedError, rex.LocalRayletDiedError))
+
+    def _interrupt(self, handles: list[Any]) -> None:
+        for handle in handles:
+            try:
+                self._ray.cancel(handle, force=True)
+            except Exception:  # noqa: BLE001 -- a task that already ended cannot be cancelled
+                pass
 
     def describe(self) -> dict[str, Any]:
         return {"executor": "ray", "workers": self.workers, "address": self.address,

@@ -77,7 +77,7 @@ class Outcome:
 
 
 def _condition_frame(robot: Robot, task: P.Task) -> str:
-    from genplan.gan.costs import condition_term
+    from genplan.projection import condition_term
 
     return condition_term(task).frame
 
@@ -110,7 +110,7 @@ def make_query(robot: Robot, task: P.Task, world: CollisionWorld, start: ArrayLi
     Errors name the argument: InvalidStartError / InvalidGoalError (off the manifold and not
     projectable, in collision, no IK solution found), SettingsError (neither or both of goal
     and target)."""
-    from genplan.gan.costs import condition_term, manifold_task
+    from genplan.projection import condition_term, manifold_task
 
     if (goal is None) == (target is None):
         raise SettingsError("give a goal configuration or a target of the task's condition, not both or neither")
