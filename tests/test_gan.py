@@ -5,6 +5,7 @@ import copy
 import dataclasses
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -469,3 +470,195 @@ def test_coverage_options_train_round_trip_and_old_cards_default(panda: genplan.
     for field, value in (("loss", "hinge"), ("member_init", "zeros"), ("w_diversity", -1.0), ("gp_weight", float("nan"))):
         with pytest.raises(SettingsError, match=f"GanConfig.{field} must be"):
             default_config("panda", **{field: value})
+
+
+# --------------------------------------------------------------------------------------------
+# A model is matched to a robot by its kinematics, not by its name
+# --------------------------------------------------------------------------------------------
+
+REPO = Path(__file__).resolve().parents[1]
+ERD = "package://example-robot-data/robots"
+
+
+def _robot_file(tmp_path, name: str, urdf: str, *, srdf: str | None = None, collision_urdf: str | None = None,
+                locked: str = "", frames: str = 'hand = "panda_hand"', extra: str = "") -> genplan.Robot:
+    """A robot file of one's own in ``tmp_path`` (``name``.toml), loaded."""
+    path = tmp_path / f"{name}.toml"
+    text = f'name = "{name}"\nurdf = "{urdf}"\n'
+    text += "".join(f'{k} = "{v}"\n' for k, v in (("srdf", srdf), ("collision_urdf", collision_urdf)) if v)
+    path.write_text(text + locked + extra + f"\n[frames]\n{frames}\n")
+    return genplan.load(path)
+
+
+def _panda_file(tmp_path, name: str = "panda", urdf: str | None = None, collision_urdf: str | None = None,
+                locked: str = 'locked_joints = ["panda_finger_joint1", "panda_finger_joint2"]\n'
+                              'reference_state = "default"\n') -> genplan.Robot:
+    return _robot_file(tmp_path, name, urdf or f"{ERD}/panda_description/urdf/panda.urdf",
+                       srdf=f"{ERD}/panda_description/srdf/panda.srdf",
+                       collision_urdf=collision_urdf or f"{ERD}/panda_description/urdf/panda_collision.urdf",
+                       locked=locked)
+
+
+def test_integrity_4_another_robot_named_panda_is_refused_naming_both(panda: genplan.Robot, tmp_path) -> None:
+    """Before: the Panda GAN loaded for an xArm7 robot file named "panda" (its name was all that
+    was compared) and every sample lay outside the xArm7's limits."""
+    from genplan.errors import ModelFileError
+
+    xarm = _robot_file(tmp_path, "panda", f"{ERD}/xarm_description/urdf/xarm7.urdf",
+                       srdf=f"{ERD}/xarm_description/srdf/xarm7.srdf", frames='hand = "link_eef"')
+    assert xarm.name == panda.name and xarm.kinematic_hash != panda.kinematic_hash
+    shipped = models_dir() / "panda_gan.safetensors"
+    for load in (lambda: load_model(xarm), lambda: GanSampler(xarm), lambda: GanSampler(xarm, shipped)):
+        with pytest.raises(ModelFileError) as info:
+            load()
+        message = str(info.value)
+        assert message.startswith(f"{shipped} is a GAN for robot 'panda', not 'panda' (robot file {tmp_path / 'panda.toml'})")
+        assert "kinematic hash" in message and panda.kinematic_hash[:12] in message and xarm.kinematic_hash[:12] in message
+    # a model in memory: the robot it was made for against the one given
+    with pytest.raises(ModelFileError, match=r"^the GAN is for robot 'panda' \(preset\), not 'panda' \(robot file "):
+        GanSampler(xarm, load_model(panda))
+
+
+def test_integrity_4_the_match_ignores_the_name_and_locked_joints_off_the_chain(panda: genplan.Robot, tmp_path) -> None:
+    """A Panda with its fingers locked open, or under another name, keeps the Panda GAN; a Panda
+    whose joint 1 has other limits does not."""
+    from genplan.errors import ModelFileError
+
+    open_fingers = _panda_file(tmp_path, "panda",
+                               locked="locked_joints = { panda_finger_joint1 = 0.04, panda_finger_joint2 = 0.04 }\n"
+                                      'reference_state = "default"\n')
+    assert open_fingers.locked_joints == {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}
+    renamed = _panda_file(tmp_path, "my_panda")
+    shipped = models_dir() / "panda_gan.safetensors"
+    for robot in (open_fingers, renamed):
+        assert robot.kinematic_hash == panda.kinematic_hash
+        model = load_model(robot, shipped)
+        assert model.robot is robot and np.isfinite(GanSampler(robot, model, seed=0).sample(3)).all()
+    for name in ("panda", "panda_collision"):  # the kinematic and the collision URDF: one tree
+        urdf = (genplan.robots.robots_dir() / "panda_description" / "urdf" / f"{name}.urdf").read_text()
+        assert urdf.count('lower="-2.8973"') >= 1
+        (tmp_path / f"narrow_{name}.urdf").write_text(urdf.replace('lower="-2.8973"', 'lower="-2.5"', 1))
+    narrow = _panda_file(tmp_path, "panda", urdf=str(tmp_path / "narrow_panda.urdf"),
+                         collision_urdf=str(tmp_path / "narrow_panda_collision.urdf"))
+    assert narrow.kinematic_hash != panda.kinematic_hash
+    with pytest.raises(ModelFileError, match="is a GAN for robot 'panda', not 'panda'"):
+        load_model(narrow, shipped)
+
+
+def test_integrity_4_a_card_without_the_hash_loads_with_one_warning(tiny_panda_model, panda: genplan.Robot,
+                                                                    talos: genplan.Robot, tmp_path) -> None:
+    """A card written before the hash existed: matched by name, with a ModelCardWarning emitted
+    once per file."""
+    import warnings
+
+    from genplan.errors import ModelFileError
+    from genplan.model_files import ModelCardWarning
+
+    weights, card = tiny_panda_model.save(tmp_path / "old.safetensors")
+    assert json.loads(card.read_text())["robot_kinematic_hash"] == panda.kinematic_hash
+    tamper(weights, lambda c: c.pop("robot_kinematic_hash"))
+    with pytest.warns(ModelCardWarning, match=f"{card} records no robot kinematic hash"):
+        load_model(panda, weights)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_model(panda, weights)  # once
+    with pytest.raises(ModelFileError, match="is a GAN for robot 'panda', not 'talos'"):
+        load_model(talos, weights)
+    tamper(weights, lambda c: c.update(robot_kinematic_hash="not a hash"))
+    with pytest.raises(ModelFileError, match="robot_kinematic_hash must be 64 lowercase hex digits"):
+        load_model(panda, weights)
+
+
+SHIPPED = [("panda_gan", "panda"), ("talos_gan", "talos"), ("talos_flow", "talos"), ("talos_flow_teacher", "talos"),
+           ("upright_cup_gan", str(REPO / "examples" / "xarm7" / "xarm7.toml"))]
+
+
+@pytest.mark.parametrize("name, robot", SHIPPED, ids=[s[0] for s in SHIPPED])
+def test_integrity_4_shipped_cards_record_their_robots_kinematics(name: str, robot: str) -> None:
+    """Each shipped card records the kinematic hash of the robot it was trained for, its weights
+    unchanged (their sha256 is the card's), and loads without a warning."""
+    import hashlib
+    import warnings
+
+    from genplan.gan.loading import load_sampler_model
+
+    rob = genplan.load(robot)
+    folder = REPO / "examples" / "xarm7" if name.startswith("upright") else models_dir()
+    path = folder / f"{name}.safetensors"
+    card = json.loads(path.with_suffix(".json").read_text())
+    assert card["robot_kinematic_hash"] == rob.kinematic_hash
+    assert card["weights_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_sampler_model(rob, path)
+
+
+def test_integrity_7_a_task_without_a_condition_target_trains_evaluates_and_writes_its_card(
+        panda: genplan.Robot, tmp_path, monkeypatch) -> None:
+    from tests.test_projection import _no_target_task
+
+    monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
+    f = _no_target_task(tmp_path)
+    out = tmp_path / "m.safetensors"
+    assert main(["train", "gan", "--robot", "panda", "--task", str(f), "--iterations", "3", "--n-net", "2",
+                 "--data-size", "200", "--eval-targets", "10", "--out", str(out)]) == 0
+    card = json.loads(out.with_suffix(".json").read_text())
+    term = next(t for t in card["task"]["primary"] if t["name"] == "hand_position")
+    assert "target" not in term and card["evaluation"]["targets"] == 10
+    model = load_model(panda, out, task=f)  # the card's task is the file's
+    assert model.sample(np.array([[0.5, 0.0, 0.6]]), 0).shape == (1, 7)
+
+
+def test_integrity_7_training_checks_every_use_of_the_task_before_any_work(panda: genplan.Robot, monkeypatch) -> None:
+    from genplan.errors import TaskFileError
+
+    class Elbow(P.CustomTerm):  # a Python term: solvable, but no task file (the card) can hold it
+        def dim(self) -> int:
+            return 1
+
+        def residual(self, q):
+            return q[:, 3:4] + 1.5
+
+        def jacobian(self, q):
+            jac = np.zeros((len(q), 1, 7))
+            jac[:, 0, 3] = 1.0
+            return jac
+
+    task = P.panda_task("ik")
+    task = dataclasses.replace(task, name="elbow_ik", secondary=(*task.secondary, Elbow(name="elbow")))
+
+    def no_work(*args, **kwargs):
+        pytest.fail("training started work before the task was checked")
+
+    monkeypatch.setattr(gan_data, "valid_configurations", no_work)
+    cfg = default_config(panda, task, iterations=3, data_size=100, n_net=2)
+    with pytest.raises(TaskFileError, match="term 'elbow'.* custom term"):
+        train(cfg, robot=panda, task=task, progress=False)
+
+
+def test_integrity_2_a_changed_data_cache_is_regenerated_not_trusted(panda: genplan.Robot, tmp_path,
+                                                                     monkeypatch) -> None:
+    import hashlib
+
+    from genplan.cache import hash_path
+
+    monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path))
+    ref = gan_data.valid_configurations(panda, n=300, seed=4, progress=False)
+    path = gan_data.cache_path(panda, 300, 4)
+    raw = bytearray(path.read_bytes())
+    header = len(raw) - ref.nbytes
+    raw[header + 8 * 5: header + 8 * 6] = np.float64(-47.0).tobytes()  # joint 5 of row 0 at -47 rad
+    path.write_bytes(bytes(raw))
+    with pytest.warns(RuntimeWarning, match="do not match their sha256"):
+        again = gan_data.valid_configurations(panda, n=300, seed=4, progress=False)
+    np.testing.assert_array_equal(again, ref)
+    # the file and its hash both changed: the rows are checked against the joint limits on read
+    path.write_bytes(bytes(raw))
+    hash_path(path).write_text(hashlib.sha256(bytes(raw)).hexdigest())
+    with pytest.warns(RuntimeWarning, match=r"1 row outside the joint limits \(row 0: q\[5\] = -47"):
+        again = gan_data.valid_configurations(panda, n=300, seed=4, progress=False)
+    np.testing.assert_array_equal(again, ref)
+    # a cache file without its hash (written before hashes were kept) is regenerated
+    hash_path(path).unlink()
+    np.testing.assert_array_equal(gan_data.valid_configurations(panda, n=300, seed=4, progress=False), ref)
+    assert hash_path(path).is_file()

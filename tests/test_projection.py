@@ -350,3 +350,61 @@ def test_task_file_errors_name_the_file_the_table_and_the_key(tmp_path, panda: g
         P.load_task("kitchen")
     with pytest.raises(UnknownNameError, match="no shipped task 'ur5_projection'"):
         P.paper_task(genplan.load("ur5"))
+
+
+def _no_target_task(tmp_path, name: str = "no_target"):
+    """panda_ik with its condition term's target left out (each query sets it)."""
+    text = (P.TASKS_DIR / "panda_ik.toml").read_text()
+    assert "target = [0.55, 0.0, 0.65]\n" in text
+    f = tmp_path / f"{name}.toml"
+    f.write_text(text.replace("target = [0.55, 0.0, 0.65]\n", "").replace('name = "panda_ik"', f'name = "{name}"'))
+    return f
+
+
+@pytest.mark.parametrize("backend", ["native", "pinocchio"])
+def test_integrity_7_the_condition_term_may_leave_its_target_out(tmp_path, panda: genplan.Robot, backend) -> None:
+    from genplan.errors import SettingsError
+
+    f = _no_target_task(tmp_path)
+    task = P.Task.from_file(f, panda)
+    assert P.condition_term(task).target is None
+    d = task.to_dict()
+    assert "target" not in next(t for t in d["primary"] if t["name"] == "hand_position")
+    again = P.Task.from_file(task.to_file(tmp_path / "again.toml"), panda)
+    assert again.to_dict() == d
+    # solved with per-row targets: the same answers as the task whose target is set
+    targets = np.array([[0.5, 0.1, 0.6], [0.45, -0.2, 0.7]])
+    q0 = panda.random_configurations(2, 0)
+    a = P.GaussNewtonProjector(panda, task, backend=backend).solve_batch(q0, targets={"hand_position": targets})
+    b = P.GaussNewtonProjector(panda, P.panda_task("ik"), backend=backend).solve_batch(
+        q0, targets={"hand_position": targets})
+    np.testing.assert_array_equal(a.q, b.q)
+    np.testing.assert_array_equal(a.success, b.success)
+    # without a target there is nothing to aim at: refused, naming the term
+    proj = P.GaussNewtonProjector(panda, task, backend=backend)
+    for attempt in (lambda: proj.solve(q0[0]), lambda: proj.solve_batch(q0), lambda: proj.project(q0, q0)):
+        with pytest.raises(SettingsError, match="condition term 'hand_position' has no target"):
+            attempt()
+    if backend == "native":
+        with pytest.raises(SettingsError, match="condition term 'hand_position' has no target"):
+            proj.native  # noqa: B018 -- what a planner would run
+    # the manifold (the task without its condition term) needs none
+    assert P.GaussNewtonProjector(panda, P.manifold_task(task, panda), backend=backend).solve_batch(q0).q.shape == (2, 7)
+    # set, it solves
+    assert P.GaussNewtonProjector(panda, task.with_targets(hand_position=targets[0]), backend=backend).solve(q0[0]).success
+
+
+def test_integrity_7_only_the_condition_term_may_leave_its_target_out(tmp_path, panda: genplan.Robot) -> None:
+    text = _no_target_task(tmp_path).read_text() + (
+        '\n[[primary]]\nkind = "FramePosition"\nname = "elbow"\nframe = "panda_link4"\n')
+    f = tmp_path / "elbow.toml"
+    f.write_text(text)
+    with pytest.raises(TaskFileError, match=r"elbow.toml: \[\[primary\]\] 4 \('elbow'\): FramePosition needs a target "
+                                            r"\(only the \[condition\] term 'hand_position' may leave it out"):
+        P.Task.from_file(f, panda)
+    # a task built in Python: refused when it is solved, naming the term
+    from genplan.errors import SettingsError
+
+    task = P.Task(primary=[P.FramePosition(name="elbow", frame="panda_link4")], name="t")
+    with pytest.raises(SettingsError, match=r"FramePosition\(panda_link4\).target: not set"):
+        P.GaussNewtonProjector(panda, task)

@@ -140,6 +140,14 @@ class _BoundTerm:
         raise NotImplementedError
 
 
+def _target(target: Any, what: str) -> Any:
+    """``target``, or SettingsError naming ``what`` when it is not set."""
+    if target is None:
+        raise SettingsError(f"{what}: not set (only a task's [condition] term may leave its target out: each query "
+                            "sets it)")
+    return target
+
+
 def _se3(target: Any, what: str) -> pin.SE3:
     if isinstance(target, pin.SE3):
         return target.copy()
@@ -178,7 +186,8 @@ class FramePose(Term):
 
     def to_native(self, robot: Robot) -> dict[str, Any]:
         return self._native("frame_pose", link=_native_link(robot, self.frame),
-                            target=_se3(self.target, f"FramePose({self.frame}).target").homogeneous.tolist(),
+                            target=_se3(_target(self.target, f"FramePose({self.frame}).target"),
+                                        f"FramePose({self.frame}).target").homogeneous.tolist(),
                             mask=_vector(self.components, 6, "FramePose.components").tolist())
 
 
@@ -186,7 +195,8 @@ class _FramePoseBound(_BoundTerm):
     def __init__(self, term: FramePose, robot: Robot) -> None:
         self.term = term
         self.fid = robot.frame_id(term.frame)
-        self.target_inv = _se3(term.target, f"FramePose({term.frame}).target").inverse()
+        what = f"FramePose({term.frame}).target"
+        self.target_inv = _se3(_target(term.target, what), what).inverse()
         self.mask = _vector(term.components, 6, "FramePose.components")
 
     def residual(self, s: _State) -> Array:
@@ -210,7 +220,8 @@ class FramePosition(Term):
 
     def to_native(self, robot: Robot) -> dict[str, Any]:
         return self._native("frame_position", link=_native_link(robot, self.frame),
-                            target=_vector(self.target, 3, f"FramePosition({self.frame}).target").tolist(),
+                            target=_vector(_target(self.target, f"FramePosition({self.frame}).target"), 3,
+                                           f"FramePosition({self.frame}).target").tolist(),
                             mask=_vector(self.axes, 3, "FramePosition.axes").tolist())
 
 
@@ -218,7 +229,8 @@ class _FramePositionBound(_BoundTerm):
     def __init__(self, term: FramePosition, robot: Robot) -> None:
         self.term = term
         self.fid = robot.frame_id(term.frame)
-        self.target = _vector(term.target, 3, f"FramePosition({term.frame}).target")
+        what = f"FramePosition({term.frame}).target"
+        self.target = _vector(_target(term.target, what), 3, what)
         self.mask = _vector(term.axes, 3, "FramePosition.axes")
 
     def residual(self, s: _State) -> Array:
@@ -578,8 +590,9 @@ class Task:
 
 @dataclass(frozen=True)
 class Condition:
-    """The term a sampler is conditioned on (its ``target`` varies per query) and the box its
-    targets are drawn from (``low``, ``high``: as many numbers as the target)."""
+    """The term a sampler is conditioned on (its ``target`` varies per query, so the term may
+    leave it out: see :class:`GaussNewtonProjector`) and the box its targets are drawn from
+    (``low``, ``high``: as many numbers as the target)."""
 
     term: str
     low: tuple[float, ...]
@@ -591,6 +604,10 @@ class Condition:
     #: the task (shipped name or file, relative to this task file) whose manifold a sampler's
     #: training data covers; default: this task without the condition term
     manifold: str | None = None
+
+    def middle(self) -> tuple[float, ...]:
+        """The middle of the box, ``(low + high) / 2``."""
+        return tuple(0.5 * (lo + hi) for lo, hi in zip(self.low, self.high))
 
 
 #: The built-in term kinds, by the name a task file's ``kind`` gives.
@@ -646,6 +663,38 @@ def condition_term(task: Task) -> FramePosition:
     names = [t.name for t in task.primary]
     raise UnknownNameError(f"task '{task.name}': condition term '{task.condition.term}' is not one of its primary "
                            f"terms (known: {names})")
+
+
+def unset_condition_term(task: Task) -> str | None:
+    """The name of ``task``'s condition term when it leaves its target out (each query sets it),
+    else None."""
+    c = task.condition
+    term = None if c is None else next((t for t in task.primary if t.name == c.term), None)
+    return term.name if term is not None and getattr(term, "target", 0) is None else None
+
+
+def check_task_use(task: Task, robot: Robot) -> None:
+    """Try, on ``robot``'s default configuration, every use a learned sampler's training, its
+    card and its evaluation make of ``task``, so that a task they cannot use fails before the
+    work, with the error the late use would raise: its plain form (the card's ``task``: JSON,
+    read back equal), its condition term and box (:func:`condition_term`), the projector of its
+    manifold (the training data, :func:`manifold_task`), and the projector of the whole task
+    with the condition's target given per row (the card's IK evaluation)."""
+    data = task.to_dict()
+    try:
+        text = json.dumps(data, sort_keys=True)
+    except (TypeError, ValueError) as exc:
+        raise TaskFileError(f"task '{task.name}': its plain form is not JSON ({exc})") from None
+    again = Task.from_dict(json.loads(text), robot, origin=f"task '{task.name}' (read back)")
+    if json.dumps(again.to_dict(), sort_keys=True) != text:
+        raise TaskFileError(f"task '{task.name}': its plain form does not read back the same (a term whose fields a "
+                            "task file cannot hold)")
+    cond = condition_term(task)
+    assert task.condition is not None
+    q = robot.q_default[None]
+    GaussNewtonProjector(robot, manifold_task(task, robot)).solve_batch(q, parallel=False)
+    middle = np.array([task.condition.middle()])
+    GaussNewtonProjector(robot, task).solve_batch(q, targets={cond.name: middle}, parallel=False)
 
 
 def manifold_task(task: Task, robot: Robot | None = None) -> Task:
@@ -787,6 +836,13 @@ def _task_from_dict(data: Mapping[str, Any], robot: Robot | None, origin: str) -
         if manifold is not None and not isinstance(manifold, str):
             raise TaskFileError(f"{origin}: [condition] manifold must be a task name or file, got {manifold!r}")
         condition = Condition(str(c["term"]), low, high, sample_low, sample_high, manifold)
+    for group, items in (("primary", terms[0]), ("secondary", terms[1])):
+        for i, t in enumerate(items):
+            if (isinstance(t, (FramePosition, FramePose)) and t.target is None
+                    and not (group == "primary" and condition is not None and t.name == condition.term)):
+                which = f"the [condition] term '{condition.term}'" if condition is not None else "a [condition] term"
+                raise TaskFileError(f"{origin}: [[{group}]] {i + 1} ('{t.label()}'): {type(t).__name__} needs a target "
+                                    f"(only {which} may leave it out: each query sets it)")
     return Task(primary=terms[0], secondary=terms[1], name=str(data.get("name", "task")), condition=condition)
 
 
@@ -873,6 +929,11 @@ class GaussNewtonProjector:
     ``backend="pinocchio"`` runs the same algorithm in Python on Pinocchio's analytic derivatives
     (the test oracle of the native one), and also accepts :class:`Term` subclasses that only
     define ``bind()``.
+
+    A task whose condition term leaves its target out (each query sets it, docs/TASKS.md) is
+    solved only with per-row targets for that term (``solve_batch(q0s, targets={term: rows})``);
+    ``solve``, ``solve_batch`` without them, ``project`` and :attr:`native` (what a planner runs)
+    raise SettingsError naming the term.
     """
 
     def __init__(self, robot: Robot, task: Task, settings: SolverSettings | None = None, backend: str = "native") -> None:
@@ -884,6 +945,13 @@ class GaussNewtonProjector:
         self.task = task
         self.backend = backend
         self.settings = settings or SolverSettings()
+        # A condition term without its target (each query sets it): solved only with per-row
+        # targets for it (solve_batch(targets=...)); the solver is built with a stand-in target, the
+        # middle of the condition's box, which every such solve replaces.
+        self._unset = unset_condition_term(task)
+        c = task.condition
+        if self._unset is not None and c is not None and len(c.low) == 3:
+            task = task.with_targets(**{self._unset: np.array(c.middle())})
         self._primary = [t.bind(robot) for t in task.primary]
         self._secondary = [t.bind(robot) for t in task.secondary]
         labels = [t.label() for t in task.primary]
@@ -908,8 +976,18 @@ class GaussNewtonProjector:
 
     @property
     def native(self) -> _core.Projector | None:
-        """The native solver (``backend="native"``), which the planner calls without Python."""
+        """The native solver (``backend="native"``), which the planner calls without Python.
+        SettingsError for a task whose condition term has no target (nothing to aim at)."""
+        self._need_target(None)
         return self._native
+
+    def _need_target(self, term_name: str | None) -> None:
+        """SettingsError unless the condition term without a target gets one per row
+        (``term_name``: the term given per-row targets)."""
+        if self._unset is not None and term_name != self._unset:
+            raise SettingsError(f"task '{self.task.name}': its condition term '{self._unset}' has no target (each "
+                                f"query sets it): give one per row, solve_batch(..., targets={{'{self._unset}': "
+                                f"rows}}), or set it, task.with_targets({self._unset}=...)")
 
     # -- evaluation --------------------------------------------------------------------------
 
@@ -958,6 +1036,7 @@ class GaussNewtonProjector:
         """Project ``q0`` (shape (nq,)); the posture task regularises around ``q_nom``
         (default ``q0``). A target out of reach ends with ``success=False`` and the best q."""
         t0 = time.perf_counter()
+        self._need_target(None)
         q = self.robot.check_configuration(q0, "q0")
         if q.ndim != 1:
             raise ShapeError(f"q0: solve takes one configuration of shape ({self.robot.nq},); use solve_batch")
@@ -1052,6 +1131,7 @@ class GaussNewtonProjector:
             if row_shape is not None and target_rows.shape[1:] != row_shape:
                 raise ShapeError(f"targets['{term_name}']: expected shape ({len(qs)}, "
                                  f"{', '.join(map(str, row_shape))}), got {target_rows.shape}")
+        self._need_target(term_name)
         if self._native is not None:
             if target_rows is not None:
                 # one row of numbers per configuration (a FramePose's (4, 4) flattened); zero rows too

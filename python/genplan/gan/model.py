@@ -42,9 +42,12 @@ from genplan.robots import PRESETS_DIR, Robot, load
 from genplan.torch_kinematics import TorchKinematics
 
 FORMAT = "genplan-gan/1"
+#: the card key holding the kinematic hash of the robot a model was trained for
+#: (:attr:`genplan.robots.Robot.kinematic_hash`), what a loader matches the robot given against
+ROBOT_HASH_KEY = "robot_kinematic_hash"
 #: the descriptive keys a GAN card may hold (besides format, config and weights_sha256)
 CARD_KEYS = frozenset({"robot", "genplan_version", "data", "training", "command", "discriminator_features",
-                       "evaluation", "notes", "task", "robot_source"})
+                       "evaluation", "notes", "task", "robot_source", ROBOT_HASH_KEY})
 #: targets are accepted up to this far (m) outside the model's target box (:meth:`GanModel.target_limits`).
 #: The targets a GAN is trained on, end-effector positions of valid configurations, reach 0.25 m
 #: (Panda) and 0.67 m (Talos) beyond the shipped boxes (3,000 valid configurations each); farther
@@ -347,6 +350,13 @@ class SamplerModel:
     config: Any
     robot: Robot
     card: dict[str, Any]
+    #: the model's kind in messages ("GAN", "flow")
+    KIND: ClassVar[str] = "model"
+
+    def card_to_write(self) -> dict[str, Any]:
+        """The card as saved: :attr:`card` with the kinematic hash of :attr:`robot`, which a
+        loader matches the robot it is given against (:func:`check_model_fits`)."""
+        return {**self.card, ROBOT_HASH_KEY: self.robot.kinematic_hash}
 
     def sample(self, targets: ArrayLike, rng: np.random.Generator | int | None = None, *,
                threads: int | None = None) -> NDArray[np.float64]:
@@ -398,6 +408,7 @@ class GanModel(SamplerModel):
     generator: EnsembleGenerator
     codec: Codec
     card: dict[str, Any] = field(default_factory=dict)
+    KIND: ClassVar[str] = "GAN"
 
     @torch.no_grad()
     def generate(self, z: NDArray[np.float64], targets: NDArray[np.float64], offset: int = 0) -> NDArray[np.float64]:
@@ -495,8 +506,8 @@ class GanModel(SamplerModel):
         tensors.update({f"generator.bias.{i}": b for i, b in enumerate(self.generator.biases)})
         tensors["codec.mean"] = self.codec.mean
         tensors["codec.std"] = self.codec.std
-        return write_model(path, tensors, {"format": FORMAT, "robot": self.config.robot}, self.card, self.config,
-                           CARD_KEYS, "GAN")
+        return write_model(path, tensors, {"format": FORMAT, "robot": self.config.robot}, self.card_to_write(),
+                           self.config, CARD_KEYS, "GAN")
 
 
 def models_dir() -> Path:
@@ -534,7 +545,7 @@ def load_model(robot: str | Robot, path: str | Path | None = None,
 
     rob = robot if isinstance(robot, Robot) else load(robot)
     path = models_dir() / f"{rob.name}_gan.safetensors" if path is None else Path(path)
-    card, tensors = read_model(path, FORMAT, "GAN", train_command(rob), CARD_KEYS)
+    card, tensors = read_model(path, FORMAT, "GAN", retrain_hint(rob, path), CARD_KEYS)
     cfg = read_config(card, path, "GAN", GanConfig)
     check_model_fits(path, "GAN", cfg, card, rob, task)
     check_tensors(tensors, tensor_shapes(cfg, rob), path, "GAN")
@@ -550,15 +561,57 @@ def load_model(robot: str | Robot, path: str | Path | None = None,
     return GanModel(cfg, rob, gen, codec, card)
 
 
+def robot_origin(robot: Robot) -> str:
+    """Where ``robot`` comes from, for messages: "preset", "robot file PATH" or "URDF PATH"."""
+    if robot.source is None:
+        return f"URDF {robot.urdf_path}"
+    return "preset" if robot.source.parent == PRESETS_DIR else f"robot file {robot.source}"
+
+
+def _differ(recorded: str, given: Robot) -> str:
+    return (f"the active joints or the kinematic chain between them differ (kinematic hash {recorded[:12]}... "
+            f"recorded, {given.kinematic_hash[:12]}... of the robot given)")
+
+
+def check_model_robot(model: SamplerModel, robot: Robot) -> None:
+    """ModelFileError unless the model in memory ``model`` was made for ``robot``'s kinematics
+    (:attr:`~genplan.robots.Robot.kinematic_hash`; the name does not matter), naming both robots."""
+    if model.robot is not robot and model.robot.kinematic_hash != robot.kinematic_hash:
+        raise ModelFileError(f"the {model.KIND} is for robot '{model.robot.name}' ({robot_origin(model.robot)}), not "
+                             f"'{robot.name}' ({robot_origin(robot)}): {_differ(model.robot.kinematic_hash, robot)}")
+
+
 def check_model_fits(path: Path, kind: str, cfg: Any, card: dict[str, Any], rob: Robot,
                      task: "str | os.PathLike[str] | P.Task | None") -> None:
     """ModelFileError unless the model file ``path`` (a ``kind``, "GAN" or "flow", of config
     ``cfg`` and card ``card``) is for robot ``rob``, for ``task`` (when given: by name, and by its
-    terms when the card records them), and its target frame is a frame of ``rob``."""
-    if cfg.robot != rob.name or card.get("robot", cfg.robot) != cfg.robot:
-        raise ModelFileError(f"{path} is a {kind} for robot '{cfg.robot}', not '{rob.name}'"
-                             + ("" if card.get("robot", cfg.robot) == cfg.robot else
-                                f" (and its card also says '{card['robot']}')"))
+    terms when the card records them), and its target frame is a frame of ``rob``.
+
+    The robot is matched by the kinematic hash its card records
+    (:attr:`~genplan.robots.Robot.kinematic_hash`: the active joints and the chain between them),
+    not by name: another robot of the same name is refused, the same robot under another name or
+    with other values of locked joints off the chain (a Panda's fingers) is accepted. A card
+    written before the hash existed is matched by name, with a
+    :class:`~genplan.model_files.ModelCardWarning` (once per file)."""
+    from genplan.model_files import check_sha256, warn_once
+
+    card_path = path.with_suffix(".json")
+    if card.get("robot", cfg.robot) != cfg.robot:
+        raise ModelFileError(f"{path} is a {kind} for robot '{cfg.robot}', not '{rob.name}' (and its card also says "
+                             f"'{card['robot']}')")
+    recorded = card.get(ROBOT_HASH_KEY)
+    if recorded is None:
+        if cfg.robot != rob.name:
+            raise ModelFileError(f"{path} is a {kind} for robot '{cfg.robot}', not '{rob.name}'")
+        warn_once(card_path, card, f"{card_path} records no robot kinematic hash (written before genplan recorded "
+                                   f"one): the {kind} is matched to robot '{rob.name}' by its name only; save it again "
+                                   "(load it, then .save(path)) to record the hash of this robot")
+    elif check_sha256(recorded, f"{kind} model card {card_path}: {ROBOT_HASH_KEY}") != rob.kinematic_hash:
+        source = card.get("robot_source")
+        trained = f"; it was trained for {source}" if isinstance(source, str) and source else ""
+        raise ModelFileError(f"{path} is a {kind} for robot '{cfg.robot}', not '{rob.name}' ({robot_origin(rob)}): "
+                             f"{_differ(recorded, rob)}{trained}; give the model trained for this robot, or "
+                             f"train one: `{train_command(rob, model=kind.lower())}`")
     if task is not None:
         t = P.load_task(task, rob)
         if t.name != cfg.task_name:
@@ -577,15 +630,32 @@ def _comparable(task: dict[str, Any]) -> str:
     return json.dumps(task, sort_keys=True, default=str)
 
 
-def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0, model: str = "gan") -> str:
+def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0, model: str = "gan", *,
+                  options: str = "", out: "str | os.PathLike[str] | None" = None) -> str:
     """The CLI command that trains a ``model`` ("gan", or "flow": :mod:`genplan.gan.flow`) for
     ``robot`` (a Robot: its preset name or robot file; or the --robot argument as given) and
-    ``task`` (the --task argument, None for the default)."""
+    ``task`` (the --task argument, None for the default), with further ``options`` as typed
+    (e.g. ``" --iterations 5"``), writing ``out``. A command always names ``--out`` (training never
+    writes into the installed package: :func:`genplan._cli_args.model_output`); without ``out``,
+    ``<robot>_<model>.safetensors`` in the current folder."""
     if isinstance(robot, str):
-        target = robot
+        target, name = robot, Path(robot).stem
     else:
         target = robot.name if robot.source is None or robot.source.parent == PRESETS_DIR else str(robot.source)
-    return f"genplan train {model} --robot {target}" + (f" --task {task}" if task else "") + f" --seed {seed}"
+        name = robot.name
+    from genplan._cli_args import out_option
+
+    return (f"genplan train {model} --robot {target}" + (f" --task {task}" if task else "") + f" --seed {seed}"
+            + options + out_option(Path(out) if out is not None else Path(f"{name}_{model}.safetensors")))
+
+
+def retrain_hint(robot: Robot, path: Path, model: str = "gan") -> str:
+    """The command a missing model file's error names: one writing ``path``, or, for a path
+    inside the installed package (a shipped model missing: reinstall genplan), one writing
+    ``<robot>_<model>.safetensors`` in the current folder."""
+    from genplan._cli_args import inside_package
+
+    return train_command(robot, seed=0, model=model, out=None if inside_package(path) else path)
 
 
 @dataclass
@@ -608,9 +678,11 @@ class TrainingData:
 def prepare_training(cfg: Any, data: NDArray[np.float64] | None, progress: bool, robot: Robot | None,
                      task: "P.Task | None", kind: str) -> TrainingData:
     """The robot, task, data and codec of a training run of ``cfg`` (a GanConfig or FlowConfig:
-    ``robot``, ``task_name``, ``data_size``, ``data_seed``), checked: a robot or task other than
-    the config's, continuous joints or misshapen data raise before any work. ``kind`` names the
-    model in messages."""
+    ``robot``, ``task_name``, ``data_size``, ``data_seed``, ``target_frame``), checked: a robot or
+    task other than the config's, continuous joints, misshapen data, a target frame the robot
+    lacks, or a task that the card or its evaluation could not use
+    (:func:`genplan.projection.check_task_use`) raise before any work. ``kind`` names the model
+    in messages."""
     from genplan.gan.data import cache_path, valid_configurations
 
     robot = load(cfg.robot) if robot is None else robot  # cfg is valid: a frozen config validates when made
@@ -623,6 +695,9 @@ def prepare_training(cfg: Any, data: NDArray[np.float64] | None, progress: bool,
         names = [n for n in robot.joint_names if robot.model.joints[robot.model.getJointId(n)].nq == 2]
         raise SettingsError(f"robot '{robot.name}': the {kind}'s codec does not handle continuous joints yet "
                             f"({', '.join(names)}); lock them or give them limits in the URDF")
+    P.check_task_use(task, robot)  # what the card and its evaluation do with the task, tried before training
+    if getattr(cfg, "target_frame", None) is not None:
+        robot.frame_positions(robot.q_default, cfg.target_frame)
     if data is not None:
         data = as_configurations(data, robot.nq, "data")
         if data.ndim != 2:
