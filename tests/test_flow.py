@@ -280,3 +280,22 @@ def test_the_shipped_talos_flow_and_its_teacher(talos) -> None:
     np.testing.assert_allclose(student.native_sampler(seed=0).generate(z, t), q, atol=2e-5)
     res = P.GaussNewtonProjector(talos, P.paper_task(talos, "projection")).solve_batch(q)
     assert res.success.all()
+
+
+def test_integrity_4_a_flow_is_matched_to_its_robots_kinematics(tiny_flow, panda, tmp_path) -> None:
+    """A flow file records the kinematic hash of its robot: an xArm7 robot file named "panda" is
+    refused, naming both robots; the Panda under another name is not."""
+    erd = "package://example-robot-data/robots"
+    (tmp_path / "panda.toml").write_text(f'urdf = "{erd}/xarm_description/urdf/xarm7.urdf"\n[frames]\nhand = "link_eef"\n')
+    xarm = genplan.load(tmp_path / "panda.toml")
+    (tmp_path / "mine.toml").write_text((genplan.robots.PRESETS_DIR / "panda.toml").read_text())
+    mine = genplan.load(tmp_path / "mine.toml")
+    assert xarm.name == "panda" and mine.name == "mine" and mine.kinematic_hash == panda.kinematic_hash
+    weights, card = tiny_flow.save(tmp_path / "f.safetensors")
+    assert json.loads(card.read_text())["robot_kinematic_hash"] == panda.kinematic_hash
+    with pytest.raises(ModelFileError, match=rf"is a flow for robot 'panda', not 'panda' \(robot file {tmp_path}/panda.toml\): "
+                                             "the active joints or the kinematic chain between them differ"):
+        load_model(xarm, weights)
+    with pytest.raises(ModelFileError, match=r"^the flow is for robot 'panda' \(preset\), not 'panda' \(robot file "):
+        GanSampler(xarm, tiny_flow)
+    assert np.isfinite(GanSampler(mine, load_model(mine, weights), seed=0).sample(2)).all()

@@ -295,6 +295,111 @@ def test_a_huge_base_quaternion_gives_rigid_poses(talos: genplan.Robot) -> None:
 
 
 # --------------------------------------------------------------------------------------------
+# Robot files: a robot loads as its files say, or is refused (issue 35, finding 5)
+# --------------------------------------------------------------------------------------------
+
+#: Names a robot file or an SRDF may use: the URDF's (tests/test_robots.py MIMIC: links base,
+#: l1, l2, l3; joints j1, j3 and j2, which mimics j1), a free-flyer's, unknown ones.
+_LINKS = ["base", "l1", "l2", "l3", "l9", ""]
+_JOINTS = ["j1", "j2", "j3", "root_joint", "j7", ""]
+_VALUES = ["0", "0.5", "-1", "1", "2.5", "100", "0.1", "nan", "1e17", "abc", "0 0 0 0 0 0 1", "1 2", ""]
+
+
+@st.composite
+def robot_files(draw: Any) -> tuple[str, str | None]:
+    """A robot file (TOML text) for MIMIC (as mimic.urdf) and an SRDF for it (as arm.srdf), or
+    None: every key with sensible and absurd values, states and pairs naming known and unknown
+    joints and links."""
+    import json
+
+    srdf = None
+    if draw(st.booleans()):
+        parts = []
+        for _ in range(draw(st.integers(0, 3))):
+            parts.append(f'<disable_collisions link1="{draw(st.sampled_from(_LINKS))}" link2="{draw(st.sampled_from(_LINKS))}"/>')
+        for name in draw(st.lists(st.sampled_from(["home", "other", ""]), max_size=2, unique=True)):
+            joints = "".join(f'<joint name="{j}" value="{draw(st.sampled_from(_VALUES))}"/>'
+                             for j in draw(st.lists(st.sampled_from(_JOINTS), max_size=3, unique=True)))
+            parts.append(f'<group_state name="{name}" group="all">{joints}</group_state>')
+        srdf = f'<robot name="mimic">{"".join(parts)}</robot>'
+    lines = ['urdf = "mimic.urdf"']
+    if srdf is not None:
+        lines.append('srdf = "arm.srdf"')
+    if draw(st.booleans()):
+        lines.append(f"reference_state = {json.dumps(draw(st.sampled_from(['home', 'other', 'nope'])))}")
+    locked = draw(st.lists(st.sampled_from(_JOINTS[:3] + ["j7"]), max_size=2, unique=True))
+    if locked and draw(st.booleans()):
+        values = ", ".join(f"{j} = {draw(st.sampled_from(['0.0', '0.5', '-1.0', '2.5', '100.0', '0.05']))}" for j in locked)
+        lines.append(f"locked_joints = {{ {values} }}")
+    elif locked:
+        lines.append(f"locked_joints = {json.dumps(locked)}")
+    for key, values in [("floating_base", ["true", "false", "1"]), ("merge_computed_pairs", ["true", "false", '"yes"']),
+                        ("name", ['"arm"', '"a/b"', '".."', '""'])]:
+        if draw(st.booleans()):
+            lines.append(f"{key} = {draw(st.sampled_from(values))}")
+    frames = draw(st.dictionaries(st.sampled_from(["tool", "l1", "", "hand"]), st.sampled_from(_LINKS[:5] + ["j1"]), max_size=2))
+    if frames:
+        lines.append("[frames]")
+        lines += [f"{json.dumps(role)} = {json.dumps(link)}" for role, link in frames.items()]
+    return "\n".join(lines) + "\n", srdf
+
+
+@fuzz(60)
+@given(files=robot_files())
+def test_robot_files_load_as_they_say_or_are_refused(tmp_path: Path, files: tuple[str, str | None]) -> None:
+    """A robot file, its URDF (with mimic joints) and its SRDF, absurd values and unknown names
+    included: ``genplan.load`` raises a GenplanError naming the file, or gives a robot that is
+    what the files say: mimic joints follow their masters (the Rust kinematics and Pinocchio
+    agree), locked and default values lie within the limits, frames name links, the SRDF's
+    pairs name links; warnings are RobotWarnings only."""
+    import unittest.mock
+    import xml.etree.ElementTree as ET
+
+    import pinocchio as pin
+
+    from genplan.errors import RobotWarning
+    from tests.test_robots import MIMIC
+
+    toml, srdf = files
+    folder = _fresh(tmp_path)
+    (folder / "mimic.urdf").write_text(MIMIC)
+    if srdf is not None:
+        (folder / "arm.srdf").write_text(srdf)
+    (folder / "arm.toml").write_text(toml)
+    with unittest.mock.patch.dict(os.environ, {"GENPLAN_CACHE": str(folder / "cache")}), \
+            warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            robot = genplan.load(folder / "arm.toml")
+        except GenplanError as exc:
+            event(f"robot file: {type(exc).__name__}")
+            assert "arm.toml" in str(exc) or "arm.srdf" in str(exc) or "mimic.urdf" in str(exc), exc
+            return
+        except BaseException as exc:  # noqa: BLE001 -- a PanicException is a BaseException
+            pytest.fail(f"genplan.load raised {type(exc).__module__}.{type(exc).__qualname__}: {exc}")
+    event("robot file: loaded")
+    assert all(issubclass(w.category, RobotWarning) for w in caught), [str(w.message) for w in caught]
+    assert robot.nq == robot.kinematics.nq == robot.model.nq
+    assert robot.joint_names == robot.kinematics.active_joints and "j2" not in robot.joint_names
+    limits = {j.get("name"): (float(j.find("limit").get("lower")), float(j.find("limit").get("upper")))
+              for j in ET.fromstring(MIMIC).findall("joint")}
+    for name, value in robot.locked_joints.items():
+        lo, hi = limits[name]
+        assert name == "j2" or lo <= value <= hi, (name, value)
+        if name == "j2":  # locked with its master, at the value it follows
+            assert value == pytest.approx(-2 * robot.locked_joints["j1"] + 0.1)
+    bounded = np.isfinite(robot.lower) & np.isfinite(robot.upper)
+    assert np.all(robot.q_default[bounded] >= robot.lower[bounded]) and np.all(robot.q_default[bounded] <= robot.upper[bounded])
+    assert set(robot.frames.values()) <= set(robot.kinematics.link_names)
+    assert all(a in robot.kinematics.link_names and b in robot.kinematics.link_names for a, b in robot.disabled_pairs)
+    for q in [robot.q_default, *robot.random_configurations(3, 0)]:
+        pin.framesForwardKinematics(robot.model, robot.data, q)
+        poses = robot.link_poses(q)
+        for i, link in enumerate(robot.kinematics.link_names):
+            np.testing.assert_allclose(poses[i], robot.data.oMf[robot.model.getFrameId(link, pin.BODY)].homogeneous, atol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------
 # Collision world: queries and obstacles
 # --------------------------------------------------------------------------------------------
 
@@ -726,6 +831,51 @@ def test_plans_that_succeed_pass_their_own_checks(panda: genplan.Robot, shelf: A
     event(f"plan: success {res.success}")
     if res.success:
         check_path(panda, world, planner.task, res, query.start, goals, planner.settings.goal_tolerance)
+        check_trajectory(panda, world, planner.task, res)
+
+
+def check_trajectory(panda: genplan.Robot, world: Any, task: Any, res: Any) -> None:
+    """A successful plan's trajectory: refused (InvalidTrajectoryError naming a sample), or every
+    sample within the joint limits with no tolerance, within the velocity and acceleration
+    limits, on the manifold and collision-free."""
+    from genplan.errors import InvalidTrajectoryError
+
+    traj, exc = call(res.trajectory)
+    if exc is not None:
+        assert isinstance(exc, InvalidTrajectoryError) and "sample" in str(exc), repr(exc)
+        event("trajectory refused")
+        return
+    event("trajectory")
+    assert finite(traj.q) and finite(traj.qd) and finite(traj.qdd)
+    assert (traj.q >= panda.lower).all() and (traj.q <= panda.upper).all(), "a sample outside the joint limits"
+    assert (np.abs(traj.qd) <= traj.velocity_limits).all() and (np.abs(traj.qdd) <= traj.acceleration_limits).all()
+    assert not np.any(world.in_collision(traj.q)), "a trajectory sample in collision"
+    assert traj.within_tolerance
+
+
+@fuzz(60)
+@given(path=st.one_of(st.tuples(st.integers(1, 5), st.integers(0, 2**32 - 1)), configurations(7),
+                      hnp.arrays(np.float64, st.tuples(st.integers(1, 5), st.just(7)), elements=st.floats(-3.0, 3.0))),
+       rate=st.one_of(st.just(1000.0), st.floats(1.0, 1e4), NUMBERS),
+       scale=st.one_of(st.just(1.0), st.floats(1e-3, 1.0), NUMBERS))
+def test_parameterize(panda: genplan.Robot, path: Any, rate: Any, scale: Any) -> None:
+    """Any path, rate and velocity scale: a trajectory every sample of which is finite and within
+    the joint limits with no tolerance (and the velocity and acceleration limits), or a typed
+    error: a path outside the joint limits and a rate whose samples would not fit in memory
+    included (never an abort)."""
+    from genplan.trajectory import parameterize
+
+    if isinstance(path, tuple):  # (n, seed): n states within the limits
+        path = panda.random_configurations(path[0], np.random.default_rng(path[1]))
+    traj, exc = call(parameterize, panda, path, rate_hz=rate, velocity_scale=scale, errors=(GenplanError, TypeError))
+    event(f"parameterize: {type(exc).__name__ if exc else 'timed'}")
+    if exc is not None:
+        return
+    assert finite(traj.t) and finite(traj.q) and finite(traj.qd) and finite(traj.qdd)
+    assert (traj.q >= panda.lower).all() and (traj.q <= panda.upper).all(), "a sample outside the joint limits"
+    assert (np.abs(traj.qd) <= traj.velocity_limits).all() and (np.abs(traj.qdd) <= traj.acceleration_limits).all()
+    states = read_configurations(path, 7)
+    assert states is not None and ((states >= panda.lower) & (states <= panda.upper)).all(), "a path outside the limits timed"
 
 
 # finding PLAN-1 (fixed): PlannerSettings accepted any finite edge_resolution > 0; with 1e-300 the
@@ -1035,7 +1185,8 @@ def tiny_gan_files(panda: genplan.Robot, tmp_path_factory: pytest.TempPathFactor
 def tiny_seq2seq_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[bytes, bytes]:
     import torch
 
-    from genplan.pancake.model import Seq2SeqModel, Seq2SeqNet, default_config
+    from genplan.pancake.model import default_config
+    from genplan.seq2seq.model import Seq2SeqModel, Seq2SeqNet
 
     torch.manual_seed(0)
     cfg = default_config(hidden=8)
@@ -1132,3 +1283,280 @@ def test_the_uncorrupted_files_load(panda: genplan.Robot, tiny_gan_files: Any, t
     gan = load_gan(panda, write_files(tiny_gan_files, tmp_path / "g"))
     assert finite(gan.sample(np.array([[0.3, 0.0, 0.5]]), 0))
     load_seq2seq(write_files(tiny_seq2seq_files, tmp_path / "s"))
+
+
+#: any JSON value: what a card (or a field of one) may be replaced with
+JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=12),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=8), inner, max_size=3),
+                    max_leaves=8)
+#: the keys a GAN or flow card holds, and some it does not
+CARD_FIELDS = st.sampled_from(["format", "config", "weights_sha256", "robot", "robot_kinematic_hash", "robot_source",
+                               "task", "command", "data", "training", "bogus"])
+CONFIG_FIELDS = st.sampled_from(["robot", "target_frame", "target_box", "noise_dim", "n_net", "gen_hidden", "task",
+                                 "loss", "bogus"])
+
+
+@fuzz(60)
+@given(card=st.one_of(JSON, st.binary(max_size=64)), fields=st.dictionaries(CARD_FIELDS, JSON, max_size=3),
+       config=st.dictionaries(CONFIG_FIELDS, JSON, max_size=2), rehash=st.booleans(),
+       as_flow=st.booleans())
+def test_arbitrary_cards_are_refused_with_a_model_file_error(panda: genplan.Robot, tiny_gan_files: Any,
+                                                             tmp_path: Path, card: Any, fields: Any, config: Any,
+                                                             rehash: bool, as_flow: bool) -> None:
+    """The card beside valid weights replaced by any JSON value or bytes, or with any fields
+    (the robot's kinematic hash included) or config fields set to any JSON value: loading
+    (either family: the format may say flow) is refused with a ModelFileError, or the model loads
+    and samples finite configurations."""
+    import json
+
+    from genplan.gan.loading import load_sampler_model
+
+    weights, good = tiny_gan_files
+    if fields or config:
+        c = json.loads(good)
+        c.update(fields)
+        if isinstance(c.get("config"), dict):
+            c["config"].update(config)
+        if as_flow:
+            c["format"] = "genplan-flow/1"
+        text = json.dumps(c).encode()
+    else:
+        text = card if isinstance(card, bytes) else json.dumps(card).encode()
+    path = write_files((weights, rehash_card(text, weights) if rehash else text), tmp_path / "cards")
+    model, exc = call(load_sampler_model, panda, path)
+    event(f"card: {'refused' if exc else 'loaded'}")
+    if exc is not None:
+        assert isinstance(exc, ModelFileError), f"{type(exc).__name__}: {exc}"
+        return
+    q, exc = call(model.sample, np.array([[0.3, 0.0, 0.5]]), 0)
+    assert exc is None or isinstance(exc, NonFiniteError), exc
+    assert exc is not None or (q.shape == (1, panda.nq) and finite(q))
+
+
+def rehash_card(card: bytes, weights: bytes) -> bytes:
+    """:func:`rehash` for a card that may not be a JSON object (left as it is)."""
+    return rehash(card, weights)
+
+
+@fuzz(30)
+@given(data=st.binary(max_size=256), header=st.one_of(JSON, st.binary(max_size=32)), with_length=st.booleans())
+def test_arbitrary_bytes_as_weights_are_refused_with_a_model_file_error(panda: genplan.Robot, tiny_gan_files: Any,
+                                                                        tmp_path: Path, data: bytes, header: Any,
+                                                                        with_length: bool) -> None:
+    """Any bytes as the weights (a safetensors-like header of any JSON, or none), with a card that
+    vouches for their sha256: a ModelFileError, never another exception."""
+    import json
+
+    head = header if isinstance(header, bytes) else json.dumps(header).encode()
+    weights = (len(head).to_bytes(8, "little") + head + data) if with_length else data
+    path = write_files((weights, rehash(tiny_gan_files[1], weights)), tmp_path / "weights")
+    _, exc = call(genplan.gan.load_model, panda, path)
+    assert isinstance(exc, ModelFileError), f"{type(exc).__name__}: {exc}"
+
+
+def test_a_card_given_as_the_model_is_refused_naming_the_weights(panda: genplan.Robot, tiny_gan_files: Any,
+                                                                 tiny_seq2seq_files: Any, tmp_path: Path) -> None:
+    from genplan.gan.loading import load_sampler_model
+    from genplan.pancake.model import load_model as load_seq2seq
+
+    for files, load in ((tiny_gan_files, lambda p: load_sampler_model(panda, p)), (tiny_seq2seq_files, load_seq2seq)):
+        path = write_files(files, tmp_path / "m")
+        _, exc = call(load, path.with_suffix(".json"))
+        assert isinstance(exc, ModelFileError) and "is a model card; give the .safetensors file beside it" in str(exc)
+
+
+# --------------------------------------------------------------------------------------------
+# Data sets (genplan data) and the data cache: corrupted manifests, lock files and cached arrays,
+# and random `genplan data` runs into one folder. Each either ends in a GenplanError (exit code
+# 2) or gives exactly the data set its arguments make: never a traceback, never a mixed set, never
+# a cached row outside the joint limits.
+# --------------------------------------------------------------------------------------------
+
+DATA_JSON = st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
+                         lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=6), c, max_size=3),
+                         max_leaves=6)
+
+
+def _fresh(tmp_path: Path) -> Path:
+    """A new folder for one hypothesis example (``tmp_path`` is shared by a test's examples)."""
+    import tempfile
+
+    return Path(tempfile.mkdtemp(dir=tmp_path))
+
+
+def _quiet(*_: Any) -> None:
+    """A ``log`` that prints nothing."""
+
+
+@pytest.fixture(scope="module")
+def reference_sets(panda: genplan.Robot) -> Callable[[int, int, int], str]:
+    """The sha256 of the Panda data set of (size, seed, shard size), computed once each."""
+    from genplan.gan.data import dataset_sha256, valid_configurations
+
+    known: dict[tuple[int, int, int], str] = {}
+
+    def sha(n: int, seed: int, shard_size: int) -> str:
+        if (n, seed, shard_size) not in known:
+            known[n, seed, shard_size] = dataset_sha256(
+                [valid_configurations(panda, n, seed, use_cache=False, progress=False, shard_size=shard_size)])
+        return known[n, seed, shard_size]
+    return sha
+
+
+@pytest.fixture(scope="module")
+def data_set_files(panda: genplan.Robot, tmp_path_factory: pytest.TempPathFactory) -> dict[str, bytes]:
+    """A finished data set (60 Panda configurations, seed 1, 3 shards): its files' bytes."""
+    from genplan.executor import LocalExecutor
+    from genplan.gan.data import write_dataset
+
+    out = tmp_path_factory.mktemp("data") / "d"
+    write_dataset(out, panda, 60, seed=1, shard_size=20, executor=LocalExecutor(1), progress=False, log=_quiet)
+    return {f.name: f.read_bytes() for f in out.iterdir()}
+
+
+def _mutate_manifest(text: bytes, how: str, key: str, value: Any, pos: int, byte: int) -> bytes:
+    import json
+
+    if how != "field":
+        return corrupt(text, how, pos, byte)
+    m = json.loads(text)
+    if key.startswith("shards."):
+        shard = m["shards"][pos % len(m["shards"])]
+        shard[key.removeprefix("shards.")] = value
+    else:
+        m[key] = value
+    return json.dumps(m).encode()
+
+
+MANIFEST_CORRUPTION = st.tuples(
+    st.sampled_from(["flip", "truncate", "insert", "field", "field"]),
+    st.sampled_from(["format", "complete", "data_size", "seed", "shard_size", "nq", "sha256", "shards", "robot",
+                     "manifold", "shards.index", "shards.file", "shards.sha256", "shards.count"]),
+    DATA_JSON, st.integers(0, 2**16), st.integers(0, 255))
+
+
+@fuzz(40)
+@given(corruption=MANIFEST_CORRUPTION)
+def test_corrupted_data_set_manifests(panda: genplan.Robot, data_set_files: dict[str, bytes],
+                                      reference_sets: Any, tmp_path: Path, corruption: Any) -> None:
+    """A data set whose manifest was changed: read_dataset gives the data set or a GenplanError;
+    rerunning the same `genplan data` gives the data set (repaired) or a GenplanError."""
+    from genplan.executor import LocalExecutor
+    from genplan.gan.data import dataset_sha256, read_dataset, write_dataset
+
+    folder = _fresh(tmp_path) / "d"
+    folder.mkdir()
+    for name, raw in data_set_files.items():
+        (folder / name).write_bytes(raw)
+    (folder / "manifest.json").write_bytes(_mutate_manifest(data_set_files["manifest.json"], *corruption))
+    ref = reference_sets(60, 1, 20)
+    got, exc = call(read_dataset, folder, panda)
+    event(f"manifest read: {'refused' if exc else 'read'}")
+    assert exc is not None or dataset_sha256([got[0]]) == ref
+    m, exc = call(write_dataset, folder, panda, 60, 1, shard_size=20, executor=LocalExecutor(1), progress=False,
+                  log=_quiet)
+    event(f"manifest rerun: {'refused' if exc else 'written'}")
+    if exc is None:
+        assert m["sha256"] == ref and dataset_sha256([read_dataset(folder, panda)[0]]) == ref
+    assert not (folder / "genplan.lock").exists()
+
+
+LOCK_FIELDS = st.fixed_dictionaries(
+    {"run": st.one_of(st.text(max_size=8), DATA_JSON), "host": st.sampled_from(["<this host>", "elsewhere", ""]),
+     "pid": st.one_of(st.integers(-3, 2**22), st.sampled_from([1, 2**31, 2**40, 2**70]), DATA_JSON),
+     "started": st.one_of(st.text(max_size=8), DATA_JSON)},
+    optional={"pid_start": st.one_of(st.text(max_size=6), st.none(), DATA_JSON), "extra": DATA_JSON})
+
+
+@fuzz(40)
+@given(lock=st.one_of(LOCK_FIELDS, DATA_JSON, st.binary(max_size=40)), force=st.booleans())
+def test_corrupted_lock_files(panda: genplan.Robot, reference_sets: Any, tmp_path: Path, lock: Any,
+                              force: bool) -> None:
+    """A data set folder holding any lock file: the run is refused (GenplanError, nothing
+    written) or takes the lock and writes the data set its arguments make."""
+    import json
+    import socket
+
+    from genplan.executor import LocalExecutor
+    from genplan.gan.data import LOCK, write_dataset
+
+    folder = _fresh(tmp_path) / "d"
+    folder.mkdir()
+    if isinstance(lock, dict) and lock.get("host") == "<this host>":
+        lock = {**lock, "host": socket.gethostname()}
+    raw = lock if isinstance(lock, bytes) else json.dumps(lock).encode()
+    (folder / LOCK).write_bytes(raw)
+    m, exc = call(write_dataset, folder, panda, 40, 2, shard_size=20, executor=LocalExecutor(1), progress=False,
+                  log=_quiet, force=force)
+    event(f"lock: {'refused' if exc else 'taken'}{' (forced)' if force else ''}")
+    if exc is not None:
+        assert (folder / LOCK).read_bytes() == raw and not (folder / "manifest.json").exists()
+    else:
+        assert m["sha256"] == reference_sets(40, 2, 20) and not (folder / LOCK).exists()
+
+
+DATA_RUN = st.fixed_dictionaries({
+    "seed": st.sampled_from([0, 1]), "size": st.sampled_from([20, 30]), "shard": st.sampled_from([10, 20]),
+    "task": st.sampled_from([None, None, "panda_ik", "panda_projection"]), "overwrite": st.booleans(),
+    "workers": st.sampled_from([1, 2])})
+
+
+@fuzz(15)
+@given(runs=st.lists(DATA_RUN, min_size=2, max_size=3))
+def test_random_data_runs_into_one_folder(reference_sets: Any, tmp_path: Path, runs: list[dict[str, Any]]) -> None:
+    """`genplan data` runs one after the other into one --out: each exits 0 with exactly its own
+    data set, or 2 with one line and the folder's complete data set (if any) untouched."""
+    import contextlib
+    import io
+    import json
+
+    from genplan.cli import main
+
+    folder = _fresh(tmp_path) / "d"
+    for run in runs:
+        argv = ["data", "--robot", "panda", "--data-size", str(run["size"]), "--seed", str(run["seed"]),
+                "--shard-size", str(run["shard"]), "--workers", str(run["workers"]), "--out", str(folder)]
+        argv += ["--task", run["task"]] if run["task"] else []
+        argv += ["--overwrite"] if run["overwrite"] else []
+        before = (folder / "manifest.json").read_bytes() if (folder / "manifest.json").exists() else None
+        err, out = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+            code, exc = call(main, argv, errors=())
+        assert exc is None and code in (0, 2), (code, err.getvalue()[-500:])
+        assert "Traceback" not in err.getvalue()
+        event(f"data run: exit {code}")
+        if code == 0:
+            m = json.loads((folder / "manifest.json").read_text())
+            assert m["complete"] and m["sha256"] == reference_sets(run["size"], run["seed"], run["shard"])
+        else:
+            assert err.getvalue().splitlines()[-1].startswith("genplan: error: ")
+            now = (folder / "manifest.json").read_bytes() if (folder / "manifest.json").exists() else None
+            assert now == before
+        assert not (folder / "genplan.lock").exists()
+
+
+@fuzz(30)
+@given(pos=st.integers(0, 2**16), byte=st.integers(1, 255), rehashed=st.booleans())
+def test_corrupted_data_cache(panda: genplan.Robot, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, pos: int,
+                              byte: int, rehashed: bool) -> None:
+    """A byte of a cached data set changed: valid_configurations regenerates it (its sha256 does
+    not match), or, when the hash was rewritten to match, returns finite rows within the joint
+    limits (checked on read): never a joint at -47 rad."""
+    import hashlib
+
+    from genplan.cache import hash_path
+    from genplan.gan.data import cache_path, valid_configurations
+
+    monkeypatch.setenv("GENPLAN_CACHE", str(_fresh(tmp_path)))
+    ref = valid_configurations(panda, 40, 3, progress=False, shard_size=20)
+    path = cache_path(panda, 40, 3, shard_size=20)
+    raw = corrupt(path.read_bytes(), "flip", pos, byte)
+    path.write_bytes(raw)
+    if rehashed:
+        hash_path(path).write_text(hashlib.sha256(raw).hexdigest())
+    got, exc = call(valid_configurations, panda, 40, 3, progress=False, shard_size=20)
+    assert exc is None, exc
+    same = bool(np.array_equal(got, ref))
+    event(f"cache: {'regenerated or intact' if same else 'changed within the limits'}")
+    assert same or rehashed
+    assert np.all(np.isfinite(got)) and np.all((got >= panda.lower) & (got <= panda.upper))

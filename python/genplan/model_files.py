@@ -32,14 +32,41 @@ import numpy as np
 
 from genplan.errors import GenplanError, ModelFileError
 
-__all__ = ["REQUIRED_CARD_KEYS", "write_model", "read_model", "read_config", "check_tensors", "json_default",
-           "peek_card"]
+__all__ = ["REQUIRED_CARD_KEYS", "ModelCardWarning", "write_model", "read_model", "read_config", "check_tensors",
+           "json_default", "peek_card", "check_sha256", "warn_once"]
 
 T = TypeVar("T")
 
 #: keys every card has (the rest are descriptive, listed per format by the loaders)
 REQUIRED_CARD_KEYS = frozenset({"format", "config", "weights_sha256"})
 _SHA256 = re.compile(r"[0-9a-f]{64}")
+#: the (card, weights sha256) pairs already warned about by :func:`warn_once`
+_WARNED: set[tuple[str, str]] = set()
+
+
+class ModelCardWarning(UserWarning):
+    """A model genplan loads although its card lacks something it now records (e.g. a card
+    written before the robot's kinematic hash was): the message says what and how to fix it.
+    Emitted once per file and process."""
+
+
+def warn_once(card_path: Path, card: Mapping[str, Any], message: str) -> None:
+    """A :class:`ModelCardWarning` with ``message``, unless this card (path and weights sha256)
+    was already warned about in this process."""
+    import warnings
+
+    key = (str(Path(card_path).resolve()), str(card.get("weights_sha256")))
+    if key not in _WARNED:
+        _WARNED.add(key)
+        warnings.warn(message, ModelCardWarning, stacklevel=4)
+
+
+def check_sha256(value: Any, where: str) -> str:
+    """``value`` if it is a sha256 in hex (64 lowercase hex digits), else ModelFileError naming
+    ``where`` (the card and its key)."""
+    if not isinstance(value, str) or not _SHA256.fullmatch(value):
+        raise ModelFileError(f"{where} must be 64 lowercase hex digits, got {str(value)[:80]!r}")
+    return value
 
 
 def json_default(o: Any) -> Any:
@@ -94,14 +121,21 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
     """Write ``path`` (.safetensors, torch tensors) and its card (.json beside it).
 
     The card gets ``metadata["format"]``, the config (a dataclass) and the weights' sha256, which
-    the loaders check. Each file is written under a temporary name and renamed (the weights
-    first: a write cut short between the two leaves a pair the loaders refuse as not matching,
-    never half a file), readable by all as the umask allows. A card key outside ``card_keys`` or a non-finite tensor raises
-    :class:`~genplan.errors.ModelFileError` before anything is written (it could not be loaded).
+    the loaders check. A card key outside ``card_keys``, a card that is not JSON or a non-finite
+    tensor raises :class:`~genplan.errors.ModelFileError` before anything is written (it could
+    not be loaded).
+
+    An existing model at ``path`` stays whole until the new one is complete: both files are
+    written under temporary names first, then renamed, the weights first (a write that fails,
+    disk full or Ctrl-C, leaves the old pair; only a stop between the two renames leaves new
+    weights beside the old card, a pair the loaders refuse as not matching, never half a file).
+    Errors name ``path`` and its card, not the temporary files. The files are readable by all as
+    the umask allows.
     """
     from safetensors.torch import save
 
     path = Path(path).with_suffix(".safetensors")
+    card_path = path.with_suffix(".json")
     unknown = _unknown_keys(card, card_keys)
     if unknown:
         raise ModelFileError(f"cannot write {kind} model {path}: card keys {unknown} are not part of a {kind} card "
@@ -110,15 +144,20 @@ def write_model(path: str | Path, tensors: dict[str, Any], metadata: dict[str, s
         why = _bad_tensor(name, t)
         if why:
             raise ModelFileError(f"cannot write {kind} model {path}: {why}")
-    from genplan._files import atomic_path, write_text
+    from genplan._files import atomic_path
 
     raw = _canonical_header(save({k: v.detach().contiguous() for k, v in tensors.items()}, metadata=metadata))
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(raw)  # a new file: readable by all as the umask allows
-    sha = hashlib.sha256(raw).hexdigest()
     card = dict(card)
-    card.update({"format": metadata["format"], "config": dataclasses.asdict(config), "weights_sha256": sha})
-    card_path = write_text(path.with_suffix(".json"), json.dumps(card, indent=2, default=json_default) + "\n")
+    card.update({"format": metadata["format"], "config": dataclasses.asdict(config),
+                 "weights_sha256": hashlib.sha256(raw).hexdigest()})
+    try:
+        text = json.dumps(card, indent=2, default=json_default) + "\n"
+    except (TypeError, ValueError) as exc:
+        raise ModelFileError(f"cannot write {kind} model {path}: its card is not JSON ({exc})") from None
+    with atomic_path(card_path) as card_tmp:  # new files: readable by all as the umask allows
+        card_tmp.write_text(text, encoding="utf-8")
+        with atomic_path(path) as weights_tmp:  # renamed when its block ends: before the card
+            weights_tmp.write_bytes(raw)
     return path, card_path
 
 
@@ -156,6 +195,9 @@ def read_model(path: Path, fmt: str, kind: str, retrain: str,
     from safetensors.torch import load as load_bytes
 
     card_path = path.with_suffix(".json")
+    if path.suffix == ".json":
+        raise ModelFileError(f"{path} is a model card; give the .safetensors file beside it "
+                             f"({path.with_suffix('.safetensors')})")
     for p in (path, card_path):
         if not p.is_file():
             raise FileNotFoundError(f"{kind} model file {p} does not exist; train it with `{retrain}`")
@@ -174,10 +216,7 @@ def read_model(path: Path, fmt: str, kind: str, retrain: str,
     if missing:
         raise ModelFileError(f"{kind} model card {card_path} lacks {missing}: the weights cannot be vouched for "
                              f"without them (re-save the model with genplan, or retrain it: `{retrain}`)")
-    expected = card["weights_sha256"]
-    if not isinstance(expected, str) or not _SHA256.fullmatch(expected):
-        raise ModelFileError(f"{kind} model card {card_path}: weights_sha256 must be 64 lowercase hex digits, "
-                             f"got {str(expected)[:80]!r}")
+    expected = check_sha256(card["weights_sha256"], f"{kind} model card {card_path}: weights_sha256")
     data = path.read_bytes()
     digest = hashlib.sha256(data).hexdigest()
     if digest != expected:

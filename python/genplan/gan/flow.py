@@ -48,8 +48,8 @@ from genplan._arrays import as_box
 from genplan._threads import torch_threads, uses_torch
 from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError
 from genplan.gan.model import (
-    NATIVE_NOISE_MAX, Codec, Constraints, SamplerModel, check_fields, check_model_fits,
-    default_config as gan_default_config, feature_dim, models_dir, prepare_training,
+    NATIVE_NOISE_MAX, ROBOT_HASH_KEY, Codec, Constraints, SamplerModel, check_fields, check_model_fits,
+    default_config as gan_default_config, feature_dim, models_dir, prepare_training, retrain_hint,
     train_command as gan_train_command,
 )
 from genplan.robots import Robot, load
@@ -57,7 +57,7 @@ from genplan.robots import Robot, load
 FORMAT = "genplan-flow/1"
 #: the descriptive keys a flow card may hold (besides format, config and weights_sha256)
 CARD_KEYS = frozenset({"robot", "genplan_version", "data", "training", "command", "evaluation", "notes", "task",
-                       "robot_source"})
+                       "robot_source", ROBOT_HASH_KEY})
 
 
 @dataclass(frozen=True)
@@ -167,6 +167,7 @@ class FlowModel(SamplerModel):
     target_mean: torch.Tensor
     target_std: torch.Tensor
     card: dict[str, Any] = field(default_factory=dict)
+    KIND: ClassVar[str] = "flow"
 
     @torch.no_grad()
     def generate(self, z: NDArray[np.float64], targets: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -224,8 +225,8 @@ class FlowModel(SamplerModel):
         tensors.update({f"net.bias.{i}": layer.bias for i, layer in enumerate(self.net.linears())})
         tensors.update({"codec.mean": self.codec.mean, "codec.std": self.codec.std,
                         "target.mean": self.target_mean, "target.std": self.target_std})
-        return write_model(path, tensors, {"format": FORMAT, "robot": self.config.robot}, self.card, self.config,
-                           CARD_KEYS, "flow")
+        return write_model(path, tensors, {"format": FORMAT, "robot": self.config.robot}, self.card_to_write(),
+                           self.config, CARD_KEYS, "flow")
 
 
 def tensor_shapes(cfg: FlowConfig, robot: Robot) -> dict[str, tuple[int, ...]]:
@@ -241,9 +242,11 @@ def tensor_shapes(cfg: FlowConfig, robot: Robot) -> dict[str, tuple[int, ...]]:
     return shapes
 
 
-def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0) -> str:
-    """The CLI command that trains a flow for ``robot`` and ``task`` (as the GAN's)."""
-    return gan_train_command(robot, task, seed, model="flow")
+def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0, *, options: str = "",
+                  out: "str | os.PathLike[str] | None" = None) -> str:
+    """The CLI command that trains a flow for ``robot`` and ``task`` (as the GAN's,
+    :func:`genplan.gan.model.train_command`)."""
+    return gan_train_command(robot, task, seed, model="flow", options=options, out=out)
 
 
 def is_flow_file(path: Path) -> bool:
@@ -261,7 +264,7 @@ def load_flow(robot: str | Robot, path: str | Path, task: "str | os.PathLike[str
 
     rob = robot if isinstance(robot, Robot) else load(robot)
     path = Path(path)
-    card, tensors = read_model(path, FORMAT, "flow", train_command(rob), CARD_KEYS)
+    card, tensors = read_model(path, FORMAT, "flow", retrain_hint(rob, path, "flow"), CARD_KEYS)
     cfg = read_config(card, path, "flow", FlowConfig)
     check_model_fits(path, "flow", cfg, card, rob, task)
     check_tensors(tensors, tensor_shapes(cfg, rob), path, "flow")
@@ -488,8 +491,8 @@ def distill(cfg: FlowConfig, teacher: FlowModel, progress: bool = True, log_ever
                                  "steps": teacher.config.steps, "hidden": list(teacher.config.hidden)},
                      "load_average_1min_start_end": [load_start, os.getloadavg()[0]],
                      "threads": threads_used, "torch": torch.__version__, "loss_log": log},
-        "command": train_command(rob, None if cfg.task_name == f"{rob.name}_ik" else cfg.task_name, cfg.seed)
-        + f" --distill-from {cfg.teacher}",
+        "command": train_command(rob, None if cfg.task_name == f"{rob.name}_ik" else cfg.task_name, cfg.seed,
+                                 options=f" --distill-from {cfg.teacher}"),
         "task": task.to_dict(),
         "robot_source": teacher.card.get("robot_source"),
     }

@@ -2,7 +2,7 @@
 for a robot and task, evaluate it on held-out targets as a GAN card is (:mod:`genplan.gan.evaluate`)
 and write the model and its card. The file goes wherever a GAN file does (``--model``).
 
-    genplan train flow --robot talos --seed 0 --steps 8 --w-cost 0 --iterations 10000
+    genplan train flow --robot talos --seed 0 --steps 8 --w-cost 0 --iterations 10000 --out teacher.safetensors
     genplan train flow --robot my_robot.toml --task my_task.toml --out my_flow.safetensors
 
 ``--distill-from TEACHER`` trains a one-step student of a flow file instead
@@ -51,7 +51,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eval-targets", type=A.positive_int, default=500,
                    help="held-out targets of the card's evaluation (default 500)")
     p.add_argument("--out", type=A.output_file, default=None,
-                   help="model path (default for a shipped task: models/<robot>_flow.safetensors; folders are created)")
+                   help="model path (required: the shipped models in the installed package are never overwritten; "
+                        "folders are created; an existing model is replaced once the new one is complete)")
     p.add_argument("--threads", type=A.positive_int, default=None,
                    help="torch threads (default: genplan's choice for training, one; $GENPLAN_TORCH_THREADS "
                         "overrides it too)")
@@ -68,6 +69,7 @@ def main(args: argparse.Namespace) -> int:
     task = P.load_task(args.task if args.task is not None else default_task_name(robot), robot)
     if args.out is None and not (args.task is None or args.task in P.task_names()):
         raise A.UsageError("--out: give the model's path (a task file's flow has no shipped place)")
+    out = A.model_output(args.out, shipped_path(robot))  # never inside the package
     given = {k: getattr(args, k) for k in ("iterations", "hidden", "steps", "w_cost", "data_size", "pairs")
              if getattr(args, k) is not None}
     overrides = dict(given)
@@ -89,8 +91,7 @@ def main(args: argparse.Namespace) -> int:
         overrides = {"steps": 1, "w_cost": 0.0, **overrides, "teacher": str(args.distill_from),
                      "data_size": teacher.config.data_size, "data_seed": teacher.config.data_seed}
     cfg = default_config(robot, task, **overrides, seed=args.seed)  # errors (no [condition], ...) before any work
-    default_out = shipped_path(robot)
-    out = args.out or A.check_output_file(default_out, "--out")
+    A.announce_replacement([out])
     t0 = time.perf_counter()
     if teacher is not None:
         from genplan.gan.flow import distill
@@ -100,7 +101,7 @@ def main(args: argparse.Namespace) -> int:
         model = train(cfg, progress=True, robot=robot, task=task, threads=args.threads)
     extra = (f" --distill-from {args.distill_from}" if teacher is not None else "") + "".join(
         f" --{k.replace('_', '-')} {','.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in given.items())
-    model.card["command"] = train_command(args.robot, args.task, args.seed) + extra + A.out_option(out, default_out)
+    model.card["command"] = train_command(args.robot, args.task, args.seed, options=extra, out=out)
     model.card["evaluation"] = evaluate(model, task, n=args.eval_targets, progress=True)
     model.card["training"]["total_seconds_including_data"] = time.perf_counter() - t0
     weights, card = model.save(out)

@@ -30,7 +30,7 @@ from genplan._threads import resolve, torch_threads
 from genplan.errors import ModelFileError, SettingsError, ShapeError
 from genplan.gan.flow import FlowModel
 from genplan.gan.loading import load_sampler_model
-from genplan.gan.model import GanModel, SamplerModel
+from genplan.gan.model import GanModel, SamplerModel, check_model_robot
 from genplan.robots import Robot
 
 #: rows per chunk (the last chunk takes the rest, up to ``2 * CHUNK_ROWS - 1`` rows): the shipped
@@ -63,8 +63,7 @@ class GanSampler:
                  threads: int | None = None) -> None:
         self.robot = robot
         self.model = model if isinstance(model, SamplerModel) else load_sampler_model(robot, model, task)
-        if self.model.config.robot != robot.name:
-            raise ModelFileError(f"the GAN is for '{self.model.config.robot}', not '{robot.name}'")
+        check_model_robot(self.model, robot)  # by kinematics, not by name
         if task is not None and isinstance(model, SamplerModel):
             from genplan import projection as P
 

@@ -1,7 +1,7 @@
 """``genplan train gan``: train the conditional ensemble GAN for a robot and task, evaluate it on
 held-out targets (:mod:`genplan.gan.evaluate`) and write the model and its card.
 
-    genplan train gan --robot panda --seed 0                      # the paper's, shipped
+    genplan train gan --robot panda --seed 0 --out panda_gan.safetensors   # the paper's (as shipped)
     genplan train gan --robot my_robot.toml --task my_task.toml --out my_gan.safetensors
     genplan train gan --robot panda --data data/panda --out m.safetensors   # a `genplan data` set
     genplan train gan --robot panda --seeds 0..3 --out m.safetensors        # m_seed0 ... m_seed3
@@ -43,7 +43,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eval-targets", type=A.positive_int, default=500,
                    help="held-out targets of the card's evaluation (default 500)")
     p.add_argument("--out", type=A.output_file, default=None,
-                   help="model path (default for a shipped task: models/<robot>_gan.safetensors; folders are created)")
+                   help="model path (required: the shipped models in the installed package are never overwritten; "
+                        "folders are created; an existing model is replaced once the new one is complete)")
     p.add_argument("--threads", type=A.positive_int, default=None,
                    help="torch threads (default: genplan's choice for training, one -- batches of 100 gain "
                         "little from more, and on a busy machine extra threads contend and run many times "
@@ -92,6 +93,7 @@ def main(args: argparse.Namespace) -> int:
     shipped = args.task is None or args.task in P.task_names()
     if args.out is None and not shipped:
         raise A.UsageError("--out: give the model's path (a task file's GAN has no shipped place)")
+    out = A.model_output(args.out, models_dir() / f"{robot.name}_gan.safetensors")  # never inside the package
     if args.data is not None and args.data_size is not None:
         raise A.UsageError("--data-size: the data set given by --data fixes the size (leave --data-size out)")
     if args.seeds is None and (args.workers is not None or args.ray is not None):
@@ -118,17 +120,16 @@ def main(args: argparse.Namespace) -> int:
         data_set = {"folder": str(args.data), "sha256": manifest["sha256"], "data_size": len(data),
                     "seed": manifest["seed"], "shard_size": manifest["shard_size"]}
     cfg = default_config(robot, task, **overrides, seed=seeds[0])  # errors (no [condition], ...) before any work
-    default_out = models_dir() / f"{robot.name}_gan.safetensors"
-    out = args.out or A.check_output_file(default_out, "--out")
     extra = "".join(f" --{k} {getattr(args, k.replace('-', '_'))}" for k in ("iterations", "n-net", "data-size", "data", "loss",
                                                                          "w-diversity", "member-init")
                     if getattr(args, k.replace("-", "_")) is not None) + (" --no-discriminator" if args.no_discriminator else "")
     parallel = args.seeds is not None and (args.ray is not None or (args.workers or 1) > 1)
+    outs = [out if args.seeds is None else seed_path(out, s) for s in seeds]
+    A.announce_replacement(outs)
     jobs = [{"robot": args.robot, "task": args.task, "overrides": {**overrides, "seed": s}, "data": data,
              "data_set": data_set, "eval_targets": args.eval_targets, "threads": args.threads,
-             "progress": not parallel, "out": out if args.seeds is None else seed_path(out, s),
-             "command": train_command(args.robot, args.task, s) + extra
-             + A.out_option(out if args.seeds is None else seed_path(out, s), default_out)} for s in seeds]
+             "progress": not parallel, "out": o, "command": train_command(args.robot, args.task, s, options=extra, out=o)}
+            for s, o in zip(seeds, outs)]
     if args.seeds is None:
         print(train_one(jobs[0]))
         return 0
