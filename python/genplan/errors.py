@@ -22,11 +22,14 @@ __all__ = [
     "GenplanError",
     "InvalidGoalError",
     "InvalidStartError",
+    "InvalidTrajectoryError",
     "LimitExceededError",
     "MissingExtraError",
     "ModelFileError",
     "NonFiniteError",
+    "ObjectiveFileError",
     "RobotFileError",
+    "RobotWarning",
     "SceneFileError",
     "SettingsError",
     "ShapeError",
@@ -61,6 +64,14 @@ class RobotFileError(GenplanError):
     """A robot description (URDF, SRDF, mesh) that exists but cannot be read into a model."""
 
 
+class RobotWarning(UserWarning):
+    """A robot that loads but may not be what its files mean: an SRDF group state genplan does
+    not use that names joints the URDF lacks, or self-collision pairs in contact at the default
+    configuration (or in every sampled one) that no ``<disable_collisions>`` covers. The message
+    names the file, the names or pairs, and the remedy (docs/ROBOTS.md). Not an error: the one
+    class in this module that is no :class:`GenplanError`."""
+
+
 class TaskFileError(GenplanError):
     """A task description (task file or its data) that cannot be read: bad TOML, an unknown term
     kind or key, a value of the wrong form."""
@@ -71,6 +82,12 @@ class SceneFileError(GenplanError):
     key or shape table, a missing field, a value of the wrong length, not finite or not positive,
     a missing mesh file, a duplicate obstacle name; the message names the file (or scene), the
     table and the field."""
+
+
+class ObjectiveFileError(GenplanError):
+    """An objective (objective file or its data, :mod:`genplan.seq2seq.objectives`) that cannot be
+    used: bad TOML, an unknown term kind or key, a value of the wrong form, a python term without
+    the opt-in; the message names the file, the term and the key."""
 
 
 class ModelFileError(GenplanError):
@@ -84,6 +101,13 @@ class InvalidStartError(GenplanError):
 
 class InvalidGoalError(GenplanError):
     """Planning goals that the result's guarantee cannot rest on (e.g. none of them valid)."""
+
+
+class InvalidTrajectoryError(GenplanError):
+    """A path that cannot be timed (a state outside the joint limits, no parameterisation within
+    the velocity and acceleration limits) or a trajectory that fails its own check (a sample
+    outside the joint limits, in collision, or off the task's manifold); the message names the
+    first bad state or sample (index, time) and the limit, pair or term it breaks."""
 
 
 class CallbackError(GenplanError):
