@@ -94,7 +94,8 @@ def workloads(args: argparse.Namespace) -> dict[str, Callable[[int | None], floa
     from genplan.gan.sampler import GanSampler
     from genplan.pancake import adjust
     from genplan.pancake.data import generate_chunk
-    from genplan.pancake.model import Seq2SeqModel, Seq2SeqNet, load_model as load_seq2seq
+    from genplan.pancake.model import load_model as load_seq2seq
+    from genplan.seq2seq.model import Seq2SeqModel, Seq2SeqNet
     from genplan.pancake.model import default_config as seq_config
     from genplan.pancake.trajectories import j1_problems
 

@@ -10,7 +10,8 @@ import torch
 from genplan.errors import CallbackError, GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.pancake import physics as ph
 from genplan.pancake.adjustment import J1, J2, PAPER_LR, J2Executable, adjust, default_lr, normal_acceleration
-from genplan.pancake.model import Seq2SeqModel, load_model
+from genplan.pancake.model import load_model
+from genplan.seq2seq.model import Seq2SeqModel
 from genplan.pancake.trajectories import linear, s_curve
 
 P_END = np.array([[0.1, -0.1, math.pi], [0.0, 0.1, 0.0], [-0.1, 0.0, -math.pi]])
@@ -179,7 +180,7 @@ def test_bad_objectives_get_clear_errors(model, x_in) -> None:
 
 
 def test_bad_inputs_get_clear_errors(model, x_in) -> None:
-    with pytest.raises(ShapeError, match=r"x_in must be poses .* got shape \(500, 2\)"):
+    with pytest.raises(ShapeError, match=r"x_in must be trajectories of shape .* got shape \(500, 2\)"):
         adjust(np.zeros((500, 2)), model=model)
     bad = x_in.copy()
     bad[0, 3, 1] = np.nan
@@ -193,7 +194,7 @@ def test_bad_inputs_get_clear_errors(model, x_in) -> None:
         adjust(x_in, lr=-1.0, model=model)
     with pytest.raises(SettingsError, match="updates must be a non-negative integer"):
         adjust(x_in, updates=-2, model=model)
-    with pytest.raises(ShapeError, match=r"p_end must have shape \(3,\) or \(3, 3\)"):
+    with pytest.raises(ShapeError, match=r"targets\['p_end'\] must have shape \(3,\) or \(3, 3\)"):
         adjust(x_in, "j1", p_end=np.zeros((2, 3)), model=model)
     with pytest.raises(NonFiniteError, match="p_end contains NaN"):
         adjust(x_in, "j1", p_end=[0.0, np.nan, 0.0], model=model)
@@ -224,9 +225,9 @@ def test_every_decoded_trajectory_is_finite_or_an_error(model, x_in) -> None:
         return torch.nan_to_num(r.p[:, -1, 0], nan=0.0, posinf=0.0, neginf=0.0) ** 2 + 1.0
 
     with pytest.raises(FloatingPointError, match=r"decoded trajectory of problem 0 became NaN or inf after 1 "
-                                                 r"update\(s\) \(method direct-u, step gd, .*lower lr"):
+                                                 r"update\(s\) \(method direct, step gd, .*lower lr"):
         adjust(x_in, blind, "direct-u", 3, lr=1e45, step="gd", model=model)
-    from genplan.pancake.model import Seq2SeqNet
+    from genplan.seq2seq.model import Seq2SeqNet
 
     net = Seq2SeqNet(model.config)
     net.load_state_dict(model.net.state_dict())

@@ -1,4 +1,5 @@
-"""genplan.pancake.model: the shipped seq2seq model, its files, the loss, and training mechanics."""
+"""genplan.pancake.model: the shipped seq2seq model (the pancake's configuration of the generic
+genplan.seq2seq model), its files, the loss, and training mechanics."""
 
 import json
 import math
@@ -9,10 +10,9 @@ import torch
 
 from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError, ShapeError
 from genplan.pancake import physics as ph
-from genplan.pancake.model import (
-    FORMAT, Seq2SeqModel, Seq2SeqNet, check_trajectories, default_config, default_path, load_model, nll,
-    start_state, train,
-)
+from genplan.pancake.model import default_config, default_path, load_model, start_state, train
+from genplan.seq2seq.model import FORMAT, Seq2SeqModel, Seq2SeqNet, nll
+from genplan.seq2seq.model import check_trajectories as check_any
 from genplan.pancake.trajectories import s_curve
 from tests.model_file_cases import common_cases, tamper
 
@@ -70,7 +70,7 @@ def test_mirror_symmetry(model: Seq2SeqModel) -> None:
     x = s_curve([0.01, 0.0, 0.2], [0.08, -0.05, 2.5])
     xm = x * [-1.0, 1.0, -1.0]
     a, b = model.deform(x), model.deform(xm)
-    assert model.config.mirror_canonical
+    assert model.config.mirror == (-1.0, 1.0, -1.0) and model.config.mirror_axis == 2
     np.testing.assert_allclose(a["z"], b["z"], atol=1e-6)
     np.testing.assert_allclose(a["p"] * [-1.0, 1.0, -1.0], b["p"], atol=1e-6)
     np.testing.assert_allclose(-a["phi"], b["phi"], atol=1e-5)
@@ -88,7 +88,7 @@ def test_nll_is_the_gaussian_log_density() -> None:
     r = ph.Rollout(p=p_out, v=p_out, u=p_out, phi=p_out[..., 0], var_p=var)
     d = np.array(ph.D_SCALE)
     ref = -norm.logpdf(d * p_in.numpy(), d * p_out.numpy(), d * np.sqrt(var.numpy() + 1e-8)).sum((1, 2))
-    np.testing.assert_allclose(nll(p_in, r, 1e-8).numpy(), ref, rtol=1e-10)
+    np.testing.assert_allclose(nll(p_in, r, 1e-8, torch.tensor(d)).numpy(), ref, rtol=1e-10)
 
 
 def test_save_load_round_trip_and_bad_files(model: Seq2SeqModel, tmp_path) -> None:
@@ -132,7 +132,7 @@ def tiny_model() -> Seq2SeqModel:
 SEQ_CASES = common_cases("encoder.weight_ih_l0") + [
     ("missing_config_key", lambda c: c["config"].pop("hidden"), None, True, r"missing key\(s\) \['hidden'\]"),
     ("config_type", lambda c: c["config"].update(hidden="8"), None, True, "hidden must be int, got '8'"),
-    ("config_tuple", lambda c: c["config"].update(u_scale=[1.0, 2.0]), None, True, "u_scale must have 3 values"),
+    ("config_tuple", lambda c: c["config"].update(out_scale=[1.0, 2.0]), None, True, "out_scale needs one value per axis"),
     ("config_nan", lambda c: c["config"].update(dt=float("nan")), None, True, "dt must be a finite float"),
     ("config_value", lambda c: c["config"].update(decoder_stride=3), None, True, "divisible by decoder_stride"),
     ("config_range", lambda c: c["config"].update(logvar_max=-20.0), None, True, "logvar_max must be a finite number"),
@@ -187,6 +187,11 @@ def test_deform_refuses_what_it_cannot_vouch_for(model: Seq2SeqModel, tiny_model
         Seq2SeqModel(tiny_model.config, net).deform(x)
 
 
+def check_trajectories(x):
+    """The model's input check for the pancake's (500, 3) poses."""
+    return check_any(x, 500, 3)
+
+
 def test_input_checks() -> None:
     with pytest.raises(ShapeError, match=r"shape \(500, 3\) or \(batch, 500, 3\)"):
         check_trajectories(np.zeros((500, 2)))
@@ -225,3 +230,20 @@ def test_training_mechanics(tmp_path) -> None:
     np.testing.assert_allclose(start_state(x)[:, :3].numpy(), data[:2, 0])
     with pytest.raises(ShapeError, match="training data must have shape"):
         train(cfg, data=data[:, :100], progress=False)
+
+
+def test_integrity_1_retraining_commands_name_an_out_outside_the_package(tmp_path, monkeypatch) -> None:
+    """The shipped card's command and a missing file's error name --out; never the package's
+    own models folder (training there is refused: genplan._cli_args.model_output)."""
+    from genplan._cli_args import inside_package
+    from genplan.pancake.model import retrain_command
+
+    card = json.loads(default_path().with_suffix(".json").read_text())
+    assert card["retrain"].endswith(" --out pancake_seq2seq.safetensors")
+    with pytest.raises(FileNotFoundError, match=rf"train it with `genplan train seq2seq --seed 0 --out {tmp_path}/m.safetensors`"):
+        load_model(tmp_path / "m.safetensors")
+    missing = default_path().with_name("gone.safetensors")
+    assert inside_package(missing) and retrain_command(out=missing) == "genplan train seq2seq --seed 0 --out pancake_seq2seq.safetensors"
+    cfg = default_config(trajectories=600, epochs=2, data_seed=5)
+    assert retrain_command(cfg, tmp_path / "x.safetensors", data_seed=True) == (
+        f"genplan train seq2seq --seed 0 --trajectories 600 --epochs 2 --data-seed 5 --out {tmp_path}/x.safetensors")

@@ -1,15 +1,18 @@
-"""The pancake task of the seq2seq paper (Kutsuzawa et al. 2019): spatula physics, a seq2seq
-trajectory deformation model, and latent-space trajectory adjustment.
+"""The pancake task of the seq2seq paper (Kutsuzawa et al. 2019): the spatula's plant, its data,
+its objectives and the shipped model's configuration. The method itself (the model, training,
+latent adjustment) is generic: :mod:`genplan.seq2seq`.
 
 * :mod:`genplan.pancake.trajectories` -- S-curve and constant-velocity reference moves and the
   friction-cone angle phi (numpy only).
-* :mod:`genplan.pancake.physics` -- eqs. 8-18 in torch (batched, differentiable) with a numpy twin.
+* :mod:`genplan.pancake.physics` -- eqs. 8-18 in torch (batched, differentiable) with a numpy twin;
+  the spatula plant.
 * :mod:`genplan.pancake.data` -- seeded, cached training inputs.
-* :mod:`genplan.pancake.model` -- the seq2seq model (encoder LSTM -> z -> decoder LSTM ->
-  accelerations -> physics), training, safetensors + JSON card files.
-* :mod:`genplan.pancake.adjustment` -- :func:`adjust`: gradient descent on the latent vector
-  ("latent", "random-latent") or on the accelerations ("direct-u"), objectives J1, J2 (J2Executable: with
-  execution margins) or yours.
+* :mod:`genplan.pancake.config` -- the shipped model's configuration of the generic model.
+* :mod:`genplan.pancake.model` -- the shipped model (load, train, evaluate).
+* :mod:`genplan.pancake.objectives` -- J1, J2 (J2Executable: with execution margins) and the
+  spatula's terms (friction cone, normal force).
+* :mod:`genplan.pancake.adjustment` -- :func:`adjust`: the generic adjustment with the pancake's
+  model, objectives and the paper's settings ("latent", "random-latent", "direct-u").
 
 Imported lazily, so that ``import genplan.pancake`` does not import torch.
 """
@@ -23,15 +26,15 @@ from genplan.pancake.trajectories import DT, G, K, MU_MAX, linear, phi, s_curve,
 
 _EXPORTS: dict[str, str] = {
     "Rollout": "genplan.pancake.physics",
-    "Seq2SeqModel": "genplan.pancake.model",
+    "Seq2SeqModel": "genplan.seq2seq.model",
     "load_model": "genplan.pancake.model",
     "train": "genplan.pancake.model",
     "Seq2SeqConfig": "genplan.pancake.config",
     "adjust": "genplan.pancake.adjustment",
     "AdjustResult": "genplan.pancake.adjustment",
-    "J1": "genplan.pancake.adjustment",
-    "J2": "genplan.pancake.adjustment",
-    "J2Executable": "genplan.pancake.adjustment",
+    "J1": "genplan.pancake.objectives",
+    "J2": "genplan.pancake.objectives",
+    "J2Executable": "genplan.pancake.objectives",
 }
 
 __all__ = sorted(["DT", "G", "K", "MU_MAX", "linear", "phi", "s_curve", "wrap_angle", *_EXPORTS])

@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from genplan.errors import SettingsError
 from genplan.pancake.trajectories import DT, K
 
-__all__ = ["Seq2SeqConfig"]
+if TYPE_CHECKING:
+    from genplan.seq2seq.config import Seq2SeqConfig as GenericConfig
+
+#: eq. 17's scaling between metres and radians (also the reconstruction loss's D, eq. 5)
+D_SCALE = (1.0, 1.0, 0.1)
+
+__all__ = ["Seq2SeqConfig", "pancake_config", "D_SCALE"]
 
 
 @dataclass
@@ -126,3 +134,31 @@ class Seq2SeqConfig:
         if idx[-1] != self.K - 1:
             idx.append(self.K - 1)
         return idx
+
+
+#: the pancake recipe's fields in the vocabulary of genplan.pancake's first config
+#: (:class:`Seq2SeqConfig` above) and their names in the generic one
+_RENAMED = {"u_scale": "out_scale", "train_margin": "penalty_margin"}
+
+
+def pancake_config(**overrides: Any) -> "GenericConfig":
+    """The shipped pancake model's configuration of the generic seq2seq model
+    (:class:`genplan.seq2seq.config.Seq2SeqConfig`): the spatula's ``[y, z, theta]`` (positions
+    relative to the start, the attitude absolute), accelerations through the spatula plant, the
+    mirror symmetry ``(y, theta) -> (-y, -theta)``, the friction cone as the training penalty and
+    the recipe of :class:`Seq2SeqConfig`. ``overrides`` take the generic names or this module's
+    (``u_scale``, ``train_margin``, ``mirror_canonical``)."""
+    from genplan.seq2seq.config import Seq2SeqConfig as GenericConfig
+
+    legacy = {f.name: getattr(Seq2SeqConfig(), f.name) for f in dataclasses.fields(Seq2SeqConfig)}
+    values: dict[str, Any] = {}
+    for name, value in {**legacy, **overrides}.items():
+        if name == "mirror_canonical":
+            values["mirror"] = (-1.0, 1.0, -1.0) if value else None
+        else:
+            values[_RENAMED.get(name, name)] = value
+    values.update(dim=3, axes=("y", "z", "theta"), relative=(True, True, False), condition_on_start=False,
+                  plant="spatula", nll_scale=D_SCALE, penalty="plant", mirror_axis=2, in_offset=(0.0, 0.0, 0.0))
+    if "nll_scale" in overrides:
+        values["nll_scale"] = overrides["nll_scale"]
+    return GenericConfig(**values)

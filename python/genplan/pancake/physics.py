@@ -18,8 +18,6 @@ phi (eq. 16) and the cone (eq. 15) use the convention in :mod:`genplan.pancake.t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import torch
@@ -28,15 +26,16 @@ from torch import Tensor
 
 from genplan._arrays import as_float_array, as_real
 from genplan.errors import SettingsError, ShapeError
+from genplan.pancake.config import D_SCALE
 from genplan.pancake.trajectories import DT, G, K, MU_MAX
 from genplan.pancake.trajectories import phi as phi_np
+from genplan.seq2seq import plants
+from genplan.seq2seq.plants import integrate, integrate_variance
 
-#: eq. 17's scaling between metres and radians
-D_SCALE = (1.0, 1.0, 0.1)
 
 __all__ = [
     "DT", "K", "G", "MU_MAX", "D_SCALE", "Rollout", "transition_matrices", "rollout", "rollout_variance",
-    "phi", "f_dyn", "cone_limit", "simulate", "rollout_np", "rollout_variance_np", "phi_np", "f_dyn_np",
+    "phi", "f_dyn", "cone_limit", "simulate", "SpatulaPlant", "rollout_np", "rollout_variance_np", "phi_np", "f_dyn_np",
 ]
 
 
@@ -56,25 +55,6 @@ def transition_matrices(dt: float = DT) -> tuple[NDArray[np.float64], NDArray[np
     return A, B
 
 
-@lru_cache(maxsize=16)
-def _kernels(k: int, dt: float, dtype: torch.dtype, device: str) -> tuple[Tensor, Tensor, Tensor, Tensor]:
-    idx = torch.arange(k, dtype=torch.float64)
-    diff = idx[:, None] - idx[None, :]  # k - j
-    lower = diff > 0
-    mp = torch.where(lower, (diff - 0.5) * dt * dt, torch.zeros(()))
-    mv = torch.where(lower, torch.full_like(diff, dt), torch.zeros(()))
-    t = idx * dt
-    return (mp.to(dtype=dtype, device=device), mv.to(dtype=dtype, device=device),
-            (mp * mp).to(dtype=dtype, device=device), t.to(dtype=dtype, device=device))
-
-
-def _lower_apply(m: Tensor, u: Tensor) -> Tensor:
-    """``m @ u[b]`` for every batch element, as one matrix product: (K, K) x (B, K, C)."""
-    b, k, c = u.shape
-    out = torch.mm(m, u.transpose(0, 1).reshape(k, b * c))
-    return out.reshape(k, b, c).transpose(0, 1)
-
-
 def _check_u(u: Tensor) -> None:
     if u.ndim != 3 or u.shape[-1] != 3:
         raise ShapeError(f"u must have shape (batch, K, 3) [a_y, a_z, a_theta], got {tuple(u.shape)}")
@@ -84,28 +64,22 @@ def rollout(u: Tensor, x0: Tensor | None = None, dt: float = DT) -> tuple[Tensor
     """Positions and velocities ``(p, v)``, each (B, K, 3), of eq. 8 from ``x[0] = x0``.
 
     ``u``: (B, K, 3) accelerations; ``x0``: (B, 6) or (6,) initial states (default: rest at the
-    origin). Exact, differentiable in ``u`` and ``x0``.
+    origin). Exact, differentiable in ``u`` and ``x0`` (:func:`genplan.seq2seq.plants.integrate`).
     """
     _check_u(u)
-    b, k, _ = u.shape
-    mp, mv, _, t = _kernels(k, float(dt), u.dtype, str(u.device))
+    b = u.shape[0]
     if x0 is None:
         x0 = u.new_zeros(6)
     if x0.shape[-1] != 6 or x0.ndim > 2:
         raise ShapeError(f"x0 must have shape (6,) or (batch, 6), got {tuple(x0.shape)}")
     x0 = x0.to(u.dtype).expand(b, 6)
-    p0, v0 = x0[:, None, :3], x0[:, None, 3:]
-    p = p0 + t[None, :, None] * v0 + _lower_apply(mp, u)
-    v = v0 + _lower_apply(mv, u)
-    return p, v
+    return integrate(u, x0[:, :3], x0[:, 3:], dt)
 
 
 def rollout_variance(var_u: Tensor, dt: float = DT) -> Tensor:
     """Position variances (B, K, 3) from independent per-step acceleration variances (B, K, 3)."""
     _check_u(var_u)
-    _, k, _ = var_u.shape
-    _, _, mp2, _ = _kernels(k, float(dt), var_u.dtype, str(var_u.device))
-    return _lower_apply(mp2, var_u)
+    return integrate_variance(var_u, dt)
 
 
 def phi(theta: Tensor, u: Tensor, g: float = G) -> Tensor:
@@ -128,24 +102,34 @@ def f_dyn(phi_: Tensor, mu_max: float = MU_MAX, margin: float = 0.0) -> Tensor:
     return torch.relu(phi_.abs() - cone_limit(mu_max) + margin).sum(-1)
 
 
-@dataclass
-class Rollout:
-    """A trajectory and its inputs, batched: what objectives see.
+class Rollout(plants.Rollout):
+    """A spatula trajectory and its inputs, batched: what the pancake's objectives see.
 
-    ``p``, ``v``, ``u``: (B, K, 3) positions, velocities, accelerations; ``phi``: (B, K);
-    ``var_p``: (B, K, 3) position variances, or None when not modelled.
+    ``p``, ``v``, ``u``: (B, K, 3) positions, velocities, accelerations; ``phi``: (B, K), the
+    friction-cone angle (eq. 16); ``var_p``: (B, K, 3) position variances, or None when not
+    modelled.
     """
 
-    p: Tensor
-    v: Tensor
-    u: Tensor
-    phi: Tensor
-    var_p: Tensor | None = None
-    dt: float = DT
+    def __init__(self, p: Tensor, v: Tensor, u: Tensor, phi: Tensor, var_p: Tensor | None = None,
+                 dt: float = DT) -> None:
+        super().__init__(p=p, v=v, u=u, var_p=var_p, dt=dt)
+        self.phi = phi
 
-    @property
-    def batch(self) -> int:
-        return int(self.p.shape[0])
+
+class SpatulaPlant(plants.Integrator):
+    """The seq2seq plant of the pancake task: accelerations of the spatula's ``[y, z, theta]``
+    rolled out by eq. 8, with phi (eq. 16) along the trajectory."""
+
+    name = "spatula"
+
+    def rollout(self, out: Tensor, var_out: Tensor | None, x0: Tensor) -> Rollout:
+        p, v, var_p = self.states(out, var_out, x0)
+        return Rollout(p=p, v=v, u=out, phi=phi(p[..., 2], out), var_p=var_p, dt=self.dt)
+
+    @staticmethod
+    def penalty(r: Rollout, margin: float) -> Tensor:
+        """The training penalty (eq. 4's L2): f_dyn with the cone tightened by ``margin``."""
+        return f_dyn(r.phi, margin=margin)
 
 
 def simulate(u: Tensor, x0: Tensor | None = None, var_u: Tensor | None = None, dt: float = DT) -> Rollout:

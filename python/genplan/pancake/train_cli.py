@@ -1,11 +1,11 @@
 """``genplan train seq2seq``: train the pancake seq2seq model and write it with its card.
 
-    genplan train seq2seq --seed 0 [--trajectories N] [--epochs E] [--out PATH]
+    genplan train seq2seq --seed 0 --out PATH [--trajectories N] [--epochs E]
 
 Generates (or reads from the cache) N input trajectories, trains with a progress bar, then
 evaluates: deformation quality on held-out inputs and on the paper's 27 S-curves, and latent
-adjustment of J1 on those 27 (mean J1 after 0 / 5 / 100 updates, end RMSE, cone). Writes
-``models/pancake_seq2seq.safetensors`` and ``.json`` (the card) unless ``--out`` says otherwise.
+adjustment of J1 on those 27 (mean J1 after 0 / 5 / 100 updates, end RMSE, cone). Writes ``--out``
+(.safetensors) and its card (.json): never the shipped model inside the installed package.
 """
 
 from __future__ import annotations
@@ -80,29 +80,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="torch threads (default: genplan's choice for training, one; $GENPLAN_TORCH_THREADS "
                         "overrides it too)")
     p.add_argument("--out", type=A.output_file, default=None,
-                   help="model path (default models/pancake_seq2seq.safetensors; folders are created)")
+                   help="model path (required: the shipped model in the installed package is never overwritten; "
+                        "folders are created; an existing model is replaced once the new one is complete)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def main(args: argparse.Namespace) -> int:
-    from genplan.pancake.model import default_config, default_path, train
+    from genplan.pancake.model import default_config, default_path, retrain_command, train
 
+    out = A.model_output(args.out, default_path())  # never inside the package
     cfg = default_config(seed=args.seed, data_seed=args.seed if args.data_seed is None else args.data_seed,
                          trajectories=args.trajectories, epochs=args.epochs, batch_size=args.batch_size,
                          lr=args.lr, alpha=args.alpha, encoder_stride=args.encoder_stride,
                          decoder_stride=args.decoder_stride, threads=args.threads)
     if cfg.trajectories < cfg.batch_size:
         raise A.UsageError(f"--trajectories ({cfg.trajectories}) must be at least --batch-size ({cfg.batch_size})")
-    out = args.out or A.check_output_file(default_path(), "--out")
+    A.announce_replacement([out])
     t0 = time.perf_counter()
     model = train(cfg, progress=not args.no_progress)
     t_eval = time.perf_counter()
     model.card["evaluation"] = evaluate(model)
     model.card["evaluation"]["seconds"] = time.perf_counter() - t_eval
     model.card["training"]["total_seconds_including_data_and_evaluation"] = time.perf_counter() - t0
-    retrain = (f"genplan train seq2seq --seed {cfg.seed} --trajectories {cfg.trajectories} --epochs {cfg.epochs}"
-               + ("" if args.data_seed is None else f" --data-seed {cfg.data_seed}"))
-    model.card["retrain"] = retrain
+    model.card["retrain"] = retrain_command(cfg, out, data_seed=args.data_seed is not None)
     weights, card = model.save(out)
     ev = model.card["evaluation"]
     lat = ev["latent_adjustment_j1_adaptive"]

@@ -1,0 +1,410 @@
+"""Latent-space trajectory adjustment (the seq2seq paper's Section 3) for any model, and its two
+comparisons.
+
+:func:`adjust` minimises an objective ``J`` of the model's decoded trajectories by gradient
+descent on
+
+* ``"latent"`` -- the latent vector z, starting from the encoder's z of the input trajectory
+  (case 1, the paper's method);
+* ``"random-latent"`` -- z, starting from ``z ~ N(0, I)`` (case 2; a mirror-symmetric model's
+  mirror sign still comes from the input);
+* ``"direct"`` -- the decoder's output itself (the plant's input U_out: accelerations, or the
+  displacements of a position plant), starting from the decoding of the input (case 3;
+  ``"direct-u"`` is the same method's first name).
+
+Many problems run in one call (a batch): each problem has its own objective value and its own
+variables; the summed objective's gradient is the per-problem gradient.
+
+Step rules:
+
+* ``"gd"`` is eq. 7, ``v <- v - eta dJ/dv``;
+* ``"adaptive"`` is eq. 7 inside a trust radius per problem: the step ``eta dJ/dv`` is shortened
+  to at most ``radius`` (root mean square over the variable's elements; starts at ``max_step``,
+  default :data:`ADAPTIVE_RADIUS`); a step that raises that problem's J is undone and retried with
+  half its length, after a step that lowers J the radius grows by half. Still one forward and
+  one backward pass per update, the objective never rises, and eta matters much less;
+* ``"adam"`` (elementwise Adam, so per problem).
+
+Objectives: an :class:`~genplan.seq2seq.objectives.Objective` (terms as data, or a file), or any
+callable taking a :class:`~genplan.seq2seq.plants.Rollout` and returning one differentiable
+value per problem, shape (B,) (a 0-d tensor is accepted when B = 1).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import torch
+from numpy.typing import ArrayLike, NDArray
+from torch import Tensor
+
+from genplan._arrays import as_count, as_real
+from genplan._threads import uses_torch
+from genplan.errors import CallbackError, SettingsError, UnknownNameError
+from genplan.seq2seq.model import Seq2SeqModel, check_trajectories, first_nonfinite
+from genplan.seq2seq.objectives import Context, Objective, load_objective
+from genplan.seq2seq.plants import Rollout
+
+__all__ = ["adjust", "AdjustResult", "METHODS", "STEPS", "ADAPTIVE_RADIUS", "ADAM_LR", "MAX_UPDATES", "method_name"]
+
+Method = Literal["latent", "random-latent", "direct"]
+METHODS: tuple[str, ...] = ("latent", "random-latent", "direct")
+#: names a method had before (still accepted)
+ALIASES = {"direct-u": "direct"}
+STEPS: tuple[str, ...] = ("gd", "adaptive", "adam")
+#: the adaptive rule's initial trust radius (RMS of a step): latent units; for "direct", in units
+#: of the model's ``out_scale`` (its root mean square)
+ADAPTIVE_RADIUS = {"latent": 0.02, "random-latent": 0.02, "direct": 0.02}
+#: the adam step rule's learning rates: latent units; for "direct", in units of ``out_scale``
+ADAM_LR = {"latent": 0.02, "random-latent": 0.02, "direct": 0.08}
+#: most updates per call (the history keeps one objective per problem and update)
+MAX_UPDATES = 1_000_000
+
+
+def method_name(method: str) -> str:
+    """The method's name (its first name accepted), else UnknownNameError listing them."""
+    name = ALIASES.get(method, method)
+    if name not in METHODS:
+        raise UnknownNameError(f"method must be one of {METHODS}, got {method!r}")
+    return name
+
+
+@dataclass
+class AdjustResult:
+    """What :func:`adjust` returns (numpy, float64; B problems, K samples, d axes).
+
+    ``p``, ``v``, ``u``: (B, K, d) the adjusted trajectories, their velocities and the decoder's
+    output; ``extras``: what the plant adds (the spatula's ``phi``, (B, K)), also readable as
+    attributes (``result.phi``). ``objective_history[i]`` holds the objective of every problem
+    after ``i`` updates (row 0: before any update), shape (updates + 1, B). ``snapshots`` maps an
+    update index to the trajectory (``p``, ``v``, ``u`` and the extras) at that point. Timing:
+    ``update_times_s`` holds the wall time of each update of the whole batch (forward, backward,
+    step), ``time_updates_s`` their sum, ``ms_per_update`` their median over B; ``time_init_s`` is
+    the encoder (or decoder) pass that gives the start point. ``context``: what the objective was
+    bound to (the robot, task and scene :meth:`finish` uses); ``objective``: what was minimised.
+    """
+
+    p: NDArray[np.float64]
+    v: NDArray[np.float64]
+    u: NDArray[np.float64]
+    objective_history: NDArray[np.float64]
+    z: NDArray[np.float64] | None
+    method: str
+    step: str
+    lr: float
+    updates: int
+    time_init_s: float
+    time_updates_s: float
+    time_total_s: float
+    update_times_s: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    snapshots: dict[int, dict[str, NDArray[np.float64]]] = field(default_factory=dict)
+    extras: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    model: Seq2SeqModel | None = field(default=None, repr=False)
+    context: Context | None = field(default=None, repr=False)
+    objective: Any = field(default=None, repr=False)
+
+    def __getattr__(self, name: str) -> Any:
+        extras = self.__dict__.get("extras", {})
+        if name in extras:
+            return extras[name]
+        raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
+
+    @property
+    def batch(self) -> int:
+        return int(self.p.shape[0])
+
+    @property
+    def ms_per_update(self) -> float:
+        """Median wall time of one update (forward, backward, step) of the batch, over B (ms);
+        NaN without updates or problems."""
+        if len(self.update_times_s) == 0 or self.batch == 0:
+            return float("nan")
+        return 1e3 * float(np.median(self.update_times_s)) / self.batch
+
+    def first_update_below(self, level: float) -> NDArray[np.int64]:
+        """Per problem, the first update index whose objective is below ``level`` (-1: never)."""
+        below = self.objective_history < level
+        return np.where(below.any(0), below.argmax(0), -1)
+
+    def finish(self, **kwargs: Any) -> Any:
+        """The adjusted trajectories made executable: see :func:`genplan.seq2seq.finish.finish`."""
+        from genplan.seq2seq.finish import finish
+
+        return finish(self, **kwargs)
+
+
+def _check_value(j: Any, b: int) -> Tensor:
+    if not isinstance(j, Tensor):
+        raise TypeError(f"the objective must return a torch.Tensor, got {type(j).__name__}")
+    if j.ndim == 0 and b == 1:
+        j = j.reshape(1)
+    if j.shape != (b,):
+        raise CallbackError(f"the objective must return one value per problem, shape ({b},), got shape "
+                            f"{tuple(j.shape)}" + (" (a scalar: for a batch return the per-problem values, "
+                                                   "not their sum)" if j.ndim == 0 else ""))
+    if not j.requires_grad:
+        raise CallbackError("the objective does not depend on the trajectory (its value has no gradient); "
+                            "build it from the Rollout's tensors with torch operations")
+    return j
+
+
+def _rollout_keys(r: Rollout) -> tuple[str, ...]:
+    """The per-problem arrays of a rollout a result keeps: p, v, u and what the plant adds."""
+    extra = tuple(k for k, v in vars(r).items() if isinstance(v, Tensor) and k not in ("p", "v", "u", "var_p"))
+    return ("p", "v", "u") + extra
+
+
+def _empty_result(model: Seq2SeqModel, method: str, step: str, lr: float, updates: int, keep: set[int],
+                  ctx: Context, obj: Any) -> AdjustResult:
+    """What :func:`adjust` returns for an empty batch (torch's LSTMs do not take one)."""
+    cfg = model.config
+    k, d = cfg.K, cfg.dim
+    arrays = {"p": np.zeros((0, k, d)), "v": np.zeros((0, k, d)), "u": np.zeros((0, k, d))}
+    extras = {"phi": np.zeros((0, k))} if cfg.plant == "spatula" else {}
+    return AdjustResult(**arrays, objective_history=np.zeros((updates + 1, 0)),
+                        z=None if method == "direct" else np.zeros((0, cfg.latent_dim)), method=method,
+                        step=step, lr=lr, updates=updates, time_init_s=0.0, time_updates_s=0.0, time_total_s=0.0,
+                        update_times_s=np.zeros(updates), extras=extras,
+                        snapshots={i: {key: a.copy() for key, a in {**arrays, **extras}.items()} for i in sorted(keep)},
+                        model=model, context=ctx, objective=obj)
+
+
+def _default_lr(method: str, step: str, model: Seq2SeqModel) -> float:
+    if step == "adam":
+        return ADAM_LR[method] * (_out_rms(model) if method == "direct" else 1.0)
+    return 1.0
+
+
+def _out_rms(model: Seq2SeqModel) -> float:
+    s = np.asarray(model.config.out_scale, dtype=float)
+    return float(np.sqrt(np.mean(s ** 2)))
+
+
+@uses_torch("small")
+def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Mapping[str, ArrayLike] | None = None,
+           method: str = "latent", updates: int = 100, lr: float | None = None, step: str = "adaptive",
+           seed: int = 0, snapshots: Sequence[int] = (), progress: bool = False, max_step: float | None = None,
+           robot: Any = None, task: Any = None, scene: Any = None, allow_python: bool = False,
+           threads: int | None = None, device: str | torch.device = "cpu") -> AdjustResult:
+    """Adjust the model's decoding of ``x_in`` to minimise ``objective``.
+
+    ``model``: a :class:`~genplan.seq2seq.model.Seq2SeqModel` (or a model file's path).
+    ``x_in``: input trajectories (K, d) or (B, K, d) in the model's space; each decoded trajectory
+    starts where its input does. ``objective``: an :class:`~genplan.seq2seq.objectives.Objective`,
+    an objective file (TOML) or its dict form, or a callable on a rollout returning (B,).
+    ``targets``: per-problem targets keyed by term name (arrays of shape (B, ...)). ``method``:
+    ``"latent"``, ``"random-latent"`` or ``"direct"``. ``step``: ``"adaptive"`` (default),
+    ``"gd"`` or ``"adam"``; ``lr``: eta (default 1 for gd and adaptive, :data:`ADAM_LR` for
+    adam). ``max_step``: the adaptive rule's initial trust radius (default
+    :data:`ADAPTIVE_RADIUS`; for "direct" times the RMS of the model's ``out_scale``). ``seed``:
+    z ~ N(0, I) of "random-latent". ``snapshots``: update indices whose trajectories to keep.
+    With "adaptive" the history, the snapshots and the result are those of the kept (best)
+    iterate. ``robot``, ``task``, ``scene``: what the objective's robot terms need (default: the
+    robot and task the model's card names; a scene is a :class:`~genplan.scene.Scene`, a shipped
+    scene's name or a scene file). ``threads``: torch threads (default one, see genplan._threads);
+    ``device``: the torch device (CPU by default).
+
+    Every argument is checked before any update. Every decoded trajectory is finite, or
+    FloatingPointError names the problem and the update (as for an objective that becomes NaN or
+    inf). An empty batch gives an empty result (B = 0) once the arguments are checked.
+    """
+    if not isinstance(model, Seq2SeqModel):
+        from genplan.seq2seq.model import load_model
+
+        model = load_model(model)
+    method = method_name(method)
+    if step not in STEPS:
+        raise UnknownNameError(f"step must be one of {STEPS}, got {step!r}")
+    if isinstance(updates, bool) or not isinstance(updates, (int, np.integer)) or updates < 0:
+        raise SettingsError(f"updates must be a non-negative integer, got {updates!r}")
+    updates = as_count(updates, "updates", maximum=MAX_UPDATES)
+    cfg = model.config
+    x = check_trajectories(x_in, cfg.K, cfg.dim)
+    b = x.shape[0]
+    dev = torch.device(device)
+    obj: Callable[[Rollout], Tensor]
+    ctx = _context(model, x, dict(targets or {}), robot, task, scene, dev)
+    if callable(objective) and not isinstance(objective, Objective):
+        if targets:
+            raise SettingsError("targets are keyed by objective terms: give an Objective (or a file) to use them")
+        obj = objective
+    else:
+        obj = load_objective(objective, allow_python=allow_python)
+        obj.bind(ctx)  # checks targets, frames, the task and the scene before any work
+    if lr is None:
+        lr = _default_lr(method, step, model)
+    if not (isinstance(lr, (int, float)) and not isinstance(lr, bool) and math.isfinite(lr) and lr > 0):
+        raise SettingsError(f"lr must be a positive finite number, got {lr!r}")
+    if max_step is not None:
+        max_step = as_real(max_step, "max_step", error=SettingsError)
+        if not (math.isfinite(max_step) and max_step > 0):
+            raise SettingsError(f"max_step must be a positive finite number, got {max_step!r}")
+    else:
+        max_step = ADAPTIVE_RADIUS[method] * (_out_rms(model) if method == "direct" else 1.0)
+    seed = as_count(seed, "seed", maximum=2**64 - 1)
+    keep = {as_count(s, "snapshots") for s in snapshots}
+    if any(s > updates for s in keep):  # as_count refused negatives
+        raise SettingsError(f"snapshots must lie in [0, {updates}], got {sorted(keep)}")
+    if b == 0:
+        return _empty_result(model, method, step, float(lr), updates, keep, ctx, obj)
+    if dev != torch.device("cpu"):
+        model.net.to(dev)
+    return _run(model, torch.as_tensor(x, dtype=torch.float32, device=dev), obj, method, updates, float(lr), step,
+                seed, keep, progress, float(max_step), ctx, getattr(obj, "name", "objective"))
+
+
+def _context(model: Seq2SeqModel, x: NDArray[np.float64], targets: dict[str, Any], robot: Any, task: Any,
+             scene: Any, device: torch.device) -> Context:
+    """The objective's context: the card's robot and task unless given; the scene loaded."""
+    card = model.card
+    if robot is None and isinstance(card.get("robot"), Mapping):
+        from genplan.robots import load
+
+        robot = load(card["robot"].get("source") or card["robot"].get("name"))
+    elif isinstance(robot, str):
+        from genplan.robots import load
+
+        robot = load(robot)
+    if task is None and robot is not None and isinstance(card.get("task"), Mapping):
+        from genplan.projection import Task
+
+        task = Task.from_dict(card["task"]["terms"], robot) if "terms" in card["task"] else None
+    elif isinstance(task, str) and robot is not None:
+        from genplan.projection import load_task
+
+        task = load_task(task, robot)
+    if scene is not None:
+        from genplan.scene import load_scene
+
+        scene = load_scene(scene)
+    return Context(axes=model.config.axes, batch=len(x), x_in=torch.as_tensor(x, dtype=torch.float32),
+                   targets=targets, robot=robot, task=task, scene=scene, device=device)
+
+
+def _run(model: Seq2SeqModel, xt: Tensor, obj: Callable[[Rollout], Tensor], method: str, updates: int, lr: float,
+         step: str, seed: int, keep: set[int], progress: bool, max_step: float, ctx: Context,
+         name: str) -> AdjustResult:
+    """The update loop of :func:`adjust` (arguments checked)."""
+    b = xt.shape[0]
+    t_start = time.perf_counter()
+    x0 = model.start(xt)
+    sign = model.chirality(xt)  # the mirror sign of each problem (fixed while adjusting)
+    with torch.no_grad():
+        if method == "random-latent":
+            gen = torch.Generator().manual_seed(int(seed))
+            var = torch.randn(b, model.config.latent_dim, generator=gen).to(xt.device)
+        else:
+            var = model.encode(xt, sign)
+            if method == "direct":
+                cond = model.mirror(x0, sign) if model.config.condition_on_start else None
+                var = model.mirror(model.net.decode(var, cond)[0], sign)
+    var = var.clone().requires_grad_(True)
+    t_init = time.perf_counter() - t_start
+
+    def forward(v: Tensor) -> Rollout:
+        if method == "direct":
+            return model.plant.rollout(v, None, x0)
+        return model.decode(v, x0, sign)
+
+    opt = torch.optim.Adam([var], lr=lr) if step == "adam" else None
+    adaptive = step == "adaptive"
+    shape1 = (b,) + (1,) * (var.ndim - 1)
+    n_el = var[0].numel()
+    radius = torch.full(shape1, max_step, dtype=var.dtype, device=var.device)
+    used = torch.zeros(shape1, dtype=var.dtype, device=var.device)
+    acc_var = var.detach().clone()
+    acc_j = torch.full((b,), math.inf, dtype=var.dtype, device=var.device)
+    acc_grad = torch.zeros_like(acc_var)
+    keys: tuple[str, ...] = ()
+    acc_r: dict[str, Tensor] = {}
+    hist = np.empty((updates + 1, b))
+    snaps: dict[int, dict[str, NDArray[np.float64]]] = {}
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=updates, desc=f"adjust ({method}, {name})", unit="update")
+    times = np.zeros(updates)
+    r: Rollout | None = None
+    for i in range(updates + 1):
+        t0 = time.perf_counter()
+        with torch.enable_grad():
+            r = forward(var)
+            j = _check_value(obj(r), b)
+        keys = keys or _rollout_keys(r)
+        jd = j.detach()
+        bad_r = first_nonfinite(r)
+        bad_j = None if bool(torch.isfinite(jd).all()) else int((~torch.isfinite(jd)).nonzero()[0, 0])
+        if bad_r is not None or bad_j is not None:
+            what = (f"the decoded trajectory of problem {bad_r}" if bad_r is not None
+                    else f"the objective of problem {bad_j}")
+            hint = (f"method {method}, step {step}, lr {lr}; lower lr" if i > 0
+                    else "the model cannot decode this input" if bad_r is not None
+                    else "check the objective and its parameters")
+            raise FloatingPointError(f"{what} became NaN or inf after {i} update(s) ({hint})")
+        need_grad = i < updates
+        if need_grad:
+            (grad,) = torch.autograd.grad(j.sum(), var, allow_unused=True)
+            if grad is None:
+                raise CallbackError("the objective has no gradient with respect to the trajectory")
+        if adaptive:
+            # eq. 7 inside a trust radius per problem: a step that raises J is undone and retried
+            # with half its length; after a step that lowers J the radius grows by half
+            ok = jd <= acc_j
+            okx = ok.reshape(shape1)
+            with torch.no_grad():
+                acc_var = torch.where(okx, var.detach(), acc_var)
+                acc_j = torch.where(ok, jd, acc_j)
+                if need_grad:
+                    acc_grad = torch.where(okx, grad, acc_grad)
+                if i > 0:
+                    radius = torch.where(okx, radius * 1.5, 0.5 * torch.minimum(radius, used))
+                for k in keys:
+                    new = getattr(r, k).detach()
+                    acc_r[k] = new if i == 0 else torch.where(ok.reshape((b,) + (1,) * (new.ndim - 1)), new, acc_r[k])
+            hist[i] = acc_j.double().cpu().numpy()
+            if i in keep:
+                snaps[i] = {k: acc_r[k].double().cpu().numpy() for k in keys}
+        else:
+            hist[i] = jd.double().cpu().numpy()
+            if i in keep:
+                snaps[i] = {k: getattr(r, k).detach().double().cpu().numpy() for k in keys}
+        if not need_grad:
+            break
+        with torch.no_grad():
+            if adaptive:
+                d = lr * acc_grad
+                rms = d.reshape(b, -1).norm(dim=1).reshape(shape1) / math.sqrt(n_el)
+                scale = torch.clamp(radius / torch.clamp(rms, min=1e-30), max=1.0)
+                used = rms * scale
+                var = (acc_var - scale * d).requires_grad_(True)
+            elif opt is None:
+                var -= lr * grad
+            else:
+                var.grad = grad
+                opt.step()
+        times[i] = time.perf_counter() - t0
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(J=f"{float(hist[i].mean()):.3g}")
+    if bar is not None:
+        bar.close()
+    assert r is not None
+    if adaptive:
+        final = acc_r
+        var_out = acc_var
+    else:
+        final = {k: getattr(r, k).detach() for k in keys}
+        var_out = var.detach()
+    t_total = time.perf_counter() - t_start
+    arrays = {k: v.double().cpu().numpy() for k, v in final.items()}
+    return AdjustResult(
+        p=arrays.pop("p"), v=arrays.pop("v"), u=arrays.pop("u"), objective_history=hist,
+        z=None if method == "direct" else var_out.double().cpu().numpy(), method=method, step=step, lr=lr,
+        updates=updates, time_init_s=t_init, time_updates_s=float(times.sum()), time_total_s=t_total,
+        update_times_s=times, snapshots=snaps, extras=arrays, model=model, context=ctx, objective=obj)

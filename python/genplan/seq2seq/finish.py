@@ -1,0 +1,276 @@
+"""Adjusted trajectories made executable: projected, checked and timed, as plans are.
+
+A decoded trajectory of a robot's joint-space family is close to the task's manifold (the model
+was trained with its residuals, the objective may hold them) but not on it, and its K samples are
+too sparse to check the motion between them. :func:`finish` turns each into the same
+:class:`~genplan.trajectory.Trajectory` a plan gives:
+
+1. every sample is projected onto the task's manifold with the native projector (tolerances ten
+   times tighter than the task's, as the planner does, so that the chords between projected
+   states stay within the tolerance), its posture pulled towards the sample; the last sample is
+   projected onto the manifold *and* the objective's end target (an ``end_position`` or
+   ``end_pose`` term's target for that problem), which makes the end exact;
+2. the path is densified: wherever two consecutive states are more than ``resolution`` apart (max
+   over the joints), states are interpolated and projected in turn, until every step is at most
+   ``resolution`` (a projected state that jumps more than ``max_jump`` steps away from its
+   neighbours is a failure: the path would change branch);
+3. every dense state is checked against the joint limits (no tolerance) and the collision world
+   (the robot, the scene and any per-problem obstacle);
+4. the dense path is timed by TOPP-RA (:func:`genplan.trajectory.parameterize`), whose samples
+   are checked again on the limits and the task's residuals.
+
+A problem that fails a step is reported as failed with the reason (the step, the sample), never
+as a success.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from genplan.errors import GenplanError, SettingsError
+
+__all__ = ["finish", "FinishResult", "DEFAULT_RESOLUTION"]
+
+#: the largest joint step (rad) between dense states: the planner's edge resolution
+DEFAULT_RESOLUTION = 0.025
+#: a projected interpolated state further than this many resolutions from its neighbours' chord
+#: is a branch change (the planner's max_jump)
+MAX_JUMP = 3.0
+#: densification rounds (each at most halves the largest step; 0.4 rad -> 0.025 in four)
+MAX_ROUNDS = 8
+
+
+@dataclass
+class FinishResult:
+    """What :func:`finish` returns, per problem (B): ``success``; ``trajectories`` (a
+    :class:`~genplan.trajectory.Trajectory`, or None for a failure); ``reasons`` (None, or why it
+    failed); ``paths`` (the dense paths, or None); ``end_error_m`` (the distance of the end
+    target's frame from its target after finishing; NaN without such a term or when the problem
+    failed before); ``max_residual_ratio`` (the largest residual over its tolerance along the
+    timed trajectory; NaN for a failure); ``seconds``: the time of each stage for the batch."""
+
+    success: NDArray[np.bool_]
+    trajectories: list[Any]
+    reasons: list[str | None]
+    paths: list[NDArray[np.float64] | None]
+    end_error_m: NDArray[np.float64]
+    max_residual_ratio: NDArray[np.float64]
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def batch(self) -> int:
+        return len(self.trajectories)
+
+    @property
+    def success_rate(self) -> float:
+        return float(np.mean(self.success)) if self.batch else float("nan")
+
+
+def _end_target(result: Any) -> tuple[Any, str, NDArray[np.float64]] | None:
+    """(term, frame, targets (B, 3) or (B, 4, 4)) of the objective's end target, or None."""
+    from genplan.seq2seq.objectives import EndPose, EndPosition
+
+    obj = getattr(result, "objective", None)
+    for t in getattr(obj, "terms", ()):
+        if isinstance(t, (EndPosition, EndPose)) and t._target is not None:
+            return t, t.frame, t._target.double().cpu().numpy()
+    return None
+
+
+def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = None,
+           resolution: float = DEFAULT_RESOLUTION, velocity_scale: float = 1.0, acceleration_scale: float = 1.0,
+           rate_hz: float = 1000.0, time_parameterize: bool = True) -> FinishResult:
+    """Project, densify, check and time the adjusted trajectories of ``result`` (an
+    :class:`~genplan.seq2seq.adjust.AdjustResult` of a robot's joint-space model).
+
+    ``world``: a :class:`~genplan.collision.CollisionWorld` (or one per problem, for
+    per-problem obstacles); default: the robot's world with the scene the adjustment was given.
+    ``robot``, ``task``: default the adjustment's. ``resolution``: the largest joint step between
+    dense states (rad). ``velocity_scale``, ``acceleration_scale``, ``rate_hz``: TOPP-RA's (see
+    :func:`genplan.trajectory.parameterize`); ``time_parameterize=False`` stops after the checks
+    (the trajectories are then None for every problem and ``paths`` holds the checked paths).
+    """
+    from genplan.projection import FramePose, FramePosition, GaussNewtonProjector, Task, manifold_task
+    from genplan.trajectory import parameterize
+
+    ctx = result.context
+    robot = robot if robot is not None else getattr(ctx, "robot", None)
+    task = task if task is not None else getattr(ctx, "task", None)
+    if robot is None:
+        raise SettingsError("finish: the adjustment has no robot (a task-space family such as the pancake's has "
+                            "nothing to project); pass robot= for a joint-space model")
+    p = np.asarray(result.p, dtype=np.float64)
+    b, k, n = p.shape
+    if n != robot.nq:
+        raise SettingsError(f"finish: the trajectories have {n} axes, robot '{robot.name}' has {robot.nq} joints")
+    if not (np.isfinite(resolution) and resolution > 0):
+        raise SettingsError(f"finish: resolution must be a positive number of radians, got {resolution!r}")
+    worlds = _worlds(world, robot, ctx, b)
+    manifold = None
+    if task is not None:
+        manifold = manifold_task(task, robot) if task.condition is not None else task
+    seconds: dict[str, float] = {}
+    reasons: list[str | None] = [None] * b
+    end = _end_target(result)
+
+    # 1. project every sample; the last onto the end target as well
+    t0 = time.perf_counter()
+    q = p.copy()
+    if manifold is not None:
+        proj = GaussNewtonProjector(robot, manifold.with_tolerances_scaled(0.1))
+        inner = q[:, :-1].reshape(-1, n) if end is not None else q.reshape(-1, n)
+        res = proj.solve_batch(inner, inner)
+        inner_q = res.q.reshape(b, -1, n)
+        ok = res.success.reshape(b, -1)
+        q[:, :inner_q.shape[1]] = inner_q
+        for i in range(b):
+            if not ok[i].all():
+                reasons[i] = f"sample {int(np.argmin(ok[i]))} could not be projected onto the task's manifold"
+    if end is not None:
+        term, frame, targets = end
+        label = "end_target"
+        extra = (FramePosition(name=label, frame=frame, target=targets[0], weight=50.0, tolerance=1e-4)
+                 if targets.ndim == 2 else
+                 FramePose(name=label, frame=frame, target=targets[0], weight=50.0, tolerance=1e-4))
+        base = manifold.primary if manifold is not None else ()
+        end_task = Task(primary=(*base, extra), secondary=manifold.secondary if manifold is not None else (),
+                        name="finish_end")
+        proj_end = GaussNewtonProjector(robot, end_task.with_tolerances_scaled(0.1))
+        last = p[:, -1]
+        res = proj_end.solve_batch(last, last, targets={label: targets})
+        q[:, -1] = res.q
+        for i in range(b):
+            if reasons[i] is None and not res.success[i]:
+                reasons[i] = "the last sample could not be projected onto the manifold and the end target"
+    seconds["project"] = time.perf_counter() - t0
+
+    # 2. densify
+    t0 = time.perf_counter()
+    paths: list[NDArray[np.float64] | None] = []
+    proj_dense = GaussNewtonProjector(robot, manifold.with_tolerances_scaled(0.1)) if manifold is not None else None
+    for i in range(b):
+        if reasons[i] is not None:
+            paths.append(None)
+            continue
+        path, why = _densify(q[i], resolution, proj_dense)
+        paths.append(path)
+        reasons[i] = why
+    seconds["densify"] = time.perf_counter() - t0
+
+    # 3. check limits and collisions
+    t0 = time.perf_counter()
+    lo, hi = np.asarray(robot.lower, dtype=float), np.asarray(robot.upper, dtype=float)
+    for i in range(b):
+        path = paths[i]
+        if reasons[i] is not None or path is None:
+            continue
+        over = (path < lo) | (path > hi)
+        if over.any():
+            s, j = np.argwhere(over)[0]
+            reasons[i] = (f"dense state {int(s)} of {len(path)}: joint {robot.joint_names[j]} at {path[s, j]:.6g} is "
+                          f"outside its limits [{lo[j]:.6g}, {hi[j]:.6g}]")
+            continue
+        hit = np.asarray(worlds[i].in_collision(path), dtype=bool)
+        if hit.any():
+            s = int(np.argmax(hit))
+            reasons[i] = f"dense state {s} of {len(path)} is in collision"
+    seconds["check"] = time.perf_counter() - t0
+
+    # 4. time
+    t0 = time.perf_counter()
+    trajectories: list[Any] = [None] * b
+    ratio = np.full(b, np.nan)
+    if time_parameterize:
+        for i in range(b):
+            if reasons[i] is not None:
+                continue
+            try:
+                traj = parameterize(robot, paths[i], manifold, rate_hz=rate_hz, velocity_scale=velocity_scale,
+                                    acceleration_scale=acceleration_scale)
+            except GenplanError as exc:
+                reasons[i] = f"timing: {exc}"
+                continue
+            r = traj.max_residual_ratio if manifold is not None else 0.0
+            if manifold is not None and not traj.within_tolerance:
+                reasons[i] = f"timing: the timed samples leave the task's tolerance ({r:.3g} x)"
+                continue
+            trajectories[i] = traj
+            ratio[i] = r
+    seconds["time"] = time.perf_counter() - t0
+
+    end_err = np.full(b, np.nan)
+    if end is not None:
+        term, frame, targets = end
+        for i in range(b):
+            if paths[i] is not None:
+                pos = robot.frame_positions(paths[i][-1:], frame)[0]
+                goal = targets[i] if targets.ndim == 2 else targets[i][:3, 3]
+                end_err[i] = float(np.linalg.norm(pos - goal))
+    success = np.array([reasons[i] is None and (trajectories[i] is not None or not time_parameterize)
+                        for i in range(b)], dtype=bool)
+    return FinishResult(success=success, trajectories=trajectories, reasons=reasons, paths=paths,
+                        end_error_m=end_err, max_residual_ratio=ratio, seconds=seconds)
+
+
+def _worlds(world: Any, robot: Any, ctx: Any, b: int) -> list[Any]:
+    """One collision world per problem."""
+    if world is None:
+        world = robot.collision_world()
+        scene = getattr(ctx, "scene", None)
+        if scene is not None:
+            world.add_scene(scene)
+    if isinstance(world, Sequence) and not isinstance(world, (str, bytes)):
+        worlds = list(world)
+        if len(worlds) != b:
+            raise SettingsError(f"finish: world must be one collision world or one per problem ({b}), got {len(worlds)}")
+        return worlds
+    return [world] * b
+
+
+def _densify(q: NDArray[np.float64], resolution: float, proj: Any) -> tuple[NDArray[np.float64], str | None]:
+    """The path through the states ``q`` (K, n) with every step at most ``resolution``: states
+    interpolated between neighbours further apart, projected (when ``proj``), in rounds."""
+    path = q
+    for _ in range(MAX_ROUNDS):
+        steps = np.abs(np.diff(path, axis=0)).max(axis=1)
+        if np.all(steps <= resolution * (1.0 + 1e-9)):
+            return path, None
+        new_rows: list[NDArray[np.float64]] = []
+        spans: list[tuple[int, int]] = []
+        for s in range(len(path) - 1):
+            m = int(np.ceil(steps[s] / resolution))
+            if m > 1:
+                f = np.arange(1, m)[:, None] / m
+                inter = path[s] + f * (path[s + 1] - path[s])
+                spans.append((sum(len(x) for x in new_rows), len(inter)))
+                new_rows.append(inter)
+        if new_rows:
+            rows = np.concatenate(new_rows)
+            if proj is not None:
+                res = proj.solve_batch(rows, rows)
+                if not res.success.all():
+                    return path, "an interpolated state could not be projected onto the task's manifold"
+                moved = np.abs(res.q - rows).max(axis=1)
+                if np.any(moved > MAX_JUMP * resolution):
+                    return path, ("a projected interpolated state jumped "
+                                  f"{float(moved.max()):.3g} rad off its chord (a change of branch)")
+                rows = res.q
+            out: list[NDArray[np.float64]] = [path[:1]]
+            it = iter(spans)
+            for s in range(len(path) - 1):
+                m = int(np.ceil(steps[s] / resolution))
+                if m > 1:
+                    start, count = next(it)
+                    out.append(rows[start:start + count])
+                out.append(path[s + 1:s + 2])
+            path = np.concatenate(out)
+    steps = np.abs(np.diff(path, axis=0)).max(axis=1)
+    if np.all(steps <= 1.5 * resolution):
+        return path, None
+    return path, f"the path could not be densified to {resolution} rad steps (largest {float(steps.max()):.3g})"
