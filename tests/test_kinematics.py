@@ -237,3 +237,38 @@ def test_talos_batch_in_place_matches_pinocchio(talos: genplan.Robot) -> None:
         for i, link in enumerate(links):
             ref = talos.data.oMf[talos.model.getFrameId(link, pin.BODY)]
             np.testing.assert_allclose(out[k, i], ref.homogeneous, atol=1e-9)
+
+
+@pytest.mark.parametrize("urdf", ["panda_description/urdf/panda.urdf", "mimic"])
+def test_integrity_5_mimic_joints_fk_jacobians_and_com_match_pinocchio(urdf: str, tmp_path) -> None:
+    """Mimic joints follow their master in the Rust kinematics as in Pinocchio's model
+    (``buildModelFromUrdf(..., mimic=True)``): link poses, LOCAL frame Jacobians (the mimic's
+    motion in its master's column) and the centre of mass with its Jacobian. The Panda with its
+    fingers free (panda_finger_joint2 mimics panda_finger_joint1), and a mimic with a
+    multiplier and an offset on a revolute joint (tests/test_robots.py MIMIC)."""
+    if urdf == "mimic":
+        from tests.test_robots import MIMIC
+
+        path = tmp_path / "mimic.urdf"
+        path.write_text(MIMIC.replace("<link name=\"l2\">", "<link name=\"l2\"><inertial><mass value=\"2\"/>"
+                                      "<origin xyz=\"0.1 0.02 0\"/><inertia ixx=\"0.1\" iyy=\"0.1\" izz=\"0.1\"/></inertial>"))
+    else:
+        path = genplan.robots.robots_dir() / urdf
+    robot = genplan.load(path)
+    assert robot.kinematics.mimic_joints and robot.nq == robot.kinematics.nq == robot.model.nq
+    native = _core.Projector(robot.kinematics, [{"type": "joint_limits"}])
+    links = robot.kinematics.link_names
+    qs = robot.random_configurations(30, 5)
+    poses = robot.link_poses(qs)
+    for q, pose in zip(qs, poses):
+        pin.computeJointJacobians(robot.model, robot.data, q)
+        pin.updateFramePlacements(robot.model, robot.data)
+        for i, link in enumerate(links):
+            fid = robot.model.getFrameId(link, pin.BODY)
+            np.testing.assert_allclose(pose[i], robot.data.oMf[fid].homogeneous, atol=1e-12, err_msg=link)
+            ref = pin.getFrameJacobian(robot.model, robot.data, fid, pin.LOCAL)
+            np.testing.assert_allclose(native.frame_jacobian_local(list(q), link), ref, atol=1e-12, err_msg=link)
+        jcom = pin.jacobianCenterOfMass(robot.model, robot.data, q, False)
+        com, jac = native.center_of_mass(list(q))
+        np.testing.assert_allclose(com, robot.data.com[0], atol=1e-12)
+        np.testing.assert_allclose(jac, jcom, atol=1e-12)

@@ -1,12 +1,14 @@
 """genplan.robots: loading, limits, frames, configurations, errors."""
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
 
 import genplan
 from genplan import robots
-from genplan.errors import RobotFileError, ShapeError, UnknownNameError
+from genplan.errors import RobotFileError, RobotWarning, ShapeError, UnknownNameError
 
 
 def test_unknown_robot_lists_the_known_ones() -> None:
@@ -141,8 +143,10 @@ def test_robot_input_errors_name_the_file_and_the_key(two_dir, monkeypatch) -> N
     for text, error, message in [
         ('urdf = "urdf/two.urdf"\nfloating = true\n', RobotFileError, r"bad.toml.*unknown key 'floating' \(known: name, urdf"),
         ('urdf = "urdf/nope.urdf"\n', RobotFileError, r"bad.toml.*'urdf':.*nope.urdf does not exist"),
-        ('urdf = "urdf/two.urdf"\n[frames]\ntool = "hand"\n', UnknownNameError, r"bad.toml: frame 'tool' = 'hand' is not a link"),
-        ('urdf = "urdf/two.urdf"\nlocked_joints = ["j9"]\n', UnknownNameError, r"locked joint 'j9' is not a joint.*known: j1, j2, j3"),
+        ('urdf = "urdf/two.urdf"\n[frames]\ntool = "hand"\n', UnknownNameError,
+         r"unknown link 'hand' \(frame 'tool' of robot file .*bad.toml\) in URDF .*two.urdf \(known: base, l1, l2, tip\)"),
+        ('urdf = "urdf/two.urdf"\nlocked_joints = ["j9"]\n', UnknownNameError,
+         r"unknown joint 'j9' \(locked_joints of robot file .*bad.toml\) in URDF .*two.urdf \(known: j1, j2, j3\)"),
     ]:
         bad.write_text(text)
         with pytest.raises(error, match=message):
@@ -198,3 +202,221 @@ def test_without_an_srdf_the_pairs_to_skip_are_computed_reported_and_written(two
     again = robots.load(urdf=two_dir / "urdf" / "two.urdf", srdf=srdf)
     assert sorted(again.collision_world().self_pairs) == sorted(world.self_pairs)
     assert 'reason="Adjacent"' in srdf.read_text()
+
+
+# --- robots are loaded as their files say, or refused (integrity, finding 5) -----------------
+
+#: j2 follows j1 (q_j2 = -2 q_j1 + 0.1); j3 moves on its own.
+MIMIC = """<robot name="mimic">
+  <link name="base"><collision><geometry><box size="0.4 0.4 0.1"/></geometry></collision></link>
+  <link name="l1"><collision><origin xyz="0.15 0 0"/><geometry><box size="0.3 0.05 0.05"/></geometry></collision></link>
+  <link name="l2"><collision><origin xyz="0.15 0 0"/><geometry><box size="0.3 0.05 0.05"/></geometry></collision></link>
+  <link name="l3"><collision><geometry><sphere radius="0.03"/></geometry></collision></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/><mimic joint="j1" multiplier="-2" offset="0.1"/></joint>
+  <joint name="j3" type="prismatic"><parent link="l2"/><child link="l3"/><origin xyz="0.3 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.2" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+def _rot(axis: str, angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return {"y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]), "z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])}[axis]
+
+
+def test_integrity_5_mimic_joints_follow_their_master(tmp_path) -> None:
+    """A <mimic> joint is no coordinate of its own: q holds its master, and the mimic's value is
+    multiplier * master + offset, in the Rust kinematics and in the Pinocchio model alike."""
+    path = tmp_path / "mimic.urdf"
+    path.write_text(MIMIC)
+    robot = robots.load(path)
+    assert robot.nq == 2 and robot.joint_names == ["j1", "j3"]
+    assert robot.kinematics.active_joints == ["j1", "j3"]
+    q = robot.random_configurations(50, 0)
+    poses = robot.link_poses(q, ["l2", "l3"])
+    for qi, (l2, l3) in zip(q, poses):
+        r2 = _rot("z", qi[0]) @ _rot("y", -2 * qi[0] + 0.1)  # the mimic's rotation, by hand
+        np.testing.assert_allclose(l2[:3, :3], r2, atol=1e-12)
+        np.testing.assert_allclose(l3[:3, 3], l2[:3, 3] + r2 @ [0.3 + qi[1], 0, 0], atol=1e-12)
+        pin.framesForwardKinematics(robot.model, robot.data, qi)
+        np.testing.assert_allclose(l3, robot.data.oMf[robot.model.getFrameId("l3")].homogeneous, atol=1e-12)
+
+
+def test_integrity_5_the_pandas_fingers_move_together(tmp_path) -> None:
+    """example-robot-data's Panda: panda_finger_joint2 mimics panda_finger_joint1. Unlocked, the
+    fingers are one coordinate; locking the master locks its mimic at the value it follows;
+    locking the mimic alone is refused by name."""
+    d = robots.robots_dir() / "panda_description"
+    free = robots.load(urdf=d / "urdf/panda.urdf", srdf=d / "srdf/panda.srdf", reference_state="default")
+    assert free.nq == 8 and free.joint_names[-1] == "panda_finger_joint1"
+    q = free.random_configurations(20, 1)
+    left, right = free.link_poses(q, ["panda_leftfinger", "panda_rightfinger"]).transpose(1, 0, 2, 3)
+    hand = free.link_poses(q, ["panda_hand"])[:, 0]
+    for k in range(20):  # each finger at q_finger from the hand's y axis, on opposite sides
+        y = hand[k, :3, 1]
+        assert (left[k, :3, 3] - hand[k, :3, 3]) @ y == pytest.approx(q[k, 7], abs=1e-12)
+        assert (right[k, :3, 3] - hand[k, :3, 3]) @ y == pytest.approx(-q[k, 7], abs=1e-12)
+    master = robots.load(urdf=d / "urdf/panda.urdf", locked_joints={"panda_finger_joint1": 0.03})
+    assert master.nq == 7 and master.locked_joints == {"panda_finger_joint1": 0.03, "panda_finger_joint2": 0.03}
+    assert genplan.load("panda").locked_joints == {"panda_finger_joint1": 0.001, "panda_finger_joint2": 0.001}
+    with pytest.raises(RobotFileError, match=r"'panda_finger_joint2' mimics 'panda_finger_joint1', which is not locked.*lock 'panda_finger_joint1'"):
+        robots.load(urdf=d / "urdf/panda.urdf", locked_joints=["panda_finger_joint2"])
+    with pytest.raises(RobotFileError, match=r"locked joint 'panda_finger_joint2' at 0.01, but it follows 'panda_finger_joint1' \(0.03 \* 1 \+ 0 = 0.03\)"):
+        robots.load(urdf=d / "urdf/panda.urdf", locked_joints={"panda_finger_joint1": 0.03, "panda_finger_joint2": 0.01})
+
+
+@pytest.mark.parametrize("mimic, problem", [
+    ('<mimic joint="j3"/>', r"joint 'j2' mimics 'j3', which comes after it in the tree"),
+    ('<mimic joint="nope"/>', r"joint 'j2' mimics 'nope', which is not a joint of the URDF"),
+    ('<mimic joint="j2"/>', r"joint 'j2' mimics itself"),
+    ('<mimic joint="j1" multiplier="nan"/>', r"joint 'j2': <mimic multiplier>: expected 1 finite numbers"),
+])
+def test_integrity_5_mimic_joints_genplan_cannot_follow_are_refused_by_name(tmp_path, mimic: str, problem: str) -> None:
+    path = tmp_path / "bad_mimic.urdf"
+    path.write_text(MIMIC.replace('<mimic joint="j1" multiplier="-2" offset="0.1"/>', mimic))
+    with pytest.raises(RobotFileError, match=problem):
+        robots.load(path)
+
+
+def test_integrity_5_a_locked_joint_outside_its_limits_is_refused(two_dir) -> None:
+    bad = two_dir / "bad.toml"
+    bad.write_text('urdf = "urdf/two.urdf"\nlocked_joints = { j2 = 100.0 }\n')
+    with pytest.raises(RobotFileError, match=r"bad.toml: locked joint 'j2' at 100 is outside its limits \[-2, 2\]"):
+        robots.load(bad)
+    # a value from the reference state, and a reference state outside the limits of an active joint
+    (two_dir / "two.srdf").write_text(
+        '<robot name="two"><group_state name="up" group="all"><joint name="j2" value="2.5"/></group_state></robot>')
+    bad.write_text('urdf = "urdf/two.urdf"\nsrdf = "two.srdf"\nreference_state = "up"\nlocked_joints = ["j2"]\n')
+    with pytest.raises(RobotFileError, match=r"bad.toml: locked joint 'j2' at 2.5 \(group_state 'up' of .*two.srdf\) is outside its limits \[-2, 2\]"):
+        robots.load(bad)
+    bad.write_text('urdf = "urdf/two.urdf"\nsrdf = "two.srdf"\nreference_state = "up"\n')
+    with pytest.raises(RobotFileError, match=r"bad.toml: group_state 'up' of .*two.srdf puts joint 'j2' at 2.5, outside its limits \[-2, 2\]"):
+        robots.load(bad)
+    # at its limit: accepted
+    bad.write_text('urdf = "urdf/two.urdf"\nlocked_joints = { j2 = -2.0 }\n')
+    assert robots.load(bad).locked_joints == {"j2": -2.0}
+
+
+def test_integrity_5_srdf_names_unknown_to_the_urdf(two_dir) -> None:
+    """Names genplan uses (disabled pairs, the reference state) are errors; a state it does not
+    use that names unknown joints gives a RobotWarning naming them."""
+    srdf = two_dir / "two.srdf"
+    bad = two_dir / "bad.toml"
+    bad.write_text('urdf = "urdf/two.urdf"\nsrdf = "two.srdf"\nreference_state = "home"\n')
+    srdf.write_text('<robot name="two"><group_state name="home"><joint name="j2" value="0.5"/></group_state>'
+                    '<disable_collisions link1="base" link2="l9" reason="Never"/></robot>')
+    with pytest.raises(UnknownNameError, match=r"unknown link 'l9' in <disable_collisions> of SRDF .*two.srdf: not a link of URDF .*two.urdf \(known: base, l1, l2, tip\)"):
+        robots.load(bad)
+    srdf.write_text('<robot name="two"><group_state name="home"><joint name="j7" value="0.5"/></group_state></robot>')
+    with pytest.raises(UnknownNameError, match=r"unknown joint 'j7' in group_state 'home' of SRDF .*two.srdf: not a joint of URDF .*two.urdf \(known: j1, j2, j3\)"):
+        robots.load(bad)
+    srdf.write_text('<robot name="two"><group_state name="home"><joint name="j2" value="0.5"/></group_state>'
+                    '<group_state name="other"><joint name="j7" value="1"/><joint name="j8" value="1"/></group_state>'
+                    '<disable_collisions link1="base" link2="l1"/><disable_collisions link1="l1" link2="l2"/></robot>')
+    with pytest.warns(RobotWarning, match=r"two.srdf: group_state 'other' names joints unknown to .*two.urdf: j7, j8 \(not used: the reference state is 'home'\)"):
+        robot = robots.load(bad)
+    assert robot.q_default[2] == 0.5
+
+
+def test_integrity_5_baxters_unused_states_naming_unknown_joints_are_a_warning() -> None:
+    d = robots.robots_dir() / "baxter_description"
+    with pytest.warns(RobotWarning, match=r"baxter_manipulation.srdf: group_state 'neutral' names joints unknown to .*baxter.urdf: baxter/head_pan, "):
+        robots.load(urdf=d / "urdf/baxter.urdf", srdf=d / "srdf/baxter_manipulation.srdf")
+
+
+def test_integrity_5_a_missing_reference_state_is_a_typed_error(two_dir) -> None:
+    (two_dir / "two.srdf").write_text('<robot name="two"><group_state name="home"><joint name="j2" value="0.5"/></group_state>'
+                                      '<group_state name="away"/></robot>')
+    bad = two_dir / "bad.toml"
+    for locked in ('', 'locked_joints = ["j3"]\n', 'locked_joints = { j3 = 0.05 }\n'):
+        bad.write_text(f'urdf = "urdf/two.urdf"\nsrdf = "two.srdf"\nreference_state = "nope"\n{locked}')
+        with pytest.raises(UnknownNameError, match=r"unknown group_state 'nope' \(reference_state of robot file .*bad.toml\) in SRDF .*two.srdf \(known: away, home\)"):
+            robots.load(bad)
+
+
+@pytest.mark.parametrize("text, reason", [
+    ("<robot name='b'><link name='a'>", r"broken.urdf: the root node was opened but never closed"),
+    ("<robot name='b'><link name='a'/><joint name='j' type='revolute'><parent link='a'/></joint></robot>",
+     r"broken.urdf: joint 'j' lacks <child link=...>"),
+    ("<robot name='b'><link name='a'/><link name='c'/><joint name='j' type='fixed'><parent link='a'/><child link='x'/></joint></robot>",
+     r"broken.urdf: unknown child link 'x' \(known: a, c\)"),
+    ("<robot name='b'><link name='a'/><link name='c'/><joint name='j' type='hinge'><parent link='a'/><child link='c'/></joint></robot>",
+     r"broken.urdf: joint 'j' has unknown type Some\(\"hinge\"\)"),
+    # read by the core, refused by urdfdom (which Pinocchio uses): urdfdom's reason, not its stderr
+    ("<robot name='b'><link name='a'/><link name='c'/><joint name='j' type='revolute'><parent link='a'/><child link='c'/>"
+     "<axis xyz='0 0 1'/></joint></robot>", r"broken.urdf.*urdfdom: Error:\s+Joint \[j\] is of type REVOLUTE but it does not specify limits"),
+])
+def test_integrity_5_urdf_parse_errors_carry_the_reason(two_dir, capfd, text: str, reason: str) -> None:
+    (two_dir / "broken.urdf").write_text(text)
+    capfd.readouterr()
+    with pytest.raises(RobotFileError, match=reason):
+        robots.load(two_dir / "broken.urdf")
+    assert capfd.readouterr().err == ""  # the reason is in the error, not on urdfdom's stderr
+
+
+def test_integrity_5_a_robot_in_self_collision_is_reported_with_the_remedy(tmp_path, monkeypatch) -> None:
+    """example-robot-data's Unitree Z1 with its SRDF (which disables no pair): its gripper's
+    stator and mover are in contact in every configuration. The load says so, naming the pairs
+    and the remedy; the remedy (the computed pairs merged with the SRDF's) makes it usable."""
+    monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
+    d = robots.robots_dir() / "z1_description"
+    with pytest.warns(RobotWarning, match=r"self-collision at the default configuration: gripperMover-gripperStator "
+                                          r"\(in contact in 100 % of 1000 random configurations\).*z1.srdf does not disable "
+                                          r"these pairs.*merge_computed_pairs=True"):
+        robot = robots.load(urdf=d / "urdf/z1.urdf", srdf=d / "srdf/z1.srdf")
+    assert ("gripperMover", "gripperStator", 1.0) in robot.default_contacts
+    assert robot.collision_world().in_collision(robot.q_default)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RobotWarning)
+        fixed = robots.load(urdf=d / "urdf/z1.urdf", srdf=d / "srdf/z1.srdf", merge_computed_pairs=True)
+        assert fixed.default_contacts == ()
+        world = fixed.collision_world()
+        assert not world.in_collision(fixed.q_default)
+        assert world.in_collision(fixed.random_configurations(400, 0)).mean() < 0.2
+        assert {("gripperMover", "gripperStator")} <= {tuple(sorted(p)) for p in fixed.disabled_pairs}
+        f = tmp_path / "z1.toml"
+        f.write_text(f'urdf = "{d / "urdf/z1.urdf"}"\nsrdf = "{d / "srdf/z1.srdf"}"\nmerge_computed_pairs = true\n')
+        from_file = robots.load(f)
+        assert from_file.description["merge_computed_pairs"] is True and from_file.default_contacts == ()
+    # cached: a second process reads the verdict instead of sampling again
+    assert list((tmp_path / "cache" / "self_collision").glob("z1_*contacts*.json"))
+
+
+def test_integrity_5_frame_roles_name_links(two_dir) -> None:
+    bad = two_dir / "bad.toml"
+    for frames, error, message in [
+        ('tool = "j2"', UnknownNameError, r"unknown link 'j2' \(frame 'tool' of robot file .*bad.toml\) in URDF .*two.urdf \(known: base, l1, l2, tip\)"),
+        ('l1 = "tip"', RobotFileError, r"bad.toml: frame role 'l1' is the name of another link"),
+        ('"" = "tip"', RobotFileError, r"bad.toml: frame role '' is empty"),
+    ]:
+        bad.write_text(f'urdf = "urdf/two.urdf"\n[frames]\n{frames}\n')
+        with pytest.raises(error, match=message):
+            robots.load(bad)
+    bad.write_text('urdf = "urdf/two.urdf"\n[frames]\ntip = "tip"\n')  # a role that is its own link: fine
+    assert robots.load(bad).frames == {"tip": "tip"}
+
+
+def test_integrity_5_other_robot_file_nonsense_is_refused(two_dir) -> None:
+    bad = two_dir / "bad.toml"
+    moved = two_dir / "urdf" / "moved.urdf"
+    moved.write_text(TWO.replace('<origin xyz="0 0 0.25"/>', '<origin xyz="0 0 0.35"/>'))
+    for text, message in [
+        ('urdf = "urdf/two.urdf"\ncollision_urdf = "urdf/moved.urdf"\n',
+         r"bad.toml: 'collision_urdf' .*moved.urdf is not the tree of 'urdf' .*two.urdf: joint 'j2' has another <origin>"),
+        ('urdf = "urdf/two.urdf"\nname = "../up"\n', r"bad.toml: 'name' '../up' cannot name a file"),
+        ('urdf = "urdf/two.urdf"\nlocked_joints = ["j1", "j1"]\n', r"bad.toml: 'locked_joints' names 'j1' twice"),
+        ('urdf = "urdf/two.urdf"\nsrdf = "urdf/two.urdf"\n', r"cannot parse SRDF .*two.urdf: <robot> has a <link> element: this is a URDF, not an SRDF"),
+    ]:
+        bad.write_text(text)
+        with pytest.raises(RobotFileError, match=message):
+            robots.load(bad)
+    # a continuous joint locked by value (its angle; refused before): Rust and Pinocchio agree
+    bad.write_text('urdf = "urdf/two.urdf"\nlocked_joints = { j1 = 0.7 }\n')
+    robot = robots.load(bad)
+    assert robot.nq == 2 and robot.locked_joints == {"j1": 0.7}
+    for q in robot.random_configurations(5, 0):
+        pin.framesForwardKinematics(robot.model, robot.data, q)
+        np.testing.assert_allclose(robot.link_poses(q, ["tip"])[0], robot.data.oMf[robot.model.getFrameId("tip")].homogeneous,
+                                   atol=1e-12)

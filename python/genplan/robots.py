@@ -19,13 +19,16 @@ The presets are robot files in ``genplan/presets/robots/`` (:data:`ROBOT_NAMES`)
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
 import os
 import site
 import sys
-from collections.abc import Iterable, Mapping, Sequence
+import tempfile
+import warnings
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,7 +42,7 @@ from genplan._arrays import as_configurations
 from genplan._files import write_text
 from genplan.cache import cache_dir
 from genplan.collision import CollisionWorld
-from genplan.errors import RobotFileError, SettingsError, ShapeError, UnknownNameError
+from genplan.errors import RobotFileError, RobotWarning, SettingsError, ShapeError, UnknownNameError
 
 #: The folder of the preset robot files.
 PRESETS_DIR: Path = Path(__file__).parent / "presets" / "robots"
@@ -98,42 +101,32 @@ class Robot:
         self.srdf_path: Path | None = Path(d["srdf"]) if d.get("srdf") else None
         self.package_dirs: list[Path] = [Path(p) for p in d["package_dirs"]]
         self.floating_base: bool = bool(d["floating_base"])
+        self.merge_computed_pairs: bool = bool(d.get("merge_computed_pairs"))
         origin = f"robot file {self.source}" if self.source else f"robot '{self.name}'"
 
-        try:
-            if self.floating_base:
-                full = pin.buildModelFromUrdf(str(self.urdf_path), pin.JointModelFreeFlyer())
-            else:
-                full = pin.buildModelFromUrdf(str(self.urdf_path))
-            if self.srdf_path is not None:
-                pin.loadReferenceConfigurations(full, str(self.srdf_path), False)
-        except (ValueError, RuntimeError) as exc:  # Pinocchio's for a URDF, for an SRDF it cannot parse
-            bad = self.urdf_path if isinstance(exc, ValueError) else self.srdf_path
-            raise RobotFileError(f"{origin}: cannot read {bad}: {exc}") from None
-        state = d.get("reference_state")
-        if state is not None:
-            if state not in full.referenceConfigurations:
-                known = ", ".join(sorted(full.referenceConfigurations.keys()))
-                raise UnknownNameError(f"{origin}: reference_state '{state}' is not in {self.srdf_path} (known: {known})")
-            q_ref = np.array(full.referenceConfigurations[state])
-        else:
-            q_ref = pin.neutral(full)
-        locked = d.get("locked_joints") or []
-        for j in locked:
-            if not full.existJointName(j):
-                known = ", ".join(list(full.names)[1:])
-                raise UnknownNameError(f"{origin}: locked joint '{j}' is not a joint of {self.urdf_path} (known: {known})")
-        if isinstance(locked, Mapping):  # explicit values
-            for j, v in locked.items():
-                jf = full.joints[full.getJointId(j)]
-                if jf.nq != 1:
-                    raise RobotFileError(f"{origin}: locked joint '{j}' takes {jf.nq} values; lock it by name instead")
-                q_ref[jf.idx_q] = float(v)
+        # The core reads and checks the files first: its errors name the file and the name or
+        # value at fault, with the parser's reason for a malformed URDF or SRDF.
+        kinematics, q_default, locked, messages = _core.read_robot(d)
+        for message in messages:
+            warnings.warn(f"{origin}: {message}", RobotWarning, stacklevel=4)
+        # mimic joints that move follow their masters in Pinocchio as in the core; the others
+        # are locked (with their masters, or held where the core cannot follow them), so that
+        # Pinocchio reads them as plain joints and the reduced model holds them
+        full = _pinocchio_model(self.urdf_path, self.floating_base, origin, bool(kinematics.mimic_joints), set(locked))
+        # the locked joints (the mimics of locked joints included, which Pinocchio derives from
+        # their masters) at their values; a continuous joint's value is its angle
+        q_ref = pin.neutral(full)
+        for j, v in locked.items():
+            jf = full.joints[full.getJointId(j)]
+            if jf.nq == 1:
+                q_ref[jf.idx_q] = v
+            elif jf.nq == 2:
+                q_ref[jf.idx_q : jf.idx_q + 2] = np.cos(v), np.sin(v)
         lock_ids = [full.getJointId(j) for j in locked]
-        self.locked_joints: dict[str, float] = {j: float(q_ref[full.joints[full.getJointId(j)].idx_q]) for j in locked}
+        #: The locked joints and their values (the mimics of locked joints included).
+        self.locked_joints: dict[str, float] = dict(locked)
         self.model: pin.Model = pin.buildReducedModel(full, lock_ids, q_ref) if lock_ids else full
         self.data: pin.Data = self.model.createData()
-        self.q_default: NDArray[np.float64] = self._reduce(full, q_ref)
         self.lower: NDArray[np.float64] = np.array(self.model.lowerPositionLimit)
         self.upper: NDArray[np.float64] = np.array(self.model.upperPositionLimit)
         #: q indices of the cos value of each continuous joint (its sin follows).
@@ -147,31 +140,31 @@ class Robot:
         if self.floating_base:  # Pinocchio leaves the free-flyer unbounded (+-max double)
             self.lower[:7] = -np.inf
             self.upper[:7] = np.inf
-        self.frames: dict[str, str] = dict(d.get("frames") or [])
-        for role, frame in self.frames.items():
-            if not self.model.existFrame(frame):
-                raise UnknownNameError(f"{origin}: frame '{role}' = '{frame}' is not a link of {self.urdf_path}")
+        self.frames: dict[str, str] = dict(d.get("frames") or [])  # links (checked by the core)
+        #: The active joints in q order (a mimic joint has no coordinate: it follows its master).
         self.joint_names: list[str] = [
-            n for n in list(self.model.names)[1:] if not (self.floating_base and n == "root_joint")
+            str(self.model.names[jid]) for jid in range(1, self.model.njoints)
+            if self.model.joints[jid].nq > 0 and not (self.floating_base and self.model.names[jid] == "root_joint")
         ]
-        self.kinematics: _core.KinematicModel = _core.KinematicModel.from_urdf(
-            self.urdf_path,
-            floating_base=self.floating_base,
-            locked_joints=self.locked_joints,
-            joint_order=self.joint_names,
-        )
+        if list(kinematics.active_joints) != self.joint_names:  # the core orders q as Pinocchio does
+            kinematics = _core.KinematicModel.from_urdf(
+                self.urdf_path, floating_base=self.floating_base, locked_joints=self.locked_joints,
+                joint_order=self.joint_names)
+        self.kinematics: _core.KinematicModel = kinematics
+        #: The default configuration: the reference state's values, else the neutral one.
+        self.q_default: NDArray[np.float64] = np.asarray(q_default, dtype=np.float64)
         # the hot call without a Python frame in between: on an instance, link_poses is the
         # native method itself (the same parameters; documented by the method below, which
         # calls it). A frame costs about a third of a one-configuration call (benches/boundary.py)
         self.__dict__["link_poses"] = self.kinematics.forward_kinematics
-
-    def _reduce(self, full: pin.Model, q_full: NDArray[np.float64]) -> NDArray[np.float64]:
-        q = pin.neutral(self.model)
-        for jid in range(1, self.model.njoints):
-            jr = self.model.joints[jid]
-            jf = full.joints[full.getJointId(self.model.names[jid])]
-            q[jr.idx_q : jr.idx_q + jr.nq] = q_full[jf.idx_q : jf.idx_q + jf.nq]
-        return q
+        #: Self-collision pairs in contact at the default configuration that the SRDF does not
+        #: disable: (link_a, link_b, share of random configurations in which they are in contact
+        #: too), reported at load with a RobotWarning (:func:`default_contacts`).
+        self.default_contacts: tuple[tuple[str, str, float], ...] = ()
+        if self.srdf_path is not None and not self.merge_computed_pairs:
+            self.default_contacts = default_contacts(self)
+            if self.default_contacts:
+                warnings.warn(_contacts_message(self, origin), RobotWarning, stacklevel=4)
 
     @property
     def nq(self) -> int:
@@ -182,10 +175,40 @@ class Robot:
         return int(self.model.nv)
 
     @functools.cached_property
+    def kinematic_hash(self) -> str:
+        """The sha256 (hex) of what a learned model of this robot depends on, which model cards
+        record and loaders compare: the active joints in configuration order (name; type as its
+        nq, nv and motion subspace at the neutral configuration, which holds the axis; position
+        limits) and the chain between them (each joint's parent joint and placement in it).
+        Not the robot's name, file paths, collision geometry, frames, or the values of locked
+        joints outside that chain (a Panda's fingers, open or closed); a locked joint between
+        two active ones shows in the placement of the next one. Every number is rounded to 1e-6
+        (a micrometre, a microradian, rotation entries), far below what a learned sampler
+        resolves, so that float noise in building the model (or a URDF written with more
+        digits) does not change the hash."""
+
+        def rounded(values: Any) -> list[float]:
+            # +0.0 turns -0.0 into 0.0; infinite limits stay infinite (JSON "Infinity")
+            return [round(float(v), 6) + 0.0 for v in np.ravel(values)]
+
+        m = self.model
+        q0 = pin.neutral(m)
+        rows = []
+        for jid in range(1, m.njoints):
+            joint, placement = m.joints[jid], m.jointPlacements[jid]
+            data = joint.createData()
+            joint.calc(data, q0)
+            q = slice(joint.idx_q, joint.idx_q + joint.nq)
+            rows.append([m.names[jid], joint.nq, joint.nv, rounded(np.asarray(data.S)), m.names[int(m.parents[jid])],
+                         rounded(placement.translation), rounded(placement.rotation),
+                         rounded(self.lower[q]), rounded(self.upper[q])])
+        return hashlib.sha256(json.dumps(rows, separators=(",", ":")).encode()).hexdigest()
+
+    @functools.cached_property
     def collision_model(self) -> pin.GeometryModel:
         """Pinocchio/coal collision model of the same geometry, with the same pair selection:
         all pairs on different joints, minus the SRDF's disabled pairs (or, without an SRDF,
-        minus :attr:`disabled_pairs`)."""
+        minus :attr:`disabled_pairs`; with ``merge_computed_pairs``, minus both)."""
         geom = pin.buildGeomFromUrdf(
             self.model,
             str(self.collision_urdf_path),
@@ -195,7 +218,7 @@ class Robot:
         geom.addAllCollisionPairs()
         if self.srdf_path is not None:
             pin.removeCollisionPairs(self.model, geom, str(self.srdf_path), False)
-        else:
+        if self.srdf_path is None or self.merge_computed_pairs:
             skip = {frozenset(p) for p in self.disabled_pairs}
             link = [self.model.frames[g.parentFrame].name for g in geom.geometryObjects]
             pairs = [(int(cp.first), int(cp.second)) for cp in geom.collisionPairs]  # copies: removal shifts
@@ -208,10 +231,12 @@ class Robot:
     def disabled_pairs(self) -> list[tuple[str, str]]:
         """Link pairs skipped in self-collision checks: the SRDF's, or without an SRDF the ones
         computed as MoveIt's setup assistant does (:func:`compute_disabled_pairs`,
-        cached on disk)."""
-        if self.srdf_path is not None:
-            return [(a, b) for a, b in _core.srdf_disabled_pairs(self.srdf_path)]
-        return compute_disabled_pairs(self).pairs
+        cached on disk); with ``merge_computed_pairs``, both."""
+        given = [(a, b) for a, b in _core.srdf_disabled_pairs(self.srdf_path)] if self.srdf_path is not None else []
+        if self.srdf_path is not None and not self.merge_computed_pairs:
+            return given
+        seen = {frozenset(p) for p in given}
+        return given + [p for p in compute_disabled_pairs(self).pairs if frozenset(p) not in seen]
 
     def frame_id(self, frame: str) -> int:
         """Pinocchio frame id of a role ("hand", "right_hand", ...) or of a frame name."""
@@ -299,9 +324,9 @@ class Robot:
 
     def collision_world(self, self_collision: bool = True) -> CollisionWorld:
         """A new collision world (no obstacles) for this robot."""
-        native = _core.CollisionWorld(  # the SRDF's pairs, or the computed ones without an SRDF
+        native = _core.CollisionWorld(  # the SRDF's pairs, or the computed ones without an SRDF (or merged)
             self.kinematics, self.collision_urdf_path, self.package_dirs, self.srdf_path,
-            None if self.srdf_path is not None else self.disabled_pairs,
+            self.disabled_pairs if self.srdf_path is None or self.merge_computed_pairs else None,
         )
         native.check_self = self_collision
         return CollisionWorld(native)
@@ -343,9 +368,9 @@ class DisabledPairs:
                 f"{self.samples} random configurations, seed {self.seed})")
 
 
-def _files_digest(robot: Robot) -> str:
+def _files_digest(robot: Robot, *more: Path | None) -> str:
     h = hashlib.sha256()
-    for p in (robot.urdf_path, robot.collision_urdf_path):
+    for p in (robot.urdf_path, robot.collision_urdf_path, *(m for m in more if m is not None)):
         h.update(Path(p).read_bytes())
     h.update(json.dumps({"locked": robot.locked_joints, "floating": robot.floating_base,
                          "q": robot.q_default.tolist(), "version": _core.__version__}, sort_keys=True).encode())
@@ -373,6 +398,104 @@ def compute_disabled_pairs(robot: Robot, samples: int = 10_000, seed: int = 0, c
         write_text(path, json.dumps({"robot": robot.name, "samples": samples, "seed": seed,
                                      "pairs": [list(e) for e in entries]}, indent=1))
     return DisabledPairs(entries, samples, seed)
+
+
+#: Random configurations over which the pairs in contact at the default configuration are
+#: checked at load (:func:`default_contacts`).
+CONTACT_SAMPLES: int = 1000
+
+
+def default_contacts(robot: Robot, samples: int = CONTACT_SAMPLES, seed: int = 0) -> tuple[tuple[str, str, float], ...]:
+    """The self pairs the robot checks (all but its SRDF's disabled pairs) that are in contact at
+    its default configuration: (link_a, link_b, share of ``samples`` random configurations in
+    which they are in contact too; 1.0: every configuration is invalid). One check when the
+    default configuration is free of self-collision; the pairs in contact are sampled. Cached in
+    ``$GENPLAN_CACHE/self_collision`` as :func:`compute_disabled_pairs` is, keyed by the URDF and
+    SRDF files' contents."""
+    digest = _files_digest(robot, robot.srdf_path)
+    path = cache_dir() / "self_collision" / f"{robot.name}_{digest}_contacts_{samples}_{seed}.json"
+    if path.is_file():
+        try:
+            data = json.loads(path.read_text())
+            return tuple((str(a), str(b), float(h) / samples) for a, b, h in data["contacts"])
+        except (OSError, ValueError, KeyError, TypeError, ZeroDivisionError):
+            pass  # a broken cache file is recomputed
+    native = _core.CollisionWorld(robot.kinematics, robot.collision_urdf_path, robot.package_dirs, robot.srdf_path)
+    found = native.default_contacts(robot.q_default, samples=samples, seed=seed)
+    try:
+        write_text(path, json.dumps({"robot": robot.name, "samples": samples, "seed": seed,
+                                     "contacts": [list(c) for c in found]}, indent=1))
+    except OSError:
+        pass  # an unwritable cache only costs the check again
+    return tuple((a, b, h / samples if samples else 1.0) for a, b, h in found)
+
+
+def _contacts_message(robot: Robot, origin: str) -> str:
+    pairs = ", ".join(f"{a}-{b} (in contact in {round(100 * share, 1):g} % of {CONTACT_SAMPLES} random configurations)"
+                      for a, b, share in robot.default_contacts)
+    return (f"{origin}: self-collision at the default configuration: {pairs}; {robot.srdf_path} does not "
+            "disable these pairs, so the configurations near the default one (for a pair in contact in 100 %, "
+            "every configuration) are invalid. Remedy: merge_computed_pairs=True (in a robot file: "
+            "merge_computed_pairs = true) also skips the pairs genplan computes as MoveIt's setup assistant does "
+            "(robot.write_srdf writes them), or add <disable_collisions> for these pairs to the SRDF")
+
+
+def _pinocchio_model(urdf: Path, floating_base: bool, origin: str, mimic: bool, locked: set[str]) -> pin.Model:
+    """Pinocchio's model of the URDF. With ``mimic``, its mimic joints follow their masters,
+    but for the ``locked`` ones, whose ``<mimic>`` is left out (they are held at their locked
+    values, as plain joints: Pinocchio refuses a model with a mimic it cannot follow even when
+    the joint is to be locked). The core has read the file already; should urdfdom still refuse
+    it, its reason (which it writes to the process's stderr) is carried into the RobotFileError."""
+    text = None
+    if mimic and locked:
+        import xml.etree.ElementTree as ET
+
+        root = ET.fromstring(urdf.read_bytes())
+        for joint in root.findall("joint"):
+            if joint.get("name") in locked:
+                for m in joint.findall("mimic"):
+                    joint.remove(m)
+        text = ET.tostring(root, encoding="unicode")
+    root_joint = [pin.JointModelFreeFlyer()] if floating_base else []
+    error: BaseException | None = None
+    with _stderr_captured() as said:
+        try:
+            if text is not None:
+                model = pin.buildModelFromXML(text, *root_joint, mimic=mimic)
+            else:
+                model = pin.buildModelFromUrdf(str(urdf), *root_joint, mimic=mimic)
+        except (ValueError, RuntimeError) as exc:
+            error = exc
+    if error is None:
+        if said:  # not ours to swallow
+            print(said[0], file=sys.stderr)
+        return model
+    raise RobotFileError(f"{origin}: Pinocchio cannot read {urdf}: {error}" + (f" (urdfdom: {said[0]})" if said else ""))
+
+
+@contextlib.contextmanager
+def _stderr_captured() -> Iterator[list[str]]:
+    """What the block writes to the process's stderr (file descriptor 2, where C++ libraries
+    such as urdfdom write), captured instead of shown: the yielded list holds it (stripped) after
+    the block, if anything was written. Without a usable descriptor 2, nothing is captured."""
+    said: list[str] = []
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):
+        yield said
+        return
+    with tempfile.TemporaryFile() as captured:
+        os.dup2(captured.fileno(), 2)
+        try:
+            yield said
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            captured.seek(0)
+            text = captured.read().decode(errors="replace").strip()
+            if text:
+                said.append(text)
 
 
 def write_srdf(robot: Robot, path: str | os.PathLike[str], samples: int = 10_000, seed: int = 0) -> Path:
@@ -427,6 +550,7 @@ def load(
     reference_state: str | None = None,
     frames: Mapping[str, str] | None = None,
     name: str | None = None,
+    merge_computed_pairs: bool = False,
 ) -> Robot:
     """Load a robot: a preset name (:data:`ROBOT_NAMES`), a robot file (``.toml``), a URDF path,
     or ``urdf=PATH`` with keywords (the keys of a robot file; see docs/ROBOTS.md).
@@ -434,14 +558,19 @@ def load(
     Relative paths in a robot file are relative to the file; in keywords, to the current folder.
     ``package://PKG/...`` resolves against ``package_dirs`` then example-robot-data. Cached: the
     same description of unchanged files gives the same object. Errors: UnknownNameError for an
-    unknown preset (the known ones listed), RobotFileError naming the file and the key for a
-    bad robot file, a missing file or a URDF Pinocchio cannot read.
+    unknown preset (the known ones listed) or a name the files lack (a locked joint, a frame's
+    link, an SRDF's link or reference state), RobotFileError naming the file and the key for a
+    bad robot file, a malformed URDF or SRDF (with the parser's reason), a value outside a
+    joint's limits, a mimic joint genplan cannot follow. A RobotWarning reports what loads but
+    may not be meant: an unused SRDF state naming unknown joints, self-collision pairs in
+    contact at the default configuration (``merge_computed_pairs=True`` is the remedy; see
+    docs/ROBOTS.md).
     """
     keywords = dict(
         urdf=urdf, srdf=srdf, collision_urdf=collision_urdf, floating_base=floating_base or None,
         locked_joints=(dict(locked_joints) if isinstance(locked_joints, Mapping) else list(locked_joints)) or None,
         reference_state=reference_state, frames=dict(frames) if frames else None, name=name,
-        package_dirs=[str(p) for p in package_dirs] or None,
+        package_dirs=[str(p) for p in package_dirs] or None, merge_computed_pairs=merge_computed_pairs or None,
     )
     given = sorted(k for k, v in keywords.items() if v is not None)
     defaults = default_package_dirs()

@@ -233,12 +233,20 @@ fn axis_rotation(a: &Vector3<f64>, c: f64, s: f64) -> Matrix3<f64> {
 
 impl Dynamics {
     /// Build from a kinematic model and the URDF that holds the links' `<inertial>` elements.
-    /// Floating-base models are refused (this is a fixed-base arm model).
+    /// Floating-base models are refused (this is a fixed-base arm model), and models with mimic
+    /// joints (their coupling is not in the recursions).
     pub fn from_model(model: &KinematicModel, urdf: &Urdf) -> Result<Dynamics> {
         if model.floating_base {
             return Err(Error::Invalid(
                 "dynamics: floating-base models are not supported (fixed-base arms only)".into(),
             ));
+        }
+        if let Some(j) = model.joints.iter().find(|j| j.mimic.is_some()) {
+            let master = &model.joints[j.mimic.map_or(0, |f| f.joint)].name;
+            return Err(Error::Invalid(format!(
+                "dynamics: joint '{}' mimics '{master}', and mimic joints are not supported by the dynamics: lock both",
+                j.name
+            )));
         }
         // poses at the neutral configuration give the constant placements between links of a body
         let mut q0 = vec![0.0; model.nq];
@@ -356,9 +364,8 @@ impl Dynamics {
                 robot.name
             )));
         }
-        let urdf = Urdf::from_file(&robot.urdf)?;
-        let srdf = if robot.locked_joints.is_empty() { None } else { robot.read_srdf()? };
-        Dynamics::from_urdf(&urdf, &robot.model_options(srdf.as_ref())?)
+        let files = robot.read()?;
+        Dynamics::from_model(&files.model, &files.urdf)
     }
 
     fn check_bodies(&self) -> Result<()> {
@@ -832,5 +839,75 @@ pub fn cholesky_solve(l: &DMatrix<f64>, b: &mut [f64]) {
             s -= l[k + i * stride] * b[k];
         }
         b[i] = s / l[i + i * stride];
+    }
+}
+
+/// Configuration-space arithmetic of the 1 kHz loop (`crate::control`): q holds one value per
+/// revolute or prismatic joint and `[cos, sin]` per continuous joint, v one value per joint.
+impl Dynamics {
+    /// The neutral configuration: every joint at 0 (a continuous joint at `[1, 0]`).
+    pub fn neutral(&self) -> Vec<f64> {
+        let mut q = vec![0.0; self.nq];
+        for b in &self.bodies {
+            if b.kind == JointKind::Continuous {
+                q[b.q_index] = 1.0;
+            }
+        }
+        q
+    }
+
+    /// `out = q (+) factor v`: each joint moved by `factor v` (a continuous joint's `[cos, sin]`
+    /// rotated by that angle). `out` of length nq; the inputs are not checked.
+    pub fn integrate_scaled(&self, q: &[f64], v: &[f64], factor: f64, out: &mut [f64]) {
+        for b in &self.bodies {
+            let (i, k) = (b.q_index, b.v_index);
+            match b.kind {
+                JointKind::Revolute | JointKind::Prismatic => out[i] = q[i] + factor * v[k],
+                JointKind::Continuous => {
+                    let (s, c) = (factor * v[k]).sin_cos();
+                    let (c0, s0) = (q[i], q[i + 1]);
+                    out[i] = c0 * c - s0 * s;
+                    out[i + 1] = s0 * c + c0 * s;
+                }
+            }
+        }
+    }
+
+    /// `out = q1 (-) q0`: per joint the motion from `q0` to `q1` (a continuous joint's angle
+    /// from one to the other, in (-pi, pi]). `out` of length nv; the inputs are not checked.
+    pub fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
+        for b in &self.bodies {
+            let (i, k) = (b.q_index, b.v_index);
+            out[k] = match b.kind {
+                JointKind::Revolute | JointKind::Prismatic => q1[i] - q0[i],
+                JointKind::Continuous => {
+                    let (c0, s0, c1, s1) = (q0[i], q0[i + 1], q1[i], q1[i + 1]);
+                    (c0 * s1 - s0 * c1).atan2(c0 * c1 + s0 * s1)
+                }
+            };
+        }
+    }
+
+    /// Every continuous joint's `[cos, sin]` scaled to unit length (against the drift of many
+    /// integration steps); a zero pair becomes `[1, 0]`.
+    pub fn normalize_circles(&self, q: &mut [f64]) {
+        for b in &self.bodies {
+            if b.kind == JointKind::Continuous {
+                let i = b.q_index;
+                let n = q[i].hypot(q[i + 1]);
+                if n > 0.0 && n.is_finite() {
+                    q[i] /= n;
+                    q[i + 1] /= n;
+                } else {
+                    q[i] = 1.0;
+                    q[i + 1] = 0.0;
+                }
+            }
+        }
+    }
+
+    /// Whether the joint at v index `k` is continuous (no position limits).
+    pub fn is_continuous(&self, k: usize) -> bool {
+        self.bodies.iter().any(|b| b.v_index == k && b.kind == JointKind::Continuous)
     }
 }

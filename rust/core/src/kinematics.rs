@@ -3,6 +3,14 @@
 //! The configuration vector follows Pinocchio's convention, so the same `q` can be handed to
 //! Pinocchio and to genplan: a free-flyer base takes 7 values `[x, y, z, qx, qy, qz, qw]`,
 //! a revolute or prismatic joint one value, a continuous joint two (`cos`, `sin`).
+//!
+//! A joint with a URDF `<mimic>` follows its master as Pinocchio's mimic joints do (Pinocchio
+//! 3.4 and later, `buildModelFromUrdf(..., mimic=True)`): it has no value in q; its value is
+//! `multiplier * q_master + offset` and its velocity `multiplier * v_master` ([`Follows`]).
+//! Only a revolute or prismatic joint following an earlier revolute or prismatic joint that
+//! is not itself a mimic can be followed (what Pinocchio supports); other mimics are refused
+//! by name. Locking a master locks its mimics at the values they follow; locking a mimic whose
+//! master moves is refused.
 
 use std::collections::HashMap;
 
@@ -10,7 +18,7 @@ use nalgebra::{DMatrix, Isometry3, Matrix3, Matrix6, Translation3, Unit, UnitQua
 
 use crate::error::{check_finite, check_vector, unknown, Error, Result};
 use crate::lie::{action, exp6, jlog6, log6, skew, stable_norm, unit_quaternion, unit_vector};
-use crate::urdf::{JointType, Urdf, MAX_JOINT_POSITION, MIN_AXIS_NORM};
+use crate::urdf::{self, JointType, Urdf, MAX_JOINT_POSITION, MIN_AXIS_NORM};
 
 /// How a joint moves its child link, after its fixed origin transform.
 #[derive(Debug, Clone)]
@@ -34,6 +42,22 @@ pub enum Motion {
     },
 }
 
+/// How a mimic joint follows its master (URDF `<mimic>`): its value is
+/// `multiplier * q[q_index] + offset`, its velocity `multiplier * v[v_index]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Follows {
+    /// The master (index into [`KinematicModel::joints`]; it comes before the mimic).
+    pub joint: usize,
+    /// The master's index in q.
+    pub q_index: usize,
+    /// The master's index in v.
+    pub v_index: usize,
+    /// Scale of the master's value.
+    pub multiplier: f64,
+    /// Added to the scaled value.
+    pub offset: f64,
+}
+
 /// One edge of the tree: parent link -> child link.
 #[derive(Debug, Clone)]
 pub struct Joint {
@@ -48,10 +72,55 @@ pub struct Joint {
     pub origin: Isometry3<f64>,
     /// How it moves.
     pub motion: Motion,
-    /// First index of this joint in `q` (only for active joints).
+    /// First index of this joint in `q` (only for active joints; `usize::MAX` otherwise, a
+    /// mimic joint included).
     pub q_index: usize,
-    /// Index of this joint in the tangent space `v` (only for active joints).
+    /// Index of this joint in the tangent space `v` (only for active joints, like `q_index`).
     pub v_index: usize,
+    /// For a mimic joint (a revolute or prismatic [`motion`](Self::motion) without a
+    /// coordinate of its own): the master it follows.
+    pub mimic: Option<Follows>,
+}
+
+impl Joint {
+    /// The coordinate that moves this revolute or prismatic joint, as `(q index, v index,
+    /// multiplier, offset)`: its own `(q_index, v_index, 1, 0)`, or its master's for a mimic
+    /// joint; None for a rigid joint and for a continuous one (whose q holds cos and sin).
+    #[inline]
+    pub fn driver(&self) -> Option<(usize, usize, f64, f64)> {
+        match (&self.motion, self.mimic) {
+            (Motion::Revolute { .. } | Motion::Prismatic { .. }, Some(f)) => Some((f.q_index, f.v_index, f.multiplier, f.offset)),
+            (Motion::Revolute { .. } | Motion::Prismatic { .. }, None) => Some((self.q_index, self.v_index, 1.0, 0.0)),
+            _ => None,
+        }
+    }
+
+    /// The column index in v and the scale of this joint's velocity: `(v_index, 1)` for an
+    /// active joint, the master's `(v_index, multiplier)` for a mimic joint; None for a rigid
+    /// joint. What Jacobians add this joint's motion to.
+    #[inline]
+    pub fn velocity_column(&self) -> Option<(usize, f64)> {
+        match (&self.motion, self.mimic) {
+            (Motion::Fixed, _) => None,
+            (_, Some(f)) => Some((f.v_index, f.multiplier)),
+            (_, None) => Some((self.v_index, 1.0)),
+        }
+    }
+}
+
+/// Why `value` cannot be the locked value of the URDF joint `joint`: beyond
+/// [`MAX_JOINT_POSITION`] in magnitude, or (a revolute or prismatic joint) outside its limits
+/// (which are inclusive: a joint may be locked at a limit). None when it can.
+pub fn locked_value_problem(joint: &urdf::Joint, value: f64) -> Option<String> {
+    if !value.is_finite() {
+        return Some(format!("{value} is not finite"));
+    }
+    if value.abs() > MAX_JOINT_POSITION {
+        return Some(format!("{value:e} is too large (at most {MAX_JOINT_POSITION:e} in magnitude)"));
+    }
+    let bounded = matches!(joint.joint_type, JointType::Revolute | JointType::Prismatic);
+    (bounded && !(joint.lower <= value && value <= joint.upper))
+        .then(|| format!("{value} is outside its limits [{}, {}]", joint.lower, joint.upper))
 }
 
 /// Options that select which joints move and where the base is.
@@ -102,6 +171,9 @@ pub struct KinematicModel {
     pub local_coms: Vec<Vector3<f64>>,
     /// Sum of `masses`.
     pub total_mass: f64,
+    /// The locked joints and their values, sorted by name: the ones asked for, and the mimics
+    /// of locked joints at the values they follow.
+    pub locked: Vec<(String, f64)>,
     link_index: HashMap<String, usize>,
 }
 
@@ -149,14 +221,120 @@ fn find_cycle(urdf: &Urdf, parent_joint: &[Option<usize>], parent_of_joint: &[us
     None
 }
 
+/// The joint each URDF joint follows, for every joint with a `<mimic>` that moves: (index of
+/// the master, the `<mimic>`); None for the others (a fixed joint's `<mimic>` is ignored, as
+/// Pinocchio does). A mimic genplan cannot follow is refused by name: the master unknown or
+/// itself, a joint that is not revolute or prismatic on either side, a master that is itself a
+/// mimic, a master after the mimic in the tree order (`position_in_order`); unless the mimic
+/// joint is locked (`locked`): then it is held at its locked value like any joint.
+fn mimic_masters<'a>(
+    urdf: &'a Urdf,
+    joint_pos: &HashMap<&str, usize>,
+    position_in_order: &[usize],
+    locked: &HashMap<String, f64>,
+) -> Result<Vec<Option<(usize, &'a urdf::Mimic)>>> {
+    let one_value = |t: JointType| matches!(t, JointType::Revolute | JointType::Prismatic);
+    let kind = |t: JointType| format!("{t:?}").to_lowercase();
+    let known: Vec<&str> = urdf.joints.iter().map(|j| j.name.as_str()).collect();
+    let mut out = vec![None; urdf.joints.len()];
+    let mut refused: Vec<(&str, String)> = Vec::new(); // (mimic joint, why), every one at once
+    for (ji, j) in urdf.joints.iter().enumerate() {
+        let Some(m) = &j.mimic else { continue };
+        if j.joint_type == JointType::Fixed {
+            continue;
+        }
+        let why = if m.joint == j.name {
+            Some("itself".to_string())
+        } else if let Some(&mi) = joint_pos.get(m.joint.as_str()) {
+            let master = &urdf.joints[mi];
+            if !one_value(j.joint_type) {
+                Some(format!("'{}' but is {}", m.joint, kind(j.joint_type)))
+            } else if !one_value(master.joint_type) {
+                Some(format!("'{}', which is {}", m.joint, kind(master.joint_type)))
+            } else if let Some(mm) = &master.mimic {
+                Some(format!("'{}', which mimics '{}' in turn", m.joint, mm.joint))
+            } else if position_in_order[mi] > position_in_order[ji] {
+                Some(format!("'{}', which comes after it in the tree", m.joint))
+            } else {
+                out[ji] = Some((mi, m));
+                None
+            }
+        } else {
+            let hint = match unknown("joint", &m.joint, &known) {
+                Error::UnknownName { hint, .. } => hint,
+                _ => String::new(),
+            };
+            Some(format!("'{}', which is not a joint of the URDF{hint}", m.joint))
+        };
+        // a locked mimic it cannot follow is held like any locked joint
+        if let Some(why) = why.filter(|_| !locked.contains_key(&j.name)) {
+            refused.push((j.name.as_str(), format!("joint '{}' mimics {why}", j.name)));
+        }
+    }
+    if refused.is_empty() {
+        return Ok(out);
+    }
+    let names: Vec<String> = refused.iter().map(|(n, _)| format!("\"{n}\"")).collect();
+    let whys: Vec<&str> = refused.iter().map(|(_, w)| w.as_str()).collect();
+    Err(urdf.error(format!(
+        "{}. genplan (as Pinocchio) follows only a revolute or prismatic joint that mimics an earlier revolute or \
+         prismatic joint, itself no mimic: lock {} to hold {} still (locked_joints = [{}]), or edit the <mimic>",
+        whys.join("; "),
+        if names.len() == 1 { "it" } else { "them" },
+        if names.len() == 1 { "it" } else { "them" },
+        names.join(", ")
+    )))
+}
+
+/// The locked values with the mimics of locked masters added, each at the value it follows
+/// (`multiplier * master + offset`). Refused: a locked mimic whose master is not locked, and a
+/// locked mimic given a value other than the one it follows.
+fn locked_with_mimics(
+    urdf: &Urdf,
+    masters: &[Option<(usize, &urdf::Mimic)>],
+    given: &HashMap<String, f64>,
+) -> Result<HashMap<String, f64>> {
+    let mut locked = given.clone();
+    for (ji, m) in masters.iter().enumerate() {
+        let Some((mi, m)) = m else { continue };
+        let (name, master) = (&urdf.joints[ji].name, &urdf.joints[*mi].name);
+        match given.get(master) {
+            None if given.contains_key(name) => {
+                return Err(Error::Invalid(format!(
+                    "locked joint '{name}' mimics '{master}', which is not locked: lock '{master}' (its mimic joints \
+                     are locked with it), or neither"
+                )))
+            }
+            None => {}
+            Some(&v) => {
+                let follows = m.multiplier * v + m.offset;
+                if let Some(&x) = given.get(name) {
+                    if (x - follows).abs() > 1e-9 * follows.abs().max(1.0) {
+                        return Err(Error::Invalid(format!(
+                            "locked joint '{name}' at {x}, but it follows '{master}' ({v} * {} + {} = {follows}): \
+                             leave its value out (it is locked with its master)",
+                            m.multiplier, m.offset
+                        )));
+                    }
+                }
+                locked.insert(name.clone(), follows);
+            }
+        }
+    }
+    Ok(locked)
+}
+
 impl KinematicModel {
     /// The tree of `urdf`, with the free-flyer, locked joints and q order of `options`.
     ///
     /// Refused: a URDF that [`Urdf::validate`] refuses; a joint whose parent or child link is
     /// unknown, or the same link; a link with two parent joints; joints that form a cycle (their
     /// links are not reachable from the root); other than exactly one root link; a locked value
-    /// that is not finite or larger than [`MAX_JOINT_POSITION`] in magnitude; an active joint of
-    /// a type the model does not support (floating, planar).
+    /// that is not finite or larger than [`MAX_JOINT_POSITION`] in magnitude, or outside the
+    /// joint's limits ([`locked_value_problem`]); an active joint of a type the model does not
+    /// support (floating, planar); a `<mimic>` the model cannot follow, a locked mimic whose
+    /// master moves, a locked mimic at another value than the one it follows (see the module's
+    /// documentation).
     pub fn from_urdf(urdf: &Urdf, options: &ModelOptions) -> Result<KinematicModel> {
         urdf.validate()?;
         let link_pos: HashMap<&str, usize> = urdf
@@ -213,17 +391,22 @@ impl KinematicModel {
             )));
         }
         let joint_names_all: Vec<&str> = urdf.joints.iter().map(|j| j.name.as_str()).collect();
+        let joint_pos: HashMap<&str, usize> =
+            urdf.joints.iter().enumerate().map(|(i, j)| (j.name.as_str(), i)).collect();
         let mut locked_names: Vec<(&String, &f64)> = options.locked_joints.iter().collect();
         locked_names.sort_by(|a, b| a.0.cmp(b.0)); // the first error is the same on every run
         for (name, &value) in locked_names {
-            if !joint_names_all.contains(&name.as_str()) {
+            let Some(&ji) = joint_pos.get(name.as_str()) else {
                 return Err(unknown("locked joint", name, &joint_names_all));
-            }
+            };
             check_finite(&format!("locked joint '{name}' value"), &[value])?;
             if value.abs() > MAX_JOINT_POSITION {
                 return Err(Error::Invalid(format!(
                     "locked joint '{name}': value {value:e} is too large (at most {MAX_JOINT_POSITION:e} in magnitude)"
                 )));
+            }
+            if urdf.joints[ji].joint_type == JointType::Fixed {
+                return Err(Error::Invalid(format!("locked joint '{name}' is a fixed joint: it does not move")));
             }
         }
 
@@ -255,12 +438,28 @@ impl KinematicModel {
         for (new, &old) in order_links.iter().enumerate() {
             new_index[old] = new;
         }
-        let joint_pos: HashMap<&str, usize> =
-            urdf.joints.iter().enumerate().map(|(i, j)| (j.name.as_str(), i)).collect();
+        let mut position_in_order = vec![usize::MAX; urdf.joints.len()];
+        for (k, &ji) in order_joints.iter().enumerate() {
+            position_in_order[ji] = k;
+        }
+        let masters = mimic_masters(urdf, &joint_pos, &position_in_order, &options.locked_joints)?;
+        // a locked value within the joint's limits (a mimic's, locked with its master, is the
+        // one it follows: checked by locked_with_mimics)
+        let mut given: Vec<(&String, &f64)> = options.locked_joints.iter().collect();
+        given.sort_by(|a, b| a.0.cmp(b.0));
+        for (name, &value) in given {
+            let ji = joint_pos[name.as_str()];
+            if masters[ji].is_none() {
+                if let Some(problem) = locked_value_problem(&urdf.joints[ji], value) {
+                    return Err(Error::Invalid(format!("locked joint '{name}' at {problem}")));
+                }
+            }
+        }
+        let locked = locked_with_mimics(urdf, &masters, &options.locked_joints)?;
 
         let is_active = |ji: usize| {
             let j = &urdf.joints[ji];
-            j.joint_type != JointType::Fixed && !options.locked_joints.contains_key(&j.name)
+            j.joint_type != JointType::Fixed && !locked.contains_key(&j.name) && masters[ji].is_none()
         };
         let default_order: Vec<String> = order_joints
             .iter()
@@ -319,7 +518,7 @@ impl KinematicModel {
             }
         }
 
-        let mut joints = Vec::with_capacity(order_joints.len());
+        let mut joints: Vec<Joint> = Vec::with_capacity(order_joints.len());
         for &ji in &order_joints {
             let j = &urdf.joints[ji];
             let active = is_active(ji);
@@ -336,10 +535,11 @@ impl KinematicModel {
                     )))
                 }
             };
-            let (origin, motion) = if active || j.joint_type == JointType::Fixed {
+            let follows_active = masters[ji].is_some() && !locked.contains_key(&j.name);
+            let (origin, motion) = if active || follows_active || j.joint_type == JointType::Fixed {
                 (j.origin, motion_kind)
             } else {
-                let value = options.locked_joints.get(&j.name).copied().unwrap_or(0.0);
+                let value = locked.get(&j.name).copied().unwrap_or(0.0);
                 let locked = match &motion_kind {
                     Motion::Revolute { axis } | Motion::Continuous { axis } => {
                         Isometry3::from_parts(
@@ -355,6 +555,15 @@ impl KinematicModel {
                 };
                 (j.origin * locked, Motion::Fixed)
             };
+            // a mimic joint that is not locked follows its (active) master, placed before it
+            let mimic = match (&motion, masters[ji]) {
+                (Motion::Fixed, _) | (_, None) => None,
+                (_, Some((mi, m))) => {
+                    let master = position_in_order[mi];
+                    let mj = &joints[master];
+                    Some(Follows { joint: master, q_index: mj.q_index, v_index: mj.v_index, multiplier: m.multiplier, offset: m.offset })
+                }
+            };
             joints.push(Joint {
                 name: j.name.clone(),
                 parent: new_index[parent_of_joint[ji]],
@@ -363,6 +572,7 @@ impl KinematicModel {
                 q_index: q_index_of.get(j.name.as_str()).copied().unwrap_or(usize::MAX),
                 v_index: v_index_of.get(j.name.as_str()).copied().unwrap_or(usize::MAX),
                 motion,
+                mimic,
             });
         }
         let link_names: Vec<String> = order_links
@@ -418,6 +628,8 @@ impl KinematicModel {
                 .collect()
         };
         let total_mass = masses.iter().sum();
+        let mut locked: Vec<(String, f64)> = locked.into_iter().collect();
+        locked.sort_by(|a, b| a.0.cmp(&b.0));
         Ok(KinematicModel {
             link_names,
             joints,
@@ -434,6 +646,7 @@ impl KinematicModel {
             masses,
             local_coms,
             total_mass,
+            locked,
             link_index,
         })
     }
@@ -513,11 +726,16 @@ impl KinematicModel {
             out[self.root] = Self::base_pose(q);
         }
         for j in &self.joints[..joints.min(self.joints.len())] {
+            // a revolute or prismatic joint's value: its own, or the one it follows
+            let value = || match j.mimic {
+                None => q[j.q_index],
+                Some(f) => f.multiplier * q[f.q_index] + f.offset,
+            };
             let motion = match &j.motion {
                 Motion::Fixed => None,
                 Motion::Revolute { axis } => Some(Isometry3::from_parts(
                     Translation3::identity(),
-                    UnitQuaternion::from_axis_angle(axis, q[j.q_index]),
+                    UnitQuaternion::from_axis_angle(axis, value()),
                 )),
                 Motion::Continuous { axis } => {
                     let angle = q[j.q_index + 1].atan2(q[j.q_index]);
@@ -527,7 +745,7 @@ impl KinematicModel {
                     ))
                 }
                 Motion::Prismatic { axis } => Some(Isometry3::from_parts(
-                    Translation3::from(axis.into_inner() * q[j.q_index]),
+                    Translation3::from(axis.into_inner() * value()),
                     UnitQuaternion::identity(),
                 )),
             };
@@ -571,6 +789,7 @@ impl KinematicModel {
         }
         for &ji in &self.active_ancestors[link] {
             let j = &self.joints[ji];
+            let Some((v, scale)) = j.velocity_column() else { continue };
             let mj = &poses[j.child];
             let (lin, ang) = match &j.motion {
                 Motion::Revolute { axis } | Motion::Continuous { axis } => {
@@ -580,10 +799,11 @@ impl KinematicModel {
                 Motion::Prismatic { axis } => (mj.rotation * axis.into_inner(), Vector3::zeros()),
                 Motion::Fixed => continue,
             };
-            let (lin, ang) = (rf_t * lin, rf_t * ang);
+            // a mimic joint adds its share to its master's column
+            let (lin, ang) = (rf_t * lin * scale, rf_t * ang * scale);
             for k in 0..3 {
-                out[(k, j.v_index)] = lin[k];
-                out[(k + 3, j.v_index)] = ang[k];
+                out[(k, v)] += lin[k];
+                out[(k + 3, v)] += ang[k];
             }
         }
     }
@@ -620,6 +840,7 @@ impl KinematicModel {
                 jac.view_mut((0, 3), (3, 3)).copy_from(&ang);
             }
             for j in &self.joints {
+                let Some((v, scale)) = j.velocity_column() else { continue };
                 let mj = &poses[j.child];
                 let col = match &j.motion {
                     Motion::Revolute { axis } | Motion::Continuous { axis } => {
@@ -630,7 +851,7 @@ impl KinematicModel {
                     Motion::Fixed => continue,
                 };
                 for k in 0..3 {
-                    jac[(k, j.v_index)] = col[k];
+                    jac[(k, v)] += scale * col[k];
                 }
             }
         }
@@ -646,7 +867,7 @@ impl KinematicModel {
             m.rotation.renormalize();
             Self::write_base(out, &m);
         }
-        for j in &self.joints {
+        for j in self.joints.iter().filter(|j| j.mimic.is_none()) {
             match j.motion {
                 Motion::Revolute { .. } | Motion::Prismatic { .. } => out[j.q_index] += v[j.v_index],
                 Motion::Continuous { .. } => {
@@ -665,7 +886,7 @@ impl KinematicModel {
             let d = log6(&(Self::base_pose(q0).inverse() * Self::base_pose(q1)));
             out[..6].copy_from_slice(d.as_slice());
         }
-        for j in &self.joints {
+        for j in self.joints.iter().filter(|j| j.mimic.is_none()) {
             match j.motion {
                 Motion::Revolute { .. } | Motion::Prismatic { .. } => out[j.v_index] = q1[j.q_index] - q0[j.q_index],
                 Motion::Continuous { .. } => {

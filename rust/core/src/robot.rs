@@ -17,25 +17,34 @@
 //! srdf = "..."                    # optional: disabled pairs and named states
 //! package_dirs = ["../meshes"]    # optional: where package:// URIs are looked up first
 //! floating_base = false           # optional: a free-flyer root joint
-//! locked_joints = ["finger_1"]    # optional: held at the reference state's value (or 0) ...
+//! locked_joints = ["finger_1"]    # optional: held at the reference state's value (or neutral) ...
 //! # locked_joints = { finger_1 = 0.04 }   # ... or at the given values
 //! reference_state = "default"     # optional: an SRDF group_state
+//! merge_computed_pairs = false    # optional: skip the computed self-collision pairs too
 //! [frames]                        # optional: roles -> link names
 //! hand = "panda_hand"
 //! ```
+//!
+//! [`RobotDescription::read`] checks a description against its files before anything is built
+//! from it: what genplan uses must name what the files have (SRDF pairs and the reference
+//! state's joints, locked joints, frames), locked and reference values lie within the joints'
+//! limits, a collision URDF has the URDF's tree, mimic joints are ones the model can follow.
+//! What genplan does not use but looks wrong (another group state naming unknown joints) is a
+//! warning.
 
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use crate::collision::CollisionWorld;
-use crate::error::{Error, Result};
-use crate::kinematics::{KinematicModel, ModelOptions};
+use crate::collision::allowed;
+use crate::error::{unknown, Error, Result};
+use crate::kinematics::{locked_value_problem, KinematicModel, ModelOptions, Motion};
 use crate::srdf::Srdf;
-use crate::urdf::{resolve_uri, Urdf};
+use crate::urdf::{resolve_uri, JointType, Urdf};
 
 /// The keys a robot file may hold.
-pub const ROBOT_KEYS: [&str; 9] = [
+pub const ROBOT_KEYS: [&str; 10] = [
     "name",
     "urdf",
     "collision_urdf",
@@ -44,13 +53,15 @@ pub const ROBOT_KEYS: [&str; 9] = [
     "floating_base",
     "locked_joints",
     "reference_state",
+    "merge_computed_pairs",
     "frames",
 ];
 
 /// Which joints are locked, and at what.
 #[derive(Debug, Clone, PartialEq)]
 pub enum LockedJoints {
-    /// Held at their value in the reference state (0 where it says nothing).
+    /// Held at their value in the reference state (their neutral value where it says nothing,
+    /// [`neutral_value`]).
     FromReference(Vec<String>),
     /// Held at the given values.
     Values(Vec<(String, f64)>),
@@ -86,6 +97,10 @@ pub struct RobotDescription {
     pub locked_joints: LockedJoints,
     /// The SRDF group state that gives the default configuration and the locked values.
     pub reference_state: Option<String>,
+    /// Skip the computed self-collision pairs ([`allowed::disabled_pairs`]) as well as the
+    /// SRDF's: the remedy for an SRDF that leaves pairs in contact at the default
+    /// configuration.
+    pub merge_computed_pairs: bool,
     /// Named frames: (role, link name), in the file's order.
     pub frames: Vec<(String, String)>,
     /// The robot file this came from, if any.
@@ -164,6 +179,13 @@ impl RobotDescription {
         if name.is_empty() {
             return Err(invalid(origin, "'name' is empty".into()));
         }
+        // the name is part of cache file names and model cards
+        if name == "." || name == ".." || name.chars().any(|c| c == '/' || c == '\\' || c.is_control()) {
+            return Err(invalid(
+                origin,
+                format!("'name' '{}' cannot name a file (no '/', '\\', control characters, '.' or '..')", name.escape_debug()),
+            ));
+        }
         let mut package_dirs = Vec::new();
         if let Some(v) = get("package_dirs") {
             for s in strings(origin, "package_dirs", v)? {
@@ -210,12 +232,19 @@ impl RobotDescription {
                 }
                 LockedJoints::Values(values)
             }
-            Some(v) => LockedJoints::FromReference(strings(origin, "locked_joints", v).map_err(|_| {
-                invalid(
-                    origin,
-                    format!("'locked_joints' must be a list of joint names or a table name = value, got {}", v.type_str()),
-                )
-            })?),
+            Some(v) => {
+                let names = strings(origin, "locked_joints", v).map_err(|_| {
+                    invalid(
+                        origin,
+                        format!("'locked_joints' must be a list of joint names or a table name = value, got {}", v.type_str()),
+                    )
+                })?;
+                let mut seen = std::collections::HashSet::new();
+                if let Some(twice) = names.iter().find(|n| !seen.insert(n.as_str())) {
+                    return Err(invalid(origin, format!("'locked_joints' names '{twice}' twice")));
+                }
+                LockedJoints::FromReference(names)
+            }
         };
         let reference_state = match get("reference_state") {
             Some(v) => Some(string(origin, "reference_state", v)?),
@@ -224,12 +253,21 @@ impl RobotDescription {
         if reference_state.is_some() && srdf.is_none() {
             return Err(invalid(origin, "'reference_state' names an SRDF group state, but there is no 'srdf'".into()));
         }
+        let merge_computed_pairs = match get("merge_computed_pairs") {
+            Some(v) => v.as_bool().ok_or_else(|| {
+                invalid(origin, format!("'merge_computed_pairs' must be true or false, got {}", v.type_str()))
+            })?,
+            None => false,
+        };
         let mut frames = Vec::new();
         if let Some(v) = get("frames") {
             let t = v
                 .as_table()
                 .ok_or_else(|| invalid(origin, format!("'frames' must be a table role = link name, got {}", v.type_str())))?;
             for (role, link) in t {
+                if role.trim().is_empty() {
+                    return Err(invalid(origin, format!("frame role '{role}' is empty")));
+                }
                 frames.push((role.clone(), string(origin, &format!("frames.{role}"), link)?));
             }
         }
@@ -242,6 +280,7 @@ impl RobotDescription {
             floating_base,
             locked_joints,
             reference_state,
+            merge_computed_pairs,
             frames,
             source: None,
         })
@@ -260,55 +299,368 @@ impl RobotDescription {
         self.srdf.as_ref().map(Srdf::from_file).transpose()
     }
 
-    /// Locked joint values: given, or from the SRDF's reference state (0 where it says nothing).
+    /// `SRDF <path>`, as messages name it.
+    fn srdf_what(&self) -> String {
+        self.srdf.as_ref().map_or_else(|| "SRDF".to_string(), |p| format!("SRDF {}", p.display()))
+    }
+
+    /// The reference state's joint values (None without a `reference_state`); a state the SRDF
+    /// does not have is an [`Error::UnknownName`] naming the robot file and the SRDF and
+    /// listing the states it has.
+    pub fn reference<'a>(&self, srdf: Option<&'a Srdf>) -> Result<Option<&'a HashMap<String, Vec<f64>>>> {
+        let (Some(r), Some(s)) = (&self.reference_state, srdf) else { return Ok(None) };
+        s.group_states.get(r).map(Some).ok_or_else(|| {
+            let mut known: Vec<&str> = s.group_states.keys().map(String::as_str).collect();
+            known.sort_unstable();
+            unknown_in("group_state", r, &known, format!("(reference_state of {}) in {}", self.origin(), self.srdf_what()))
+        })
+    }
+
+    /// Locked joint values as the description gives them: given, or from the SRDF's reference
+    /// state (0 where it says nothing; [`read`](Self::read) holds such a joint at its
+    /// [`neutral_value`] instead, and a mimic of a locked joint at the value it follows).
+    /// The mimics of locked joints are added by the model
+    /// ([`KinematicModel::from_urdf`]), at the values they follow.
     pub fn locked_values(&self, srdf: Option<&Srdf>) -> Result<HashMap<String, f64>> {
+        let state = self.reference(srdf)?;
         Ok(match &self.locked_joints {
             LockedJoints::Values(v) => v.iter().cloned().collect(),
-            LockedJoints::FromReference(names) => {
-                let state = match (&self.reference_state, srdf) {
-                    (Some(r), Some(s)) => Some(s.group_states.get(r).ok_or_else(|| {
-                        let mut known: Vec<&str> = s.group_states.keys().map(String::as_str).collect();
-                        known.sort_unstable();
-                        invalid(
-                            &self.origin(),
-                            format!("reference_state '{r}' is not a group state of the SRDF (known: {})", known.join(", ")),
-                        )
-                    })?),
-                    _ => None,
-                };
-                names
-                    .iter()
-                    .map(|j| {
-                        let v = state.and_then(|s| s.get(j)).and_then(|v| v.first().copied()).unwrap_or(0.0);
-                        (j.clone(), v)
-                    })
-                    .collect()
+            LockedJoints::FromReference(names) => names
+                .iter()
+                .map(|j| {
+                    let v = state.and_then(|s| s.get(j)).and_then(|v| v.first().copied()).unwrap_or(0.0);
+                    (j.clone(), v)
+                })
+                .collect(),
+        })
+    }
+
+    /// Where a locked joint's value comes from, as messages say it.
+    fn locked_source(&self, joint: &str, srdf: Option<&Srdf>) -> String {
+        match (&self.locked_joints, &self.reference_state) {
+            (LockedJoints::Values(_), _) => String::new(),
+            (LockedJoints::FromReference(_), Some(r)) if srdf.and_then(|s| s.group_states.get(r)).is_some_and(|s| s.contains_key(joint)) => {
+                format!(" (group_state '{r}' of {})", self.srdf_what())
             }
-        })
-    }
-
-    /// The kinematic model options this description asks for.
-    pub fn model_options(&self, srdf: Option<&Srdf>) -> Result<ModelOptions> {
-        Ok(ModelOptions {
-            floating_base: self.floating_base,
-            locked_joints: self.locked_values(srdf)?,
-            joint_order: None,
-        })
-    }
-
-    /// Load the kinematic model and the collision world (self-collision pairs from the SRDF,
-    /// or all pairs on different bodies when there is none).
-    pub fn load(&self) -> Result<(Arc<KinematicModel>, CollisionWorld)> {
-        let srdf = self.read_srdf()?;
-        let urdf = Urdf::from_file(&self.urdf)?;
-        let model = Arc::new(KinematicModel::from_urdf(&urdf, &self.model_options(srdf.as_ref())?)?);
-        for (role, link) in &self.frames {
-            model.link_index(link).map_err(|e| invalid(&self.origin(), format!("frame '{role}': {e}")))?;
+            (LockedJoints::FromReference(_), _) => " (its neutral value)".to_string(),
         }
-        let curdf = if self.collision_urdf == self.urdf { urdf } else { Urdf::from_file(&self.collision_urdf)? };
-        let world = CollisionWorld::from_urdf(model.clone(), &curdf, &self.package_dirs, srdf.as_ref())?;
-        Ok((model, world))
     }
+
+    /// Read the files and check the description against them (see the module's
+    /// documentation); the model, the default configuration and the warnings.
+    ///
+    /// Errors name the file at fault and the name or value: a URDF or SRDF that cannot be
+    /// parsed (with the parser's reason), a collision URDF of another tree, a
+    /// `<disable_collisions>` naming a link the URDF lacks, a `reference_state` the SRDF lacks
+    /// or whose joints the URDF lacks (or with a value outside a joint's limits, or with the
+    /// wrong number of values, or a mimic joint's value other than the one it follows), a
+    /// locked joint that is unknown or at a value outside its limits, a mimic the model cannot
+    /// follow, a frame naming no link or a role named like another link.
+    pub fn read(&self) -> Result<RobotFiles> {
+        let origin = self.origin();
+        let urdf = Urdf::from_file(&self.urdf)?;
+        let srdf = self.read_srdf()?;
+        let mut warnings = Vec::new();
+        if let Some(s) = &srdf {
+            self.check_srdf_names(s, &urdf, &mut warnings)?;
+        }
+        let state = self.reference(srdf.as_ref())?;
+        let mut locked = self.locked_values(srdf.as_ref())?;
+        if let LockedJoints::FromReference(_) = self.locked_joints {
+            for j in &urdf.joints {
+                if !locked.contains_key(&j.name) || state.is_some_and(|s| s.contains_key(&j.name)) {
+                    continue;
+                }
+                match &j.mimic {
+                    // a listed mimic of a listed joint takes the value it follows (a value the
+                    // state gives is checked against it by the model)
+                    Some(m) if locked.contains_key(&m.joint) => {
+                        locked.remove(&j.name);
+                    }
+                    // no value given: the joint's neutral one, as in the default configuration
+                    _ => {
+                        locked.insert(j.name.clone(), neutral_value(j));
+                    }
+                }
+            }
+        }
+        let mut names: Vec<&String> = locked.keys().collect();
+        names.sort();
+        let joints: Vec<&str> = urdf.joints.iter().map(|j| j.name.as_str()).collect();
+        for name in names {
+            let Some(j) = urdf.joints.iter().find(|j| &j.name == name) else {
+                return Err(unknown_in("joint", name, &joints, format!("(locked_joints of {origin}) in {}", urdf.what())));
+            };
+            if j.mimic.is_some() {
+                continue; // a mimic's value is the one it follows (checked by the model)
+            }
+            if let Some(problem) = locked_value_problem(j, locked[name]) {
+                let at = problem.replacen(' ', &format!("{} ", self.locked_source(name, srdf.as_ref())), 1);
+                return Err(invalid(&origin, format!("locked joint '{name}' at {at}")));
+            }
+        }
+        let options = ModelOptions { floating_base: self.floating_base, locked_joints: locked, joint_order: None };
+        let model = KinematicModel::from_urdf(&urdf, &options).map_err(|e| in_file(e, &origin, &urdf.what()))?;
+        let links: Vec<&str> = model.link_names.iter().map(String::as_str).collect();
+        for (role, link) in &self.frames {
+            if model.link_index(link).is_err() {
+                return Err(unknown_in("link", link, &links, format!("(frame '{role}' of {}) in {}", origin, urdf.what())));
+            }
+            if role != link && model.link_index(role).is_ok() {
+                return Err(invalid(
+                    &origin,
+                    format!("frame role '{role}' is the name of another link (it names '{link}'): rename the role"),
+                ));
+            }
+        }
+        let q_default = self.default_configuration(&model, &urdf, state, &mut warnings)?;
+        let collision_urdf = if self.collision_urdf == self.urdf {
+            None
+        } else {
+            let c = Urdf::from_file(&self.collision_urdf)?;
+            if let Some(diff) = tree_difference(&urdf, &c) {
+                return Err(invalid(
+                    &origin,
+                    format!(
+                        "'collision_urdf' {} is not the tree of 'urdf' {}: {diff}",
+                        self.collision_urdf.display(),
+                        self.urdf.display()
+                    ),
+                ));
+            }
+            Some(c)
+        };
+        Ok(RobotFiles { model: Arc::new(model), urdf, collision_urdf, srdf, q_default, warnings })
+    }
+
+    /// The SRDF's names against the URDF's: a `<disable_collisions>` link or a joint of the
+    /// reference state that the URDF lacks is an error; another group state's unknown joints
+    /// are a warning. `root_joint` (the free-flyer's name) is known.
+    fn check_srdf_names(&self, srdf: &Srdf, urdf: &Urdf, warnings: &mut Vec<String>) -> Result<()> {
+        let links: Vec<&str> = urdf.links.iter().map(|l| l.name.as_str()).collect();
+        for (a, b) in &srdf.disabled_pairs {
+            for l in [a, b] {
+                if !links.contains(&l.as_str()) {
+                    return Err(unknown_in("link", l, &links, format!("in <disable_collisions> of {}: not a link of {}", self.srdf_what(), urdf.what())));
+                }
+            }
+        }
+        let joints: Vec<&str> = urdf.joints.iter().map(|j| j.name.as_str()).collect();
+        let mut states: Vec<(&String, &HashMap<String, Vec<f64>>)> = srdf.group_states.iter().collect();
+        states.sort_by(|a, b| a.0.cmp(b.0));
+        for (name, values) in states {
+            let mut missing: Vec<&str> =
+                values.keys().map(String::as_str).filter(|j| !joints.contains(j) && *j != FREE_FLYER).collect();
+            if missing.is_empty() {
+                continue;
+            }
+            missing.sort_unstable();
+            if self.reference_state.as_deref() == Some(name.as_str()) {
+                return Err(unknown_in("joint", missing[0], &joints, format!("in group_state '{name}' of {}: not a joint of {}", self.srdf_what(), urdf.what())));
+            }
+            const SHOWN: usize = 12;
+            let more = if missing.len() > SHOWN { format!(", ... ({} in all)", missing.len()) } else { String::new() };
+            let used = match &self.reference_state {
+                Some(r) => format!("the reference state is '{r}'"),
+                None => "no reference_state".to_string(),
+            };
+            warnings.push(format!(
+                "{}: group_state '{name}' names joints unknown to {}: {}{more} (not used: {used})",
+                self.srdf_what(),
+                urdf.what(),
+                missing[..missing.len().min(SHOWN)].join(", ")
+            ));
+        }
+        Ok(())
+    }
+
+    /// The default configuration: the neutral one ([`neutral_value`]; a continuous joint at
+    /// angle 0; the base at the origin) with the reference state's values of the active joints,
+    /// each checked
+    /// against the joint's limits; the state's values for a mimic joint must be those it
+    /// follows, and each joint takes as many values as it has (1, or 7 for the free-flyer).
+    fn default_configuration(
+        &self,
+        model: &KinematicModel,
+        urdf: &Urdf,
+        state: Option<&HashMap<String, Vec<f64>>>,
+        warnings: &mut Vec<String>,
+    ) -> Result<Vec<f64>> {
+        let mut q = vec![0.0; model.nq];
+        if model.floating_base {
+            q[6] = 1.0;
+        }
+        for j in model.joints.iter().filter(|j| j.q_index != usize::MAX) {
+            match j.motion {
+                Motion::Continuous { .. } => q[j.q_index] = 1.0,
+                _ => {
+                    if let Some(u) = urdf.joints.iter().find(|u| u.name == j.name) {
+                        q[j.q_index] = neutral_value(u);
+                    }
+                }
+            }
+        }
+        let (Some(state), Some(r)) = (state, &self.reference_state) else { return Ok(q) };
+        let what = format!("group_state '{r}' of {}", self.srdf_what());
+        let mut entries: Vec<(&String, &Vec<f64>)> = state.iter().collect();
+        entries.sort_by(|a, b| a.0.cmp(b.0));
+        let arity = |name: &str, values: &[f64], n: usize| -> Result<()> {
+            if values.len() == n {
+                Ok(())
+            } else {
+                Err(invalid(&self.origin(), format!("{what} gives joint '{name}' {} values, but it takes {n}", values.len())))
+            }
+        };
+        for (name, values) in entries.iter().copied() {
+            if name == FREE_FLYER {
+                if !model.floating_base {
+                    warnings.push(format!("{what} places '{FREE_FLYER}', the free-flyer base, but the robot has none: ignored"));
+                    continue;
+                }
+                arity(name, values, 7)?;
+                q[..7].copy_from_slice(values);
+                continue;
+            }
+            if urdf.joints.iter().any(|u| &u.name == name && u.joint_type == JointType::Fixed) {
+                continue; // a fixed joint's value means nothing (as in Pinocchio)
+            }
+            let Some(j) = model.joints.iter().find(|j| &j.name == name) else { continue }; // known (checked)
+            arity(name, values, 1)?;
+            let x = values[0];
+            if let Some(f) = j.mimic {
+                let master = &model.joints[f.joint];
+                let follows = f.multiplier * state.get(&master.name).and_then(|v| v.first().copied()).unwrap_or(0.0) + f.offset;
+                if (x - follows).abs() > 1e-6 * follows.abs().max(1.0) {
+                    return Err(invalid(
+                        &self.origin(),
+                        format!("{what} puts mimic joint '{name}' at {x}, but it follows '{}' (at {follows})", master.name),
+                    ));
+                }
+                continue;
+            }
+            if j.q_index == usize::MAX {
+                continue; // locked: its value was checked with the locked joints
+            }
+            match j.motion {
+                Motion::Continuous { .. } => {
+                    q[j.q_index] = x.cos();
+                    q[j.q_index + 1] = x.sin();
+                }
+                _ => {
+                    let (lo, hi) = (model.lower[j.q_index], model.upper[j.q_index]);
+                    if !(lo <= x && x <= hi) {
+                        return Err(invalid(
+                            &self.origin(),
+                            format!("{what} puts joint '{name}' at {x}, outside its limits [{lo}, {hi}]"),
+                        ));
+                    }
+                    q[j.q_index] = x;
+                }
+            }
+        }
+        // e.g. a zero base quaternion
+        model.check_configuration(&q).map_err(|e| invalid(&self.origin(), format!("{what}: {e}")))?;
+        Ok(q)
+    }
+
+    /// Load the kinematic model and the collision world ([`read`](Self::read) checks the
+    /// files first): the self-collision pairs are those of the SRDF (with
+    /// `merge_computed_pairs`, also the computed ones, [`allowed::disabled_pairs`] at the
+    /// default configuration), or all pairs on different bodies without an SRDF.
+    pub fn load(&self) -> Result<(Arc<KinematicModel>, CollisionWorld)> {
+        let files = self.read()?;
+        let curdf = files.collision_urdf.as_ref().unwrap_or(&files.urdf);
+        let mut srdf = files.srdf.clone();
+        if self.merge_computed_pairs {
+            let all = CollisionWorld::from_urdf(files.model.clone(), curdf, &self.package_dirs, None)?;
+            let computed = allowed::disabled_pairs(&all, &files.q_default, &allowed::Options::default())?;
+            srdf.get_or_insert_with(Srdf::default).disabled_pairs.extend(computed.into_iter().map(|p| (p.a, p.b)));
+        }
+        let world = CollisionWorld::from_urdf(files.model.clone(), curdf, &self.package_dirs, srdf.as_ref())?;
+        Ok((files.model, world))
+    }
+}
+
+/// A joint's neutral value, where the default configuration puts it and a locked joint that
+/// nothing gives a value is held: 0, or the middle of its limits when 0 is outside them (as
+/// MoveIt's default positions).
+pub fn neutral_value(joint: &crate::urdf::Joint) -> f64 {
+    if joint.lower <= 0.0 && 0.0 <= joint.upper {
+        0.0
+    } else {
+        0.5 * joint.lower + 0.5 * joint.upper
+    }
+}
+
+/// The free-flyer joint's name in SRDF group states (Pinocchio's).
+pub const FREE_FLYER: &str = "root_joint";
+
+/// A robot description's files, read and checked ([`RobotDescription::read`]).
+#[derive(Debug, Clone)]
+pub struct RobotFiles {
+    /// The kinematic model (its active joints in Pinocchio's order; locked joints and the
+    /// mimics of locked joints in [`KinematicModel::locked`]).
+    pub model: Arc<KinematicModel>,
+    /// The URDF.
+    pub urdf: Urdf,
+    /// The collision URDF when it is another file (of the same tree).
+    pub collision_urdf: Option<Urdf>,
+    /// The SRDF, if any.
+    pub srdf: Option<Srdf>,
+    /// The default configuration (length nq): the reference state's values, else the neutral
+    /// configuration.
+    pub q_default: Vec<f64>,
+    /// What loads but may not be meant (see the module's documentation), one message each.
+    pub warnings: Vec<String>,
+}
+
+/// An [`Error::UnknownName`] of a name read at `place`, listing the known names.
+fn unknown_in(kind: &'static str, name: &str, known: &[&str], place: String) -> Error {
+    let hint = match unknown(kind, name, known) {
+        Error::UnknownName { hint, .. } => hint,
+        _ => String::new(),
+    };
+    Error::UnknownName { kind, name: name.to_string(), hint: format!(" {place}{hint}") }
+}
+
+/// An error of building the model from the URDF `what`, for the robot file `origin`: an unknown
+/// name is an error of the URDF, a refused value (locked, mimic) one of the robot file.
+fn in_file(e: Error, origin: &str, what: &str) -> Error {
+    match e {
+        // what the URDF's joints name (links, joints) and it lacks: the URDF is at fault
+        e @ Error::UnknownName { .. } => Error::Parse { what: what.to_string(), msg: e.to_string() },
+        Error::Invalid(msg) => invalid(origin, msg),
+        other => other,
+    }
+}
+
+/// The first difference between the kinematic trees of two URDFs, if any: the links' names,
+/// and each joint's type, parent, child, origin and axis (what places the links: a collision
+/// URDF's limits and mimics are not used).
+fn tree_difference(a: &Urdf, b: &Urdf) -> Option<String> {
+    let (la, lb): (BTreeSet<&str>, BTreeSet<&str>) =
+        (a.links.iter().map(|l| l.name.as_str()).collect(), b.links.iter().map(|l| l.name.as_str()).collect());
+    if let Some(l) = la.symmetric_difference(&lb).next() {
+        return Some(format!("link '{l}' is in one and not the other"));
+    }
+    for ja in &a.joints {
+        let Some(jb) = b.joints.iter().find(|j| j.name == ja.name) else {
+            return Some(format!("joint '{}' is in one and not the other", ja.name));
+        };
+        let what = if ja.joint_type != jb.joint_type {
+            "type"
+        } else if ja.parent != jb.parent || ja.child != jb.child {
+            "parent or child"
+        } else if (ja.origin.inverse() * jb.origin).translation.vector.norm() > 1e-9 || ja.origin.rotation.angle_to(&jb.origin.rotation) > 1e-9 {
+            "<origin>"
+        } else if (ja.axis - jb.axis).norm() > 1e-9 {
+            "<axis>"
+        } else {
+            continue;
+        };
+        return Some(format!("joint '{}' has another {what}", ja.name));
+    }
+    b.joints.iter().find(|j| !a.joints.iter().any(|x| x.name == j.name)).map(|j| format!("joint '{}' is in one and not the other", j.name))
 }
 
 /// The folders genplan searches for `package://` URIs by default: example-robot-data's

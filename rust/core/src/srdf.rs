@@ -2,7 +2,9 @@
 //!
 //! A group state's values are joint positions: the reader refuses one that is not a number, not
 //! finite (`NaN`, `inf`, `1e999`) or larger than [`MAX_JOINT_POSITION`] in magnitude, naming the
-//! group state and the joint.
+//! group state and the joint. A URDF given as an SRDF (a `<link>` or `<joint>` under `<robot>`)
+//! is refused. Whether the names it holds are the URDF's is checked when a robot is read
+//! ([`RobotDescription::read`](crate::robot::RobotDescription::read)).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -46,6 +48,10 @@ impl Srdf {
                         }
                         _ => return Err(err("<disable_collisions> lacks link1 or link2".into())),
                     }
+                }
+                // an SRDF's root holds no links or joints: this is a URDF given as the SRDF
+                tag @ ("link" | "joint") => {
+                    return Err(err(format!("<robot> has a <{tag}> element: this is a URDF, not an SRDF")));
                 }
                 "group_state" => {
                     let name = node.attribute("name").unwrap_or("").to_string();

@@ -9,6 +9,10 @@
 //! limits), a moving joint's axis is a unit vector, a revolute or prismatic joint's limits are
 //! not reversed, and link and joint names are unique ([`Urdf::validate`]). Errors name the file
 //! (when read from one), the link or joint, the element and the problem.
+//!
+//! A joint's `<mimic>` is read ([`Mimic`]); whether genplan can follow it (a revolute or
+//! prismatic joint following an earlier one of those kinds) is decided when a model is built
+//! ([`KinematicModel::from_urdf`](crate::kinematics::KinematicModel::from_urdf)).
 
 use std::path::{Path, PathBuf};
 
@@ -102,6 +106,18 @@ pub enum JointType {
     Planar,
 }
 
+/// A joint's `<mimic>`: it does not move on its own but follows another joint, at
+/// `multiplier * q_joint + offset` (as ROS and Pinocchio read it).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mimic {
+    /// The joint it follows (its "master").
+    pub joint: String,
+    /// Scale of the master's value (default 1); finite, at most [`MAX_MAGNITUDE`] in magnitude.
+    pub multiplier: f64,
+    /// Added to the scaled value (default 0); finite, at most [`MAX_JOINT_POSITION`] in magnitude.
+    pub offset: f64,
+}
+
 /// One `<joint>`.
 #[derive(Debug, Clone)]
 pub struct Joint {
@@ -128,6 +144,8 @@ pub struct Joint {
     pub effort: f64,
     /// Largest speed (`<limit velocity>`: rad/s or m/s); +inf when not given.
     pub velocity: f64,
+    /// Its `<mimic>`, if any: the joint follows another instead of moving on its own.
+    pub mimic: Option<Mimic>,
 }
 
 /// A parsed URDF file.
@@ -486,6 +504,16 @@ impl Urdf {
             if j.effort.is_nan() || j.velocity.is_nan() {
                 return Err(self.error(format!("joint '{}': <limit> effort or velocity is NaN", j.name)));
             }
+            if let Some(m) = &j.mimic {
+                let ok = |x: f64, bound: f64| x.is_finite() && x.abs() <= bound;
+                if !(ok(m.multiplier, MAX_MAGNITUDE) && ok(m.offset, MAX_JOINT_POSITION)) {
+                    return Err(self.error(format!(
+                        "joint '{}': <mimic> multiplier {} or offset {} is not finite or too large \
+                         (at most {MAX_MAGNITUDE:e} and {MAX_JOINT_POSITION:e} in magnitude)",
+                        j.name, m.multiplier, m.offset
+                    )));
+                }
+            }
         }
         Ok(())
     }
@@ -584,6 +612,17 @@ fn parse_joint(node: roxmltree::Node) -> Result<Joint> {
         effort = f64_attr(ctx, limit, "effort", f64::INFINITY)?.unwrap_or(f64::INFINITY);
         velocity = f64_attr(ctx, limit, "velocity", f64::INFINITY)?.unwrap_or(f64::INFINITY);
     }
+    let mimic = match child(node, "mimic") {
+        None => None,
+        Some(m) => Some(Mimic {
+            joint: m
+                .attribute("joint")
+                .ok_or_else(|| parse_error(format!("joint '{name}': <mimic> lacks attribute 'joint'")))?
+                .to_string(),
+            multiplier: f64_attr(ctx, m, "multiplier", MAX_MAGNITUDE)?.unwrap_or(1.0),
+            offset: f64_attr(ctx, m, "offset", MAX_JOINT_POSITION)?.unwrap_or(0.0),
+        }),
+    };
     Ok(Joint {
         name: name.to_string(),
         joint_type,
@@ -595,6 +634,7 @@ fn parse_joint(node: roxmltree::Node) -> Result<Joint> {
         upper,
         effort,
         velocity,
+        mimic,
     })
 }
 

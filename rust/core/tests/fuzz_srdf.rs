@@ -2,7 +2,12 @@
 //! bytes or mutation of a valid SRDF is read as `Ok` or `Err`, never a panic; an `Ok` SRDF's
 //! numbers are finite and within `urdf::MAX_JOINT_POSITION`; its disabled pairs are exactly the
 //! self-collision pairs the collision world leaves out; and a robot whose locked joints take
-//! their values from its group state is built and usable ([`fuzz::check_robot`]).
+//! their values from its group state is built and usable ([`fuzz::check_robot`]) when the
+//! values lie within the joints' limits, refused otherwise. A robot
+//! description read with the SRDF ([`RobotDescription::read`]) is refused with an error of the
+//! files (never a panic or an I/O error), or is what its files say ([`check_description`]): its
+//! disabled pairs and reference state name what the URDF has, its locked and default values lie
+//! within the joints' limits.
 
 #[path = "common/fuzz.rs"]
 mod fuzz;
@@ -13,7 +18,9 @@ use std::sync::Arc;
 use fuzz::{check_robot, config, El, Gaps};
 use genplan_core::collision::CollisionWorld;
 use genplan_core::kinematics::{KinematicModel, ModelOptions};
-use genplan_core::robot::{LockedJoints, RobotDescription};
+use genplan_core::kinematics::Motion;
+use genplan_core::robot::{LockedJoints, RobotDescription, FREE_FLYER};
+use genplan_core::Error;
 use genplan_core::srdf::Srdf;
 use genplan_core::urdf::{Urdf, MAX_JOINT_POSITION};
 use proptest::prelude::*;
@@ -33,14 +40,16 @@ const SHAPES: &str = r#"<robot name="shapes">
     <axis xyz="0 1 0"/></joint>
 </robot>"#;
 
-/// Its SRDF: a group state (the reference of the locked joint j2) and disabled pairs.
+/// Its SRDF: a group state (the reference of the locked joint j2), another state, disabled
+/// pairs.
 const SEED: &str = r#"<robot name="shapes">
   <group name="arm"><joint name="j1"/><joint name="j2"/></group>
   <group_state name="default" group="arm"><joint name="j1" value="0.1"/><joint name="j2" value="0.2"/>
     <joint name="j3" value="0"/></group_state>
+  <group_state name="other" group="arm"><joint name="j1" value="-0.1"/></group_state>
   <disable_collisions link1="base" link2="l1" reason="Adjacent"/>
   <disable_collisions link1="l2" link2="tool" reason="Adjacent"/>
-  <disable_collisions link1="tool" link2="not_a_link" reason="Never"/>
+  <disable_collisions link1="l1" link2="tool" reason="Never"/>
 </robot>"#;
 
 /// The robot of `SHAPES` with j2 locked at the SRDF's reference value (as a preset does).
@@ -54,6 +63,7 @@ fn spec() -> RobotDescription {
         floating_base: false,
         locked_joints: LockedJoints::FromReference(vec!["j2".into()]),
         reference_state: Some("default".into()),
+        merge_computed_pairs: false,
         frames: Vec::new(),
         source: None,
     }
@@ -93,9 +103,66 @@ fn check_text(text: &str) -> Result<(), TestCaseError> {
         .unwrap_or_else(|_| RobotDescription { reference_state: None, ..spec() }.locked_values(None).unwrap());
     let options = ModelOptions { locked_joints: locked.clone(), ..Default::default() };
     let model = KinematicModel::from_urdf(&urdf, &options);
-    prop_assert!(model.is_ok(), "the locked values {:?} of an accepted SRDF were refused: {:?}", locked, model.err());
-    check_robot(&urdf, model.unwrap(), &[0.3, 1.0, 0.0], Gaps::default())?;
+    // j2's limits are [-0.5, 0.5]: a value outside them is refused, any other accepted
+    let within = locked.values().all(|v| (-0.5..=0.5).contains(v));
+    prop_assert_eq!(model.is_ok(), within, "the locked values {:?}: {:?}", locked, model.as_ref().err());
+    if let Ok(model) = model {
+        check_robot(&urdf, model, &[0.3, 1.0, 0.0], Gaps::default())?;
+    }
+    check_description(text)?;
     Ok(())
+}
+
+/// [`spec`] (j2 locked at the reference state's value) and the same without locks, with
+/// `srdf_text` as its SRDF file, read and checked: an error of the files, or a robot whose
+/// names and values are the files' (see the module's documentation).
+fn check_description(srdf_text: &str) -> Result<(), TestCaseError> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static CASE: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!("genplan-fuzz-srdf-{}-{}", std::process::id(), CASE.fetch_add(1, Ordering::Relaxed)));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("shapes.urdf"), SHAPES).unwrap();
+    std::fs::write(dir.join("shapes.srdf"), srdf_text).unwrap();
+    let urdf = Urdf::parse(SHAPES).unwrap();
+    let base = RobotDescription { urdf: dir.join("shapes.urdf"), collision_urdf: dir.join("shapes.urdf"), srdf: Some(dir.join("shapes.srdf")), ..spec() };
+    let unlocked = RobotDescription { locked_joints: LockedJoints::FromReference(Vec::new()), ..base.clone() };
+    let mut outcome = Ok(());
+    for d in [base, unlocked] {
+        let files = match d.read() {
+            Ok(f) => f,
+            Err(e @ Error::Io { .. }) => {
+                outcome = Err(TestCaseError::fail(format!("an I/O error for files that exist: {e}")));
+                break;
+            }
+            Err(_) => continue,
+        };
+        let srdf = files.srdf.as_ref().unwrap();
+        let links: HashSet<&str> = urdf.links.iter().map(|l| l.name.as_str()).collect();
+        let joints: HashSet<&str> = urdf.joints.iter().map(|j| j.name.as_str()).collect();
+        for (a, b) in &srdf.disabled_pairs {
+            prop_assert!(links.contains(a.as_str()) && links.contains(b.as_str()), "a disabled pair of unknown links ({}, {}) was accepted", a, b);
+        }
+        let state = srdf.group_states.get("default");
+        prop_assert!(state.is_some(), "a reference state the SRDF lacks was accepted");
+        for j in state.unwrap().keys() {
+            prop_assert!(joints.contains(j.as_str()) || j == FREE_FLYER, "the reference state's unknown joint '{}' was accepted", j);
+        }
+        let m = &files.model;
+        prop_assert_eq!(files.q_default.len(), m.nq);
+        for j in m.joints.iter().filter(|j| j.q_index != usize::MAX && matches!(j.motion, Motion::Revolute { .. } | Motion::Prismatic { .. })) {
+            let x = files.q_default[j.q_index];
+            prop_assert!(m.lower[j.q_index] <= x && x <= m.upper[j.q_index], "joint '{}' at {} by default, outside its limits", j.name, x);
+        }
+        for (name, value) in &m.locked {
+            let uj = urdf.joints.iter().find(|j| &j.name == name).unwrap();
+            if matches!(uj.joint_type, genplan_core::urdf::JointType::Revolute | genplan_core::urdf::JointType::Prismatic) {
+                prop_assert!(uj.lower <= *value && *value <= uj.upper, "joint '{}' locked at {}, outside its limits", name, value);
+            }
+        }
+        check_robot(&urdf, (**m).clone(), &files.q_default, Gaps::default())?;
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    outcome
 }
 
 proptest! {
@@ -141,6 +208,16 @@ fn the_seed_srdf_is_usable() {
     let srdf = Srdf::parse(SEED).unwrap();
     assert_eq!(srdf.disabled_pairs.len(), 3);
     assert_eq!(spec().locked_values(Some(&srdf)).unwrap()["j2"], 0.2);
+    // read with its URDF, as a robot file would be: accepted
+    let dir = std::env::temp_dir().join(format!("genplan-fuzz-srdf-seed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("shapes.urdf"), SHAPES).unwrap();
+    std::fs::write(dir.join("shapes.srdf"), SEED).unwrap();
+    let d = RobotDescription { urdf: dir.join("shapes.urdf"), collision_urdf: dir.join("shapes.urdf"), srdf: Some(dir.join("shapes.srdf")), ..spec() };
+    let files = d.read().unwrap();
+    assert_eq!(files.model.locked, vec![("j2".to_string(), 0.2)]);
+    assert_eq!(files.q_default, vec![0.1, 1.0, 0.0]);
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// SRDF-1 (fixed): a group state value that is not finite (`NaN`, `inf`, or `1e999`, which
@@ -187,8 +264,8 @@ fn srdf_1_a_joint_locked_at_nan_is_refused() {
         let e = KinematicModel::from_urdf(&urdf, &options).unwrap_err().to_string();
         assert_eq!(e, problem);
     }
-    // at the bound: accepted and usable
-    let options = ModelOptions { locked_joints: [("j1".to_string(), -1e16)].into(), ..Default::default() };
+    // at the bound (a continuous joint: any angle): accepted and usable
+    let options = ModelOptions { locked_joints: [("j3".to_string(), -1e16)].into(), ..Default::default() };
     let model = KinematicModel::from_urdf(&urdf, &options).unwrap();
     check_robot(&urdf, model, &[0.0], Gaps::default()).unwrap();
 }

@@ -172,3 +172,131 @@ fn a_prefix_of_the_joints_places_the_links_asked_for() {
         }
     }
 }
+
+/// j2 follows j1 (q_j2 = -2 q_j1 + 0.1); j3 moves on its own; j4 (prismatic) follows j3.
+const MIMIC: &str = r#"<robot name="mimic">
+  <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/>
+  <link name="l4"><inertial><origin xyz="0.1 0.02 0"/><mass value="2"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3"/><mimic joint="j1" multiplier="-2" offset="0.1"/></joint>
+  <joint name="j3" type="prismatic"><parent link="l2"/><child link="l3"/><origin xyz="0.3 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.2"/></joint>
+  <joint name="j4" type="prismatic"><parent link="l3"/><child link="l4"/><axis xyz="0 0 1"/>
+    <limit lower="0" upper="0.5"/><mimic joint="j3" multiplier="3"/></joint>
+</robot>"#;
+
+fn mimic_model(locked: &[(&str, f64)]) -> genplan_core::Result<KinematicModel> {
+    let locked = locked.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+    KinematicModel::from_urdf(&Urdf::parse(MIMIC).unwrap(), &ModelOptions { locked_joints: locked, ..Default::default() })
+}
+
+/// URDF `<mimic>`: the joint is no coordinate of its own and follows its master, in the poses,
+/// the Jacobians (against finite differences) and the centre of mass; integrate and difference
+/// move the masters only; locking a master locks its mimics; what cannot be followed is refused.
+#[test]
+fn integrity_5_mimic_joints_follow_their_master() {
+    let m = mimic_model(&[]).unwrap();
+    assert_eq!((m.nq, m.nv), (2, 2));
+    assert_eq!(m.active_joints, vec!["j1", "j3"]);
+    for &(a, d) in &[(0.0, 0.0), (0.7, 0.1), (-1.0, 0.2)] {
+        let l2 = pose(&m, &[a, d], "l2");
+        let r = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), a)
+            * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -2.0 * a + 0.1);
+        assert!(l2.rotation.angle_to(&r) < 1e-14, "{a}");
+        let l4 = pose(&m, &[a, d], "l4");
+        let expected = l2.translation.vector + r * Vector3::new(0.3 + d, 0.0, 3.0 * d);
+        assert!((l4.translation.vector - expected).norm() < 1e-14, "{a} {d}");
+    }
+    // Jacobians: finite differences of the poses along each coordinate
+    let q = [0.4, 0.05];
+    let mut poses = Vec::new();
+    m.forward_kinematics(&q, &mut poses).unwrap();
+    let l4 = m.link_index("l4").unwrap();
+    let mut jac = nalgebra::DMatrix::zeros(6, 2);
+    m.frame_jacobian_local(&poses, l4, &mut jac);
+    let mut jcom = nalgebra::DMatrix::zeros(3, 2);
+    let com = m.center_of_mass(&poses, Some(&mut jcom));
+    let h = 1e-7;
+    for k in 0..2 {
+        let mut dq = [0.0; 2];
+        dq[k] = h;
+        let mut qh = [0.0; 2];
+        m.integrate(&q, &dq, &mut qh);
+        let mut ph = Vec::new();
+        m.forward_kinematics(&qh, &mut ph).unwrap();
+        let lin = poses[l4].rotation.inverse() * (ph[l4].translation.vector - poses[l4].translation.vector) / h;
+        let ang = (poses[l4].rotation.inverse() * ph[l4].rotation).scaled_axis() / h;
+        for i in 0..3 {
+            assert!((jac[(i, k)] - lin[i]).abs() < 1e-6, "linear {i} {k}: {} vs {}", jac[(i, k)], lin[i]);
+            assert!((jac[(i + 3, k)] - ang[i]).abs() < 1e-6, "angular {i} {k}");
+        }
+        let dcom = (m.center_of_mass(&ph, None) - com) / h;
+        for i in 0..3 {
+            assert!((jcom[(i, k)] - dcom[i]).abs() < 1e-6, "com {i} {k}");
+        }
+    }
+    let (mut back, mut v) = ([0.0; 2], [0.0; 2]);
+    m.difference(&q, &[0.5, 0.1], &mut v);
+    m.integrate(&q, &v, &mut back);
+    assert!((back[0] - 0.5).abs() < 1e-15 && (back[1] - 0.1).abs() < 1e-15, "{back:?}");
+
+    // a locked master locks its mimics at the values they follow
+    let locked = mimic_model(&[("j1", 0.5)]).unwrap();
+    assert_eq!(locked.active_joints, vec!["j3"]);
+    assert_eq!(locked.locked, vec![("j1".to_string(), 0.5), ("j2".to_string(), -0.9)]);
+    let a = pose(&locked, &[0.1], "l4");
+    let b = pose(&m, &[0.5, 0.1], "l4");
+    assert!((a.translation.vector - b.translation.vector).norm() < 1e-14);
+    assert!(mimic_model(&[("j1", 0.5), ("j2", -0.9)]).is_ok());
+    for (lock, problem) in [
+        (vec![("j2", 0.3)], "locked joint 'j2' mimics 'j1', which is not locked: lock 'j1'"),
+        (vec![("j1", 0.5), ("j2", 0.3)], "locked joint 'j2' at 0.3, but it follows 'j1' (0.5 * -2 + 0.1 = -0.9)"),
+        (vec![("j1", 1.5)], "locked joint 'j1' at 1.5 is outside its limits [-1, 1]"),
+    ] {
+        let e = mimic_model(&lock).unwrap_err().to_string();
+        assert!(e.contains(problem), "{lock:?}: {e}");
+    }
+    // mimics genplan (and Pinocchio) cannot follow
+    for (mimic, problem) in [
+        (r#"<mimic joint="j3"/>"#, "joint 'j2' mimics 'j3', which comes after it in the tree"),
+        (r#"<mimic joint="j2"/>"#, "joint 'j2' mimics itself"),
+        (r#"<mimic joint="zz"/>"#, "joint 'j2' mimics 'zz', which is not a joint of the URDF (known: j1, j2, j3, j4)"),
+    ] {
+        let text = MIMIC.replace(r#"<mimic joint="j1" multiplier="-2" offset="0.1"/>"#, mimic);
+        let e = KinematicModel::from_urdf(&Urdf::parse(&text).unwrap(), &ModelOptions::default()).unwrap_err().to_string();
+        assert!(e.contains(problem), "{mimic}: {e}");
+    }
+    // locked, a mimic genplan cannot follow is held like any locked joint, within its limits
+    let unknown = Urdf::parse(&MIMIC.replace(r#"<mimic joint="j1" multiplier="-2" offset="0.1"/>"#, r#"<mimic joint="zz"/>"#)).unwrap();
+    let hold = |v: f64| ModelOptions { locked_joints: HashMap::from([("j2".to_string(), v)]), ..Default::default() };
+    let held = KinematicModel::from_urdf(&unknown, &hold(0.3)).unwrap();
+    assert_eq!((held.active_joints.clone(), held.locked.clone()), (vec!["j1".to_string(), "j3".to_string()], vec![("j2".to_string(), 0.3)]));
+    let e = KinematicModel::from_urdf(&unknown, &hold(5.0)).unwrap_err().to_string();
+    assert_eq!(e, "locked joint 'j2' at 5 is outside its limits [-3, 3]");
+    let chain = MIMIC.replace(r#"<mimic joint="j3" multiplier="3"/>"#, r#"<mimic joint="j2"/>"#);
+    let e = KinematicModel::from_urdf(&Urdf::parse(&chain).unwrap(), &ModelOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("joint 'j4' mimics 'j2', which mimics 'j1' in turn"), "{e}");
+    let continuous = MIMIC.replace(r#"<joint name="j2" type="revolute">"#, r#"<joint name="j2" type="continuous">"#);
+    let e = KinematicModel::from_urdf(&Urdf::parse(&continuous).unwrap(), &ModelOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("joint 'j2' mimics 'j1' but is continuous"), "{e}");
+    let e = Urdf::parse(&MIMIC.replace(r#"multiplier="-2""#, r#"multiplier="1e7""#)).unwrap_err().to_string();
+    assert!(e.contains("joint 'j2': <mimic multiplier>: 1e7 is too large"), "{e}");
+    // a fixed joint's <mimic> (Talos' grippers) means nothing
+    let fixed = MIMIC.replace(r#"<joint name="j2" type="revolute">"#, r#"<joint name="j2" type="fixed">"#);
+    assert_eq!(KinematicModel::from_urdf(&Urdf::parse(&fixed).unwrap(), &ModelOptions::default()).unwrap().nq, 2);
+}
+
+/// A locked joint outside its limits was accepted (a joint at 100 rad with limits +-2); now
+/// refused, naming the joint, the value and the limits. At a limit it is accepted.
+#[test]
+fn integrity_5_a_locked_joint_outside_its_limits_is_refused() {
+    let urdf = Urdf::parse(PLANAR).unwrap();
+    let lock = |j: &str, v: f64| ModelOptions { locked_joints: HashMap::from([(j.to_string(), v)]), ..Default::default() };
+    let e = KinematicModel::from_urdf(&urdf, &lock("j2", 100.0)).unwrap_err().to_string();
+    assert_eq!(e, "locked joint 'j2' at 100 is outside its limits [-2, 2]");
+    assert!(KinematicModel::from_urdf(&urdf, &lock("j2", -2.0)).is_ok());
+    let e = KinematicModel::from_urdf(&urdf, &lock("tool_joint", 0.0)).unwrap_err().to_string();
+    assert_eq!(e, "locked joint 'tool_joint' is a fixed joint: it does not move");
+}

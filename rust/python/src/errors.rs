@@ -19,6 +19,8 @@ pub(crate) enum Kind {
     RobotFile,
     InvalidStart,
     InvalidGoal,
+    InvalidTrajectory,
+    LimitExceeded,
     Callback,
 }
 
@@ -33,6 +35,8 @@ impl Kind {
             Kind::RobotFile => "RobotFileError",
             Kind::InvalidStart => "InvalidStartError",
             Kind::InvalidGoal => "InvalidGoalError",
+            Kind::InvalidTrajectory => "InvalidTrajectoryError",
+            Kind::LimitExceeded => "LimitExceededError",
             Kind::Callback => "CallbackError",
         }
     }

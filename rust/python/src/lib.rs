@@ -208,6 +208,21 @@ impl PyKinematicModel {
     fn active_joints(&self) -> Vec<String> {
         self.inner.active_joints.clone()
     }
+    /// The locked joints and their values, sorted by name (the mimics of locked joints
+    /// included, at the values they follow).
+    #[getter]
+    fn locked(&self) -> Vec<(String, f64)> {
+        self.inner.locked.clone()
+    }
+    /// The mimic joints that follow an active joint: (joint, master, multiplier, offset).
+    #[getter]
+    fn mimic_joints(&self) -> Vec<(String, String, f64, f64)> {
+        let m = &self.inner;
+        m.joints
+            .iter()
+            .filter_map(|j| j.mimic.map(|f| (j.name.clone(), m.joints[f.joint].name.clone(), f.multiplier, f.offset)))
+            .collect()
+    }
     #[getter]
     fn lower<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
         self.inner.lower.clone().into_pyarray(py)
@@ -470,6 +485,15 @@ impl PyCollisionWorld {
         let options = allowed::Options { samples, always_fraction, seed };
         let pairs = py.detach(|| allowed::disabled_pairs(&self.inner, &q_default, &options)).map_err(to_py)?;
         Ok(pairs.into_iter().map(|p| (p.a, p.b, p.reason.as_str())).collect())
+    }
+
+    /// The self pairs this world checks that are in contact at `q_default`, each with the number
+    /// of `samples` random configurations (seeded) in which it is in contact too:
+    /// (link_a, link_b, hits) (`genplan_core::collision::allowed::default_contacts`).
+    #[pyo3(signature = (q_default, samples=1000, seed=0))]
+    fn default_contacts(&self, py: Python<'_>, q_default: Vec<f64>, samples: usize, seed: u64) -> PyResult<Vec<(String, String, usize)>> {
+        let found = py.detach(|| allowed::default_contacts(&self.inner, &q_default, samples, seed)).map_err(to_py)?;
+        Ok(found.into_iter().map(|c| (c.a, c.b, c.hits)).collect())
     }
 
     #[getter]
@@ -1044,6 +1068,11 @@ fn description_to_py<'py>(py: Python<'py>, r: &RobotDescription) -> PyResult<Bou
         LockedJoints::Values(v) => d.set_item("locked_joints", v.iter().cloned().collect::<std::collections::BTreeMap<_, _>>())?,
     }
     d.set_item("reference_state", &r.reference_state)?;
+    if r.merge_computed_pairs {
+        // only when asked for: a description without it is the one it was before the key existed
+        // (data sets and caches identify a robot by its description)
+        d.set_item("merge_computed_pairs", true)?;
+    }
     let frames = PyDict::new(py);
     for (role, link) in &r.frames {
         frames.set_item(role, link)?;
@@ -1094,6 +1123,25 @@ fn robot_description<'py>(
     let table = toml_table(fields, "")?;
     let r = RobotDescription::from_table(&table, base_dir.as_deref(), &package_dirs, origin, default_name).map_err(to_py)?;
     description_to_py(py, &r)
+}
+
+/// What [`read_robot`] gives: (model, default configuration, locked values, warnings).
+type RobotRead<'py> = (PyKinematicModel, Bound<'py, numpy::PyArray1<f64>>, Bound<'py, PyDict>, Vec<String>);
+
+/// Read a robot description's files and check it against them
+/// (`genplan_core::robot::RobotDescription::read`), before Pinocchio reads them: the kinematic
+/// model (active joints in Pinocchio's order), the default configuration (nq), the locked
+/// values (the mimics of locked joints included) and the warnings (messages). Every error
+/// names the file and the name or value at fault.
+#[pyfunction]
+fn read_robot<'py>(py: Python<'py>, description: &Bound<'py, PyDict>) -> PyResult<RobotRead<'py>> {
+    let r = description_from_py(description)?;
+    let files = py.detach(|| r.read()).map_err(to_py)?;
+    let locked = PyDict::new(py);
+    for (name, value) in &files.model.locked {
+        locked.set_item(name, value)?;
+    }
+    Ok((PyKinematicModel { inner: files.model }, files.q_default.into_pyarray(py), locked, files.warnings))
 }
 
 /// The `<disable_collisions>` link pairs of an SRDF file.
@@ -1204,6 +1252,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySolverSettings>()?;
     m.add_function(wrap_pyfunction!(read_robot_file, m)?)?;
     m.add_function(wrap_pyfunction!(robot_description, m)?)?;
+    m.add_function(wrap_pyfunction!(read_robot, m)?)?;
     m.add_function(wrap_pyfunction!(load_robot, m)?)?;
     m.add_function(wrap_pyfunction!(srdf_disabled_pairs, m)?)?;
     m.add_function(wrap_pyfunction!(time_optimal, m)?)?;

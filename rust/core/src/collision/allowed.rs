@@ -10,6 +10,10 @@
 //! configurations are the planner's [`UniformSampler`]'s (within the joint limits, continuous
 //! joints any angle, a free-flyer base at its default placement), seeded: the result is
 //! reproducible.
+//!
+//! [`default_contacts`] is the check of a robot's own pair selection (its SRDF's): the checked
+//! pairs in contact at the default configuration, and how often each is in contact over random
+//! configurations (a pair always in contact makes every configuration invalid).
 
 use std::collections::BTreeMap;
 
@@ -99,11 +103,7 @@ pub fn disabled_pairs(world: &CollisionWorld, q_default: &[f64], options: &Optio
     }
     // Link pairs with geometry on different bodies (every self-collision pair, no SRDF), and
     // the geometry pairs of each.
-    let mut pairs: BTreeMap<(usize, usize), Vec<(usize, usize)>> = BTreeMap::new();
-    for (i, j) in self_pairs(model, &world.geometries, None) {
-        let (a, b) = (world.geometries[i].link, world.geometries[j].link);
-        pairs.entry((a.min(b), a.max(b))).or_default().push((i, j));
-    }
+    let pairs = by_link_pair(world, self_pairs(model, &world.geometries, None));
     let mut reason: BTreeMap<(usize, usize), Reason> = BTreeMap::new();
 
     // 1. adjacent: each link with geometry and its nearest ancestor with geometry.
@@ -124,58 +124,17 @@ pub fn disabled_pairs(world: &CollisionWorld, q_default: &[f64], options: &Optio
     }
 
     let keys: Vec<(usize, usize)> = pairs.keys().copied().filter(|k| !reason.contains_key(k)).collect();
-    let colliding = |q: &[f64], poses: &mut Vec<Isometry3<f64>>| -> Vec<bool> {
-        model.forward_kinematics_unchecked(q, poses);
-        keys.iter()
-            .map(|k| {
-                pairs[k].iter().any(|&(i, j)| {
-                    let (gi, gj) = (&world.geometries[i], &world.geometries[j]);
-                    let pi = poses[gi.link] * gi.offset;
-                    let pj = poses[gj.link] * gj.offset;
-                    query::intersection_test(&pi, gi.shape.as_ref(), &pj, gj.shape.as_ref()).unwrap_or(true)
-                })
-            })
-            .collect()
-    };
 
     // 2. default
     let mut poses = Vec::new();
-    for (k, hit) in keys.iter().zip(colliding(q_default, &mut poses)) {
+    for (k, hit) in keys.iter().zip(colliding(world, &pairs, &keys, q_default, &mut poses)) {
         if hit {
             reason.insert(*k, Reason::Default);
         }
     }
 
-    // 3-4. over random configurations, in parallel chunks with per-chunk seeds (reproducible
-    // whatever the number of threads).
-    // The configurations: the planner's uniform sampler (a free-flyer base held at its default
-    // placement), seeded per chunk.
-    let base = model.floating_base.then(|| {
-        let mut b = [0.0; 7];
-        b.copy_from_slice(&q_default[..7]);
-        b
-    });
-    UniformSampler::new(world.model.clone(), base, 0).map_err(|e| Error::Invalid(format!("disabled pairs: {e}")))?;
-    let chunk = 256usize;
-    let n_chunks = options.samples.div_ceil(chunk);
-    let counts: Vec<u32> = (0..n_chunks)
-        .into_par_iter()
-        .map(|c| {
-            let seed = options.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(c as u64);
-            let mut sampler = UniformSampler::new(world.model.clone(), base, seed).expect("checked above");
-            let n = chunk.min(options.samples - c * chunk);
-            let mut qs = vec![0.0; n * model.nq];
-            sampler.sample(n, &mut qs).expect("sized for n rows");
-            let mut poses = Vec::new();
-            let mut counts = vec![0u32; keys.len()];
-            for q in qs.chunks(model.nq.max(1)).take(n) {
-                for (c, hit) in counts.iter_mut().zip(colliding(q, &mut poses)) {
-                    *c += hit as u32;
-                }
-            }
-            counts
-        })
-        .reduce(|| vec![0u32; keys.len()], |a, b| a.iter().zip(&b).map(|(x, y)| x + y).collect());
+    // 3-4. over random configurations
+    let counts = sample_counts(world, &pairs, &keys, q_default, options.samples, options.seed)?;
     for (k, &c) in keys.iter().zip(&counts) {
         if reason.contains_key(k) {
             continue;
@@ -196,6 +155,123 @@ pub fn disabled_pairs(world: &CollisionWorld, q_default: &[f64], options: &Optio
         })
         .collect();
     out.sort_by(|x, y| (x.reason, &x.a, &x.b).cmp(&(y.reason, &y.a, &y.b)));
+    Ok(out)
+}
+
+/// Geometry pairs grouped by their (sorted) link pair.
+fn by_link_pair(world: &CollisionWorld, geometry_pairs: impl IntoIterator<Item = (usize, usize)>) -> BTreeMap<(usize, usize), Vec<(usize, usize)>> {
+    let mut pairs: BTreeMap<(usize, usize), Vec<(usize, usize)>> = BTreeMap::new();
+    for (i, j) in geometry_pairs {
+        let (a, b) = (world.geometries[i].link, world.geometries[j].link);
+        pairs.entry((a.min(b), a.max(b))).or_default().push((i, j));
+    }
+    pairs
+}
+
+/// For each link pair of `keys`, whether any of its geometry pairs (`pairs[key]`) is in contact
+/// at `q` (`poses` is scratch).
+fn colliding(
+    world: &CollisionWorld,
+    pairs: &BTreeMap<(usize, usize), Vec<(usize, usize)>>,
+    keys: &[(usize, usize)],
+    q: &[f64],
+    poses: &mut Vec<Isometry3<f64>>,
+) -> Vec<bool> {
+    world.model.forward_kinematics_unchecked(q, poses);
+    keys.iter()
+        .map(|k| {
+            pairs[k].iter().any(|&(i, j)| {
+                let (gi, gj) = (&world.geometries[i], &world.geometries[j]);
+                let pi = poses[gi.link] * gi.offset;
+                let pj = poses[gj.link] * gj.offset;
+                query::intersection_test(&pi, gi.shape.as_ref(), &pj, gj.shape.as_ref()).unwrap_or(true)
+            })
+        })
+        .collect()
+}
+
+/// In how many of `samples` random configurations (the planner's uniform sampler, a free-flyer
+/// base held at `q_default`'s placement) each link pair of `keys` is in contact: parallel
+/// chunks with per-chunk seeds, reproducible whatever the number of threads.
+fn sample_counts(
+    world: &CollisionWorld,
+    pairs: &BTreeMap<(usize, usize), Vec<(usize, usize)>>,
+    keys: &[(usize, usize)],
+    q_default: &[f64],
+    samples: usize,
+    seed: u64,
+) -> Result<Vec<u32>> {
+    let model = &*world.model;
+    let base = model.floating_base.then(|| {
+        let mut b = [0.0; 7];
+        b.copy_from_slice(&q_default[..7]);
+        b
+    });
+    UniformSampler::new(world.model.clone(), base, 0).map_err(|e| Error::Invalid(format!("disabled pairs: {e}")))?;
+    let chunk = 256usize;
+    let n_chunks = samples.div_ceil(chunk);
+    Ok((0..n_chunks)
+        .into_par_iter()
+        .map(|c| {
+            let seed = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(c as u64);
+            let mut sampler = UniformSampler::new(world.model.clone(), base, seed).expect("checked above");
+            let n = chunk.min(samples - c * chunk);
+            let mut qs = vec![0.0; n * model.nq];
+            sampler.sample(n, &mut qs).expect("sized for n rows");
+            let mut poses = Vec::new();
+            let mut counts = vec![0u32; keys.len()];
+            for q in qs.chunks(model.nq.max(1)).take(n) {
+                for (c, hit) in counts.iter_mut().zip(colliding(world, pairs, keys, q, &mut poses)) {
+                    *c += hit as u32;
+                }
+            }
+            counts
+        })
+        .reduce(|| vec![0u32; keys.len()], |a, b| a.iter().zip(&b).map(|(x, y)| x + y).collect()))
+}
+
+/// A checked self pair in contact at the default configuration ([`default_contacts`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Contact {
+    /// First link (the smaller name).
+    pub a: String,
+    /// Second link.
+    pub b: String,
+    /// In how many of the random configurations it is in contact as well.
+    pub hits: usize,
+}
+
+/// The link pairs `world` checks (its own selection, e.g. all but the SRDF's disabled pairs)
+/// that are in contact at `q_default`, sorted by (a, b), each with the number of `samples`
+/// random configurations (as [`disabled_pairs`] draws them, seeded) in which it is in contact
+/// too. Only those pairs are sampled: a robot whose default configuration is free of
+/// self-collision costs one check. `samples` in 0..=10,000,000.
+pub fn default_contacts(world: &CollisionWorld, q_default: &[f64], samples: usize, seed: u64) -> Result<Vec<Contact>> {
+    let model = &*world.model;
+    model.check_configuration(q_default)?;
+    if samples > 10_000_000 {
+        return Err(Error::Invalid(format!("default contacts: samples must be in 0..=10000000, got {samples}")));
+    }
+    let pairs = by_link_pair(world, world.self_pairs().iter().copied());
+    let all: Vec<(usize, usize)> = pairs.keys().copied().collect();
+    let mut poses = Vec::new();
+    let keys: Vec<(usize, usize)> =
+        all.iter().zip(colliding(world, &pairs, &all, q_default, &mut poses)).filter(|(_, hit)| *hit).map(|(k, _)| *k).collect();
+    let counts = if keys.is_empty() || samples == 0 {
+        vec![0; keys.len()]
+    } else {
+        sample_counts(world, &pairs, &keys, q_default, samples, seed)?
+    };
+    let mut out: Vec<Contact> = keys
+        .iter()
+        .zip(&counts)
+        .map(|(&(a, b), &hits)| {
+            let (na, nb) = (&model.link_names[a], &model.link_names[b]);
+            let (a, b) = if na <= nb { (na, nb) } else { (nb, na) };
+            Contact { a: a.clone(), b: b.clone(), hits: hits as usize }
+        })
+        .collect();
+    out.sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
     Ok(out)
 }
 

@@ -25,8 +25,10 @@ use crate::kinematics::{KinematicModel, Motion};
 /// One active joint above a geometry.
 #[derive(Debug, Clone)]
 struct Term {
-    /// Its tangent index.
+    /// Its tangent index (a mimic joint's: its master's).
     v: usize,
+    /// |dq_v| times this is the joint's own motion (a mimic joint's |multiplier|, else 1).
+    scale: f64,
     /// Lever arm bound without the configuration (1 for a prismatic joint).
     rho: f64,
     /// Its joint (index into the model's joints) and axis in the joint frame; None: prismatic.
@@ -101,11 +103,13 @@ impl MotionBounds {
             let mut mine = Vec::new();
             for &k in &chain {
                 let j = &m.joints[k];
+                let (v, scale) = j.velocity_column().map_or((0, 0.0), |(v, s)| (v, s.abs()));
                 match j.motion {
-                    Motion::Revolute { axis } | Motion::Continuous { axis } => mine.push(Term { v: j.v_index, rho, joint: k, axis: Some(axis) }),
+                    Motion::Revolute { axis } | Motion::Continuous { axis } => mine.push(Term { v, scale, rho, joint: k, axis: Some(axis) }),
                     Motion::Prismatic { .. } => {
-                        mine.push(Term { v: j.v_index, rho: 1.0, joint: k, axis: None });
-                        let travel = m.lower[j.q_index].abs().max(m.upper[j.q_index].abs());
+                        mine.push(Term { v, scale, rho: 1.0, joint: k, axis: None });
+                        let (q, _, mul, off) = j.driver().unwrap_or((j.q_index, v, 1.0, 0.0));
+                        let travel = mul.abs() * m.lower[q].abs().max(m.upper[q].abs()) + off.abs();
                         if !travel.is_finite() {
                             return None;
                         }
@@ -176,12 +180,12 @@ impl MotionBounds {
             // static contributions |dq_j| rho_j, and below[j]: their sum over the joints below j
             let contrib = &mut out.contrib[g];
             contrib.clear();
-            contrib.extend(terms.iter().map(|t| dq[t.v].abs() * t.rho));
+            contrib.extend(terms.iter().map(|t| dq[t.v].abs() * t.scale * t.rho));
             let mut below = contrib.iter().sum::<f64>();
             let all = below;
             for (k, t) in terms.iter().enumerate() {
                 below -= contrib[k];
-                let speed = dq[t.v].abs();
+                let speed = dq[t.v].abs() * t.scale;
                 if let Some(l) = levers.as_deref_mut() {
                     let arm = &mut l.arm[g][k];
                     // the average lever over [0, f]: the arm now plus half of its growth
@@ -276,16 +280,21 @@ mod tests {
             .collect()
     }
 
-    /// Along straight motions of the Panda and of Talos (free-flyer base), no point of a
-    /// geometry's bounding sphere moves farther over [0, t] than its bound over that fraction,
+    /// Along straight motions of the Panda, of Talos (free-flyer base) and of the Panda with its
+    /// fingers free (one mimicking the other), no point of a geometry's bounding sphere moves
+    /// farther over [0, t] than its bound over that fraction,
     /// and no pair's points change their distance by more than the pair's bound: with the
     /// configuration-free lever arms and with those at the motion's start; and over a run of
     /// two motions, with the arms at the run's start. The arms at the start are tighter.
     #[test]
     fn the_bounds_hold_along_motions() {
         let mut rng = StdRng::seed_from_u64(7);
-        for name in ["panda", "talos"] {
-            let (model, world) = preset(name).unwrap().load().unwrap();
+        let fingers = crate::robot::RobotDescription {
+            locked_joints: crate::robot::LockedJoints::FromReference(Vec::new()),
+            ..preset("panda").unwrap()
+        };
+        for (name, robot) in [("panda", preset("panda").unwrap()), ("talos", preset("talos").unwrap()), ("panda, mimic fingers", fingers)] {
+            let (model, world) = robot.load().unwrap();
             let bounds = MotionBounds::new(&world).unwrap();
             let mut s = Scratch::default();
             let (mut tight, mut gain): (f64, f64) = (0.0, 0.0);
