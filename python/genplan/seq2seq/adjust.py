@@ -57,6 +57,8 @@ METHODS: tuple[str, ...] = ("latent", "random-latent", "direct")
 #: names a method had before (still accepted)
 ALIASES = {"direct-u": "direct"}
 STEPS: tuple[str, ...] = ("gd", "adaptive", "adam")
+#: where the adjustment starts: see :func:`adjust`'s ``anchor``
+ANCHORS: tuple[str, ...] = ("auto", "input", "none")
 #: the adaptive rule's initial trust radius (RMS of a step): latent units; for "direct", in units
 #: of the model's ``out_scale`` (its root mean square)
 ADAPTIVE_RADIUS = {"latent": 0.02, "random-latent": 0.02, "direct": 0.02}
@@ -190,7 +192,7 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
            method: str = "latent", updates: int = 100, lr: float | None = None, step: str = "adaptive",
            seed: int = 0, snapshots: Sequence[int] = (), progress: bool = False, max_step: float | None = None,
            robot: Any = None, task: Any = None, scene: Any = None, allow_python: bool = False,
-           threads: int | None = None, device: str | torch.device = "cpu") -> AdjustResult:
+           anchor: str = "auto", threads: int | None = None, device: str | torch.device = "cpu") -> AdjustResult:
     """Adjust the model's decoding of ``x_in`` to minimise ``objective``.
 
     ``model``: a :class:`~genplan.seq2seq.model.Seq2SeqModel` (or a model file's path).
@@ -206,8 +208,14 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
     With "adaptive" the history, the snapshots and the result are those of the kept (best)
     iterate. ``robot``, ``task``, ``scene``: what the objective's robot terms need (default: the
     robot and task the model's card names; a scene is a :class:`~genplan.scene.Scene`, a shipped
-    scene's name or a scene file). ``threads``: torch threads (default one, see genplan._threads);
-    ``device``: the torch device (CPU by default).
+    scene's name or a scene file). ``anchor``: ``"input"`` decodes the change of z from the
+    input's own encoding and adds it to the input, so the adjustment starts from the input
+    trajectory itself (a valid member of the family) rather than from its reconstruction, and a
+    model's reconstruction error does not carry into the result; ``"none"`` decodes z alone (the
+    paper's method, where the input is only a sketch the model deforms); ``"auto"`` (default):
+    "input" for plants that can invert a trajectory (the position plant of robot families),
+    "none" otherwise (the pancake's). ``threads``: torch threads (default one, see
+    genplan._threads); ``device``: the torch device (CPU by default).
 
     Every argument is checked before any update. Every decoded trajectory is finite, or
     FloatingPointError names the problem and the update (as for an objective that becomes NaN or
@@ -218,6 +226,12 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
 
         model = load_model(model)
     method = method_name(method)
+    if anchor not in ANCHORS:
+        raise UnknownNameError(f"anchor must be one of {ANCHORS}, got {anchor!r}")
+    use_anchor = anchor == "input" or (anchor == "auto" and hasattr(model.plant, "inputs"))
+    if use_anchor and not hasattr(model.plant, "inputs"):
+        raise SettingsError(f"anchor 'input': the {model.config.plant!r} plant cannot tell which of its inputs gives a "
+                            "trajectory (only plants with an inputs() method can: 'position')")
     if step not in STEPS:
         raise UnknownNameError(f"step must be one of {STEPS}, got {step!r}")
     if isinstance(updates, bool) or not isinstance(updates, (int, np.integer)) or updates < 0:
@@ -255,7 +269,7 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
     if dev != torch.device("cpu"):
         model.net.to(dev)
     return _run(model, torch.as_tensor(x, dtype=torch.float32, device=dev), obj, method, updates, float(lr), step,
-                seed, keep, progress, float(max_step), ctx, getattr(obj, "name", "objective"))
+                seed, keep, progress, float(max_step), ctx, getattr(obj, "name", "objective"), use_anchor)
 
 
 def _context(model: Seq2SeqModel, x: NDArray[np.float64], targets: dict[str, Any], robot: Any, task: Any,
@@ -288,28 +302,41 @@ def _context(model: Seq2SeqModel, x: NDArray[np.float64], targets: dict[str, Any
 
 def _run(model: Seq2SeqModel, xt: Tensor, obj: Callable[[Rollout], Tensor], method: str, updates: int, lr: float,
          step: str, seed: int, keep: set[int], progress: bool, max_step: float, ctx: Context,
-         name: str) -> AdjustResult:
+         name: str, anchor: bool) -> AdjustResult:
     """The update loop of :func:`adjust` (arguments checked)."""
     b = xt.shape[0]
     t_start = time.perf_counter()
     x0 = model.start(xt)
     sign = model.chirality(xt)  # the mirror sign of each problem (fixed while adjusting)
+    cond = model.mirror(x0, sign) if model.config.condition_on_start else None
+
+    def outputs(z: Tensor) -> Tensor:
+        """The plant's input the decoder gives for ``z`` (mirrored back)."""
+        return model.mirror(model.net.decode(z, cond)[0], sign)
+
+    offset: Tensor | None = None
     with torch.no_grad():
         if method == "random-latent":
             gen = torch.Generator().manual_seed(int(seed))
             var = torch.randn(b, model.config.latent_dim, generator=gen).to(xt.device)
         else:
             var = model.encode(xt, sign)
-            if method == "direct":
-                cond = model.mirror(x0, sign) if model.config.condition_on_start else None
-                var = model.mirror(model.net.decode(var, cond)[0], sign)
+        if anchor:
+            # the decoding's change from the input's own encoding, added to the input: the
+            # adjustment starts from the input trajectory itself, not from its reconstruction
+            z_in = var if method != "random-latent" else model.encode(xt, sign)
+            offset = model.plant.inputs(xt, x0) - outputs(z_in)
+        if method == "direct":
+            var = outputs(var) + (offset if offset is not None else 0.0)
     var = var.clone().requires_grad_(True)
     t_init = time.perf_counter() - t_start
 
     def forward(v: Tensor) -> Rollout:
         if method == "direct":
             return model.plant.rollout(v, None, x0)
-        return model.decode(v, x0, sign)
+        if offset is None:
+            return model.decode(v, x0, sign)
+        return model.plant.rollout(outputs(v) + offset, None, x0)
 
     opt = torch.optim.Adam([var], lr=lr) if step == "adam" else None
     adaptive = step == "adaptive"

@@ -12,8 +12,10 @@ too sparse to check the motion between them. :func:`finish` turns each into the 
    ``end_pose`` term's target for that problem), which makes the end exact;
 2. the path is densified: wherever two consecutive states are more than ``resolution`` apart (max
    over the joints), states are interpolated and projected in turn, until every step is at most
-   ``resolution`` (a projected state that jumps more than ``max_jump`` steps away from its
-   neighbours is a failure: the path would change branch);
+   ``resolution`` (a projected state that jumps more than ``MAX_JUMP`` steps away from its
+   neighbours is a failure: the path would change branch); then the chords between the states are
+   held to the task's tolerance as the planner's are (a straying chord split at its projected
+   midpoint);
 3. every dense state is checked against the joint limits (no tolerance) and the collision world
    (the robot, the scene and any per-problem obstacle);
 4. the dense path is timed by TOPP-RA (:func:`genplan.trajectory.parameterize`), whose samples
@@ -35,7 +37,7 @@ from numpy.typing import NDArray
 
 from genplan.errors import GenplanError, SettingsError
 
-__all__ = ["finish", "FinishResult", "DEFAULT_RESOLUTION"]
+__all__ = ["finish", "densify", "FinishResult", "DEFAULT_RESOLUTION"]
 
 #: the largest joint step (rad) between dense states: the planner's edge resolution
 DEFAULT_RESOLUTION = 0.025
@@ -150,15 +152,18 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
                 reasons[i] = "the last sample could not be projected onto the manifold and the end target"
     seconds["project"] = time.perf_counter() - t0
 
-    # 2. densify
+    # 2. densify, holding the chords between dense states to the task's tolerance
     t0 = time.perf_counter()
     paths: list[NDArray[np.float64] | None] = []
     proj_dense = GaussNewtonProjector(robot, manifold.with_tolerances_scaled(0.1)) if manifold is not None else None
+    chords = _ChordCheck(robot, manifold) if manifold is not None else None
     for i in range(b):
         if reasons[i] is not None:
             paths.append(None)
             continue
-        path, why = _densify(q[i], resolution, proj_dense)
+        path, why = densify(q[i], resolution, proj_dense)
+        if why is None and chords is not None and proj_dense is not None:
+            path, why = chords.hold(path, proj_dense, resolution)
         paths.append(path)
         reasons[i] = why
     seconds["densify"] = time.perf_counter() - t0
@@ -233,9 +238,56 @@ def _worlds(world: Any, robot: Any, ctx: Any, b: int) -> list[Any]:
     return [world] * b
 
 
-def _densify(q: NDArray[np.float64], resolution: float, proj: Any) -> tuple[NDArray[np.float64], str | None]:
-    """The path through the states ``q`` (K, n) with every step at most ``resolution``: states
-    interpolated between neighbours further apart, projected (when ``proj``), in rounds."""
+class _ChordCheck:
+    """The planner's chord rule (rust/core/src/planning/constrained.rs, ``hold_chords``) for a
+    dense path: the midpoint of every chord between consecutive states is evaluated on the task's
+    primary terms (no solver step) and a chord whose midpoint strays beyond 3/4 of the tolerance is
+    split at its projected midpoint, in rounds, down to ``resolution / 8``; the spline TOPP-RA lays
+    through the states then stays within the tolerance."""
+
+    ROUNDS = 3
+
+    def __init__(self, robot: Any, task: Any) -> None:
+        from genplan.projection import GaussNewtonProjector, SolverSettings
+
+        self.check = GaussNewtonProjector(robot, task, SolverSettings(max_iterations=0, clip_to_limits=False))
+        self.tolerance = {t.label(): float(t.tolerance) for t in task.primary}
+
+    def _stray(self, q: NDArray[np.float64]) -> NDArray[np.bool_]:
+        res = self.check.solve_batch(q).residuals
+        bad = np.zeros(len(q), dtype=bool)
+        for name, v in res.items():
+            bad |= np.asarray(v) > 0.75 * self.tolerance[name]
+        return bad
+
+    def hold(self, path: NDArray[np.float64], proj: Any, resolution: float) -> tuple[NDArray[np.float64], str | None]:
+        for _ in range(self.ROUNDS):
+            mid = 0.5 * (path[1:] + path[:-1])
+            bad = self._stray(mid)
+            if not bad.any():
+                return path, None
+            short = np.abs(path[1:] - path[:-1]).max(axis=1) < resolution / 8
+            if np.any(bad & short):
+                return path, "a chord strays off the task's manifold even at an eighth of the resolution"
+            res = proj.solve_batch(mid[bad], mid[bad])
+            if not res.success.all():
+                return path, "a chord's midpoint could not be projected onto the task's manifold"
+            rows = list(path[:1])
+            extra = iter(res.q)
+            for s_, flag in enumerate(bad):
+                if flag:
+                    rows.append(next(extra))
+                rows.append(path[s_ + 1])
+            path = np.asarray(rows)
+        return path, None
+
+
+def densify(q: NDArray[np.float64], resolution: float, proj: Any = None) -> tuple[NDArray[np.float64], str | None]:
+    """The path through the states ``q`` (K, n) with every step at most ``resolution`` (max over
+    the joints): states interpolated linearly between neighbours further apart and projected
+    with ``proj`` (a :class:`~genplan.projection.GaussNewtonProjector`, or None to keep the
+    interpolation), in rounds; a projected state more than :data:`MAX_JUMP` resolutions off its
+    chord is a change of branch. Returns the path and None, or the path so far and why it failed."""
     path = q
     for _ in range(MAX_ROUNDS):
         steps = np.abs(np.diff(path, axis=0)).max(axis=1)

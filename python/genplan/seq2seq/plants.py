@@ -107,6 +107,10 @@ class PositionPlant:
     def __init__(self, dt: float) -> None:
         self.dt = float(dt)
 
+    def inputs(self, x: Tensor, x0: Tensor) -> Tensor:
+        """The output that gives the trajectories ``x`` (B, K, d) from ``x0``: their displacements."""
+        return x - x0[:, None, :]
+
     def rollout(self, out: Tensor, var_out: Tensor | None, x0: Tensor) -> Rollout:
         p = x0[:, None, :] + (out - out[:, :1, :])
         dp = (p[:, 1:] - p[:, :-1]) / self.dt
