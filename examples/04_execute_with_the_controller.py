@@ -16,17 +16,16 @@ import math
 
 import numpy as np
 
-from genplan import control
-from genplan.pancake import J2, J2Executable, adjust, linear, s_curve
+from genplan.pancake import J2, J2Executable, adjust, control, linear, s_curve
 
 
-def report(name: str, log: control.ExecutionLog) -> None:
+def report(name: str, log: control.SpatulaLog) -> None:
     print(f"{name:28s} tracking error {log.max_tracking_error_mm:6.2f} mm / {log.max_tracking_error_deg:5.2f} deg, "
           f"max |phi| {log.max_abs_phi_deg:5.1f} deg, pancake {'slipped' if log.slipped else 'stayed'}")
 
 
 def main() -> None:
-    disturbances = control.Disturbances.reference()
+    disturbances = control.reference_disturbances()
     gentle = s_curve([0.0, 0.0, 0.0], [0.08, 0.05, -0.6], K=800)   # 0.8 s, a mild tilt
     hasty = s_curve([0.0, 0.0, 0.0], [0.08, 0.05, -0.6], K=150)    # the same move in 0.15 s
     for name, traj in (("gentle", gentle), ("hasty", hasty)):

@@ -1,8 +1,11 @@
-"""Rust rigid-body dynamics (genplan._core.Dynamics) against Pinocchio on random states.
+"""Rust rigid-body dynamics (genplan._core.Dynamics) against Pinocchio on random states, on every
+fixed-base robot of ``genplan bench robots`` (the Panda, UR3/5/10, the xArm7 from its URDF, the
+Kinova with its continuous joints).
 
 Mass matrix (crba), bias forces (nonLinearEffects = rnea at zero acceleration), full rnea,
 forward dynamics (aba), generalised gravity, frame placement, Jacobian and its time derivative
-(LOCAL_WORLD_ALIGNED), with and without an added payload; relative error <= 1e-9.
+(LOCAL_WORLD_ALIGNED) of the tool frame (genplan.control.tool_frame) and of a frame off it, with
+and without an added payload; relative error <= 1e-9.
 """
 
 from __future__ import annotations
@@ -16,10 +19,13 @@ import pytest
 
 import genplan
 from genplan import _core
+from genplan.control import tool_frame
 from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
+from genplan.experiments.benchmarks.robots import ROBOTS
 
 TOL = 1e-9
-CASES = [("ur5", "tool0"), ("panda", "panda_hand")]
+#: every robot of `genplan bench robots` with a fixed base (Talos has a free flyer)
+CASES = [name for name in ROBOTS if name != "talos"]
 
 
 def rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -43,12 +49,17 @@ def with_offset_frame(model: pin.Model, link: str, offset: pin.SE3) -> tuple[pin
 OFFSET = pin.SE3(pin.rpy.rpyToMatrix(0.2, -0.3, 0.5), np.array([0.01, -0.02, 0.1]))
 
 
-@pytest.fixture(scope="module", params=CASES, ids=[c[0] for c in CASES])
+@pytest.fixture(scope="module", params=CASES)
 def case(request):
-    name, link = request.param
-    robot = genplan.load(name)
-    dyn = _core.Dynamics.from_description(genplan.load(name).description)
-    return robot, dyn, link
+    robot = ROBOTS[request.param]()
+    assert not robot.floating_base
+    dyn = _core.Dynamics.from_description(robot.description)
+    return robot, dyn, tool_frame(robot)
+
+
+def test_every_fixed_base_robot_of_the_robots_bench_is_covered():
+    assert set(CASES) == {"panda", "ur3", "ur5", "ur10", "xarm7", "kinova"}
+    assert ROBOTS["talos"]().floating_base
 
 
 def test_same_joints_and_mass(case):

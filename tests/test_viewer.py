@@ -251,3 +251,117 @@ def test_opens_offline_in_a_browser(exported, tmp_path):
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+
+
+def test_genplan_view_plans_a_paper_environment_and_writes_its_view(tmp_path, capsys) -> None:
+    """`genplan view ENV --out F.html`: one query of the environment planned and drawn."""
+    from genplan.cli import main
+
+    out = tmp_path / "view" / "shelf.html"
+    assert main(["view", "panda_shelf", "--out", str(out), "--sampler", "hybrid", "--seed", "0",
+                 "--max-frames", "20"]) == 0
+    assert out.is_file() and out.stat().st_size > 100_000
+    assert f"{out} (" in capsys.readouterr().out
+    assert main(["view", "no_such_env", "--out", str(out)]) == 2  # a usage error, one line
+    assert "invalid choice: 'no_such_env'" in capsys.readouterr().err
+
+
+def test_python_m_genplan_viewer_is_the_deprecated_spelling_of_genplan_view() -> None:
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "genplan.viewer", "--help"], capture_output=True, text=True)
+    assert proc.returncode == 0 and proc.stdout.startswith("usage: genplan view"), proc.stdout + proc.stderr
+    assert "DeprecationWarning: python -m genplan.viewer is deprecated" in proc.stderr
+
+
+@pytest.fixture(scope="module")
+def run(panda):
+    """A 1 s Panda motion executed without the observer under an unknown load: mm of error."""
+    import genplan
+    from genplan.control import ControllerSettings
+    from tests.test_control import MOTION, UNKNOWN
+
+    log = genplan.execute(panda, MOTION, controller=ControllerSettings(frame="hand", dob=False),
+                          disturbances=UNKNOWN, settle=0.1)
+    return MOTION, log
+
+
+def test_a_run_is_drawn_beside_its_plan(panda, run, tmp_path):
+    """The executed motion: a second, translucent robot and its own trail, on the plan's clock;
+    each frame's poses are Pinocchio's of the plan's and of the run's state at that time."""
+    motion, log = run
+    out = viewer.export_execution_html(panda, log, tmp_path / "run.html", planned=motion, scene="panda_shelf",
+                                       fps=FPS)
+    page = out.read_text(encoding="utf-8")
+    scene = decode_scene(page)
+    assert f"largest error {log.max_tracking_error_mm:.2f} mm" in page and "executed hand path" in page
+    messages = scene["messages"]
+    meshes = {m["name"]: m for _, m in messages if m["type"] == "MeshMessage"}
+    ghost = {n: m for n, m in meshes.items() if n.startswith("/executed/")}
+    solid = {n: m for n, m in meshes.items() if n.startswith("/robot/")}
+    assert len(ghost) == len(solid) > 10
+    assert all(m["props"]["opacity"] == pytest.approx(0.45) for m in ghost.values())
+    assert all(m["props"].get("opacity") is None for m in solid.values())
+    trails = {m["name"]: m for _, m in messages if m["type"] == "LineSegmentsMessage"}
+    assert set(trails) == {"/trail/path", "/executed_trail/path"}
+
+    # the frames: every 1 / FPS over the motion (1 s), the plan's and the run's state at that time
+    assert scene["durationSeconds"] == pytest.approx(motion.duration + 1 / FPS)
+    times = sorted({t for t, m in messages if t > 0})
+    assert times == pytest.approx([(i + 1) / FPS for i in range(int(round(motion.duration * FPS)))])
+    last = {m["name"]: m for t, m in messages if t == times[-1] and m["type"] == "SetPositionMessage"}
+    data = panda.model.createData()
+    a, b = log.motion_start, log.motion_end
+    for name, q in (("/robot", motion.q[-1]), ("/executed", log.q[b - 1])):
+        pin.forwardKinematics(panda.model, data, q)
+        j = 7
+        assert np.allclose(last[f"{name}/{panda.model.names[j]}"]["position"], data.oMi[j].translation, atol=1e-9)
+    mid = {m["name"]: m for t, m in messages if t == pytest.approx(0.5) and m["type"] == "SetPositionMessage"}
+    pin.forwardKinematics(panda.model, data, log.q[a + int(np.searchsorted(log.t[a:b] - log.t[a], 0.5 - 1e-12))])
+    assert np.allclose(mid[f"/executed/{panda.model.names[7]}"]["position"], data.oMi[7].translation, atol=1e-9)
+
+    # the run's error shows: the executed hand is mm away from the planned one mid-motion
+    pin.forwardKinematics(panda.model, data, motion.q[int(np.searchsorted(motion.t, 0.5 - 1e-12))])
+    gap = np.linalg.norm(np.asarray(mid[f"/executed/{panda.model.names[7]}"]["position"]) - data.oMi[7].translation)
+    assert 1e-4 < gap < 2e-2
+
+    # without the plan, the run's reference is drawn as the plan: the same motion at 1 kHz
+    ref = viewer.export_execution_html(panda, log, tmp_path / "ref.html", fps=FPS)
+    last_ref = {m["name"]: m for t, m in decode_scene(ref.read_text(encoding="utf-8"))["messages"]
+                if t == times[-1] and m["type"] == "SetPositionMessage"}
+    pin.forwardKinematics(panda.model, data, log.q_ref[b - 1])
+    assert np.allclose(last_ref[f"/robot/{panda.model.names[7]}"]["position"], data.oMi[7].translation, atol=1e-9)
+
+
+def test_configurations_beside_configurations(panda, tmp_path):
+    """Two untimed paths of other lengths: matched by the fraction of their length."""
+    path = short_path(panda)
+    other = np.linspace(path[0], path[-1] + 0.05, 9)
+    out = viewer.export_html(panda, path, tmp_path / "two.html", executed=other, fps=FPS, ground=False)
+    messages = decode_scene(out.read_text(encoding="utf-8"))["messages"]
+    times = sorted({t for t, m in messages if t > 0})
+    assert len(times) == len(other) - 1  # the longer one's states
+    last = {m["name"]: m for t, m in messages if t == times[-1] and m["type"] == "SetPositionMessage"}
+    data = panda.model.createData()
+    pin.forwardKinematics(panda.model, data, other[-1])
+    assert np.allclose(last[f"/executed/{panda.model.names[7]}"]["position"], data.oMi[7].translation, atol=1e-9)
+
+
+def test_bad_executed_motions(panda, ur5, run, tmp_path):
+    motion, log = run
+    path = short_path(panda)
+    with pytest.raises(SettingsError, match="executed: a timed motion .* got a timed motion beside configurations"):
+        viewer.export_html(panda, path, tmp_path / "a.html", executed=log)
+    with pytest.raises(SettingsError, match="executed: .* got configurations beside a timed path"):
+        viewer.export_html(panda, motion, tmp_path / "a.html", executed=path)
+    with pytest.raises(ShapeError, match=r"executed\.q: expected shape"):
+        viewer.export_html(panda, motion, tmp_path / "a.html", executed={"t": motion.t, "q": motion.q[:, :6]})
+    with pytest.raises(ShapeError, match="executed: a mapping needs 't' and 'q'"):
+        viewer.export_html(panda, motion, tmp_path / "a.html", executed={"q": motion.q})
+    with pytest.raises(NonFiniteError, match=r"executed\.t"):
+        viewer.export_html(panda, motion, tmp_path / "a.html", executed={"t": motion.t * np.nan, "q": motion.q})
+    with pytest.raises(ShapeError, match="log: a run of the joints .* not robot 'ur5'"):
+        viewer.export_execution_html(ur5, log, tmp_path / "a.html")
+    with pytest.raises(SettingsError, match="log: expected an ExecutionLog"):
+        viewer.export_execution_html(panda, motion, tmp_path / "a.html")
+    assert list(tmp_path.iterdir()) == []

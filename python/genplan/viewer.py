@@ -14,7 +14,14 @@ or, for a path you already have (rows are configurations)::
     from genplan.viewer import export_html
     export_html(robot, result.path, "plan.html", boxes=env.boxes, halfspaces=env.halfspaces)
 
-From the shell: ``python -m genplan.viewer panda_shelf panda_shelf.html [--sampler S --seed N]``.
+or a run of :func:`genplan.execute` beside its plan (the executed motion as a translucent ghost
+robot with its own trail, on the planned one's clock)::
+
+    from genplan.viewer import export_execution_html
+    export_execution_html(robot, log, "run.html", planned=trajectory, scene="panda_shelf")
+
+From the shell: ``genplan view panda_shelf --out panda_shelf.html [--sampler S --seed N]``, and
+``genplan execute ... --html run.html``.
 
 Needs the optional dependencies ``viser`` and ``pycollada`` (``pip install 'genplan[viewer]'``);
 without pycollada, COLLADA meshes (the Panda's) are drawn in one colour. Building the recording
@@ -34,7 +41,7 @@ import logging
 import math
 import os
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -44,14 +51,16 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from genplan._files import write_text
-from genplan._arrays import error_class
+from genplan._arrays import as_float_array, error_class
 from genplan.errors import GenplanError, RobotFileError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
 
 if TYPE_CHECKING:
+    from genplan._execution import ExecutionLog
     from genplan.trajectory import Trajectory
 
-__all__ = ["DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "export_html", "export_plan_html", "subsample_path"]
+__all__ = ["DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "export_execution_html", "export_html", "export_plan_html",
+           "subsample_path"]
 
 #: Playback rate of the exported animation (frames per second at speed 1x).
 DEFAULT_FPS: float = 15.0
@@ -64,6 +73,9 @@ _OBSTACLE_COLOR = (205, 133, 63)
 _TRAIL_COLOR = (230, 40, 40)
 _START_COLOR = (40, 170, 60)
 _GOAL_COLOR = (40, 90, 230)
+_EXECUTED_COLOR = (150, 60, 200)
+#: the executed robot's opacity: a ghost over the planned one
+_GHOST_OPACITY = 0.45
 
 
 def _require_viser() -> Any:
@@ -343,13 +355,18 @@ def _scene_shapes(scene: Any) -> tuple[list[tuple[str, NDArray[np.float64], floa
     return planes, meshes
 
 
-def _legend(title: str, trail_label: str | None, obstacles: bool) -> str:
+def _legend(title: str, trail_label: str | None, obstacles: bool, executed: bool = False) -> str:
     """A small fixed overlay: the title, what the colours mean, how to move the camera."""
     items = []
     if trail_label is not None:
-        items += [f'<span style="color:#e62828">&#9644;</span> {html.escape(trail_label)} path',
+        planned = "planned " if executed else ""
+        items += [f'<span style="color:#e62828">&#9644;</span> {planned}{html.escape(trail_label)} path',
                   '<span style="color:#28aa3c">&#9679;</span> start',
                   '<span style="color:#285ae6">&#9679;</span> goal']
+    if executed:
+        items.append('<span style="color:#963cc8">&#9644;</span> executed'
+                     + (f" {html.escape(trail_label)} path" if trail_label is not None else "")
+                     + " and robot (translucent)")
     if obstacles:
         items.append('<span style="color:#cd853f">&#9632;</span> obstacles')
     return (
@@ -376,9 +393,64 @@ def _check_out(out: str | os.PathLike[str]) -> Path:
     return p
 
 
+def _motion(robot: Robot, value: Any, what: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
+    """``(times or None, configurations (m, nq))`` of what :func:`export_html` draws: an
+    :class:`~genplan._execution.ExecutionLog` (its motion ticks, timed from the motion's start),
+    a :class:`~genplan.trajectory.Trajectory` or a mapping with ``t`` and ``q`` (timed), or
+    configurations (untimed; one (nq,) configuration is a still view)."""
+    from genplan._execution import ExecutionLog
+    from genplan.trajectory import Trajectory
+
+    times: Any = None
+    if isinstance(value, ExecutionLog):
+        names = value.meta.get("joint_names")
+        if names is not None and tuple(names) != tuple(robot.joint_names):
+            raise ShapeError(f"{what}: a run of the joints {list(names)}, not robot '{robot.name}' "
+                             f"({list(robot.joint_names)})")
+        a, b = value.motion_start, value.motion_end
+        if b <= a:
+            raise ShapeError(f"{what}: the run stopped before its motion started (tick {b} of a settle phase of {a})")
+        times, q = value.t[a:b] - value.t[a], value.q[a:b]
+    elif isinstance(value, Trajectory):
+        times, q = value.t, value.q
+    elif isinstance(value, Mapping):
+        if "t" not in value or "q" not in value:
+            raise ShapeError(f"{what}: a mapping needs 't' and 'q', got keys {sorted(value)}")
+        times, q = value["t"], value["q"]
+    else:
+        q = value
+    q = robot.check_configuration(q, what if times is None else f"{what}.q")
+    if q.ndim == 1:
+        q = q[None, :]
+    if len(q) == 0:
+        raise ShapeError(f"{what}: no configuration (shape (0, nq))")
+    if times is None:
+        return None, q
+    t = as_float_array(times, f"{what}.t")
+    if t.shape != (len(q),) or not np.all(np.isfinite(t)) or (len(t) > 1 and not np.all(np.diff(t) >= 0)):
+        raise error_class(t, t.shape == (len(q),))(
+            f"{what}.t: expected {len(q)} finite, non-decreasing times (one per configuration), got shape {t.shape}")
+    return t - t[0], q
+
+
+def _picks(times: NDArray[np.float64], at: NDArray[np.float64]) -> NDArray[np.intp]:
+    """The sample of a timed motion shown at each frame time ``at``: the first at or after it
+    (the last sample once the motion ended)."""
+    return np.minimum(np.searchsorted(times, at), len(times) - 1).astype(np.intp)
+
+
+def _trail(model: Any, data: Any, frame: int, q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The world position of ``frame`` at every configuration of ``q``."""
+    pts = np.empty((len(q), 3))
+    for i, qi in enumerate(q):
+        pin.framesForwardKinematics(model, data, qi)
+        pts[i] = data.oMf[frame].translation
+    return pts
+
+
 def export_html(
     robot: Robot,
-    path: "ArrayLike | Trajectory",
+    path: "ArrayLike | Trajectory | Mapping[str, Any]",
     out: str | os.PathLike[str],
     *,
     boxes: Sequence[Any] = (),
@@ -391,15 +463,16 @@ def export_html(
     ground: bool = True,
     dark_mode: bool = False,
     scene: Any = None,
+    executed: "ExecutionLog | Trajectory | Mapping[str, Any] | ArrayLike | None" = None,
 ) -> Path:
     """Write a self-contained HTML viewer of ``robot`` moving along ``path``; returns ``out``.
 
     Args:
         robot: the robot the configurations belong to (:func:`genplan.load`).
         path: (m, nq) configurations (one (nq,) configuration is a still view), finite; or a
-            :class:`genplan.trajectory.Trajectory` (``result.trajectory()``), played in real time:
-            its state at every 1/``fps`` s (fewer frames, evenly timed, when that exceeds
-            ``max_frames``).
+            :class:`genplan.trajectory.Trajectory` (``result.trajectory()``) or a mapping with
+            ``t`` and ``q``, played in real time: its state at every 1/``fps`` s (fewer frames,
+            evenly timed, when that exceeds ``max_frames``).
         out: the HTML file to write (its folder is created).
         boxes: obstacles with ``name``, ``half_extents`` and ``center`` (e.g. ``env.boxes``).
         halfspaces: ``(name, normal, offset)`` planes (e.g. ``env.halfspaces``), drawn as a grid.
@@ -415,33 +488,56 @@ def export_html(
             first "*hand" role: Talos's right hand).
         ground: without ``halfspaces``, draw a reference grid under the robot's lowest point.
         dark_mode: the viewer's dark theme.
+        executed: a second motion of the same robot drawn beside ``path`` as a translucent robot
+            with its own trail of ``trail_frame``: a run of :func:`genplan.execute` (an
+            :class:`~genplan._execution.ExecutionLog`: its motion, timed from the motion's
+            start), a Trajectory or a mapping with ``t`` and ``q`` (each on the clock of a timed
+            ``path``: the frames span the longer of the two, the shorter holding its last
+            state), or configurations beside configurations (matched by their position along
+            each: the same fraction of its length). :func:`export_execution_html` draws a run
+            beside its plan.
 
     Raises:
         GenplanError: wrong path shape (ShapeError), non-finite values (NonFiniteError), bad fps /
-            max_frames (SettingsError) or geometry (UnknownNameError).
+            max_frames (SettingsError), geometry (UnknownNameError), or an ``executed`` motion of
+            another robot (ShapeError) or timed when ``path`` is not, or the other way round
+            (SettingsError).
         OSError: ``out`` cannot be written.
         ImportError: viser is not installed.
     """
-    from genplan.trajectory import Trajectory
-
     if not (math.isfinite(fps) and fps > 0):
         raise SettingsError(f"fps must be a positive number, got {fps}")
-    timed = isinstance(path, Trajectory)
-    q = robot.check_configuration(path.q if timed else path, "path")
-    if q.ndim == 1:
-        q = q[None, :]
-    if len(q) == 0:
-        raise ShapeError("path: no configuration (shape (0, nq))")
+    path_t, q = _motion(robot, path, "path")
+    timed = path_t is not None
+    exec_t: NDArray[np.float64] | None = None
+    exec_q: NDArray[np.float64] | None = None
+    if executed is not None:
+        exec_t, exec_q = _motion(robot, executed, "executed")
+        if (exec_t is None) == timed:
+            raise SettingsError(
+                "executed: a timed motion (a run, a Trajectory, t and q) is drawn beside a timed path and "
+                f"configurations beside configurations; got {'configurations' if exec_t is None else 'a timed motion'} "
+                f"beside {'a timed path' if timed else 'configurations'}")
     dt = 1.0 / fps
-    if timed:  # played in real time: frames evenly spaced in time, fps of them per second
-        duration = float(path.t[-1])
+    if path_t is not None:  # played in real time: frames evenly spaced in time, fps of them per second
+        duration = float(path_t[-1] if exec_t is None else max(path_t[-1], exec_t[-1]))
         count = int(min(max(max_frames, 2), max(2, math.floor(duration * fps) + 1)))
-        if len(q) > 1 and duration > 0:
-            times = np.linspace(0.0, duration, count)
-            picks = np.minimum(np.searchsorted(path.t, times), len(q) - 1)
+        if duration > 0 and (len(q) > 1 or (exec_q is not None and len(exec_q) > 1)):
+            at = np.linspace(0.0, duration, count)
             dt = duration / (count - 1)
         else:
-            picks = np.zeros(1, dtype=np.intp)
+            at = np.zeros(1)
+        picks = _picks(path_t, at)
+        exec_picks = _picks(exec_t, at) if exec_t is not None else None
+    elif exec_q is None:
+        picks = subsample_path(q, max_frames)
+        exec_picks = None
+    else:  # configurations beside configurations: the same fraction of each one's length
+        if max_frames < 2:
+            raise SettingsError(f"max_frames must be >= 2, got {max_frames}")
+        at = np.linspace(0.0, 1.0, max(1, min(max_frames, max(len(q), len(exec_q)))))
+        picks = np.round(at * (len(q) - 1)).astype(np.intp)
+        exec_picks = np.round(at * (len(exec_q) - 1)).astype(np.intp)
     obstacles = _check_boxes(boxes)
     planes = _check_halfspaces(halfspaces)
     shapes: list[tuple[str, NDArray[np.float32], NDArray[np.uint32]]] = []
@@ -449,7 +545,8 @@ def export_html(
         extra_planes, shapes = _scene_shapes(scene)
         planes += extra_planes
     out_path = _check_out(out)
-    frames = q[picks] if timed else q[subsample_path(q, max_frames)]
+    frames = q[picks]
+    exec_frames = exec_q[exec_picks] if exec_q is not None and exec_picks is not None else None
 
     if geometry not in ("visual", "collision"):
         raise UnknownNameError(f"geometry must be 'visual' or 'collision', got {geometry!r}")
@@ -466,19 +563,18 @@ def export_html(
         pin.forwardKinematics(model, data, qi)
         return {j: data.oMi[j].copy() for j in moving}
 
-    trail = None
-    if trail_id is not None:
-        pts = []
-        for qi in q:
-            pin.framesForwardKinematics(model, data, qi)
-            pts.append(np.array(data.oMf[trail_id].translation))
-        trail = np.asarray(pts)
+    trail = _trail(model, data, trail_id, q) if trail_id is not None else None
+    exec_trail = _trail(model, data, trail_id, exec_q) if trail_id is not None and exec_q is not None else None
 
     first = placements(frames[0])
+    exec_first = placements(exec_frames[0]) if exec_frames is not None else None
     robot_pts = _world_points(parts, first)
     cloud = [robot_pts]
-    if trail is not None:
-        cloud.append(trail)
+    if exec_first is not None:
+        cloud.append(_world_points(parts, exec_first))
+    for points in (trail, exec_trail):
+        if points is not None:
+            cloud.append(points)
     for b in obstacles:
         cloud.append(np.stack([b.center - b.half_extents, b.center + b.half_extents]))
     for _, v, _ in shapes:
@@ -489,41 +585,47 @@ def export_html(
     half_diag = max(0.5 * float(np.linalg.norm(hi - lo)), 0.3)
     grid_size = float(max(2.0, 2.0 * math.ceil(float(np.max(np.abs(np.concatenate([lo[:2], hi[:2]])))) + 0.5)))
 
-    name = title or (f"genplan: {robot.name}, a {float(path.t[-1]):.2f} s trajectory" if timed
+    name = title or (f"genplan: {robot.name}, a {float(path_t[-1]):.2f} s trajectory" if path_t is not None
                      else f"genplan: {robot.name}, {len(q)} states")
     with _viser_server() as server:
-        scene = server.scene
-        scene.set_up_direction("+z")
-        scene.world_axes.visible = False
+        viewer_scene = server.scene
+        viewer_scene.set_up_direction("+z")
+        viewer_scene.world_axes.visible = False
         grid = dict(width=grid_size, height=grid_size, cell_size=0.25, section_size=1.0,
                     plane_color=(235, 235, 235), plane_opacity=0.6)
         for hs_name, normal, offset in planes:
             point, rot = _halfspace_frame(normal, offset)
-            scene.add_grid(f"/environment/{hs_name}", **grid, position=point, wxyz=_wxyz(rot))
+            viewer_scene.add_grid(f"/environment/{hs_name}", **grid, position=point, wxyz=_wxyz(rot))
         if ground and not planes:  # a reference floor under the robot's lowest point
-            scene.add_grid("/environment/ground", **grid, position=(0.0, 0.0, float(robot_pts[:, 2].min())))
+            viewer_scene.add_grid("/environment/ground", **grid, position=(0.0, 0.0, float(robot_pts[:, 2].min())))
         for b in obstacles:
-            scene.add_box(f"/environment/{b.name}", color=_OBSTACLE_COLOR, dimensions=2.0 * b.half_extents,
-                          position=b.center, flat_shading=True)
+            viewer_scene.add_box(f"/environment/{b.name}", color=_OBSTACLE_COLOR, dimensions=2.0 * b.half_extents,
+                                 position=b.center, flat_shading=True)
         for shape_name, v, f in shapes:
-            scene.add_mesh_simple(f"/environment/{shape_name}", v, f, color=_OBSTACLE_COLOR, flat_shading=True)
-        if trail is not None and len(trail) > 1:
-            seg = np.stack([trail[:-1], trail[1:]], axis=1).astype(np.float32)
-            scene.add_line_segments("/trail/path", seg, _TRAIL_COLOR, thickness=3.0,
-                                    thickness_units="screen")
+            viewer_scene.add_mesh_simple(f"/environment/{shape_name}", v, f, color=_OBSTACLE_COLOR, flat_shading=True)
+        for root, points, color in (("/trail", trail, _TRAIL_COLOR), ("/executed_trail", exec_trail, _EXECUTED_COLOR)):
+            if points is not None and len(points) > 1:
+                seg = np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
+                viewer_scene.add_line_segments(f"{root}/path", seg, color, thickness=3.0, thickness_units="screen")
         if trail is not None:
-            scene.add_icosphere("/trail/start", radius=0.02, color=_START_COLOR, position=trail[0])
-            scene.add_icosphere("/trail/goal", radius=0.02, color=_GOAL_COLOR, position=trail[-1])
+            viewer_scene.add_icosphere("/trail/start", radius=0.02, color=_START_COLOR, position=trail[0])
+            viewer_scene.add_icosphere("/trail/goal", radius=0.02, color=_GOAL_COLOR, position=trail[-1])
 
-        joints: dict[int, Any] = {}
-        for j in moving:
-            M = first[j]
-            joints[j] = scene.add_frame(f"/robot/{model.names[j]}", show_axes=False,
-                                        wxyz=_wxyz(M.rotation), position=M.translation)
-        for p in parts:
-            parent = "/robot" if p.joint == 0 else f"/robot/{model.names[p.joint]}"
-            scene.add_mesh_simple(f"{parent}/{p.name}", p.vertices, p.faces, color=p.color,
-                                  wxyz=_wxyz(p.placement.rotation), position=p.placement.translation)
+        def add_robot(root: str, at: dict[int, pin.SE3], ghost: bool) -> dict[int, Any]:
+            handles = {j: viewer_scene.add_frame(f"{root}/{model.names[j]}", show_axes=False,
+                                                 wxyz=_wxyz(at[j].rotation), position=at[j].translation)
+                       for j in moving}
+            for p in parts:
+                parent = root if p.joint == 0 else f"{root}/{model.names[p.joint]}"
+                viewer_scene.add_mesh_simple(f"{parent}/{p.name}", p.vertices, p.faces,
+                                             color=_EXECUTED_COLOR if ghost else p.color,
+                                             opacity=_GHOST_OPACITY if ghost else None,
+                                             wxyz=_wxyz(p.placement.rotation), position=p.placement.translation)
+            return handles
+
+        robots = [(add_robot("/robot", first, False), frames, first)]
+        if exec_frames is not None and exec_first is not None:
+            robots.append((add_robot("/executed", exec_first, True), exec_frames, exec_first))
 
         # camera: the whole scene in view, from the front-right and a bit above
         direction = np.array([1.0, -0.8, 0.55])
@@ -531,22 +633,23 @@ def export_html(
         server.initial_camera.position = center + 1.6 * half_diag * direction / np.linalg.norm(direction)
 
         recording = server.get_scene_serializer()
-        last = first
-        for qi in frames[1:]:
+        last = [start for _, _, start in robots]
+        for i in range(1, len(frames)):
             recording.insert_sleep(dt)
-            now = placements(qi)
-            for j, M in now.items():
-                if M.isApprox(last[j], 1e-9):
-                    continue  # unchanged (e.g. a joint the plan does not move): no message
-                h = joints[j]
-                h.wxyz = _wxyz(M.rotation)
-                h.position = M.translation
-            last = now
+            for k, (handles, states, _) in enumerate(robots):
+                now = placements(states[i])
+                for j, M in now.items():
+                    if M.isApprox(last[k][j], 1e-9):
+                        continue  # unchanged (e.g. a joint the plan does not move): no message
+                    handles[j].wxyz = _wxyz(M.rotation)
+                    handles[j].position = M.translation
+                last[k] = now
         recording.insert_sleep(dt)
         page = recording.as_html(dark_mode=dark_mode)
 
     page = page.replace("<title>Viser</title>", f"<title>{html.escape(name)}</title>", 1)
-    legend = _legend(name, trail_frame if trail is not None else None, bool(obstacles or shapes))
+    legend = _legend(name, trail_frame if trail is not None else None, bool(obstacles or shapes),
+                     executed=exec_q is not None)
     i = page.rfind("</body>")
     page = page[:i] + legend + page[i:] if i >= 0 else page + legend
     try:
@@ -554,6 +657,49 @@ def export_html(
     except OSError as exc:
         raise OSError(f"out: cannot write {out_path}: {exc.strerror or exc}") from exc
     return out_path
+
+
+def export_execution_html(
+    robot: Robot,
+    log: "ExecutionLog",
+    out: str | os.PathLike[str],
+    *,
+    planned: "Trajectory | Mapping[str, Any] | ArrayLike | None" = None,
+    **kwargs: Any,
+) -> Path:
+    """Write the HTML view of a run of :func:`genplan.execute` beside its plan: the planned
+    motion as the robot and its red trail, the executed one (``log.q`` over the motion's ticks)
+    as a translucent robot with its own trail, both on one clock from the motion's start.
+
+    Args:
+        robot: the robot the run was made with.
+        log: the run (an :class:`~genplan._execution.ExecutionLog`).
+        out: the HTML file to write.
+        planned: the plan (a Trajectory, or a mapping with ``t`` and ``q``); default: the run's
+            reference (``log.q_ref`` over the motion's ticks: the plan at the control period).
+        **kwargs: what :func:`export_html` takes (``scene``, ``fps``, ``max_frames``, ``title``,
+            ``trail_frame``, ...); the default title gives the tool frame's largest error.
+
+    Raises:
+        SettingsError: ``log`` is not an ExecutionLog; otherwise as :func:`export_html`.
+    """
+    from genplan._execution import ExecutionLog
+
+    if not isinstance(log, ExecutionLog):
+        raise SettingsError(f"log: expected an ExecutionLog (what genplan.execute returns), got {type(log).__name__}")
+    _motion(robot, log, "log")  # a run of this robot, with a motion: else an error naming the log
+    shown: Any = planned
+    if shown is None:
+        if log.q_ref is None:
+            raise SettingsError("planned: the run has no joint reference (log.q_ref); give the plan as planned=")
+        a, b = log.motion_start, log.motion_end
+        shown = {"t": log.t[a:b] - log.t[a], "q": log.q_ref[a:b]}
+    kwargs.setdefault(
+        "title",
+        f"genplan execute: {robot.name}, planned (solid) and executed (translucent); the "
+        f"{log.meta.get('frame', 'tool frame')}'s largest error {log.max_tracking_error_mm:.2f} mm, "
+        f"{log.max_tracking_error_deg:.2f} deg")
+    return export_html(robot, shown, out, executed=log, **kwargs)
 
 
 def export_plan_html(
@@ -581,25 +727,12 @@ def export_plan_html(
     return export_html(robot, result.path, out, boxes=env.boxes, halfspaces=env.halfspaces, **kwargs)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m genplan.viewer ENV OUT.html [--sampler S] [--seed N]``: plan and export."""
-    import argparse
+if __name__ == "__main__":  # `python -m genplan.viewer`, deprecated: the command is `genplan view`
+    import sys
+    import warnings
 
-    from genplan.planning import ENVIRONMENT_NAMES, SAMPLERS
+    from genplan.cli import main
 
-    parser = argparse.ArgumentParser(prog="python -m genplan.viewer", description=main.__doc__)
-    parser.add_argument("env", choices=ENVIRONMENT_NAMES)
-    parser.add_argument("out", type=Path)
-    parser.add_argument("--sampler", choices=SAMPLERS, default="hybrid")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--fps", type=float, default=DEFAULT_FPS)
-    parser.add_argument("--max-frames", type=int, default=DEFAULT_MAX_FRAMES)
-    args = parser.parse_args(argv)
-    out = export_plan_html(args.env, args.out, sampler=args.sampler, seed=args.seed, fps=args.fps,
-                           max_frames=args.max_frames)
-    print(f"{out} ({out.stat().st_size / 1e6:.1f} MB): open it in a browser (works offline)")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    warnings.warn("python -m genplan.viewer is deprecated (removed in the next release): use "
+                  "genplan view ENV --out OUT.html [--sampler S] [--seed N]", DeprecationWarning, stacklevel=1)
+    sys.exit(main(["view", *sys.argv[1:2], "--out", *sys.argv[2:]]))  # ENV OUT [options]

@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from genplan import control
 from genplan.cli import main
+from genplan.pancake import control
 from genplan.experiments.benchmarks.control import adjusted_trajectory, casadi_j2_trajectory, model_path
 
 #: the turn-overs (0.5 s to -3 pi / 4) turn the UR5's wrists faster than their rated 3.2 rad/s
@@ -23,7 +23,7 @@ def test_the_paper_j2_plan_rides_the_cone_edge_and_loses_the_pancake():
     assert details["objective_after"] < details["objective_before"]
     assert 40.0 < details["planned_max_abs_phi_deg"] < 45.0
     assert details["planned_min_normal_acceleration"] < 1.0  # near free fall
-    log = control.execute(traj, disturbances=control.Disturbances.reference(), tail=0.1)
+    log = control.execute(traj, disturbances=control.reference_disturbances(), tail=0.1)
     assert log.slipped and log.max_tracking_error_mm < 50.0
 
 
@@ -35,7 +35,7 @@ def test_the_j2_exec_plan_meets_j2_and_keeps_the_pancake():
     assert t["position"] == 0.0 and t["attitude"] == 0.0 and t["cone"] == 0.0
     assert details["planned_max_abs_phi_deg"] <= 35.5 and details["planned_min_normal_acceleration"] > 2.0
     for dob in (True, False):
-        log = control.execute(traj, dob=dob, disturbances=control.Disturbances.reference(), tail=0.1)
+        log = control.execute(traj, dob=dob, disturbances=control.reference_disturbances(), tail=0.1)
         assert not log.slipped, (dob, log.summary)
         # within the rated joint torques; over the wrists' rated speed (recorded, not refused)
         assert all(t <= lim for t, lim in zip(log.summary["max_abs_tau"], [150.0] * 3 + [28.0] * 3))
@@ -49,7 +49,7 @@ def test_a_j2_trajectory_with_a_hard_cone_keeps_the_pancake():
     solved = casadi_j2_trajectory()
     assert solved is not None
     traj, _ = solved
-    log = control.execute(traj, disturbances=control.Disturbances.reference(), tail=0.1)
+    log = control.execute(traj, disturbances=control.reference_disturbances(), tail=0.1)
     assert not log.slipped, log.summary
 
 

@@ -1,9 +1,15 @@
-//! Bindings of `genplan_core::dynamics` and `genplan_core::control` (issue [controller]).
+//! Bindings of `genplan_core::dynamics` and `genplan_core::control`.
 //!
 //! * `Dynamics`: rigid-body dynamics of a fixed-base arm (mass matrix, bias forces, RNEA,
 //!   forward dynamics, frame Jacobians and their time derivative), for cross-checks and users;
-//! * `SpatulaSimulation`: the 1 kHz spatula controller + plant + pancake; `run` executes a whole
-//!   trajectory in Rust with the GIL released and returns the log as numpy arrays;
+//! * the settings of a run, defined once in the core and exposed as typed, immutable classes
+//!   (`ControllerSettings`, `Disturbances`, `Payload`, `JointLimits`, `SpatulaSetup`,
+//!   `PancakeSettings`; `settings_class!`) and its summaries (`RunSummary`, `PancakeSummary`;
+//!   `record_class!`);
+//! * `Simulation`: the 1 kHz loop for any fixed-base robot; `run` checks a joint trajectory and
+//!   executes it in Rust with the GIL released (Ctrl-C polled), returning the log as numpy
+//!   arrays;
+//! * `SpatulaSimulation`: the seq2seq paper's spatula configuration of the same loop;
 //! * `pancake_phi`: eq. 16 as the loop computes it (cross-checked against the Python function).
 
 use std::path::PathBuf;
@@ -15,12 +21,17 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use genplan_core::control::{self, percentile, Disturbances, SimConfig, Simulation};
+use genplan_core::control::{
+    self, percentile, reference_disturbances, ControlSpace, ControllerSettings, Disturbances, JointLimits, LimitPolicy, LimitViolation,
+    PancakeSettings, PancakeSummary, Payload, Reference, ReferenceError, Run, SimConfig, Simulation, Spatula, SpatulaConfig,
+    SpatulaSetup, Summary,
+};
 use genplan_core::dynamics::{Dynamics, Frame};
-use genplan_core::urdf::Urdf;
 use genplan_core::kinematics::ModelOptions;
+use genplan_core::urdf::Urdf;
 
-use crate::to_py;
+use crate::settings::{record_class, settings_class, Field};
+use crate::{err, to_py, Kind};
 
 /// A (position (3,), rotation (3, 3)) pair of numpy arrays.
 type PyPose<'py> = (Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>);
@@ -232,194 +243,444 @@ impl PyDynamics {
 }
 
 // ---------------------------------------------------------------------------------------------
-// configuration from nested dicts (unknown keys are errors, so typos do not pass silently)
+// settings, defined once in the core
 // ---------------------------------------------------------------------------------------------
 
-fn check_keys(d: &Bound<'_, PyDict>, allowed: &[&str], what: &str) -> PyResult<()> {
-    for k in d.keys() {
-        let k: String = k.extract().map_err(|_| crate::err(crate::Kind::Settings, format!("{what}: keys must be strings")))?;
-        if !allowed.contains(&k.as_str()) {
-            return Err(crate::err(crate::Kind::Settings, format!("{what}: unknown key '{k}' (known: {})", allowed.join(", "))));
+/// A Python name <-> core enum table.
+fn named<T: Copy + PartialEq>(v: &Bound<'_, PyAny>, what: &str, names: &[(&'static str, T)]) -> PyResult<T> {
+    let name: Option<String> = v.extract().ok();
+    name.as_deref()
+        .and_then(|n| names.iter().find(|(k, _)| *k == n).map(|(_, t)| *t))
+        .ok_or_else(|| {
+            let known = names.iter().map(|(n, _)| format!("'{n}'")).collect::<Vec<_>>().join(", ");
+            let shown = v.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+            err(Kind::Settings, format!("{what}: expected one of {known}, got {shown}"))
+        })
+}
+
+impl Field for ControlSpace {
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        named(v, what, &ControlSpace::NAMES)
+    }
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(pyo3::types::PyString::new(py, self.name()).into_any())
+    }
+}
+
+impl Field for LimitPolicy {
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        named(v, what, &LimitPolicy::NAMES)
+    }
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(pyo3::types::PyString::new(py, self.name()).into_any())
+    }
+}
+
+settings_class!(
+    /// A rigid body a robot holds: mass (kg), centre of mass (m) and inertia about it (kg m^2)
+    /// in the frame of `link` (None: the controller's frame). Immutable: `replace(**changes)`.
+    PyPayload,
+    "Payload",
+    Payload,
+    |s: &Payload| s.validate().map_err(to_py),
+    [link, mass, com, inertia]
+);
+
+impl Field for Payload {
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        match v.cast::<PyPayload>() {
+            Ok(p) => Ok(p.get().inner.clone()),
+            Err(_) => {
+                let shown = v.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+                Err(err(Kind::Settings, format!("{what}: expected a Payload or None, got {shown}")))
+            }
         }
     }
-    Ok(())
-}
-
-fn sub<'py>(d: &Bound<'py, PyDict>, key: &str) -> PyResult<Option<Bound<'py, PyDict>>> {
-    match d.get_item(key)? {
-        None => Ok(None),
-        Some(v) if v.is_none() => Ok(None),
-        Some(v) => Ok(Some(v.cast_into::<PyDict>().map_err(|_| crate::err(crate::Kind::Settings, format!("config: '{key}' must be a dict")))?)),
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(Bound::new(py, PyPayload { inner: self.clone() })?.into_any())
     }
 }
 
-fn config_from_dict(nv: usize, d: Option<Bound<'_, PyDict>>) -> PyResult<SimConfig> {
-    let mut c = SimConfig::new(nv);
-    let Some(d) = d else { return Ok(c) };
-    check_keys(&d, &["controller", "disturbances", "setup", "pancake", "substeps", "settle_ticks", "limits"], "config")?;
-    c.substeps = crate::get_or(&d, "substeps", c.substeps, "config")?;
-    c.settle_ticks = crate::get_or(&d, "settle_ticks", c.settle_ticks, "config")?;
-    if let Some(x) = sub(&d, "controller")? {
-        let w = "config.controller";
-        check_keys(&x, &["kpp", "kpr", "kvp", "kvr", "dt", "dob", "dob_cutoff_hz", "model_compensation", "velocity_feedforward", "acceleration_feedforward", "singular_det", "max_damping", "torque_limit"], w)?;
-        let k = &mut c.controller;
-        k.gains.kpp = crate::get_or(&x, "kpp", k.gains.kpp, w)?;
-        k.gains.kpr = crate::get_or(&x, "kpr", k.gains.kpr, w)?;
-        k.gains.kvp = crate::get_or(&x, "kvp", k.gains.kvp, w)?;
-        k.gains.kvr = crate::get_or(&x, "kvr", k.gains.kvr, w)?;
-        k.dt = crate::get_or(&x, "dt", k.dt, w)?;
-        k.dob = crate::get_or(&x, "dob", k.dob, w)?;
-        k.dob_cutoff_hz = crate::get_or(&x, "dob_cutoff_hz", k.dob_cutoff_hz, w)?;
-        k.model_compensation = crate::get_or(&x, "model_compensation", k.model_compensation, w)?;
-        k.velocity_feedforward = crate::get_or(&x, "velocity_feedforward", k.velocity_feedforward, w)?;
-        k.acceleration_feedforward = crate::get_or(&x, "acceleration_feedforward", k.acceleration_feedforward, w)?;
-        k.singular_det = crate::get_or(&x, "singular_det", k.singular_det, w)?;
-        k.max_damping = crate::get_or(&x, "max_damping", k.max_damping, w)?;
-        k.torque_limit = crate::get_or(&x, "torque_limit", k.torque_limit.clone(), w)?;
+settings_class!(
+    /// The 1 kHz controller (the seq2seq paper's Fig. 10 for any robot): task space on a frame
+    /// (free axes, per-axis gains) or joint space, the disturbance observer, model compensation
+    /// and the period. Defaults: the paper's gains and 2 Hz observer, with the reference's
+    /// acceleration fed forward. Immutable: `replace(**changes)`.
+    PyControllerSettings,
+    "ControllerSettings",
+    ControllerSettings,
+    |s: &ControllerSettings| s.validate().map_err(to_py),
+    [space, frame, frame_offset, axes, kp, kv, joint_kp, joint_kv, posture_kp, posture_kv, dob, dob_cutoff_hz,
+     model_compensation, velocity_feedforward, acceleration_feedforward, singular_det, max_damping, dt],
+    {
+        /// The paper's loop (Section 5.1): the defaults without the acceleration feed-forward.
+        #[staticmethod]
+        fn paper() -> Self {
+            Self { inner: ControllerSettings::paper() }
+        }
     }
-    if let Some(x) = sub(&d, "disturbances")? {
-        let w = "config.disturbances";
-        check_keys(&x, &["coulomb", "viscous", "friction_velocity", "offset", "payload_mass", "payload_com"], w)?;
-        let k = &mut c.disturbances;
-        k.coulomb = crate::get_or(&x, "coulomb", k.coulomb.clone(), w)?;
-        k.viscous = crate::get_or(&x, "viscous", k.viscous.clone(), w)?;
-        k.friction_velocity = crate::get_or(&x, "friction_velocity", k.friction_velocity, w)?;
-        k.offset = crate::get_or(&x, "offset", k.offset.clone(), w)?;
-        k.payload_mass = crate::get_or(&x, "payload_mass", k.payload_mass, w)?;
-        k.payload_com = crate::get_or(&x, "payload_com", k.payload_com, w)?;
+);
+
+settings_class!(
+    /// What the true plant has that the controller's model lacks: joint friction, a torque
+    /// offset (per joint; none: 0) and a payload. Immutable: `replace(**changes)`.
+    PyDisturbances,
+    "Disturbances",
+    Disturbances,
+    |s: &Disturbances| s.validate().map_err(to_py),
+    [coulomb, viscous, friction_velocity, offset, payload],
+    {
+        /// Deprecated: `genplan.pancake.control.reference_disturbances()` (the seq2seq
+        /// experiment's deviations, for the UR5).
+        #[staticmethod]
+        fn reference(py: Python<'_>) -> PyResult<Self> {
+            let msg = "Disturbances.reference() is deprecated: use genplan.pancake.control.reference_disturbances()";
+            py.import("warnings")?.call_method1("warn", (msg, py.get_type::<pyo3::exceptions::PyDeprecationWarning>(), 2))?;
+            Ok(Self { inner: reference_disturbances() })
+        }
     }
-    if let Some(x) = sub(&d, "setup")? {
-        let w = "config.setup";
-        check_keys(&x, &["tool_link", "spatula_length", "spatula_mass", "spatula_com", "origin", "attitude", "q_seed"], w)?;
-        let k = &mut c.setup;
-        k.tool_link = crate::get_or(&x, "tool_link", k.tool_link.clone(), w)?;
-        k.spatula_length = crate::get_or(&x, "spatula_length", k.spatula_length, w)?;
-        k.spatula_mass = crate::get_or(&x, "spatula_mass", k.spatula_mass, w)?;
-        k.spatula_com = crate::get_or(&x, "spatula_com", k.spatula_com, w)?;
-        k.origin = crate::get_or(&x, "origin", k.origin, w)?;
-        k.attitude = crate::get_or(&x, "attitude", k.attitude, w)?;
-        k.q_seed = crate::get_or(&x, "q_seed", k.q_seed.clone(), w)?;
-    }
-    if let Some(x) = sub(&d, "pancake")? {
-        let w = "config.pancake";
-        check_keys(&x, &["mu_static", "mu_kinetic", "blade_half_length"], w)?;
-        let k = &mut c.pancake;
-        k.mu_static = crate::get_or(&x, "mu_static", k.mu_static, w)?;
-        k.mu_kinetic = crate::get_or(&x, "mu_kinetic", k.mu_kinetic, w)?;
-        k.blade_half_length = crate::get_or(&x, "blade_half_length", k.blade_half_length, w)?;
-    }
-    if let Some(x) = sub(&d, "limits")? {
-        let w = "config.limits";
-        check_keys(&x, &["torque", "velocity"], w)?;
-        let k = &mut c.limits;
-        k.torque = crate::get_or(&x, "torque", k.torque.clone(), w)?;
-        k.velocity = crate::get_or(&x, "velocity", k.velocity.clone(), w)?;
-    }
-    Ok(c)
+);
+
+settings_class!(
+    /// The joint limits a run is checked against (None: the URDF's) and what a tick over one
+    /// does: "log", "saturate" (clip the torque) or "stop". Immutable: `replace(**changes)`.
+    PyJointLimits,
+    "JointLimits",
+    JointLimits,
+    |s: &JointLimits| s.validate().map_err(to_py),
+    [torque, velocity, policy]
+);
+
+settings_class!(
+    /// Where the seq2seq paper's spatula task sits on the arm (eq. 23). Immutable.
+    PySpatulaSetup,
+    "SpatulaSetup",
+    SpatulaSetup,
+    |s: &SpatulaSetup| s.validate().map_err(to_py),
+    [tool_link, spatula_length, spatula_mass, spatula_com, origin, attitude, q_seed]
+);
+
+settings_class!(
+    /// The pancake's friction on the blade and the blade's half length. Immutable.
+    PyPancakeSettings,
+    "PancakeSettings",
+    PancakeSettings,
+    |s: &PancakeSettings| s.validate().map_err(to_py),
+    [mu_static, mu_kinetic, blade_half_length]
+);
+
+record_class!(
+    /// Summary numbers of a run (read-only): errors of the frame after the settle phase (m,
+    /// rad), of the joints, damped and saturated ticks, largest torques and speeds per joint,
+    /// their largest ratios to the limits, ticks over a limit, the wall time per tick (us).
+    PyRunSummary,
+    "RunSummary",
+    Summary,
+    [ticks, us_per_tick, max_error_position, max_error_rotation, rms_error_position, rms_error_rotation, max_error_joint,
+     damped_ticks, first_damped_time, min_abs_det_j, saturated_ticks, max_abs_tau, max_abs_v, max_torque_ratio,
+     max_velocity_ratio, limit_ticks, stopped_at_limit]
+);
+
+record_class!(
+    /// The pancake's verdicts of a run (read-only): largest |phi| (rad) and slide (m) during the
+    /// motion, whether it slipped then, when it first slipped and left the spatula (s).
+    PyPancakeSummary,
+    "PancakeSummary",
+    PancakeSummary,
+    [max_abs_phi, slipped, first_slip_time, left_time, max_abs_slide]
+);
+
+/// A limit violation as a dict (None: none).
+fn violation_dict<'py>(py: Python<'py>, v: &Option<LimitViolation>, names: &[String]) -> PyResult<Option<Bound<'py, PyDict>>> {
+    let Some(v) = v else { return Ok(None) };
+    let d = PyDict::new(py);
+    d.set_item("time", v.time)?;
+    d.set_item("tick", v.tick)?;
+    d.set_item("joint", names.get(v.joint).map_or("?", String::as_str))?;
+    d.set_item("quantity", v.quantity())?;
+    d.set_item("value", v.value)?;
+    d.set_item("limit", v.limit)?;
+    d.set_item("unit", v.unit)?;
+    d.set_item("message", v.describe(names))?;
+    Ok(Some(d))
 }
 
-/// The torque and speed limits `(torque, velocity)` as a dict of lists.
-fn limits_dict<'py>(py: Python<'py>, torque: Option<&[f64]>, velocity: Option<&[f64]>) -> PyResult<Bound<'py, PyDict>> {
+/// The torque and speed limits in force `{"torque": [...], "velocity": [...]}`.
+fn limits_dict<'py>(py: Python<'py>, torque: &[f64], velocity: &[f64]) -> PyResult<Bound<'py, PyDict>> {
     let k = PyDict::new(py);
-    k.set_item("torque", torque.map(<[f64]>::to_vec))?;
-    k.set_item("velocity", velocity.map(<[f64]>::to_vec))?;
+    k.set_item("torque", torque.to_vec())?;
+    k.set_item("velocity", velocity.to_vec())?;
     Ok(k)
 }
 
-fn config_to_dict<'py>(py: Python<'py>, c: &SimConfig) -> PyResult<Bound<'py, PyDict>> {
+/// Run `work` without the GIL, asking Python's signal handlers every few hundred ticks: a
+/// pending exception (KeyboardInterrupt) is raised as it is.
+fn run_interruptible<T: Send>(py: Python<'_>, work: impl FnOnce(&mut dyn FnMut() -> bool) -> genplan_core::Result<T> + Send) -> PyResult<T> {
+    let mut interrupt: Option<PyErr> = None;
+    let result = py.detach(|| {
+        work(&mut || match Python::attach(|py| py.check_signals()) {
+            Ok(()) => false,
+            Err(e) => {
+                interrupt = Some(e);
+                true
+            }
+        })
+    });
+    if let Some(e) = interrupt {
+        return Err(e);
+    }
+    result.map_err(to_py)
+}
+
+/// The log of a run as a dict of numpy arrays (moved, not copied), with its summary record,
+/// the first tick over a limit, the motion window and, paced, the jitter.
+fn run_dict<'py>(py: Python<'py>, run: Run, names: &[String], dt: f64, paced: bool) -> PyResult<Bound<'py, PyDict>> {
+    let Run { log, summary, limit_violation, motion_start, motion_end } = run;
+    let (n, nq, nv) = (log.n, log.nq, log.nv);
     let d = PyDict::new(py);
-    let k = PyDict::new(py);
-    let cc = &c.controller;
-    k.set_item("kpp", cc.gains.kpp)?;
-    k.set_item("kpr", cc.gains.kpr)?;
-    k.set_item("kvp", cc.gains.kvp)?;
-    k.set_item("kvr", cc.gains.kvr)?;
-    k.set_item("dt", cc.dt)?;
-    k.set_item("dob", cc.dob)?;
-    k.set_item("dob_cutoff_hz", cc.dob_cutoff_hz)?;
-    k.set_item("model_compensation", cc.model_compensation)?;
-    k.set_item("velocity_feedforward", cc.velocity_feedforward)?;
-    k.set_item("acceleration_feedforward", cc.acceleration_feedforward)?;
-    k.set_item("singular_det", cc.singular_det)?;
-    k.set_item("max_damping", cc.max_damping)?;
-    k.set_item("torque_limit", cc.torque_limit.clone())?;
-    d.set_item("controller", k)?;
-    let k = PyDict::new(py);
-    let dd = &c.disturbances;
-    k.set_item("coulomb", dd.coulomb.clone())?;
-    k.set_item("viscous", dd.viscous.clone())?;
-    k.set_item("friction_velocity", dd.friction_velocity)?;
-    k.set_item("offset", dd.offset.clone())?;
-    k.set_item("payload_mass", dd.payload_mass)?;
-    k.set_item("payload_com", dd.payload_com.to_vec())?;
-    d.set_item("disturbances", k)?;
-    let k = PyDict::new(py);
-    let s = &c.setup;
-    k.set_item("tool_link", s.tool_link.clone())?;
-    k.set_item("spatula_length", s.spatula_length)?;
-    k.set_item("spatula_mass", s.spatula_mass)?;
-    k.set_item("spatula_com", s.spatula_com)?;
-    k.set_item("origin", s.origin.to_vec())?;
-    k.set_item("attitude", s.attitude.to_vec())?;
-    k.set_item("q_seed", s.q_seed.clone())?;
-    d.set_item("setup", k)?;
-    let k = PyDict::new(py);
-    k.set_item("mu_static", c.pancake.mu_static)?;
-    k.set_item("mu_kinetic", c.pancake.mu_kinetic)?;
-    k.set_item("blade_half_length", c.pancake.blade_half_length)?;
-    d.set_item("pancake", k)?;
-    d.set_item("substeps", c.substeps)?;
-    d.set_item("settle_ticks", c.settle_ticks)?;
-    d.set_item("limits", limits_dict(py, c.limits.torque.as_deref(), c.limits.velocity.as_deref())?)?;
+    d.set_item("t", array(py, &[n], log.t)?)?;
+    d.set_item("q", array(py, &[n, nq], log.q)?)?;
+    d.set_item("v", array(py, &[n, nv], log.v)?)?;
+    d.set_item("tau", array(py, &[n, nv], log.tau)?)?;
+    d.set_item("tau_dis_hat", array(py, &[n, nv], log.tau_dis_hat)?)?;
+    d.set_item("tau_dis", array(py, &[n, nv], log.tau_dis)?)?;
+    if !log.err_joint.is_empty() {
+        d.set_item("error_joint", array(py, &[n, nv], log.err_joint)?)?;
+    }
+    d.set_item("position_cmd", array(py, &[n, 3], log.pos_cmd)?)?;
+    d.set_item("position", array(py, &[n, 3], log.pos)?)?;
+    d.set_item("rotation", array(py, &[n, 3, 3], log.rot)?)?;
+    d.set_item("error_position", array(py, &[n], log.err_pos)?)?;
+    d.set_item("error_rotation", array(py, &[n], log.err_rot)?)?;
+    d.set_item("velocity", array(py, &[n, 6], log.vel)?)?;
+    d.set_item("acceleration", array(py, &[n, 6], log.acc)?)?;
+    d.set_item("det_j", array(py, &[n], log.det_j)?)?;
+    d.set_item("damped", Array1::from_vec(log.damped).into_pyarray(py))?;
+    d.set_item("saturated", Array1::from_vec(log.saturated).into_pyarray(py))?;
+    d.set_item("torque_ratio", array(py, &[n], log.torque_ratio)?)?;
+    d.set_item("velocity_ratio", array(py, &[n], log.velocity_ratio)?)?;
+    if paced {
+        let j = PyDict::new(py);
+        for (name, xs) in [("lateness", &log.lateness), ("compute", &log.compute)] {
+            j.set_item(format!("{name}_p50_us"), percentile(xs, 50.0) * 1e6)?;
+            j.set_item(format!("{name}_p99_us"), percentile(xs, 99.0) * 1e6)?;
+            j.set_item(format!("{name}_max_us"), xs.iter().copied().fold(0.0, f64::max) * 1e6)?;
+        }
+        j.set_item("overruns", log.compute.iter().zip(&log.lateness).filter(|(c, l)| **c + **l > dt).count())?;
+        d.set_item("jitter", j)?;
+        d.set_item("lateness", array(py, &[log.lateness.len()], log.lateness)?)?;
+    }
+    d.set_item("compute", array(py, &[n], log.compute)?)?;
+    let k = log.channels.len();
+    d.set_item("payload_channels", log.channels.iter().map(|c| c.to_string()).collect::<Vec<_>>())?;
+    d.set_item("payload", array(py, &[n, k], log.payload)?)?;
+    d.set_item("motion_start", motion_start)?;
+    d.set_item("motion_end", motion_end)?;
+    d.set_item("limit_violation", violation_dict(py, &limit_violation, names)?)?;
+    d.set_item("summary", Bound::new(py, PyRunSummary { inner: summary })?)?;
     Ok(d)
 }
 
-/// The default configuration (nested dict) and the reference disturbances of the benchmark.
-#[pyfunction]
-fn spatula_defaults<'py>(py: Python<'py>) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
-    let mut c = SimConfig::new(6);
-    let defaults = config_to_dict(py, &c)?;
-    c.disturbances = Disturbances::reference();
-    let reference = config_to_dict(py, &c)?.get_item("disturbances")?.ok_or_else(|| PyValueError::new_err("internal"))?;
-    Ok((defaults, reference.cast_into::<PyDict>()?))
+/// A (n, width) float64 array's data, row-major, or a ShapeError naming `what`.
+fn rows(arr: &PyReadonlyArrayDyn<'_, f64>, width: usize, what: &str) -> PyResult<Vec<f64>> {
+    let shape = arr.shape();
+    if shape.len() != 2 || shape[1] != width || shape[0] == 0 {
+        return Err(err(Kind::Shape, format!("{what}: expected shape (n, {width}) with n >= 1, got {shape:?}")));
+    }
+    Ok(arr.as_array().iter().copied().collect())
 }
 
-/// The 1 kHz spatula controller of the seq2seq paper on a simulated arm, with the pancake.
-#[pyclass(name = "SpatulaSimulation", module = "genplan._core")]
-pub(crate) struct PySpatulaSimulation {
+fn reference_error(e: ReferenceError) -> PyErr {
+    match e {
+        ReferenceError::Input(e) => to_py(e),
+        ReferenceError::Trajectory(m) => err(Kind::InvalidTrajectory, m),
+    }
+}
+
+/// The 1 kHz loop for any fixed-base robot: controller, plant, observer, payloads, limits.
+#[pyclass(name = "Simulation", module = "genplan._core")]
+pub(crate) struct PySimulation {
     inner: Simulation,
 }
 
 #[pymethods]
-impl PySpatulaSimulation {
-    /// `robot`: a fixed-base 6-joint robot's description (`genplan.Robot.description`, e.g. the
-    /// "ur5" preset's); `config`: nested dict of overrides (see `spatula_defaults()`).
+impl PySimulation {
+    /// `robot`: a fixed-base robot's description (`genplan.Robot.description`); `controller`
+    /// must name its frame; `payloads`: what the robot holds and the controller knows;
+    /// `disturbances`: what the plant has and the controller does not; `limits`: the joint
+    /// limits and their policy; `substeps`: RK4 steps per period.
     #[new]
-    #[pyo3(signature = (robot, config=None))]
-    fn new(robot: &Bound<'_, PyDict>, config: Option<Bound<'_, PyDict>>) -> PyResult<Self> {
+    #[pyo3(signature = (robot, controller, disturbances=None, payloads=None, limits=None, substeps=1))]
+    fn new(
+        robot: &Bound<'_, PyDict>,
+        controller: &Bound<'_, PyControllerSettings>,
+        disturbances: Option<&Bound<'_, PyDisturbances>>,
+        payloads: Option<Vec<Bound<'_, PyPayload>>>,
+        limits: Option<&Bound<'_, PyJointLimits>>,
+        substeps: usize,
+    ) -> PyResult<Self> {
         let robot = crate::description_from_py(robot)?;
         let arm = Dynamics::from_description(&robot).map_err(to_py)?;
-        let cfg = config_from_dict(arm.nv, config)?;
-        Ok(Self { inner: Simulation::new(&arm, cfg).map_err(to_py)? })
-    }
-
-    /// The configuration in use (nested dict).
-    #[getter]
-    fn config<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        config_to_dict(py, &self.inner.config())
+        let config = SimConfig {
+            controller: controller.get().inner.clone(),
+            disturbances: disturbances.map_or(Disturbances::default(), |x| x.get().inner.clone()),
+            payloads: payloads.unwrap_or_default().iter().map(|p| p.get().inner.clone()).collect(),
+            limits: limits.map_or(JointLimits::default(), |x| x.get().inner.clone()),
+            substeps,
+        };
+        Ok(Self { inner: Simulation::new(&arm, config).map_err(to_py)? })
     }
 
     #[getter]
     fn joint_names(&self) -> Vec<String> {
-        self.inner.nominal.joint_names.clone()
+        self.inner.controller.nominal.joint_names.clone()
+    }
+
+    /// The controller's settings.
+    #[getter]
+    fn controller(&self) -> PyControllerSettings {
+        PyControllerSettings { inner: self.inner.config().controller.clone() }
+    }
+
+    /// The joint limits in force: {"torque": [...], "velocity": [...]} (the settings', else the
+    /// robot model's).
+    #[getter]
+    fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        limits_dict(py, &self.inner.limits.torque, &self.inner.limits.velocity)
+    }
+
+    /// Execute a joint trajectory sampled every `dt`: `q` (n, nq), `qd` and `qdd` (n, nv),
+    /// checked first (InvalidTrajectoryError naming the field, sample and joint: outside the
+    /// joint range, over the velocity limits, a jump one tick cannot follow; ShapeError,
+    /// NonFiniteError). `settle`: ticks holding the first sample. `strict`: stop at the first
+    /// tick over a limit, and refuse (LimitExceededError) a trajectory whose inverse-dynamics
+    /// torques exceed the torque limits. Returns the log (dict of numpy arrays, `summary`
+    /// record, `limit_violation`) with `reference_torque_ratio` (largest |inverse-dynamics
+    /// torque| / limit along the trajectory) and `reference_over` (its first sample over, or
+    /// None). The loop runs in Rust without the GIL; Ctrl-C raises KeyboardInterrupt.
+    #[pyo3(signature = (q, qd, qdd, settle=0, paced=false, strict=false))]
+    fn run<'py>(
+        &mut self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        qd: PyReadonlyArrayDyn<'py, f64>,
+        qdd: PyReadonlyArrayDyn<'py, f64>,
+        settle: usize,
+        paced: bool,
+        strict: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (nq, nv) = (self.inner.controller.nominal.nq, self.inner.controller.nominal.nv);
+        let (q, qd, qdd) = (rows(&q, nq, "trajectory.q")?, rows(&qd, nv, "trajectory.qd")?, rows(&qdd, nv, "trajectory.qdd")?);
+        let names = self.inner.controller.nominal.joint_names.clone();
+        let dt = self.inner.controller.settings.dt;
+        let sim = &mut self.inner;
+        let mut interrupt: Option<PyErr> = None;
+        let built = py.detach(|| {
+            Reference::from_joints_with(&sim.controller.nominal, &sim.controller.frame, &sim.limits, q, qd, qdd, dt, &mut || {
+                match Python::attach(|py| py.check_signals()) {
+                    Ok(()) => false,
+                    Err(e) => {
+                        interrupt = Some(e);
+                        true
+                    }
+                }
+            })
+        });
+        if let Some(e) = interrupt {
+            return Err(e);
+        }
+        let (reference, check) = built.map_err(reference_error)?;
+        if strict {
+            if let Some(v) = &check.torque_over {
+                return Err(err(Kind::LimitExceeded, format!(
+                    "trajectory refused (strict=True): its inverse-dynamics torques exceed the limits: {}",
+                    v.describe(&names).replacen(" at t = ", " at sample t = ", 1)
+                )));
+            }
+        }
+        let q0 = reference.joint_command(0).map(|j| j.q.to_vec()).unwrap_or_default();
+        let run = run_interruptible(py, |stop| sim.run_with(&reference, &q0, settle, None, paced, strict, stop))?;
+        let d = run_dict(py, run, &names, dt, paced)?;
+        d.set_item("reference_torque_ratio", check.max_torque_ratio)?;
+        d.set_item("reference_over", violation_dict(py, &check.torque_over, &names)?)?;
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        let c = &self.inner.config().controller;
+        format!(
+            "Simulation(space={}, frame={:?}, dob={}, dt={}, joints={})",
+            c.space.name(),
+            c.frame.as_deref().unwrap_or(""),
+            c.dob,
+            c.dt,
+            self.inner.controller.nominal.nv
+        )
+    }
+}
+
+/// The seq2seq paper's spatula configuration of the 1 kHz loop, with the pancake.
+#[pyclass(name = "SpatulaSimulation", module = "genplan._core")]
+pub(crate) struct PySpatulaSimulation {
+    inner: Spatula,
+}
+
+#[pymethods]
+impl PySpatulaSimulation {
+    /// `robot`: a fixed-base 6-joint robot's description (the "ur5" preset's); `controller`:
+    /// gains, observer and period (default: the paper's loop; its frame and axes are the
+    /// spatula's); `disturbances`: what the plant has that the controller's model lacks (a
+    /// payload: at the spatula point); `limits`: checked every tick (default: recorded).
+    #[new]
+    #[pyo3(signature = (robot, controller=None, disturbances=None, setup=None, pancake=None, limits=None, substeps=1, settle_ticks=0))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        robot: &Bound<'_, PyDict>,
+        controller: Option<&Bound<'_, PyControllerSettings>>,
+        disturbances: Option<&Bound<'_, PyDisturbances>>,
+        setup: Option<&Bound<'_, PySpatulaSetup>>,
+        pancake: Option<&Bound<'_, PyPancakeSettings>>,
+        limits: Option<&Bound<'_, PyJointLimits>>,
+        substeps: usize,
+        settle_ticks: usize,
+    ) -> PyResult<Self> {
+        let robot = crate::description_from_py(robot)?;
+        let arm = Dynamics::from_description(&robot).map_err(to_py)?;
+        let d = SpatulaConfig::default();
+        let config = SpatulaConfig {
+            controller: controller.map_or(d.controller, |x| x.get().inner.clone()),
+            disturbances: disturbances.map_or(d.disturbances, |x| x.get().inner.clone()),
+            setup: setup.map_or(d.setup, |x| x.get().inner.clone()),
+            pancake: pancake.map_or(d.pancake, |x| x.get().inner.clone()),
+            limits: limits.map_or(d.limits, |x| x.get().inner.clone()),
+            substeps,
+            settle_ticks,
+        };
+        Ok(Self { inner: Spatula::new(&arm, config).map_err(to_py)? })
+    }
+
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.inner.sim.controller.nominal.joint_names.clone()
+    }
+
+    /// The controller's settings (the spatula's frame and axes).
+    #[getter]
+    fn controller(&self) -> PyControllerSettings {
+        PyControllerSettings { inner: self.inner.sim.config().controller.clone() }
     }
 
     /// The joint limits every tick is checked against: {"torque": [...], "velocity": [...]}
-    /// (the configuration's, else the robot model's URDF limits).
+    /// (the settings', else the robot model's URDF limits).
     #[getter]
     fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let (torque, velocity) = self.inner.limits();
-        limits_dict(py, Some(torque), Some(velocity))
+        limits_dict(py, &self.inner.sim.limits.torque, &self.inner.sim.limits.velocity)
+    }
+
+    /// Ticks holding the first pose before the motion.
+    #[getter]
+    fn settle_ticks(&self) -> usize {
+        self.inner.config().settle_ticks
     }
 
     /// Command pose (position (3,), rotation (3, 3)) of a paper pose [y, z, theta] (eq. 23).
@@ -447,112 +708,29 @@ impl PySpatulaSimulation {
 
     /// Execute a trajectory (K, 3) of [y, z, theta] rows at dt. `motion_len`: rows of the motion
     /// proper (the rest is a tail; slip and phi verdicts cover the motion). `paced`: tick on the
-    /// wall clock. `stop_at_limit`: end the run at the first tick over a joint limit. Returns a
-    /// dict of numpy arrays and a 'summary' dict (its 'limit_violation': the first tick over a
-    /// limit, or None). The loop runs in Rust without the GIL.
+    /// wall clock. `stop_at_limit`: end the run at the first tick over a joint limit. Returns the
+    /// log (dict of numpy arrays; `payload` holds the pancake's channels `tilt`, `phi`, `slide`,
+    /// `normal`, `mode`), its `summary` record, `pancake` record and `limit_violation`. The loop
+    /// runs in Rust without the GIL; Ctrl-C raises KeyboardInterrupt.
     #[pyo3(signature = (trajectory, motion_len=None, paced=false, stop_at_limit=false))]
     fn run<'py>(&mut self, py: Python<'py>, trajectory: PyReadonlyArrayDyn<'py, f64>, motion_len: Option<usize>, paced: bool, stop_at_limit: bool) -> PyResult<Bound<'py, PyDict>> {
         let traj = trajectory_rows(&trajectory)?;
+        let names = self.inner.sim.controller.nominal.joint_names.clone();
+        let dt = self.inner.sim.controller.settings.dt;
         let sim = &mut self.inner;
-        // Ctrl-C: the loop asks every few hundred ticks; the pending exception is raised as is
-        let mut interrupt: Option<PyErr> = None;
-        let result = py.detach(|| {
-            sim.run_with(&traj, motion_len, paced, stop_at_limit, &mut || match Python::attach(|py| py.check_signals()) {
-                Ok(()) => false,
-                Err(e) => {
-                    interrupt = Some(e);
-                    true
-                }
-            })
-        });
-        if let Some(e) = interrupt {
-            return Err(e);
-        }
-        let run = result.map_err(to_py)?;
-        let log = run.log;
-        let (n, nv) = (log.n, log.nv);
-        let d = PyDict::new(py);
-        d.set_item("t", array(py, &[n], log.t)?)?;
-        d.set_item("p_cmd", array(py, &[n, 3], log.paper_cmd)?)?;
-        d.set_item("p", array(py, &[n, 3], log.paper)?)?;
-        d.set_item("position_cmd", array(py, &[n, 3], log.pos_cmd)?)?;
-        d.set_item("position", array(py, &[n, 3], log.pos)?)?;
-        d.set_item("rotation", array(py, &[n, 3, 3], log.rot)?)?;
-        d.set_item("error_position", array(py, &[n], log.err_pos)?)?;
-        d.set_item("error_rotation", array(py, &[n], log.err_rot)?)?;
-        d.set_item("q", array(py, &[n, nv], log.q)?)?;
-        d.set_item("v", array(py, &[n, nv], log.v)?)?;
-        d.set_item("tau", array(py, &[n, nv], log.tau)?)?;
-        d.set_item("tau_dis_hat", array(py, &[n, nv], log.tau_dis_hat)?)?;
-        d.set_item("tau_dis", array(py, &[n, nv], log.tau_dis)?)?;
-        d.set_item("acceleration", array(py, &[n, 6], log.acc)?)?;
-        d.set_item("phi", array(py, &[n], log.phi)?)?;
-        d.set_item("slide", array(py, &[n], log.slide)?)?;
-        d.set_item("normal", array(py, &[n], log.normal)?)?;
-        d.set_item("pancake_mode", Array1::from_vec(log.pancake_mode).into_pyarray(py))?;
-        d.set_item("damped", Array1::from_vec(log.damped).into_pyarray(py))?;
-        d.set_item("det_j", array(py, &[n], log.det_j)?)?;
-        d.set_item("motion_start", run.motion_start)?;
-        d.set_item("motion_end", run.motion_end)?;
-        let s = &run.summary;
-        let sd = PyDict::new(py);
-        sd.set_item("ticks", s.ticks)?;
-        sd.set_item("us_per_tick", s.us_per_tick)?;
-        sd.set_item("max_error_position", s.max_err_pos)?;
-        sd.set_item("max_error_rotation", s.max_err_rot)?;
-        sd.set_item("rms_error_position", s.rms_err_pos)?;
-        sd.set_item("rms_error_rotation", s.rms_err_rot)?;
-        sd.set_item("max_abs_phi", s.max_abs_phi)?;
-        sd.set_item("slipped", s.slipped)?;
-        sd.set_item("first_slip_time", s.first_slip_time)?;
-        sd.set_item("left_time", s.left_time)?;
-        sd.set_item("max_abs_slide", s.max_abs_slide)?;
-        sd.set_item("damped_ticks", s.damped_ticks)?;
-        sd.set_item("first_damped_time", s.first_damped_time)?;
-        sd.set_item("min_abs_det_j", s.min_abs_det_j)?;
-        sd.set_item("saturated_ticks", s.saturated_ticks)?;
-        sd.set_item("max_abs_tau", s.max_abs_tau.clone())?;
-        sd.set_item("max_abs_v", s.max_abs_v.clone())?;
-        sd.set_item("limit_ticks", s.limit_ticks)?;
-        sd.set_item("stopped_at_limit", s.stopped_at_limit)?;
-        let violation = match &s.limit_violation {
-            None => None,
-            Some(v) => {
-                let vd = PyDict::new(py);
-                vd.set_item("time", v.time)?;
-                vd.set_item("tick", v.tick)?;
-                vd.set_item("joint", &self.inner.nominal.joint_names[v.joint])?;
-                vd.set_item("quantity", v.quantity())?;
-                vd.set_item("value", v.value)?;
-                vd.set_item("limit", v.limit)?;
-                vd.set_item("unit", v.unit)?;
-                vd.set_item("message", v.describe(&self.inner.nominal.joint_names))?;
-                Some(vd)
-            }
-        };
-        sd.set_item("limit_violation", violation)?;
-        if paced {
-            let j = PyDict::new(py);
-            for (name, xs) in [("lateness", &log.lateness), ("compute", &log.compute)] {
-                j.set_item(format!("{name}_p50_us"), percentile(xs, 50.0) * 1e6)?;
-                j.set_item(format!("{name}_p99_us"), percentile(xs, 99.0) * 1e6)?;
-                j.set_item(format!("{name}_max_us"), xs.iter().copied().fold(0.0, f64::max) * 1e6)?;
-            }
-            let period = self.inner.config().controller.dt;
-            j.set_item("overruns", log.compute.iter().zip(&log.lateness).filter(|(c, l)| **c + **l > period).count())?;
-            sd.set_item("jitter", j)?;
-            d.set_item("lateness", array(py, &[log.lateness.len()], log.lateness)?)?;
-            d.set_item("compute", array(py, &[log.compute.len()], log.compute)?)?;
-        }
-        d.set_item("summary", sd)?;
+        let run = run_interruptible(py, |stop| sim.run_with(&traj, motion_len, paced, stop_at_limit, stop))?;
+        let pancake = run.pancake;
+        let d = run_dict(py, run.run, &names, dt, paced)?;
+        d.set_item("pancake", Bound::new(py, PyPancakeSummary { inner: pancake })?)?;
         Ok(d)
     }
 
     fn __repr__(&self) -> String {
-        let c = &self.inner.config();
+        let c = self.inner.config();
+        let payload = c.disturbances.payload.as_ref().map_or(0.0, |p| p.mass);
         format!(
-            "SpatulaSimulation(dob={}, dt={}, payload_mass={}, substeps={}, settle_ticks={})",
-            c.controller.dob, c.controller.dt, c.disturbances.payload_mass, c.substeps, c.settle_ticks
+            "SpatulaSimulation(dob={}, dt={}, payload_error={} kg, substeps={}, settle_ticks={})",
+            c.controller.dob, c.controller.dt, payload, c.substeps, c.settle_ticks
         )
     }
 }
@@ -565,6 +743,12 @@ fn trajectory_rows(arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<f64>> {
         )));
     }
     Ok(arr.as_array().iter().copied().collect())
+}
+
+/// The plant deviations of genplan's reproduction of the seq2seq experiment (for the UR5).
+#[pyfunction]
+fn spatula_reference_disturbances() -> PyDisturbances {
+    PyDisturbances { inner: reference_disturbances() }
 }
 
 /// eq. 16 as the control loop computes it: phi for each (theta, a_y, a_z), gravity g.
@@ -587,8 +771,18 @@ fn pancake_phi<'py>(py: Python<'py>, theta: PyReadonlyArrayDyn<'py, f64>, acc: P
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDynamics>()?;
+    m.add_class::<PyControllerSettings>()?;
+    m.add_class::<PyDisturbances>()?;
+    m.add_class::<PyPayload>()?;
+    m.add_class::<PyJointLimits>()?;
+    m.add_class::<PySpatulaSetup>()?;
+    m.add_class::<PyPancakeSettings>()?;
+    m.add_class::<PyRunSummary>()?;
+    m.add_class::<PyPancakeSummary>()?;
+    m.add_class::<PySimulation>()?;
     m.add_class::<PySpatulaSimulation>()?;
-    m.add_function(wrap_pyfunction!(spatula_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(pancake_phi, m)?)?;
+    m.add_function(wrap_pyfunction!(spatula_reference_disturbances, m)?)?;
+    m.add("MAX_TICKS", control::MAX_TICKS)?;
     Ok(())
 }

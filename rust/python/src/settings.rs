@@ -65,6 +65,85 @@ impl Field for bool {
     }
 }
 
+impl Field for String {
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        if !v.is_instance_of::<PyString>() {
+            return Err(bad(what, "a string", v));
+        }
+        v.extract::<String>()
+    }
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.into_bound_py_any(py)
+    }
+}
+
+impl Field for Vec<f64> {
+    /// A sequence (list, tuple, 1-D array) of numbers.
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        if v.is_instance_of::<PyString>() {
+            return Err(bad(what, "a sequence of numbers", v));
+        }
+        let items = v.try_iter().map_err(|_| bad(what, "a sequence of numbers", v))?;
+        let mut out = Vec::new();
+        for (i, item) in items.enumerate() {
+            let item = item.map_err(|_| bad(what, "a sequence of numbers", v))?;
+            out.push(f64::from_py(&item, &format!("{what}[{i}]"))?);
+        }
+        Ok(out)
+    }
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.into_bound_py_any(py)
+    }
+}
+
+impl<const N: usize> Field for [f64; N] {
+    /// A sequence of exactly N numbers.
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        let values = Vec::<f64>::from_py(v, what)?;
+        let n = values.len();
+        values.try_into().map_err(|_| err(Kind::Settings, format!("{what}: expected {N} numbers, got {n}")))
+    }
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.to_vec().into_bound_py_any(py)
+    }
+}
+
+impl Field for [[f64; 3]; 3] {
+    /// A 3x3 matrix: three rows of three numbers (nested sequences or a (3, 3) array).
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        let shape_error = || bad(what, "a 3x3 matrix (three rows of three numbers)", v);
+        if v.is_instance_of::<PyString>() {
+            return Err(shape_error());
+        }
+        let rows = v.try_iter().map_err(|_| shape_error())?;
+        let mut out = Vec::with_capacity(3);
+        for (r, row) in rows.enumerate() {
+            let row = row.map_err(|_| shape_error())?;
+            out.push(<[f64; 3]>::from_py(&row, &format!("{what}[{r}]"))?);
+        }
+        out.try_into().map_err(|_| shape_error())
+    }
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.iter().map(|r| r.to_vec()).collect::<Vec<_>>().into_bound_py_any(py)
+    }
+}
+
+impl<T: Field> Field for Option<T> {
+    /// None, or a value of `T`.
+    fn from_py(v: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        if v.is_none() {
+            return Ok(None);
+        }
+        T::from_py(v, what).map(Some)
+    }
+    fn to_py<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match self {
+            None => Ok(py.None().into_bound(py)),
+            Some(x) => x.to_py(py),
+        }
+    }
+}
+
 /// The names of [`NeighborIndex`] in Python.
 const NEIGHBORS: [(&str, NeighborIndex); 3] = [
     ("auto", NeighborIndex::Auto),
@@ -102,6 +181,9 @@ pub(crate) fn record_repr(name: &str, d: &Bound<'_, PyDict>) -> PyResult<String>
 /// returns a `PyResult<()>`.
 macro_rules! settings_class {
     ($(#[$doc:meta])* $py:ident, $pyname:literal, $core:ty, $validate:expr, [$($field:ident),* $(,)?]) => {
+        settings_class!($(#[$doc])* $py, $pyname, $core, $validate, [$($field),*], {});
+    };
+    ($(#[$doc:meta])* $py:ident, $pyname:literal, $core:ty, $validate:expr, [$($field:ident),* $(,)?], { $($extra:tt)* }) => {
         $(#[$doc])*
         #[pyclass(name = $pyname, module = "genplan._core", frozen)]
         #[derive(Clone)]
@@ -184,6 +266,8 @@ macro_rules! settings_class {
                     $crate::settings::Field::to_py(&self.inner.$field, py)
                 }
             )*
+
+            $($extra)*
         }
     };
 }

@@ -2,10 +2,11 @@
 
     genplan bench control --out benches/results/control.json   # + control_fig12.png beside it
 
-Executes the turning-over trajectory with the paper's 1 kHz task-space P-D + DOB controller under
-the reference plant deviations (payload error, joint friction, torque offset:
-``genplan.control.Disturbances.reference()``), after a settle phase and with the paper's 0.1 s
-constant-deceleration tail:
+Executes the turning-over trajectory with the paper's 1 kHz task-space P-D + DOB controller (the
+spatula configuration of genplan's loop: ``genplan.pancake.control``) under the reference plant
+deviations (payload error, joint friction, torque offset:
+``genplan.pancake.control.reference_disturbances()``), after a settle phase and with the paper's
+0.1 s constant-deceleration tail:
 
 * the trajectory is the latent-adjusted one from the paper's constant-velocity input to
   ``[0, 0, -3 pi / 4]`` when the shipped seq2seq model ``genplan/models/pancake_seq2seq.safetensors``
@@ -42,8 +43,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from genplan import control
-from genplan import _cli_args as A
+from genplan.cli import args as A
 from genplan.experiments.common import machine, save_figure, table, write_json
+from genplan.pancake import control as pc
 
 #: the paper's J2 input (Section 5.2) and horizon
 P_END = (0.0, 0.0, -0.75 * math.pi)
@@ -81,7 +83,7 @@ def casadi_j2_trajectory() -> tuple[NDArray[np.float64], float] | None:
     return np.asarray(r["p"], dtype=np.float64), time.perf_counter() - t0
 
 
-def planned_phi(p: NDArray[np.float64], dt: float = control.DT) -> NDArray[np.float64]:
+def planned_phi(p: NDArray[np.float64], dt: float = pc.DT) -> NDArray[np.float64]:
     """phi of a pose trajectory from its central-difference accelerations (end samples: one-sided)."""
     from genplan.pancake.trajectories import phi
 
@@ -125,9 +127,9 @@ def adjusted_trajectory(updates: int | None = None, path: Path | None = None, ob
     res = adjust(line_input(model.config.K), objective=obj, method="latent", updates=updates, model=model,
                  step=step, snapshots=(0,))
     adjust_s = time.perf_counter() - t0
-    r = ph.Rollout(*(torch.as_tensor(getattr(res, k), dtype=torch.float32) for k in ("p", "v", "u", "phi")))
+    r = ph.Rollout(**{k: torch.as_tensor(getattr(res, k), dtype=torch.float32) for k in ("p", "v", "u", "phi")})
     paper_j2 = J2()
-    paper_terms = paper_j2.terms(r)
+    paper_terms = paper_j2.values(r)
     details = {
         "objective": objective,
         "adjust_s": adjust_s,
@@ -167,7 +169,7 @@ def criterion_tick() -> dict[str, Any] | None:
             "command": "cargo bench -p genplan-core --bench control"}
 
 
-def _deviation(log: control.ExecutionLog, nominal: control.ExecutionLog) -> dict[str, float]:
+def _deviation(log: pc.SpatulaLog, nominal: pc.SpatulaLog) -> dict[str, float]:
     """How far a disturbed run's spatula strays from the undisturbed plant's (after settling)."""
     sl = slice(log.motion_start, None)
     dp = np.linalg.norm(log.position[sl] - nominal.position[sl], axis=1)
@@ -177,14 +179,14 @@ def _deviation(log: control.ExecutionLog, nominal: control.ExecutionLog) -> dict
             "rms_mm": 1e3 * float(np.sqrt(np.mean(dp ** 2))), "rms_deg": math.degrees(float(np.sqrt(np.mean(ang ** 2))))}
 
 
-def _first(log: control.ExecutionLog, mask: NDArray[np.bool_]) -> float | None:
+def _first(log: pc.SpatulaLog, mask: NDArray[np.bool_]) -> float | None:
     """Seconds from the motion's start to the first tick of ``mask`` during the motion (None: not
     during the motion; in the tail the pancake is meant to leave)."""
     hits = np.flatnonzero(mask[log.motion_start:log.motion_end])
     return None if hits.size == 0 else float(log.t[log.motion_start + hits[0]] - log.t[log.motion_start])
 
 
-def _run_summary(log: control.ExecutionLog) -> dict[str, Any]:
+def _run_summary(log: pc.SpatulaLog) -> dict[str, Any]:
     s = log.summary
     return {
         "max_tracking_error_mm": log.max_tracking_error_mm,
@@ -209,14 +211,13 @@ def run(updates: int | None = None, repeats: int = 7, settle: float = 1.0, tail:
         png: Path | None = None, objective: str = "j2-exec") -> dict[str, Any]:
     traj, source, details = adjusted_trajectory(updates, objective=objective)
     unadjusted_output = details.pop("unadjusted_model_output", None)
-    dist = control.Disturbances.reference()
-    arm = control.SpatulaArm(disturbances=dist, settle=settle)
-    arm_no_dob = control.SpatulaArm(disturbances=dist, settle=settle,
-                                    controller=control.ControllerConfig(dob=False))
+    dist = pc.reference_disturbances()
+    arm = pc.SpatulaArm(disturbances=dist, settle=settle)
+    arm_no_dob = pc.SpatulaArm(disturbances=dist, settle=settle, controller=pc.PAPER_CONTROLLER.replace(dob=False))
     logs = [arm.execute(traj, tail=tail) for _ in range(max(1, repeats))]
     with_dob = logs[-1]
     without = arm_no_dob.execute(traj, tail=tail)
-    nominal = control.SpatulaArm(settle=settle).execute(traj, tail=tail)
+    nominal = pc.SpatulaArm(settle=settle).execute(traj, tail=tail)
     unadjusted = arm.execute(line_input(), tail=tail)
     dev_dob, dev_no = _deviation(with_dob, nominal), _deviation(without, nominal)
 
@@ -245,9 +246,9 @@ def run(updates: int | None = None, repeats: int = 7, settle: float = 1.0, tail:
                        "planned_max_abs_phi_deg": float(np.degrees(np.abs(planned_phi(line_input())).max())),
                        **_run_summary(unadjusted)},
         "trajectory": {"source": source, "K": int(traj.shape[0]), "tail_s": tail, "settle_s": settle, **details},
-        "disturbances": dist.to_dict(),
-        "controller": control.ControllerConfig().to_dict(),
-        "setup": control.SpatulaSetup().to_dict(),
+        "disturbances": {**dist.to_dict(), "payload": dist.payload.to_dict() if dist.payload else None},
+        "controller": arm.controller.to_dict(),
+        "setup": pc.SpatulaSetup().to_dict(),
         "robot": "ur5",
         "machine": machine(),
         "command": "genplan " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("genplan") else None,
@@ -257,7 +258,7 @@ def run(updates: int | None = None, repeats: int = 7, settle: float = 1.0, tail:
         x, solve_s = peer
         log_peer = arm.execute(x, tail=tail)
         log_peer_no = arm_no_dob.execute(x, tail=tail)
-        log_peer_nom = control.SpatulaArm(settle=settle).execute(x, tail=tail)
+        log_peer_nom = pc.SpatulaArm(settle=settle).execute(x, tail=tail)
         d_with, d_no = _deviation(log_peer, log_peer_nom), _deviation(log_peer_no, log_peer_nom)
         payload["casadi_j2"] = {"source": "the same J2 problem solved by CasADi + IPOPT (hard friction cone; "
                                           "genplan.experiments.peers.casadi), executed the same way",
@@ -273,7 +274,7 @@ def run(updates: int | None = None, repeats: int = 7, settle: float = 1.0, tail:
         det.pop("unadjusted_model_output", None)
         log_j2 = arm.execute(x, tail=tail)
         payload["paper_j2"] = {"source": src, "plan": det, **_run_summary(log_j2),
-                               "undisturbed": _run_summary(control.SpatulaArm(settle=settle).execute(x, tail=tail))}
+                               "undisturbed": _run_summary(pc.SpatulaArm(settle=settle).execute(x, tail=tail))}
     if unadjusted_output is not None:
         log0 = arm.execute(unadjusted_output, tail=tail)
         payload["unadjusted_model_output"] = {"source": "the model's output before any update (Fig. 11, 0th)",
@@ -291,8 +292,7 @@ def run(updates: int | None = None, repeats: int = 7, settle: float = 1.0, tail:
     return payload
 
 
-def figure(dob: control.ExecutionLog, no_dob: control.ExecutionLog, unadjusted: control.ExecutionLog,
-           source: str, path: Path) -> None:
+def figure(dob: pc.SpatulaLog, no_dob: pc.SpatulaLog, unadjusted: pc.SpatulaLog, source: str, path: Path) -> None:
     """Fig. 12 of the paper: command and response of y, z, theta over time; plus the tracking
     error with and without the DOB and the friction-cone angle phi of the achieved motion."""
     import matplotlib

@@ -1,0 +1,163 @@
+//! The true plant: the robot's rigid-body dynamics with what the controller's model lacks
+//! (joint friction, a torque offset, an unknown payload), integrated with classical RK4
+//! (`substeps` per control period) under the zero-order-held torque. Continuous joints are
+//! integrated on their circle (their `[cos, sin]` rotated by the step's angle).
+
+use crate::dynamics::{DynWorkspace, Dynamics};
+use crate::error::{Error, Result};
+
+use super::settings::{joint_value, Disturbances};
+
+/// The forces on the true robot: its dynamics, joint friction and the torque offset.
+struct Forces {
+    model: Dynamics,
+    ws: DynWorkspace,
+    coulomb: Vec<f64>,
+    viscous: Vec<f64>,
+    offset: Vec<f64>,
+    friction_velocity: f64,
+    torque: Vec<f64>,
+}
+
+impl Forces {
+    /// The joint acceleration at (q, v) under the applied torque `tau` plus the offset minus the
+    /// friction `coulomb tanh(v / friction_velocity) + viscous v`.
+    fn accel(&mut self, tau: &[f64], q: &[f64], v: &[f64], out: &mut [f64]) -> Result<()> {
+        for i in 0..tau.len() {
+            let fr = self.coulomb[i] * (v[i] / self.friction_velocity).tanh() + self.viscous[i] * v[i];
+            self.torque[i] = tau[i] + self.offset[i] - fr;
+        }
+        self.model.update_local_kinematics_unchecked(q, Some(v), &mut self.ws);
+        self.model.forward_dynamics_from_kinematics(&self.torque, &mut self.ws, out)
+    }
+}
+
+/// The simulated robot: its model (the controller's nominal model plus the unknown payloads),
+/// friction and offsets, its state, and the buffers of one RK4 step (no allocation per tick).
+pub struct Plant {
+    forces: Forces,
+    substeps: usize,
+    /// Joint positions (nq).
+    pub q: Vec<f64>,
+    /// Joint velocities (nv).
+    pub v: Vec<f64>,
+    // the state within a period, and the stages of one RK4 step
+    q_step: Vec<f64>,
+    v_step: Vec<f64>,
+    qt: Vec<f64>,
+    vt: Vec<f64>,
+    k1: Vec<f64>,
+    k2: Vec<f64>,
+    k3: Vec<f64>,
+    k4: Vec<f64>,
+    v2: Vec<f64>,
+    v3: Vec<f64>,
+    v4: Vec<f64>,
+    sum: Vec<f64>,
+}
+
+impl Plant {
+    /// The plant of `model` (which already holds every payload) with `disturbances`' friction
+    /// and offsets (checked for `model.nv` joints), at rest at the model's neutral
+    /// configuration (see [`reset`](Self::reset)); `substeps` RK4 steps per period (1..=1000).
+    pub fn new(model: Dynamics, disturbances: &Disturbances, substeps: usize) -> Result<Plant> {
+        let nv = model.nv;
+        disturbances.check(nv)?;
+        if substeps == 0 || substeps > 1000 {
+            return Err(Error::Settings { field: "substeps", msg: format!("must be in 1..=1000, got {substeps}") });
+        }
+        let per_joint = |values: &[f64]| (0..nv).map(|i| joint_value(values, i)).collect::<Vec<f64>>();
+        let z = vec![0.0; nv];
+        let q = model.neutral();
+        Ok(Plant {
+            forces: Forces {
+                ws: model.workspace(),
+                coulomb: per_joint(&disturbances.coulomb),
+                viscous: per_joint(&disturbances.viscous),
+                offset: per_joint(&disturbances.offset),
+                friction_velocity: disturbances.friction_velocity,
+                torque: z.clone(),
+                model,
+            },
+            substeps,
+            q_step: q.clone(),
+            qt: q.clone(),
+            q,
+            v: z.clone(),
+            v_step: z.clone(),
+            vt: z.clone(),
+            k1: z.clone(),
+            k2: z.clone(),
+            k3: z.clone(),
+            k4: z.clone(),
+            v2: z.clone(),
+            v3: z.clone(),
+            v4: z.clone(),
+            sum: z,
+        })
+    }
+
+    /// The true dynamics (the robot with every payload).
+    pub fn model(&self) -> &Dynamics {
+        &self.forces.model
+    }
+
+    /// At rest at `q` (checked: length nq, finite).
+    pub fn reset(&mut self, q: &[f64]) -> Result<()> {
+        self.forces.model.check_state(q, None)?;
+        self.q.copy_from_slice(q);
+        self.v.fill(0.0);
+        Ok(())
+    }
+
+    /// Advance by one period `dt` under the held torque `tau` (RK4, `substeps`); `qdd0` gets the
+    /// joint acceleration at the period's start. The state changes only when the whole period
+    /// succeeds; `tick` names the tick in the error of a non-finite state (the plant diverged).
+    pub fn step(&mut self, tau: &[f64], dt: f64, tick: u64, qdd0: &mut [f64]) -> Result<()> {
+        let h = dt / self.substeps as f64;
+        let nv = self.v.len();
+        let f = &mut self.forces;
+        self.q_step.copy_from_slice(&self.q);
+        self.v_step.copy_from_slice(&self.v);
+        let (q, v) = (&mut self.q_step, &mut self.v_step);
+        for sub in 0..self.substeps {
+            f.accel(tau, q, v, &mut self.k1)?;
+            if sub == 0 {
+                qdd0.copy_from_slice(&self.k1);
+            }
+            f.model.integrate_scaled(q, v, 0.5 * h, &mut self.qt);
+            for i in 0..nv {
+                self.vt[i] = v[i] + 0.5 * h * self.k1[i];
+            }
+            self.v2.copy_from_slice(&self.vt);
+            f.accel(tau, &self.qt, &self.vt, &mut self.k2)?;
+            f.model.integrate_scaled(q, &self.v2, 0.5 * h, &mut self.qt);
+            for i in 0..nv {
+                self.vt[i] = v[i] + 0.5 * h * self.k2[i];
+            }
+            self.v3.copy_from_slice(&self.vt);
+            f.accel(tau, &self.qt, &self.vt, &mut self.k3)?;
+            f.model.integrate_scaled(q, &self.v3, h, &mut self.qt);
+            for i in 0..nv {
+                self.vt[i] = v[i] + h * self.k3[i];
+            }
+            self.v4.copy_from_slice(&self.vt);
+            f.accel(tau, &self.qt, &self.vt, &mut self.k4)?;
+            for i in 0..nv {
+                self.sum[i] = v[i] + 2.0 * self.v2[i] + 2.0 * self.v3[i] + self.v4[i];
+            }
+            f.model.integrate_scaled(q, &self.sum, h / 6.0, &mut self.qt);
+            q.copy_from_slice(&self.qt);
+            for i in 0..nv {
+                v[i] += h / 6.0 * (self.k1[i] + 2.0 * self.k2[i] + 2.0 * self.k3[i] + self.k4[i]);
+            }
+        }
+        if !q.iter().chain(v.iter()).all(|x| x.is_finite()) {
+            return Err(Error::Invalid(format!("the plant diverged (non-finite state) at tick {tick}")));
+        }
+        f.model.normalize_circles(q);
+        self.q.copy_from_slice(q);
+        self.v.copy_from_slice(v);
+        Ok(())
+    }
+}
