@@ -20,7 +20,7 @@ def run(script: str, *args: str) -> str:
 
 def test_every_example_is_tested() -> None:
     tested = {"01_plan_with_gan_sampler.py", "02_ik_with_a_custom_task.py", "03_adjust_a_trajectory.py",
-              "04_execute_with_the_controller.py", "05_your_own_robot.py"}
+              "04_execute_with_the_controller.py", "05_your_own_robot.py", "06_adapt_a_learned_motion.py", "07_execute_any_robot.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -51,6 +51,23 @@ def test_04_execute_with_the_controller() -> None:
     assert "stayed" in turn["turn-over, J2Executable"]
 
 
+def test_06_adapt_a_learned_motion(tmp_path) -> None:
+    """The Panda shelf family: planned, a small model trained, adjusted to new goals and around a
+    ball on a path (small sizes: the defaults take minutes); every success is a finished, checked
+    trajectory, and the counts printed are the finish's own."""
+    import re
+
+    out = run("06_adapt_a_learned_motion.py", "--count", "24", "--epochs", "5", "--problems", "3",
+              "--out-dir", str(tmp_path))
+    family = re.search(r"family: (\d+) planned motions of 32 samples", out)
+    assert family and int(family.group(1)) == 24
+    assert (tmp_path / "family.safetensors").is_file() and (tmp_path / "family.json").is_file()
+    goals = re.search(r"new goals: (\d+) of 3 finished", out)
+    assert goals, out
+    assert "obstacle: the original motion" in out
+    assert ("adjusted: finished, clear of it" in out) or ("adjusted: failed: " in out)
+
+
 def test_05_your_own_robot(tmp_path) -> None:
     """xArm7 (not a preset), the upright-cup task: a small sampler trained, evaluated against
     uniform starts, a plan around the box, the HTML view (small sizes: the defaults take minutes)."""
@@ -65,3 +82,16 @@ def test_05_your_own_robot(tmp_path) -> None:
     assert (tmp_path / "cup.safetensors").is_file() and (tmp_path / "plan.json").is_file()
     if importlib.util.find_spec("viser") is not None:
         assert (tmp_path / "plan.html").stat().st_size > 100_000
+
+
+def test_07_execute_any_robot(tmp_path) -> None:
+    """A Panda shelf plan executed with a 20 % payload error, friction and offsets (one query)."""
+    out = run("07_execute_any_robot.py", "--queries", "1", "--out-dir", str(tmp_path))
+    lines = out.splitlines()
+    on = next(line for line in lines if "DOB on" in line)
+    off = next(line for line in lines if "DOB off" in line)
+    assert "collision no" in on and "collision no" in off
+    ratio = float(next(line for line in lines if "the observer cuts" in line).split("error ")[1].rstrip("x"))
+    assert ratio > 3.0
+    assert (tmp_path / "execute_panda.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "execute_panda_dob.npz").is_file() and (tmp_path / "execute_panda_no_dob.npz").is_file()

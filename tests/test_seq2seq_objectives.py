@@ -170,3 +170,73 @@ def test_pancake_kinds_are_known_to_files(tmp_path) -> None:
     with pytest.raises(SettingsError, match="spatula plant's phi"):
         obj(_rollout(np.zeros((1, 4, 3))))
     assert math.isfinite(O.KINDS["friction_cone"]().weight)
+
+
+def _clearance_np(term: O.Clearance, q: np.ndarray, world) -> np.ndarray:
+    """The clearance term written out in numpy (float64): every sphere, no screening."""
+    c = term.centers_np(q)
+    d, _ = world.point_distances(c, 10.0)
+    return (np.maximum(term.margin - (d - term._radii_np), 0.0) ** 2).sum(-1)
+
+
+def _self_clearance_np(term: O.SelfClearance, q: np.ndarray) -> np.ndarray:
+    c = term.centers_np(q)
+    gap = np.linalg.norm(c[:, term._s_np] - c[:, term._t_np], axis=-1) - term._radii_np[term._s_np] - term._radii_np[term._t_np]
+    return (np.maximum(term.margin - gap, 0.0) ** 2).sum(-1)
+
+
+def _value_and_grad(term: O.Term, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The term on rollouts of one sample each (B = len(q), K = 1) and its gradient in q."""
+    qt = torch.tensor(q[:, None, :], dtype=torch.float32, requires_grad=True)
+    r = Rollout(p=qt, v=torch.zeros_like(qt), u=torch.zeros_like(qt))
+    v = term(r)
+    if not v.requires_grad:  # nothing near: a constant zero
+        return v.double().numpy(), np.zeros(q.shape)
+    (g,) = torch.autograd.grad(v.sum(), qt)
+    return v.detach().double().numpy(), g[:, 0].double().numpy()
+
+
+def _fd(f, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    out = np.zeros_like(q)
+    for j in range(q.shape[1]):
+        e = np.zeros(q.shape[1])
+        e[j] = h
+        out[:, j] = (f(q + e) - f(q - e)) / (2 * h)
+    return out
+
+
+def test_clearance_terms_match_their_formulas_and_gradients(panda) -> None:
+    """clearance (the scene, natively screened) and self_clearance (the arm's own link pairs)
+    against numpy over every sphere in float64, values and gradients (central differences)."""
+    from genplan.scene import load_scene
+
+    scene = load_scene("panda_shelf")
+    rng = np.random.default_rng(4)
+    q = panda.random_configurations(400, rng=rng)
+    ctx = _ctx(len(q), axes=panda.joint_names, robot=panda, scene=scene)
+    clear, self_clear = O.Clearance(margin=0.03), O.SelfClearance(margin=0.01)
+    clear.bind(ctx)
+    self_clear.bind(ctx)
+    world = panda.collision_world()
+    world.add_scene(scene)
+    # the scene: configurations near or in the shelf
+    ref = _clearance_np(clear, q, world)
+    hit = ref > 1e-5
+    assert hit.sum() >= 20
+    value, grad = _value_and_grad(clear, q[hit][:20])
+    np.testing.assert_allclose(value, ref[hit][:20], rtol=2e-3, atol=1e-7)
+    fd = _fd(lambda x: _clearance_np(clear, x, world), q[hit][:20])
+    np.testing.assert_allclose(grad, fd, rtol=0.02, atol=2e-3 * np.abs(fd).max())
+    np.testing.assert_array_equal(_value_and_grad(clear, q[~hit][:20])[0], 0.0)
+    # the arm itself: zero at the default configuration (pairs whose padding overlaps there are left
+    # out, and counted), positive wherever the robot's own collision check finds a contact
+    assert self_clear.dropped >= 0 and len(self_clear._s_np) > 100
+    assert _value_and_grad(self_clear, np.asarray(panda.q_default)[None])[0][0] == 0.0
+    alone = panda.collision_world()
+    folded = q[np.asarray(alone.in_collision(q))]
+    assert len(folded) >= 10
+    v_folded, g_folded = _value_and_grad(self_clear, folded[:20])
+    assert np.all(v_folded > 0)
+    np.testing.assert_allclose(v_folded, _self_clearance_np(self_clear, folded[:20]), rtol=2e-3, atol=1e-7)
+    fd = _fd(lambda x: _self_clearance_np(self_clear, x), folded[:20])
+    np.testing.assert_allclose(g_folded, fd, rtol=0.02, atol=2e-3 * np.abs(fd).max())

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
 from genplan._arrays import as_configurations, as_float_array, as_real
-from genplan.errors import GenplanError, SceneFileError, ShapeError
+from genplan.errors import GenplanError, SceneFileError, SettingsError, ShapeError
 from genplan.scene import Box, Capsule, Cylinder, HalfSpace, Mesh, Obstacle, Scene, Sphere, load_scene
 
 
@@ -182,6 +182,21 @@ class CollisionWorld:
         if qa.ndim != 1:
             raise ShapeError(f"q: close_pairs takes one configuration of shape ({self._nq},), got {qa.shape}")
         return self._native.close_pairs(list(qa), as_real(margin, "margin"))
+
+    def point_distances(self, points: ArrayLike, cutoff: float = 1.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Signed distances of points ``(..., 3)`` to the nearest obstacle (negative inside one)
+        and their gradients ``(..., 3)`` (unit vectors away from the nearest obstacle): the
+        clearance of spheres covering a robot, natively (GIL released). Obstacles ``cutoff`` (m)
+        or more away are skipped: a point with none nearer gets ``cutoff`` and a zero gradient.
+        Mesh obstacles are their convex hulls, as in every query of the world."""
+        pts = np.ascontiguousarray(as_float_array(points, "points"), dtype=np.float64)
+        if pts.ndim < 1 or pts.shape[-1] != 3:
+            raise ShapeError(f"points: expected a last axis of 3 (x, y, z), got shape {pts.shape}")
+        cut = as_real(cutoff, "cutoff")
+        if not (np.isfinite(cut) and cut > 0):
+            raise SettingsError(f"cutoff must be a positive finite distance (m), got {cutoff!r}")
+        d, g = self._native.point_distances(pts, cut)
+        return d, g
 
     def __repr__(self) -> str:
         return repr(self._native)

@@ -577,14 +577,18 @@ def scene_names() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
 
 
-def load_scene(scene: str | os.PathLike[str] | Scene) -> Scene:
-    """A scene: a :class:`Scene` as is, a shipped scene's name (:func:`scene_names`) or a scene file."""
+def load_scene(scene: str | os.PathLike[str] | Scene | Mapping[str, Any]) -> Scene:
+    """A scene: a :class:`Scene` as is, a shipped scene's name (:func:`scene_names`), a scene file,
+    or a scene's dict form (:meth:`Scene.to_dict`, as data sets and model cards record it)."""
     if isinstance(scene, Scene):
         return scene
+    if isinstance(scene, Mapping):
+        return Scene.from_dict(scene)
     if isinstance(scene, str) and scene in scene_names():
         return Scene.from_file(SCENES_DIR / f"{scene}.toml")
     if not isinstance(scene, (str, os.PathLike)):
-        raise SceneFileError(f"expected a Scene, a shipped scene's name or a scene file, got {type(scene).__name__}")
+        raise SceneFileError(f"expected a Scene, a shipped scene's name, a scene file or a scene's dict form, got "
+                             f"{type(scene).__name__}")
     path = Path(scene)
     if path.suffix != ".toml" and not path.exists():
         raise UnknownNameError(f"unknown scene '{scene}' (shipped: {', '.join(scene_names())}; or a scene file .toml)")

@@ -206,10 +206,10 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
     :data:`ADAPTIVE_RADIUS`; for "direct" times the RMS of the model's ``out_scale``). ``seed``:
     z ~ N(0, I) of "random-latent". ``snapshots``: update indices whose trajectories to keep.
     With "adaptive" the history, the snapshots and the result are those of the kept (best)
-    iterate. ``robot``, ``task``, ``scene``: what the objective's robot terms need (default: the
-    robot and task the model's card names; a scene is a :class:`~genplan.scene.Scene`, a shipped
-    scene's name or a scene file). ``anchor``: ``"input"`` decodes the change of z from the
-    input's own encoding and adds it to the input, so the adjustment starts from the input
+    iterate. ``robot``, ``task``, ``scene``: what the objective's robot terms and :meth:`finish`
+    need (default: the robot, task and scene the model's card names, those of its data; a scene
+    is a :class:`~genplan.scene.Scene`, a shipped scene's name or a scene file). ``anchor``:
+    ``"input"`` decodes the change of z from the input's own encoding and adds it to the input, so the adjustment starts from the input
     trajectory itself (a valid member of the family) rather than from its reconstruction, and a
     model's reconstruction error does not carry into the result; ``"none"`` decodes z alone (the
     paper's method, where the input is only a sketch the model deforms); ``"auto"`` (default):
@@ -292,6 +292,8 @@ def _context(model: Seq2SeqModel, x: NDArray[np.float64], targets: dict[str, Any
         from genplan.projection import load_task
 
         task = load_task(task, robot)
+    if scene is None:  # the scene the model's data was made in (or None)
+        scene = card.get("scene")
     if scene is not None:
         from genplan.scene import load_scene
 

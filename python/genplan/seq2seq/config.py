@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from genplan._config import check_fields, integer, number, one_of, optional
 from genplan.errors import SettingsError
 
 __all__ = ["Seq2SeqConfig", "PLANT_NAMES", "PENALTIES", "NETWORKS", "LOSSES", "joint_space_config"]
@@ -147,30 +148,19 @@ class Seq2SeqConfig:
 
     def validate(self) -> None:
         """SettingsError naming the first field with a value the model or its training cannot use."""
-        ints = {"dim": 1, "hidden": 1, "layers": 1, "K": 2, "encoder_stride": 1, "decoder_stride": 1, "seed": 0,
-                "data_seed": 0, "trajectories": 1, "validation": 1, "epochs": 1, "batch_size": 1, "mirror_axis": 0}
-        for name, least in ints.items():
-            i = getattr(self, name)
-            if isinstance(i, bool) or not isinstance(i, int) or i < least:
-                raise SettingsError(f"Seq2SeqConfig.{name} must be an integer >= {least}, got {i!r}")
+        check_fields(self, {
+            "dim": integer(1), "hidden": integer(1), "layers": integer(1), "K": integer(2), "encoder_stride": integer(1),
+            "decoder_stride": integer(1), "seed": integer(0), "data_seed": integer(0), "trajectories": integer(1),
+            "validation": integer(1), "epochs": integer(1), "batch_size": integer(1), "mirror_axis": integer(0)})
         if self.K % self.decoder_stride:
             raise SettingsError(f"Seq2SeqConfig.K ({self.K}) must be divisible by decoder_stride "
                                 f"({self.decoder_stride})")
-        if self.threads is not None and (isinstance(self.threads, bool) or not isinstance(self.threads, int)
-                                         or self.threads < 1):
-            raise SettingsError(f"Seq2SeqConfig.threads must be None or a positive integer, got {self.threads!r}")
-        if self.network not in NETWORKS:
-            raise SettingsError(f"Seq2SeqConfig.network must be one of {NETWORKS}, got {self.network!r}")
-        if self.loss not in LOSSES:
-            raise SettingsError(f"Seq2SeqConfig.loss must be one of {LOSSES}, got {self.loss!r}")
+        check_fields(self, {"threads": optional(integer(1)), "network": one_of(NETWORKS), "loss": one_of(LOSSES)})
         if self.latent is not None and (isinstance(self.latent, bool) or not isinstance(self.latent, int)
                                         or self.latent < 1 or self.network != "mlp"):
             raise SettingsError(f"Seq2SeqConfig.latent must be None or a positive integer, and only for the 'mlp' "
                                 f"network (an LSTM's latent is hidden * layers), got {self.latent!r}")
-        if self.plant not in PLANT_NAMES:
-            raise SettingsError(f"Seq2SeqConfig.plant must be one of {PLANT_NAMES}, got {self.plant!r}")
-        if self.penalty not in PENALTIES:
-            raise SettingsError(f"Seq2SeqConfig.penalty must be one of {PENALTIES}, got {self.penalty!r}")
+        check_fields(self, {"plant": one_of(PLANT_NAMES), "penalty": one_of(PENALTIES)})
         if self.plant == "spatula" and self.dim != 3:
             raise SettingsError(f"Seq2SeqConfig.plant 'spatula' moves [y, z, theta]: dim must be 3, got {self.dim}")
         if self.penalty == "plant" and self.plant != "spatula":
@@ -188,27 +178,14 @@ class Seq2SeqConfig:
                                     f"got {self.mirror!r}")
             if self.mirror_axis >= self.dim:
                 raise SettingsError(f"Seq2SeqConfig.mirror_axis must be below dim ({self.dim}), got {self.mirror_axis}")
-        # (field, values, lower bound, bound included)
-        floats: list[tuple[str, Sequence[float], float, bool]] = [
-            ("dt", (self.dt,), 0.0, False), ("in_scale", self.in_scale, 0.0, False),
-            ("in_offset", self.in_offset, -math.inf, False), ("out_scale", self.out_scale, 0.0, False),
-            ("nll_scale", self.nll_scale, 0.0, False), ("var_floor", (self.var_floor,), 0.0, True),
-            ("alpha", (self.alpha,), 0.0, True), ("alpha_start", (self.alpha_start,), 0.0, False),
-            ("penalty_margin", (self.penalty_margin,), 0.0, True), ("nll_beta", (self.nll_beta,), 0.0, True),
-            ("nll_beta_final", (self.nll_beta_final,), 0.0, True), ("nll_var_ref", (self.nll_var_ref,), 0.0, False),
-            ("lr", (self.lr,), 0.0, False), ("lr_final", (self.lr_final,), 0.0, True),
-            ("grad_clip", (self.grad_clip,), 0.0, False), ("logvar_min", (self.logvar_min,), -math.inf, False),
-            ("logvar_max", (self.logvar_max,), self.logvar_min, False)]
-        for name, values, low, closed in floats:
-            if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                       and (v >= low if closed else v > low) for v in values):
-                what = "finite numbers" if isinstance(getattr(self, name), tuple) else "a finite number"
-                raise SettingsError(f"Seq2SeqConfig.{name} must be {what} {'>=' if closed else '>'} {low}, "
-                                    f"got {getattr(self, name)!r}")
-        for name in ("alpha_ramp_fraction", "nll_beta_fraction"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
-                raise SettingsError(f"Seq2SeqConfig.{name} must lie in [0, 1], got {v!r}")
+        positive, non_negative = number(above=0), number(at_least=0)
+        check_fields(self, {
+            "dt": positive, "in_scale": number(above=0, each=True), "in_offset": number(each=True),
+            "out_scale": number(above=0, each=True), "nll_scale": number(above=0, each=True), "var_floor": non_negative,
+            "alpha": non_negative, "alpha_start": positive, "penalty_margin": non_negative, "nll_beta": non_negative,
+            "nll_beta_final": non_negative, "nll_var_ref": positive, "lr": positive, "lr_final": non_negative,
+            "grad_clip": positive, "logvar_min": number(), "logvar_max": number(above=self.logvar_min),
+            "alpha_ramp_fraction": number(at_least=0, at_most=1), "nll_beta_fraction": number(at_least=0, at_most=1)})
 
     def encoder_indices(self) -> list[int]:
         """The input samples the encoder reads: every encoder_stride-th, plus the last."""

@@ -4,7 +4,7 @@ A :class:`TrajectorySet` holds ``n`` trajectories, each ``K`` samples in normali
 (``s = k / (K - 1)``) of a stated space plus its own duration (a time-optimal path has its own
 length): ``positions`` (n, K, d), ``durations`` (n,) seconds. The space is a robot's joint
 positions (``space = "joint"``, the axes its joint names) or a task/plant space (``"task"``, such
-as the spatula's ``y, z, theta``). It records the robot (:func:`genplan.gan.data.robot_record`),
+as the spatula's ``y, z, theta``). It records the robot (:func:`genplan.samplers.data.robot_record`),
 optionally the task and the scene, and where the trajectories came from.
 
 Sources:
@@ -19,15 +19,22 @@ Sources:
   extra: :mod:`genplan.seq2seq.recordings`), resampled onto the same grid, joint names matched to
   the robot's.
 
-On disk a data set is a folder of shards and a manifest, as configuration data sets are
-(:mod:`genplan.datasets`).
+On disk a data set is a folder of shards (``shard_00000.npz``, ...: positions and durations) and
+a ``manifest.json`` (format ``genplan-trajectories/1``: the space, axes, K, robot, task, scene and
+source; each shard's count and the sha256 of its arrays; the set's sha256), written and read as
+configuration data sets are (:mod:`genplan._shards`: one run per folder under its lock, resumed
+from the verified shards, another data set refused unless overwritten):
+:func:`write_planned_trajectories` (the planner's set, computed shard by shard into the folder),
+:func:`write_trajectories` (a set in memory), :func:`read_trajectories`.
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Mapping, Sequence
+import os
+import zipfile
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,8 +44,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 
-__all__ = ["TrajectorySet", "resample", "plan_trajectories", "from_recordings", "write_trajectories",
-           "read_trajectories", "SPACES", "FORMAT"]
+__all__ = ["TrajectorySet", "resample", "plan_trajectories", "write_planned_trajectories", "from_recordings",
+           "write_trajectories", "read_trajectories", "set_sha256", "SPACES", "FORMAT"]
 
 #: the spaces a data set may be stated in
 SPACES = ("joint", "task")
@@ -95,11 +102,7 @@ class TrajectorySet:
     @property
     def sha256(self) -> str:
         """A hash of the positions and durations (float64 bytes) and the axes."""
-        h = hashlib.sha256()
-        h.update(repr(self.axes).encode())
-        h.update(np.ascontiguousarray(self.positions).tobytes())
-        h.update(np.ascontiguousarray(self.durations).tobytes())
-        return h.hexdigest()
+        return set_sha256(self.axes, [self.positions], [self.durations])
 
     def split(self, held_out: float, seed: int = 0) -> tuple["TrajectorySet", "TrajectorySet"]:
         """(training, held-out) sets, the held-out share ``held_out`` of the trajectories drawn
@@ -134,7 +137,7 @@ class TrajectorySet:
             raise GenplanError(f"{where} holds trajectories of the joints {list(self.axes)}, robot '{robot.name}' has "
                                f"{list(robot.joint_names)}")
         if self.robot is not None:
-            from genplan.gan.data import robot_record
+            from genplan.samplers.data import robot_record
 
             mine = robot_record(robot)
             if self.robot.get("sha256") != mine["sha256"]:
@@ -217,7 +220,8 @@ def plan_shard(shard: PlanShard) -> dict[str, Any]:
     rng = shard_rng(shard.seed, shard.index)
     planner = Planner(robot, world, manifold, sampler="uniform", seed=int(rng.integers(2**31)),
                       settings=PlannerSettings(**shard.settings))
-    positions, durations = [], []
+    positions: list[NDArray[np.float64]] = []
+    durations: list[float] = []
     failures = {"endpoints": 0, "plan": 0, "timing": 0}
     attempts = 0
     starts = np.zeros((0, robot.nq))
@@ -266,22 +270,12 @@ def _setup(shard: PlanShard) -> tuple[Any, Any, Any]:
     return robot, manifold, world
 
 
-def plan_trajectories(robot: Any, task: Any, scene: Any = None, *, count: int, steps: int = 64, seed: int = 0,
-                      start_box: ArrayLike | None = None, goal_box: ArrayLike | None = None, frame: str | None = None,
-                      spread: float | None = None, shard_size: int = 50, executor: Any = None, progress: bool = True,
-                      max_attempts_factor: int = 20, settings: Mapping[str, Any] | None = None) -> TrajectorySet:
-    """``count`` planned trajectories of ``robot`` on ``task``'s manifold among ``scene`` (see
-    the module's text), ``steps`` samples each, as a :class:`TrajectorySet`.
-
-    ``start_box``, ``goal_box``: [[x0, y0, z0], [x1, y1, z1]] boxes for ``frame``'s position
-    (default: the task's condition frame, else the robot's ``tool`` role) at the start and goal;
-    None: uniform on the manifold. ``spread``: the start and goal configurations are solved from
-    seeds drawn around the robot's default configuration (normal, this standard deviation in rad,
-    clipped to the limits), their posture pulled towards the seed, so the family keeps one arm
-    posture (one IK branch); None: seeds uniform in the joint limits. ``settings``: :class:`~genplan.planning.PlannerSettings`
-    fields (default RRT-Connect with shortcutting). Arguments are checked before any work."""
-    from genplan.executor import LocalExecutor, chunks
-    from genplan.gan.data import robot_record
+def _planned(robot: Any, task: Any, scene: Any, *, count: int, steps: int, seed: int, start_box: ArrayLike | None,
+             goal_box: ArrayLike | None, frame: str | None, spread: float | None, shard_size: int,
+             max_attempts_factor: int, settings: Mapping[str, Any] | None) -> tuple[list[PlanShard], Any, Any, Any, dict[str, Any]]:
+    """The shards of :func:`plan_trajectories` (every argument checked), the robot, task and scene
+    loaded, and the source record (the run's parameters)."""
+    from genplan.executor import chunks
     from genplan.projection import load_task
     from genplan.robots import Robot, load
     from genplan.scene import load_scene
@@ -289,7 +283,8 @@ def plan_trajectories(robot: Any, task: Any, scene: Any = None, *, count: int, s
     robot_obj = robot if isinstance(robot, Robot) else load(robot)
     task_obj = load_task(task, robot_obj)
     scene_obj = load_scene(scene) if scene is not None else None
-    for name, v in (("count", count), ("steps", steps), ("shard_size", shard_size)):
+    for name, v in (("count", count), ("steps", steps), ("shard_size", shard_size),
+                    ("max_attempts_factor", max_attempts_factor)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (2 if name == "steps" else 1):
             raise SettingsError(f"{name} must be an integer >= {2 if name == 'steps' else 1}, got {v!r}")
     if steps > 100_000 or count > 10_000_000:
@@ -308,18 +303,43 @@ def plan_trajectories(robot: Any, task: Any, scene: Any = None, *, count: int, s
             robot_obj.frame_id(frame)
         except UnknownNameError as exc:
             raise UnknownNameError(f"frame {frame!r}: {exc}") from None
-    base = {"algorithm": "rrt_connect", "simplify": True, "max_extensions": 2000}
+    base: dict[str, Any] = {"algorithm": "rrt_connect", "simplify": True, "max_extensions": 2000}
     base.update(dict(settings or {}))
     from genplan.planning import PlannerSettings
 
     PlannerSettings(**base)  # checked here, before any work
     source = robot if not isinstance(robot, Robot) else (robot.source or robot.name)
     task_ref = task if isinstance(task, (str, Path)) else task_obj
-    sizes = chunks(count, shard_size)
     shards = [PlanShard(i, c, seed, str(source), task_ref if not isinstance(task_ref, Path) else str(task_ref),
                         scene_obj, steps, boxes[0], boxes[1], frame, max_attempts_factor * c, base,
                         None if spread is None else float(spread))
-              for i, c in enumerate(sizes)]
+              for i, c in enumerate(chunks(count, shard_size))]
+    record = {"kind": "planner", "seed": seed, "count": count, "steps": steps, "shard_size": shard_size,
+              "start_box": boxes[0], "goal_box": boxes[1], "frame": frame, "spread": spread, "settings": base,
+              "max_attempts_factor": max_attempts_factor}
+    return shards, robot_obj, task_obj, scene_obj, record
+
+
+def plan_trajectories(robot: Any, task: Any, scene: Any = None, *, count: int, steps: int = 64, seed: int = 0,
+                      start_box: ArrayLike | None = None, goal_box: ArrayLike | None = None, frame: str | None = None,
+                      spread: float | None = None, shard_size: int = 50, executor: Any = None, progress: bool = True,
+                      max_attempts_factor: int = 20, settings: Mapping[str, Any] | None = None) -> TrajectorySet:
+    """``count`` planned trajectories of ``robot`` on ``task``'s manifold among ``scene`` (see
+    the module's text), ``steps`` samples each, as a :class:`TrajectorySet`.
+
+    ``start_box``, ``goal_box``: [[x0, y0, z0], [x1, y1, z1]] boxes for ``frame``'s position
+    (default: the task's condition frame, else the robot's ``tool`` role) at the start and goal;
+    None: uniform on the manifold. ``spread``: the start and goal configurations are solved from
+    seeds drawn around the robot's default configuration (normal, this standard deviation in rad,
+    clipped to the limits), their posture pulled towards the seed, so the family keeps one arm
+    posture (one IK branch); None: seeds uniform in the joint limits. ``settings``: :class:`~genplan.planning.PlannerSettings`
+    fields (default RRT-Connect with shortcutting). Arguments are checked before any work."""
+    from genplan.executor import LocalExecutor
+    from genplan.samplers.data import robot_record
+
+    shards, robot_obj, task_obj, scene_obj, record = _planned(
+        robot, task, scene, count=count, steps=steps, seed=seed, start_box=start_box, goal_box=goal_box, frame=frame,
+        spread=spread, shard_size=shard_size, max_attempts_factor=max_attempts_factor, settings=settings)
     ex = executor or LocalExecutor()
     try:
         parts = ex.map(plan_shard, shards, desc=f"{robot_obj.name} trajectories", progress=progress,
@@ -327,15 +347,18 @@ def plan_trajectories(robot: Any, task: Any, scene: Any = None, *, count: int, s
     finally:
         if executor is None:
             ex.close()
-    failures = {k: int(sum(p["failures"][k] for p in parts)) for k in parts[0]["failures"]}
     return TrajectorySet(
         positions=np.concatenate([p["positions"] for p in parts]),
         durations=np.concatenate([p["durations"] for p in parts]),
         axes=tuple(robot_obj.joint_names), space="joint", robot=robot_record(robot_obj), task=task_obj.to_dict(),
-        scene=None if scene_obj is None else scene_obj.to_dict(),
-        source={"kind": "planner", "seed": seed, "count": count, "steps": steps, "shard_size": shard_size,
-                "start_box": boxes[0], "goal_box": boxes[1], "frame": frame, "spread": spread, "settings": base,
-                "failures": failures, "attempts": int(sum(p["attempts"] for p in parts))})
+        scene=None if scene_obj is None else scene_obj.to_dict(), source={**record, **_tally(parts)})
+
+
+def _tally(parts: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The failures and attempts of a planned set, summed over its shards."""
+    keys = sorted({k for p in parts for k in p.get("failures", {})})
+    return {"failures": {k: int(sum(p["failures"].get(k, 0) for p in parts)) for k in keys},
+            "attempts": int(sum(p.get("attempts", 0) for p in parts))}
 
 
 def _condition_frame(task: Any) -> str | None:
@@ -365,7 +388,7 @@ def from_recordings(paths: Sequence[str | Path], robot: Any, *, steps: int = 64,
     Joint names are matched to the robot's (a recording naming joints the robot lacks, or lacking
     one of the robot's, is refused naming them); ``joint_names`` gives the columns' names of a
     file that has none (``.npz`` without ``joint_names``)."""
-    from genplan.gan.data import robot_record
+    from genplan.samplers.data import robot_record
     from genplan.seq2seq.recordings import read_recording
 
     if not paths:
@@ -397,11 +420,26 @@ def from_recordings(paths: Sequence[str | Path], robot: Any, *, steps: int = 64,
 
 #: the manifest's format of a trajectory data set
 FORMAT = "genplan-trajectories/1"
-MANIFEST = "manifest.json"
+#: the shards' file suffix (arrays ``positions`` and ``durations``)
+SUFFIX = ".npz"
+#: what writes a trajectory data set (for messages)
+COMMAND = "genplan data trajectories"
+#: the manifest's fields that tell two trajectory data sets apart (with the robot's record)
+KEYS = ("format", "genplan_version", "space", "axes", "K", "count", "shard_size", "seed", "task", "scene",
+        "data_sha256", "source")
 
 
-def _shard_name(i: int) -> str:
-    return f"shard_{i:05d}.npz"
+def set_sha256(axes: Sequence[str], positions: Iterable[NDArray[np.float64]],
+               durations: Iterable[NDArray[np.float64]]) -> str:
+    """The sha256 of a trajectory set: its axes, then its positions and its durations as float64
+    bytes, each given in parts (shards, in order)."""
+    h = hashlib.sha256()
+    h.update(repr(tuple(str(a) for a in axes)).encode())
+    for part in positions:
+        h.update(np.ascontiguousarray(part, dtype=np.float64).tobytes())
+    for part in durations:
+        h.update(np.ascontiguousarray(part, dtype=np.float64).tobytes())
+    return h.hexdigest()
 
 
 def _arrays_sha256(positions: NDArray[np.float64], durations: NDArray[np.float64]) -> str:
@@ -411,79 +449,197 @@ def _arrays_sha256(positions: NDArray[np.float64], durations: NDArray[np.float64
     return h.hexdigest()
 
 
-def write_trajectories(folder: str | Path, data: TrajectorySet, *, shard_size: int = 500) -> Path:
-    """Write ``data`` to ``folder`` (created if missing) as shards of ``shard_size`` trajectories
-    (``.npz``: positions, durations; each written under a temporary name, then renamed) and
-    ``manifest.json`` (the space, robot, task, scene, source; sha256 per shard and of the set),
-    written last. A folder holding another data set is refused (GenplanError naming it)."""
-    import json
+def _read_shard(path: Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A shard's (positions, durations); ValueError or OSError when it is not one."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return np.asarray(z["positions"], dtype=np.float64), np.asarray(z["durations"], dtype=np.float64)
+    except KeyError as exc:
+        raise ValueError(f"no array {exc}") from None
+    except (EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(str(exc) or type(exc).__name__) from None
 
-    from genplan._files import atomic_path, write_text
+
+def _store(folder: Path, index: int, data: Mapping[str, Any], seed: int | None) -> dict[str, Any]:
+    """Write shard ``index`` (atomically) and return its manifest record: the sha256 of its arrays
+    (not of the file: a zip file records when it was written), its count, and the planner's
+    failures and attempts when it has them."""
+    from genplan._files import atomic_path
+    from genplan._shards import shard_file
+
+    pos = np.ascontiguousarray(data["positions"], dtype=np.float64)
+    dur = np.ascontiguousarray(data["durations"], dtype=np.float64)
+    name = shard_file(index, SUFFIX)
+    with atomic_path(folder / name) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, positions=pos, durations=dur)
+    rec: dict[str, Any] = {"index": index, "file": name, "count": int(len(pos)), "sha256": _arrays_sha256(pos, dur)}
+    if seed is not None:
+        rec["seed"] = [seed, index]
+    for key in ("failures", "attempts"):
+        if key in data:
+            rec[key] = data[key]
+    return rec
+
+
+def _verify(shape: tuple[int, int]) -> Callable[[Path, dict[str, Any], Any], bool]:
+    """Whether a listed shard file holds its ``count`` trajectories of ``shape`` (K, d) and
+    matches its record's sha256."""
+    def verify(f: Path, rec: dict[str, Any], part: Any) -> bool:
+        try:
+            pos, dur = _read_shard(f)
+        except (OSError, ValueError):
+            return False
+        return (pos.shape == (part.count, *shape) and dur.shape == (part.count,)
+                and _arrays_sha256(pos, dur) == rec.get("sha256"))
+    return verify
+
+
+def _digest(axes: Sequence[str]) -> Callable[[Path, list[dict[str, Any]]], str]:
+    def digest(folder: Path, records: list[dict[str, Any]]) -> str:
+        return set_sha256(axes, (_read_shard(folder / r["file"])[0] for r in records),
+                          (_read_shard(folder / r["file"])[1] for r in records))
+    return digest
+
+
+def _header(space: str, axes: Sequence[str], k: int, count: int, shard_size: int, robot: Any, task: Any, scene: Any,
+            source: Mapping[str, Any], data_sha256: str | None) -> dict[str, Any]:
+    """A trajectory data set's manifest header: what makes two runs the same data set
+    (``data_sha256``: the content of a set written from memory; ``seed``: a planned set's)."""
+    from genplan import _core
+
+    return {"format": FORMAT, "genplan_version": _core.__version__, "space": space, "axes": list(axes), "K": k,
+            "count": count, "shard_size": shard_size, "seed": source.get("seed"), "robot": robot, "task": task,
+            "scene": scene, "source": dict(source), "data_sha256": data_sha256}
+
+
+def _check_size(count: int, k: int, d: int, shard_size: int, out: Path, executor: Any,
+                names: tuple[str, str]) -> None:
+    """The disk and memory a data set of ``count`` trajectories of (k, d) needs (a trajectory is
+    a row of k * d + 1 float64 numbers: :func:`genplan.samplers.data.check_data_size`)."""
+    from genplan.executor import LocalExecutor
+    from genplan.samplers.data import check_data_size
+
+    workers = executor.workers if isinstance(executor, LocalExecutor) else (1 if executor is not None else
+                                                                            (os.cpu_count() or 1))
+    check_data_size(count, k * d + 1, shard_size, out=out, workers=workers, names=names)
+
+
+def write_planned_trajectories(out: str | Path, robot: Any, task: Any, scene: Any = None, *, count: int,
+                               steps: int = 64, seed: int = 0, start_box: ArrayLike | None = None,
+                               goal_box: ArrayLike | None = None, frame: str | None = None,
+                               spread: float | None = None, shard_size: int = 50, executor: Any = None,
+                               progress: bool = True, max_attempts_factor: int = 20,
+                               settings: Mapping[str, Any] | None = None, overwrite: bool = False,
+                               force: bool = False, log: Callable[[str], Any] = print,
+                               names: tuple[str, str] = ("count", "shard_size")) -> dict[str, Any]:
+    """:func:`plan_trajectories` into the folder ``out`` as a data set (``genplan data
+    trajectories``): its shards (``shard_00000.npz``, ...) and ``manifest.json``; returns the
+    manifest. The folder's lock, resumption from the verified shards of an interrupted run (the
+    same arguments give the same shards, bit for bit), the refusal of a folder holding another
+    data set (``overwrite`` replaces it) and ``force`` are :func:`genplan._shards.write_shards`'s.
+    Every argument, the disk space and the memory (``names``: the count's and the shard size's
+    names in messages) are checked before any work."""
+    from genplan._shards import write_shards
+    from genplan.samplers.data import robot_record
+
+    out = Path(out)
+    shards, robot_obj, task_obj, scene_obj, record = _planned(
+        robot, task, scene, count=count, steps=steps, seed=seed, start_box=start_box, goal_box=goal_box, frame=frame,
+        spread=spread, shard_size=shard_size, max_attempts_factor=max_attempts_factor, settings=settings)
+    _check_size(count, steps, robot_obj.nq, shard_size, out, executor, names)
+    header = _header("joint", robot_obj.joint_names, steps, count, shard_size, robot_record(robot_obj),
+                     task_obj.to_dict(), None if scene_obj is None else scene_obj.to_dict(), record, None)
+    return write_shards(out, header, shards, plan_shard, store=lambda f, i, d: _store(f, i, d, seed),
+                        verify=_verify((steps, robot_obj.nq)), digest=_digest(robot_obj.joint_names), keys=KEYS,
+                        suffix=SUFFIX, desc=f"{robot_obj.name} trajectories", unit="traj", executor=executor,
+                        progress=progress, log=log, overwrite=overwrite, force=force,
+                        finish=lambda m: _tally(m["shards"]))
+
+
+@dataclass(frozen=True)
+class _Slice:
+    """Trajectories ``start:start + count`` of a set in memory, its shard ``index``."""
+
+    index: int
+    count: int
+    start: int
+
+
+def write_trajectories(folder: str | Path, data: TrajectorySet, *, shard_size: int = 500, overwrite: bool = False,
+                       force: bool = False, log: Callable[[str], Any] = print) -> Path:
+    """Write ``data`` to ``folder`` (created if missing) as a data set: shards of ``shard_size``
+    trajectories (``.npz``: positions, durations; each written atomically, its arrays' sha256 in
+    the manifest) and ``manifest.json`` (the space, robot, task, scene, source; the set's sha256),
+    as :func:`write_planned_trajectories` writes (one lock, resumption and refusal: a folder
+    holding another data set is refused naming the differences, ``overwrite`` replaces it)."""
+    from genplan._shards import write_shards
+    from genplan.executor import LocalExecutor, chunks
 
     folder = Path(folder)
-    path = folder / MANIFEST
-    if path.is_file():
-        try:
-            old = json.loads(path.read_text())
-        except (OSError, ValueError):
-            old = {}
-        if old.get("sha256") != data.sha256:
-            raise GenplanError(f"{folder} holds another data set (manifest sha256 {str(old.get('sha256'))[:12]}): give "
-                               "another folder or remove it")
-    folder.mkdir(parents=True, exist_ok=True)
-    shards = []
-    for i, start in enumerate(range(0, len(data), shard_size)):
-        pos = data.positions[start:start + shard_size]
-        dur = data.durations[start:start + shard_size]
-        with atomic_path(folder / _shard_name(i)) as tmp:
-            with open(tmp, "wb") as f:
-                np.savez(f, positions=pos, durations=dur)
-        shards.append({"index": i, "file": _shard_name(i), "count": int(len(pos)), "sha256": _arrays_sha256(pos, dur)})
-    manifest = {"format": FORMAT, "space": data.space, "axes": list(data.axes), "K": data.K, "count": len(data),
-                "robot": data.robot, "task": data.task, "scene": data.scene, "source": data.source,
-                "sha256": data.sha256, "shards": shards, "complete": True}
-    from genplan.model_files import json_default
+    if isinstance(shard_size, bool) or not isinstance(shard_size, (int, np.integer)) or shard_size < 1:
+        raise SettingsError(f"shard_size must be a positive integer, got {shard_size!r}")
+    if len(data) == 0:
+        raise SettingsError("write_trajectories: the set holds no trajectory")
+    _check_size(len(data), data.K, data.dim, shard_size, folder, LocalExecutor(1), ("count", "shard_size"))
+    parts, start = [], 0
+    for i, c in enumerate(chunks(len(data), shard_size)):
+        parts.append(_Slice(i, c, start))
+        start += c
 
-    write_text(path, json.dumps(manifest, indent=1, default=json_default))
+    def compute(part: _Slice) -> dict[str, Any]:
+        return {"positions": data.positions[part.start:part.start + part.count],
+                "durations": data.durations[part.start:part.start + part.count]}
+
+    header = _header(data.space, data.axes, data.K, len(data), shard_size, data.robot, data.task, data.scene,
+                     data.source, data.sha256)
+    with LocalExecutor(1) as ex:
+        write_shards(folder, header, parts, compute, store=lambda f, i, d: _store(f, i, d, None),
+                     verify=_verify((data.K, data.dim)), digest=_digest(data.axes), keys=KEYS, suffix=SUFFIX,
+                     desc="trajectories", unit="traj", executor=ex, progress=False, log=log, overwrite=overwrite,
+                     force=force)
     return folder
 
 
 def read_trajectories(folder: str | Path, robot: Any = None) -> TrajectorySet:
-    """The trajectory data set in ``folder`` (:func:`write_trajectories`), every shard checked
-    against its sha256 and the whole against the manifest's; given ``robot``, the set must be of
-    its joints (:meth:`TrajectorySet.check_robot`)."""
-    import json
+    """The trajectory data set in ``folder`` (:func:`write_planned_trajectories`,
+    :func:`write_trajectories`), every shard checked against its sha256 and the whole against
+    the manifest's; given ``robot``, the set must be of its joints
+    (:meth:`TrajectorySet.check_robot`). A missing folder or manifest is a FileNotFoundError, any
+    other problem a GenplanError naming the file."""
+    from genplan._shards import MANIFEST, load_manifest
 
     folder = Path(folder)
+    m, records = load_manifest(folder, FORMAT, SUFFIX, COMMAND)
     path = folder / MANIFEST
-    if not path.is_file():
-        raise FileNotFoundError(f"{folder}: no {MANIFEST} (a trajectory data set is written by `genplan data "
-                                "trajectories` or genplan.seq2seq.data.write_trajectories)")
-    try:
-        m = json.loads(path.read_text())
-        shards = sorted(m["shards"], key=lambda r: r["index"])
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise GenplanError(f"{path}: not a trajectory data set manifest ({exc})") from None
-    if m.get("format") != FORMAT:
-        raise GenplanError(f"{path}: format {m.get('format')!r}, expected {FORMAT!r} (a configuration data set of "
-                           "`genplan data` is not a trajectory data set)")
-    if not m.get("complete"):
-        raise GenplanError(f"{folder}: an unfinished data set: rerun the command that writes it")
+    axes, k = m.get("axes"), m.get("K")
+    if not (isinstance(axes, list) and all(isinstance(a, str) for a in axes) and axes and type(k) is int and k >= 2
+            and m.get("space") in SPACES):
+        raise GenplanError(f"{path}: not a trajectory data set manifest (its space, axes or K are malformed)")
     pos, dur = [], []
-    for rec in shards:
+    for rec in records:
         f = folder / str(rec["file"])
         try:
-            with np.load(f, allow_pickle=False) as z:
-                p, d = np.asarray(z["positions"], dtype=np.float64), np.asarray(z["durations"], dtype=np.float64)
-        except (OSError, ValueError, KeyError) as exc:
-            raise GenplanError(f"{f}: missing or unreadable ({exc}); rewrite the data set") from None
+            p, d = _read_shard(f)
+        except (OSError, ValueError) as exc:
+            raise GenplanError(f"{f}: missing or unreadable ({exc}); rerun `{COMMAND}` to repair the data set") from None
+        if p.ndim != 3 or p.shape[1:] != (k, len(axes)) or d.shape != (len(p),) or len(p) != rec.get("count"):
+            raise GenplanError(f"{f}: holds positions of shape {p.shape} and durations of shape {d.shape}, the manifest "
+                               f"says {rec.get('count')} trajectories of ({k}, {len(axes)})")
         if _arrays_sha256(p, d) != rec["sha256"]:
             raise GenplanError(f"{f}: its arrays do not match the manifest's sha256: the file changed after it was "
-                               "written; rewrite the data set")
+                               f"written; rerun `{COMMAND}` to repair the data set")
         pos.append(p)
         dur.append(d)
-    data = TrajectorySet(np.concatenate(pos), np.concatenate(dur), tuple(m["axes"]), m["space"], m.get("robot"),
-                         m.get("task"), m.get("scene"), m.get("source") or {})
+    if not pos:
+        raise GenplanError(f"{path}: the data set lists no shard")
+    source = dict(m.get("source") or {})
+    source.update({key: m[key] for key in ("failures", "attempts") if key in m})
+    try:
+        data = TrajectorySet(np.concatenate(pos), np.concatenate(dur), tuple(axes), m["space"], m.get("robot"),
+                             m.get("task"), m.get("scene"), source)
+    except GenplanError as exc:
+        raise type(exc)(f"{folder}: {exc}") from None
     if data.sha256 != m.get("sha256"):
         raise GenplanError(f"{folder}: the data set's sha256 does not match its manifest")
     if robot is not None:

@@ -9,7 +9,9 @@ too sparse to check the motion between them. :func:`finish` turns each into the 
    times tighter than the task's, as the planner does, so that the chords between projected
    states stay within the tolerance), its posture pulled towards the sample; the last sample is
    projected onto the manifold *and* the objective's end target (an ``end_position`` or
-   ``end_pose`` term's target for that problem), which makes the end exact;
+   ``end_pose`` term's target for that problem), which makes the end exact; a solution in
+   collision (a redundant arm reaches a target many ways) is solved again from the sample moved
+   a little, up to ``END_RETRIES`` times;
 2. the path is densified: wherever two consecutive states are more than ``resolution`` apart (max
    over the joints), states are interpolated and projected in turn, until every step is at most
    ``resolution`` (a projected state that jumps more than ``MAX_JUMP`` steps away from its
@@ -46,6 +48,10 @@ DEFAULT_RESOLUTION = 0.025
 MAX_JUMP = 3.0
 #: densification rounds (each at most halves the largest step; 0.4 rad -> 0.025 in four)
 MAX_ROUNDS = 8
+#: the end target's projection is retried this many times when its solution collides, from the
+#: last sample moved by a normal step of END_SPREAD rad (doubled every three attempts)
+END_RETRIES = 12
+END_SPREAD = 0.05
 
 
 @dataclass
@@ -147,9 +153,24 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
         last = p[:, -1]
         res = proj_end.solve_batch(last, last, targets={label: targets})
         q[:, -1] = res.q
+        ok = res.success & ~_hits(worlds, res.q)
+        # a solution in collision (a redundant arm has many): again from the sample moved a little
+        rng = np.random.default_rng(0)
+        lo, hi = np.asarray(robot.lower, dtype=float), np.asarray(robot.upper, dtype=float)
+        for attempt in range(END_RETRIES):
+            todo = np.nonzero(~ok)[0]
+            if len(todo) == 0:
+                break
+            sigma = END_SPREAD * 2 ** (attempt // 3)
+            seeds = np.clip(last[todo] + sigma * rng.standard_normal((len(todo), n)), lo, hi)
+            again = proj_end.solve_batch(seeds, last[todo], targets={label: targets[todo]})
+            good = again.success & ~_hits([worlds[i] for i in todo], again.q)
+            q[todo[good], -1] = again.q[good]
+            ok[todo[good]] = True
         for i in range(b):
-            if reasons[i] is None and not res.success[i]:
-                reasons[i] = "the last sample could not be projected onto the manifold and the end target"
+            if reasons[i] is None and not ok[i]:
+                reasons[i] = ("the last sample could not be projected onto the manifold and the end target "
+                              f"without a collision ({END_RETRIES + 1} attempts)")
     seconds["project"] = time.perf_counter() - t0
 
     # 2. densify, holding the chords between dense states to the task's tolerance
@@ -221,6 +242,13 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
                         for i in range(b)], dtype=bool)
     return FinishResult(success=success, trajectories=trajectories, reasons=reasons, paths=paths,
                         end_error_m=end_err, max_residual_ratio=ratio, seconds=seconds)
+
+
+def _hits(worlds: list[Any], q: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Per row of ``q``, whether it is in collision in its problem's world."""
+    if len(q) and all(w is worlds[0] for w in worlds):
+        return np.asarray(worlds[0].in_collision(q), dtype=bool)
+    return np.array([bool(w.in_collision(row)) for w, row in zip(worlds, q)], dtype=bool)
 
 
 def _worlds(world: Any, robot: Any, ctx: Any, b: int) -> list[Any]:

@@ -50,7 +50,7 @@ __all__ = ["FORMAT", "CARD_KEYS", "MAX_ABS", "Seq2SeqNet", "Seq2SeqModel", "nll"
 FORMAT = "genplan-seq2seq-v1"
 #: the descriptive keys a seq2seq card may hold (besides format, config and weights_sha256)
 CARD_KEYS = frozenset({"description", "deviations_from_paper", "retrain", "command", "data", "training",
-                       "evaluation", "notes", "robot", "task", "space"})
+                       "evaluation", "notes", "robot", "task", "scene", "space"})
 #: largest |value| accepted in a trajectory (m, rad): the model computes in float32, which beyond
 #: 1e4 no longer resolves a millimetre (and overflows to inf beyond 3.4e38)
 MAX_ABS = 1e4
@@ -348,7 +348,8 @@ def check_magnitude(x: NDArray[np.float64], name: str) -> None:
 
 
 def load_model(path: str | Path, *, retrain: str | None = None) -> Seq2SeqModel:
-    """Load a seq2seq model file (safetensors + its JSON card).
+    """Load a seq2seq model file (safetensors + its JSON card), or a shipped model by its name
+    (``"panda_shelf_seq2seq"``: ``models/panda_shelf_seq2seq.safetensors``).
 
     A missing file raises FileNotFoundError naming the command that trains it (``retrain``, else
     the card's); a file that cannot be vouched for (see :mod:`genplan.model_files`) raises
@@ -356,11 +357,13 @@ def load_model(path: str | Path, *, retrain: str | None = None) -> Seq2SeqModel:
     installed package declares a reader for (:mod:`genplan.seq2seq.plugins`; the first pancake
     cards, ``genplan-pancake-seq2seq-v1``) loads through that reader.
     """
-    from genplan.model_files import peek_card, read_config, read_model
+    from genplan.model_files import models_dir, peek_card, read_config, read_model
 
     from genplan.seq2seq import plugins
 
     path = Path(path)
+    if not path.suffix and len(path.parts) == 1 and not path.exists() and (models_dir() / f"{path}.safetensors").is_file():
+        path = models_dir() / f"{path}.safetensors"  # a shipped model by its name
     card0 = peek_card(path) or {}
     fmt = card0.get("format")
     if isinstance(fmt, str) and fmt != FORMAT:

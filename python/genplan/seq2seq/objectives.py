@@ -28,13 +28,16 @@ scene are given to :func:`genplan.seq2seq.adjust`):
 * ``via_position``: a frame's position at a normalised time;
 * ``constraint``: ``mean_k ||r(q[k])||^2``, the task's constraint residuals along the trajectory
   (its primary terms but the condition and the joint limits, weighted as in the task; evaluated by
-  the native solver, :class:`genplan.gan.costs.NativeCost`);
+  the native solver, :class:`genplan.samplers.costs.NativeCost`);
 * ``joint_limits``: ``mean_k ||max(q[k] - upper + margin, 0)||^2 + ||max(lower + margin - q[k], 0)||^2``;
 * ``clearance``: ``mean_k sum_s max(margin - d_s(q[k]), 0)^2``, ``d_s`` the signed distance from
-  each of the robot's collision spheres (:mod:`genplan.spheres`) to the scene's obstacles. A scene
-  with an obstacle it cannot measure (a mesh) is refused, not ignored;
+  each of the robot's collision spheres (:mod:`genplan.spheres`) to the scene's obstacles (the
+  scene's native collision world: every shape, meshes as their convex hulls as every collision
+  query sees them);
 * ``avoid_spheres``: the same clearance from obstacle spheres given per problem (targets (B, m, 4):
-  centre and radius), e.g. a new obstacle on each original path.
+  centre and radius), e.g. a new obstacle on each original path;
+* ``self_clearance``: the robot's spheres on link pairs its self-collision check tests at least
+  ``margin`` apart (an arm pushed by other terms does not fold onto itself).
 
 A package may add kinds (the pancake: ``friction_cone``, ``normal_floor``, declared for
 :mod:`genplan.seq2seq.plugins`); any Python callable ``f(rollout) -> (B,)`` is a term too (:class:`Callable`; in a
@@ -81,7 +84,7 @@ from genplan.seq2seq.plants import Rollout
 
 __all__ = ["Context", "Term", "Objective", "KINDS", "register", "load_objective", "EndState", "EndBall", "EndBand",
            "ViaPoint", "VelocityLimits", "AccelerationLimits", "Smoothness", "StayNear", "EndPosition", "EndPose",
-           "ViaPosition", "Constraint", "JointLimits", "Clearance", "AvoidSpheres", "Callable", "constraint_terms"]
+           "ViaPosition", "Constraint", "JointLimits", "Clearance", "AvoidSpheres", "SelfClearance", "Callable", "constraint_terms"]
 
 
 @dataclass
@@ -544,7 +547,7 @@ class Constraint(Term):
         if ctx.task is None:
             raise SettingsError(f"objective term {self.name!r} (constraint) needs the task: adjust a model whose card "
                                 "names its task, or pass task=")
-        from genplan.gan.costs import NativeCost
+        from genplan.samplers.costs import NativeCost
 
         self._cost = NativeCost(robot, constraint_terms(ctx.task, robot))
 
@@ -578,35 +581,73 @@ class JointLimits(Term):
         return {"margin": self.margin}
 
 
+class _WorldDistance(torch.autograd.Function):
+    """Signed distances of points (M, 3) to a collision world's obstacles, natively
+    (:meth:`genplan.collision.CollisionWorld.point_distances`), with their gradients."""
+
+    @staticmethod
+    def forward(ctx: Any, points: Tensor, world: Any, cutoff: float) -> Tensor:  # type: ignore[override]
+        d, g = world.point_distances(points.detach().double().cpu().numpy(), cutoff)
+        ctx.save_for_backward(torch.from_numpy(g).to(points))
+        return torch.from_numpy(d).to(points)
+
+    @staticmethod
+    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor, None, None]:  # type: ignore[override]
+        (g,) = ctx.saved_tensors
+        return grad[..., None] * g, None, None
+
+
 class Clearance(Term):
-    """``mean_k sum_s max(margin - d_s(q[k]), 0)^2``: each collision sphere of the robot at least
-    ``margin`` from the scene's obstacles (signed distances, :mod:`genplan.seq2seq.distance`)."""
+    """``mean_k sum_s max(margin - d_s(q[k]), 0)^2``: each collision sphere of the robot
+    (:mod:`genplan.spheres`) at least ``margin`` from the scene's obstacles, ``d_s`` its signed
+    distance to the nearest one (the scene's native collision world: meshes as their convex
+    hulls, as every collision query sees them).
+
+    The spheres nearer than ``margin + SLACK`` are found first without gradients (native forward
+    kinematics and distances for every sample); only their configurations go through the
+    differentiable kinematics: most of a trajectory is far from every obstacle."""
 
     kind = "clearance"
+    #: spheres within margin + SLACK (m) of an obstacle are differentiated (an update moves a
+    #: sphere less than this)
+    SLACK = 0.05
 
     def __init__(self, weight: float = 1.0, name: str | None = None, *, margin: float = 0.02) -> None:
         super().__init__(weight, name)
         self.margin = _real(margin, f"{self.name}.margin", 0.0)
 
-    def bind(self, ctx: Context) -> None:
+    def _bind_spheres(self, ctx: Context) -> Any:
         robot = _need_robot(self, ctx)
+        from genplan.spheres import robot_spheres
+
+        self._robot = robot
+        self._kin = ctx.kinematics()
+        self._spheres = robot_spheres(robot)
+        self._links = sorted(set(self._spheres.links))
+        link_of = [self._links.index(n) for n in self._spheres.links]
+        self._link_of = torch.tensor(link_of, device=ctx.device)
+        self._centers = torch.tensor(self._spheres.centers, dtype=torch.float32, device=ctx.device)
+        self._radii_np = np.asarray(self._spheres.radii, dtype=np.float64)
+        self._radii = torch.tensor(self._spheres.radii, dtype=torch.float32, device=ctx.device)
+        return robot
+
+    def bind(self, ctx: Context) -> None:
+        robot = self._bind_spheres(ctx)
         if ctx.scene is None:
             raise SettingsError(f"objective term {self.name!r} (clearance) needs a scene: pass scene= (a scene, a "
                                 "shipped scene's name or a scene file)")
-        from genplan.seq2seq.distance import SceneDistance
-        from genplan.spheres import robot_spheres
+        world = robot.collision_world()
+        world.add_scene(ctx.scene)
+        self._world = world
+        self._cutoff = self.margin + self.SLACK + float(self._radii_np.max(initial=0.0))
 
-        self._kin = ctx.kinematics()
-        self._spheres = robot_spheres(robot)
-        self._distance = SceneDistance(ctx.scene, device=ctx.device)
-        links = sorted(set(self._spheres.links))
-        self._links = links
-        self._link_of = torch.tensor([links.index(n) for n in self._spheres.links], device=ctx.device)
-        self._centers = torch.tensor(self._spheres.centers, dtype=torch.float32, device=ctx.device)
-        self._radii = torch.tensor(self._spheres.radii, dtype=torch.float32, device=ctx.device)
+    def centers_np(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """World centres (N, S, 3) of the spheres at configurations ``q`` (N, nq), natively."""
+        return self._spheres.world_centers(self._robot, q)
 
     def sphere_centers(self, q: Tensor) -> Tensor:
-        """World centres (N, S, 3) of the robot's spheres at configurations ``q`` (N, nq)."""
+        """World centres (N, S, 3) of the robot's spheres at configurations ``q`` (N, nq), in
+        torch (differentiable)."""
         rots, poss = [], []
         joints = self._kin.joint_placements(q)
         for link in self._links:
@@ -617,12 +658,29 @@ class Clearance(Term):
         pos = torch.stack(poss, 1)[:, self._link_of]
         return pos + (rot @ self._centers[None, :, :, None]).squeeze(-1)
 
+    def _near(self, qn: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """(N, S): the spheres within margin + SLACK of an obstacle."""
+        d, _ = self._world.point_distances(self.centers_np(qn), self._cutoff)
+        return (d - self._radii_np) < self.margin + self.SLACK
+
+    def _gaps(self, centers: Tensor, rows: Tensor, spheres: Tensor) -> Tensor:
+        """Clearance (M,) of the spheres ``spheres`` whose centres are ``centers`` (M, 3), of the
+        configurations ``rows`` of the batch."""
+        return _WorldDistance.apply(centers, self._world, self._cutoff) - self._radii[spheres]
+
     def __call__(self, r: Rollout) -> Tensor:
         b, k, n = r.p.shape
-        centers = self.sphere_centers(r.p.reshape(b * k, n))
-        d = self._distance(centers) - self._radii  # (N, S)
-        pen = (torch.relu(self.margin - d) ** 2).sum(-1)
-        return pen.reshape(b, k).mean(-1)
+        q = r.p.reshape(b * k, n)
+        near = torch.from_numpy(self._near(q.detach().double().cpu().numpy())).to(q.device)
+        out = q.new_zeros(b * k)
+        rows = near.any(-1).nonzero()[:, 0]
+        if len(rows):
+            sub = near[rows]  # (R, S)
+            r_idx, s_idx = sub.nonzero(as_tuple=True)
+            centers = self.sphere_centers(q[rows])[r_idx, s_idx]  # (M, 3)
+            gap = self._gaps(centers, rows[r_idx], s_idx)
+            out = out.index_add(0, rows[r_idx], torch.relu(self.margin - gap) ** 2)
+        return out.reshape(b, k).mean(-1)
 
     def params(self) -> dict[str, Any]:
         return {"margin": self.margin}
@@ -642,25 +700,74 @@ class AvoidSpheres(Clearance):
         return (int(m), 4)
 
     def bind(self, ctx: Context) -> None:
-        robot = _need_robot(self, ctx)
-        from genplan.spheres import robot_spheres
-
-        self._kin = ctx.kinematics()
-        self._spheres = robot_spheres(robot)
-        self._links = sorted(set(self._spheres.links))
-        self._link_of = torch.tensor([self._links.index(n) for n in self._spheres.links], device=ctx.device)
-        self._centers = torch.tensor(self._spheres.centers, dtype=torch.float32, device=ctx.device)
-        self._radii = torch.tensor(self._spheres.radii, dtype=torch.float32, device=ctx.device)
+        self._bind_spheres(ctx)
         Term.bind(self, ctx)
         if bool((self.target[..., 3] < 0).any()):
             raise SettingsError(f"targets[{self.name!r}]: a sphere's radius (the 4th value) must be >= 0")
+        self._target_np = self.target.double().cpu().numpy()
+
+    def _near(self, qn: NDArray[np.float64]) -> NDArray[np.bool_]:
+        c = self.centers_np(qn)  # (N, S, 3)
+        obs = self._target_np[np.arange(len(qn)) // self._k]  # (N, m, 4)
+        gap = np.linalg.norm(c[:, :, None, :] - obs[:, None, :, :3], axis=-1) - self._radii_np[None, :, None] - obs[:, None, :, 3]
+        return gap.min(-1) < self.margin + self.SLACK
+
+    def _gaps(self, centers: Tensor, rows: Tensor, spheres: Tensor) -> Tensor:
+        obs = self.target[rows // self._k]  # (M, m, 4)
+        gap = torch.linalg.norm(centers[:, None, :] - obs[..., :3], dim=-1) - self._radii[spheres][:, None] - obs[..., 3]
+        return gap.min(-1).values
+
+    def __call__(self, r: Rollout) -> Tensor:
+        self._k = r.p.shape[1]
+        return super().__call__(r)
+
+
+class SelfClearance(Clearance):
+    """``mean_k sum_(s,t) max(margin - (|c_s - c_t| - r_s - r_t), 0)^2``: the robot's spheres on
+    link pairs its self-collision check tests (links that differ and are not a disabled pair of
+    the robot's SRDF or computed pairs) at least ``margin`` apart. A pair of spheres closer than
+    ``margin`` at the robot's default configuration is left out (its spheres' padding overlaps
+    where the links' solids do not; :attr:`dropped` counts them): the term keeps an arm from
+    folding onto itself when other terms push it, no scene needed."""
+
+    kind = "self_clearance"
+
+    def bind(self, ctx: Context) -> None:
+        robot = self._bind_spheres(ctx)
+        links = np.asarray(self._spheres.links)
+        skip = {frozenset(p) for p in robot.disabled_pairs}
+        s, t = np.triu_indices(len(links), 1)
+        keep = np.array([links[a] != links[b] and frozenset((links[a], links[b])) not in skip for a, b in zip(s, t)],
+                        dtype=bool)
+        s, t = s[keep], t[keep]
+        gap0 = self._pair_gaps_np(self.centers_np(np.asarray(robot.q_default, dtype=np.float64)[None]), s, t)[0]
+        ok = gap0 >= self.margin
+        self.dropped = int((~ok).sum())
+        self._s_np, self._t_np = s[ok], t[ok]
+        self._s = torch.as_tensor(self._s_np, device=ctx.device)
+        self._t = torch.as_tensor(self._t_np, device=ctx.device)
+
+    def _pair_gaps_np(self, c: NDArray[np.float64], s: NDArray[np.int64], t: NDArray[np.int64]) -> NDArray[np.float64]:
+        return np.linalg.norm(c[:, s] - c[:, t], axis=-1) - self._radii_np[s] - self._radii_np[t]
 
     def __call__(self, r: Rollout) -> Tensor:
         b, k, n = r.p.shape
-        centers = self.sphere_centers(r.p.reshape(b * k, n)).reshape(b, k, -1, 1, 3)
-        obs = self.target[:, None, None, :, :]  # (B, 1, 1, m, 4)
-        gap = torch.linalg.norm(centers - obs[..., :3], dim=-1) - self._radii[None, None, :, None] - obs[..., 3]
-        return (torch.relu(self.margin - gap) ** 2).sum((-1, -2)).mean(-1)
+        q = r.p.reshape(b * k, n)
+        out = q.new_zeros(b * k)
+        if not len(self._s_np):
+            return out.reshape(b, k).mean(-1)
+        near = self._pair_gaps_np(self.centers_np(q.detach().double().cpu().numpy()), self._s_np, self._t_np) \
+            < self.margin + self.SLACK  # (N, P)
+        rows = np.flatnonzero(near.any(-1))
+        if len(rows):
+            r_idx, p_idx = np.nonzero(near[rows])
+            rows_t = torch.as_tensor(rows, device=q.device)
+            c = self.sphere_centers(q[rows_t])  # (R, S, 3)
+            ri, pi = torch.as_tensor(r_idx, device=q.device), torch.as_tensor(p_idx, device=q.device)
+            s, t = self._s[pi], self._t[pi]
+            gap = torch.linalg.norm(c[ri, s] - c[ri, t], dim=-1) - self._radii[s] - self._radii[t]
+            out = out.index_add(0, rows_t[ri], torch.relu(self.margin - gap) ** 2)
+        return out.reshape(b, k).mean(-1)
 
 
 class Callable(Term):
@@ -690,7 +797,7 @@ class Callable(Term):
 #: kind -> term class (a plant's kinds are added by :func:`register`)
 KINDS: dict[str, type[Term]] = {c.kind: c for c in (
     EndState, EndBall, EndBand, ViaPoint, VelocityLimits, AccelerationLimits, Smoothness, StayNear, EndPosition,
-    EndPose, ViaPosition, Constraint, JointLimits, Clearance, AvoidSpheres)}
+    EndPose, ViaPosition, Constraint, JointLimits, Clearance, AvoidSpheres, SelfClearance)}
 def register(cls: type[Term]) -> type[Term]:
     """Make a term class's ``kind`` known to objective files (a class decorator; a package that
     ships kinds also declares them, :mod:`genplan.seq2seq.plugins`, so files find them unloaded)."""

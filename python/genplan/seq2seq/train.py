@@ -164,11 +164,11 @@ class TaskPenalty:
     """The training penalty of a robot's joint-space family with a task: ``sum_k ||r(q[k])||^2``
     over the decoded trajectory, ``r`` the task's weighted constraint residuals (its primary
     terms but the condition and the joint limits, evaluated natively:
-    :class:`genplan.gan.costs.NativeCost`). ``margin`` is unused (a residual has no cone to
+    :class:`genplan.samplers.costs.NativeCost`). ``margin`` is unused (a residual has no cone to
     tighten)."""
 
     def __init__(self, robot: Any, task: Any) -> None:
-        from genplan.gan.costs import NativeCost
+        from genplan.samplers.costs import NativeCost
         from genplan.seq2seq.objectives import constraint_terms
 
         self.cost = NativeCost(robot, constraint_terms(task, robot))
@@ -241,6 +241,7 @@ def train_family(data: Any, *, robot: Any = None, seed: int = 0, held_out: float
         "robot": {**{k: v for k, v in data.robot.items() if k != "description"}, "source": _robot_source(data.robot)}
         if data.robot is not None else {"name": robot.name, "source": robot.source or robot.name},
         "task": {"name": task.name, "terms": task.to_dict()} if task is not None else None,
+        "scene": data.scene,
         "space": {"kind": "joint", "axes": list(robot.joint_names)},
         "evaluation": evaluation,
     })

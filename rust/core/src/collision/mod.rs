@@ -22,6 +22,7 @@ mod groups;
 mod hull;
 mod motion;
 mod obstacles;
+mod points;
 mod world;
 
 pub use geometry::{load_mesh_vertices, RobotGeometry};
