@@ -1,6 +1,6 @@
 """How much can a sampler that covers the manifold gain? ([sampler]: the 2.6x target) The learned
 samplers are trained on valid configurations made by projecting uniform random configurations
-onto the manifold (genplan.gan.data), so a sampler matching its data perfectly draws what the
+onto the manifold (genplan.samplers.data), so a sampler matching its data perfectly draws what the
 planner's uniform sampler draws after projecting, with less projection work. This bench plans
 with that ideal, the data set itself ("data": each sample a random row of the 25,000 training
 configurations, already on the manifold) and "data_box" (the same, only the rows whose target
@@ -30,7 +30,7 @@ from typing import Any
 import genplan
 from genplan.experiments.benchmarks.plan import model_option
 from genplan.experiments.common import machine, write_json
-from genplan.gan.loading import load_sampler_model
+from genplan.samplers.loading import load_sampler_model
 from genplan.planning import ENVIRONMENT_NAMES, Planner, data_sampler, environment
 
 from adaptive_half_life import PROTOCOLS, record, summarize  # benches/: run as python benches/<script>.py

@@ -28,9 +28,10 @@ import genplan
 from genplan import projection as P
 from genplan.experiments.benchmarks.coverage import cluster_coverage, mmd, native_sample_us
 from genplan.experiments.common import machine, write_json
-from genplan.gan import flow
-from genplan.gan.data import valid_configurations
-from genplan.gan.model import Codec, default_config
+from genplan.samplers import flow
+from genplan.samplers.base import Codec
+from genplan.samplers.data import valid_configurations
+from genplan.samplers.gan import default_config
 
 
 def weights(text: str) -> list[float]:

@@ -24,7 +24,7 @@ import numpy as np
 
 import genplan
 from genplan import _core
-from genplan.gan.sampler import GanSampler
+from genplan.samplers.sampler import GanSampler
 from genplan.experiments.common import write_json
 from genplan.planning import ENVIRONMENT_NAMES, Planner, environment
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import genplan
-from genplan.gan.loading import load_sampler_model
+from genplan.samplers.loading import load_sampler_model
 from genplan.experiments.common import write_json
 from genplan.planning import ENVIRONMENT_NAMES, Planner, environment
 

@@ -9,7 +9,7 @@ Workloads (each timed ``--repeats`` times after a warm-up; the median is reporte
   problems, batched (shipped model, latent, adaptive step); a repeat is the median update of a
   ``--updates``-update call.
 * ``gan sampling``: one ``GanSampler.sample_for`` call of 100 targets (shipped Panda GAN).
-* ``gan training``: one iteration of :func:`genplan.gan.train` (the paper's Panda configuration:
+* ``gan training``: one iteration of :func:`genplan.samplers.train` (the paper's Panda configuration:
   10 members x batch 100, 5 discriminator steps); a repeat is a ``--train-iterations`` run.
 * ``seq2seq training``: one optimiser step of the seq2seq model's training loop (batch 128,
   forward, backward, Adam); a repeat is the median of ``--train-iterations`` steps.
@@ -90,14 +90,14 @@ def workloads(args: argparse.Namespace) -> dict[str, Callable[[int | None], floa
     choice."""
     import genplan
     from genplan._threads import torch_threads
-    from genplan.gan.model import default_config, load_model, train
-    from genplan.gan.sampler import GanSampler
     from genplan.pancake import adjust
     from genplan.pancake.data import generate_chunk
-    from genplan.pancake.model import load_model as load_seq2seq
-    from genplan.seq2seq.model import Seq2SeqModel, Seq2SeqNet
     from genplan.pancake.model import default_config as seq_config
+    from genplan.pancake.model import load_model as load_seq2seq
     from genplan.pancake.trajectories import j1_problems
+    from genplan.samplers.gan import default_config, load_model, train
+    from genplan.samplers.sampler import GanSampler
+    from genplan.seq2seq.model import Seq2SeqModel, Seq2SeqNet
 
     x_in, p_end = j1_problems()
     seq2seq = load_seq2seq()

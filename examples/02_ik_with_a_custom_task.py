@@ -11,7 +11,7 @@ import numpy as np
 
 import genplan
 from genplan import projection as P
-from genplan.gan import GanSampler
+from genplan.samplers import GanSampler
 
 
 def main() -> None:

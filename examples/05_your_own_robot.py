@@ -25,10 +25,10 @@ import json
 from pathlib import Path
 
 import genplan
-from genplan.gan import default_config, train
-from genplan.gan.evaluate import evaluate, summary_line
 from genplan.planning import plan
 from genplan.projection import Task
+from genplan.samplers import default_config, train
+from genplan.samplers.evaluate import evaluate, summary_line
 
 HERE = Path(__file__).resolve().parent / "xarm7"
 

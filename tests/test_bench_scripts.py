@@ -137,3 +137,20 @@ def test_trajectory_check_times_the_checks_or_names_the_refusal(tmp_path, monkey
     row = data["rows"][0]
     assert "refused" in row or 0 < row["collision_check_ms"] <= row["check_ms"]
     assert data["summary"]["timed"] + data["summary"]["refused"] <= 1 and "median:" in capsys.readouterr().out
+
+
+def test_execute_prints_the_tick_table_and_the_dob_table(tmp_path, monkeypatch, capsys) -> None:
+    out = tmp_path / "execute.json"
+    _run("execute.py", ["--plans", "1", "--repeats", "1", "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    robots = {(r["robot"], r["configuration"].split(" on ")[0]) for r in data["ticks"]}
+    assert {("ur5", "spatula (eq. 23, pancake)"), ("panda", "task space"), ("panda", "joint space"),
+            ("kinova", "task space"), ("xarm7", "task space")} <= robots
+    assert all(0 < r["us_per_tick_min"] <= r["us_per_tick"] and r["realtime_factor"] > 0 for r in data["ticks"])
+    assert len(data["load_average"]) == 3
+    row = data["plans"]["rows"][0]
+    for space in ("task", "joint"):
+        assert row["planned"] and row[space]["error_ratio"] > 1.0 and row[space]["dob"]["collision_ticks"] == 0
+        assert data["plans"]["summary"][space]["planned"] == 1
+    assert data["plans"]["deviations"]["payload"]["mass"] == 0.6
+    assert "error ratio without / with the observer" in capsys.readouterr().out

@@ -117,16 +117,26 @@ OUTPUTS = [
     ("bench scaling", "", "--out", "file"),
     ("bench peers", "", "--out", "file"),
     ("bench peers", "", "--markdown", "file"),
-    ("data", "--robot panda --data-size 10", "--out", "folder"),
+    ("data configurations", "--robot panda --data-size 10", "--out", "folder"),
+    ("data trajectories", "--robot panda --task panda_projection --count 2", "--out", "folder"),
+    ("adjust", f"--model {Path(__file__).resolve()} --input x.npz --objective {Path(__file__).resolve()}", "--out",
+     "folder"),
+    ("bench adapt", f"--model {Path(__file__).resolve()} --data {Path(__file__).parent} --held-out "
+                    f"{Path(__file__).parent}", "--out", "file"),
     ("train gan", "--robot panda", "--out", "file"),
     ("train flow", "--robot panda", "--out", "file"),
     ("train seq2seq", "", "--out", "file"),
     ("report", "{tmp}", "--out", "file"),
+    ("report", "{tmp}", "--benchmarks", "file"),
     ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5", "--out", "file"),
+    ("view", "panda_shelf", "--out", "file"),
     ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5 --out {tmp}/p.json", "--html", "file"),
     ("plan", "--robot panda --task panda_ik --target 0.5 0 0.5 --out {tmp}/p.json", "--trajectory", "file"),
     ("bench ik", "", "--out", "file"),
     ("reproduce", "--quick", "--out", "folder"),
+    ("execute", f"--robot panda --trajectory {Path(__file__).resolve()}", "--out", "file"),
+    ("execute", f"--robot panda --trajectory {Path(__file__).resolve()} --out {{tmp}}/log.npz", "--plot", "file"),
+    ("execute", f"--robot panda --trajectory {Path(__file__).resolve()} --out {{tmp}}/log.npz", "--html", "file"),
 ]
 
 
@@ -134,7 +144,7 @@ def test_every_output_argument_is_listed() -> None:
     """OUTPUTS holds every output argument of every command (a new one must be added there)."""
     import argparse
 
-    from genplan._cli_args import output_actions
+    from genplan.cli.args import output_actions
 
     found = set()
     for group, name, module, _ in cli.COMMANDS:
@@ -172,8 +182,9 @@ def test_missing_output_folders_are_created(tmp_path, no_work) -> None:
 
 
 def test_computed_default_outputs_are_checked_before_training(tmp_path, monkeypatch, capsys) -> None:
-    import genplan.gan.model as gan_model
     import genplan.pancake.model as seq_model
+    import genplan.samplers.base as sampler_base
+    import genplan.samplers.gan as gan_model
 
     blocker = tmp_path / "a_file"
     blocker.write_text("")
@@ -181,7 +192,7 @@ def test_computed_default_outputs_are_checked_before_training(tmp_path, monkeypa
     def no_training(*args, **kwargs):
         pytest.fail("training started")
 
-    monkeypatch.setattr(gan_model, "models_dir", lambda: blocker / "models")
+    monkeypatch.setattr(sampler_base, "models_dir", lambda: blocker / "models")
     monkeypatch.setattr(gan_model, "train", no_training)
     assert main(["train", "gan", "--robot", "panda"]) == 2
     assert one_error_line(capsys).startswith(f"--out {blocker / 'models' / 'panda_gan.safetensors'}: ")
@@ -278,7 +289,7 @@ def test_integrity_6_commands_that_need_no_model_import_no_torch(argv, tmp_path)
 
 def _package_files() -> dict[str, bytes]:
     """Every file of the installed package's shipped models, by name."""
-    from genplan.gan.model import models_dir
+    from genplan.samplers.base import models_dir
 
     return {p.name: p.read_bytes() for p in sorted(models_dir().iterdir())}
 
@@ -286,9 +297,9 @@ def _package_files() -> dict[str, bytes]:
 @pytest.fixture
 def no_training(monkeypatch):
     """Training fails the test if it starts (and so cannot write anything)."""
-    import genplan.gan.flow as flow
-    import genplan.gan.model as gan_model
     import genplan.pancake.model as seq_model
+    import genplan.samplers.flow as flow
+    import genplan.samplers.gan as gan_model
 
     def started(*args, **kwargs):
         pytest.fail("training started")
@@ -317,7 +328,7 @@ def test_integrity_1_training_without_out_never_writes_into_the_package(argv, na
 def test_integrity_1_an_out_inside_the_package_is_refused(command, monkeypatch, capsys, no_training) -> None:
     """The repository's `models` links to the package's models: `--out models/x.safetensors` from
     the repository's root would write into the package; refused like the default."""
-    from genplan.gan.model import models_dir
+    from genplan.samplers.base import models_dir
 
     monkeypatch.chdir(Path(__file__).resolve().parents[1])
     robot = [] if command == "seq2seq" else ["--robot", "panda"]
@@ -332,9 +343,9 @@ def test_integrity_1_an_out_inside_the_package_is_refused(command, monkeypatch, 
 @pytest.mark.parametrize("command", ["gan", "flow", "seq2seq"])
 def test_integrity_1_replacing_a_model_says_so_and_keeps_it_until_the_new_one_is_complete(command, tmp_path,
                                                                                           monkeypatch, capsys) -> None:
-    import genplan.gan.flow as flow
-    import genplan.gan.model as gan_model
     import genplan.pancake.model as seq_model
+    import genplan.samplers.flow as flow
+    import genplan.samplers.gan as gan_model
 
     class Interrupted(Exception):
         pass

@@ -1,4 +1,4 @@
-"""``genplan data`` (genplan.gan.data_cli, genplan.gan.data.write_dataset / read_dataset): a data
+"""``genplan data`` (genplan.cli.data, genplan.samplers.data.write_dataset / read_dataset): a data
 set as shards + manifest, resumed after an interrupted or failed run from its verified shards,
 refused when the folder holds another run; ``genplan train gan --data`` trains from it and
 refuses another robot's or task's data."""
@@ -13,7 +13,7 @@ import pytest
 
 import genplan
 from genplan.cli import main
-from genplan.gan import data as D
+from genplan.samplers import data as D
 
 N, SIZE = 500, 150  # 4 shards, the last of 50
 
@@ -152,7 +152,7 @@ def test_train_gan_from_a_data_set_checks_robot_and_task(tmp_path, capsys, monke
 def test_seed_ranges(text, ok) -> None:
     import argparse
 
-    from genplan._cli_args import seed_range
+    from genplan.cli.args import seed_range
 
     if ok is None:
         with pytest.raises(argparse.ArgumentTypeError, match="expected seeds A..B"):
@@ -165,7 +165,7 @@ def test_seed_ranges(text, ok) -> None:
 
 
 def _lock(out, **fields) -> None:
-    """A lock file as another run writes it (see genplan.gan.data.LOCK)."""
+    """A lock file as another run writes it (see genplan.samplers.data.LOCK)."""
     import socket
 
     record = {"run": "0123456789abcdef", "host": socket.gethostname(), "pid": 1, "started": "2024-01-01T00:00:00Z",

@@ -8,7 +8,7 @@ import pytest
 
 import genplan
 from genplan import projection as P
-from genplan.gan.sampler import GanSampler
+from genplan.samplers.sampler import GanSampler
 from genplan.planning import make_sampler
 
 

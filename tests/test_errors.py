@@ -11,13 +11,14 @@ import numpy as np
 import pytest
 
 import genplan
-import genplan.errors as E
 from genplan import _core
 from genplan import projection as P
+import genplan.errors as E
 from genplan.errors import (CallbackError, GenplanError, InvalidGoalError, InvalidStartError, ModelFileError,
                             NonFiniteError, RobotFileError, SettingsError, ShapeError, UnknownNameError)
-from genplan.gan.model import load_model, models_dir
 from genplan.planning import Planner, PlannerSettings, environment, make_sampler
+from genplan.samplers.base import models_dir
+from genplan.samplers.gan import load_model
 
 
 def test_every_error_is_a_value_error_and_a_genplan_error() -> None:

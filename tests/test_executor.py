@@ -20,7 +20,7 @@ from genplan.cli import main
 from genplan.errors import GenplanError
 from genplan.executor import (RETRIES, LocalExecutor, MissingExtraError, RayExecutor, ShardsFailedError, chunks,
                               executor, shard_rng, shard_seed)
-from genplan.gan import data as D
+from genplan.samplers import data as D
 
 import ray  # noqa: E402 -- the ray extra: scripts/setup installs it, so these tests never skip silently
 

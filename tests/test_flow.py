@@ -1,4 +1,4 @@
-"""genplan.gan.flow: the conditional flow-matching sampler (training, files, native twin, use in
+"""genplan.samplers.flow: the conditional flow-matching sampler (training, files, native twin, use in
 planning and IK through the GAN's entry points)."""
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import torch
 import genplan
 from genplan import _core
 from genplan.errors import GenplanError, ModelFileError, SettingsError
-from genplan.gan.flow import FlowConfig, FlowModel, FlowNet, default_config, distill, load_flow, train
-from genplan.gan.loading import load_sampler_model as load_model
-from genplan.gan.sampler import GanSampler
 from genplan.planning import Planner, environment, make_sampler
+from genplan.samplers.flow import FlowConfig, FlowModel, FlowNet, default_config, distill, load_flow, train
+from genplan.samplers.loading import load_sampler_model as load_model
+from genplan.samplers.sampler import GanSampler
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
@@ -85,7 +85,7 @@ def test_native_sampler_matches_torch(robot_name: str, tmp_path, monkeypatch) ->
     torch.manual_seed(0)
     cfg = default_config(robot, hidden=(24, 16), steps=3)
     dim = robot.nq - int(robot.floating_base)
-    from genplan.gan.model import Codec
+    from genplan.samplers.base import Codec
 
     codec = Codec(robot, np.linspace(-0.3, 0.3, dim), np.linspace(0.2, 0.9, dim))
     model = FlowModel(cfg, robot, FlowNet(dim, cfg.hidden), codec, torch.tensor([0.2, -0.1, 0.6]),
@@ -243,7 +243,7 @@ def test_train_flow_cli_distils_only_from_a_flow_of_its_robot(tiny_flow, tmp_pat
     assert main(["train", "flow", "--robot", "panda", "--distill-from", str(weights), "--data-size", "50",
                  "--out", str(tmp_path / "s")]) == 2
     assert "--data-size: a student's data are its teacher's" in capsys.readouterr().err
-    from genplan.gan.model import models_dir
+    from genplan.samplers.base import models_dir
 
     assert main(["train", "flow", "--robot", "panda", "--distill-from", str(models_dir() / "panda_gan.safetensors"),
                  "--out", str(tmp_path / "s")]) == 2
@@ -253,20 +253,21 @@ def test_train_flow_cli_distils_only_from_a_flow_of_its_robot(tiny_flow, tmp_pat
 
 def test_the_shipped_talos_flow_and_its_teacher(talos) -> None:
     """models/talos_flow.safetensors: a one-step student whose card names the shipped teacher (its
-    hash too), whose retraining commands README documents, and whose samples project onto the
+    hash too), whose retraining commands the README or docs/ document, and whose samples project onto the
     Talos manifold; the native twin matches torch."""
     from pathlib import Path
 
     from genplan import projection as P
-    from genplan.gan.flow import shipped_path
-    from genplan.gan.model import models_dir
+    from genplan.samplers.base import models_dir
+    from genplan.samplers.flow import shipped_path
 
     student = load_model(talos, shipped_path(talos))
     assert isinstance(student, FlowModel) and student.config.steps == 1
     teacher_info = student.card["training"]["teacher"]
     teacher = load_flow(talos, models_dir() / Path(teacher_info["file"]).name)
     assert teacher_info["weights_sha256"] == teacher.card["weights_sha256"] and teacher.config.steps == 8
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    root = Path(__file__).resolve().parents[1]
+    readme = "\n".join(p.read_text() for p in [root / "README.md", *sorted((root / "docs").glob("*.md"))])
     for card, path in ((student.card, shipped_path(talos)), (teacher.card, models_dir() / Path(teacher_info["file"]).name)):
         assert card["command"].split(" --")[0] in readme and "--distill-from models/talos_flow_teacher" in readme
         # the card's command rewrites this very file: its --out, or the shipped place by default

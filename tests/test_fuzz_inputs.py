@@ -197,7 +197,7 @@ def ik(panda: genplan.Robot) -> Any:
 
 @pytest.fixture(scope="module")
 def gan(panda: genplan.Robot) -> Any:
-    from genplan.gan.sampler import GanSampler
+    from genplan.samplers.sampler import GanSampler
 
     return GanSampler(panda, seed=0)
 
@@ -577,7 +577,7 @@ STRING_CASES: dict[str, tuple[Callable[[genplan.Robot], Any], str]] = {
 
 
 def _gan_sampler(robot: genplan.Robot) -> Any:
-    from genplan.gan.sampler import GanSampler
+    from genplan.samplers.sampler import GanSampler
 
     return GanSampler(robot, seed=0)
 
@@ -1184,7 +1184,8 @@ def tiny_gan_files(panda: genplan.Robot, tmp_path_factory: pytest.TempPathFactor
     """An untrained small GAN for the Panda, saved: (weights, card) bytes."""
     import torch
 
-    from genplan.gan.model import Codec, EnsembleGenerator, GanModel, default_config
+    from genplan.samplers.base import Codec
+    from genplan.samplers.gan import EnsembleGenerator, GanModel, default_config
 
     torch.manual_seed(0)
     cfg = default_config("panda", n_net=2, gen_hidden=(8,), noise_dim=4)
@@ -1262,7 +1263,7 @@ def write_files(files: tuple[bytes, bytes], path: Path) -> Path:
 @fuzz(60)
 @given(corruption=CORRUPTION)
 def test_corrupted_gan_files(panda: genplan.Robot, tiny_gan_files: Any, tmp_path: Path, corruption: Any) -> None:
-    from genplan.gan.model import load_model
+    from genplan.samplers.gan import load_model
 
     path = write_corrupted(tiny_gan_files, corruption, tmp_path / "gan")
     model, exc = call(load_model, panda, path)
@@ -1288,8 +1289,8 @@ def test_corrupted_seq2seq_files(tiny_seq2seq_files: Any, tmp_path: Path, corrup
 
 def test_the_uncorrupted_files_load(panda: genplan.Robot, tiny_gan_files: Any, tiny_seq2seq_files: Any,
                                     tmp_path: Path) -> None:
-    from genplan.gan.model import load_model as load_gan
     from genplan.pancake.model import load_model as load_seq2seq
+    from genplan.samplers.gan import load_model as load_gan
 
     assert corrupt(b"ab", "flip", 0, 0) == bytes([ord("a") ^ 1]) + b"b"
     assert corrupt(b"abc", "truncate", 1, 0) == b"a" and corrupt(b"ab", "insert", 1, 7) == b"a" + b"\x07" * 8 + b"b"
@@ -1322,7 +1323,7 @@ def test_arbitrary_cards_are_refused_with_a_model_file_error(panda: genplan.Robo
     and samples finite configurations."""
     import json
 
-    from genplan.gan.loading import load_sampler_model
+    from genplan.samplers.loading import load_sampler_model
 
     weights, good = tiny_gan_files
     if fields or config:
@@ -1363,14 +1364,14 @@ def test_arbitrary_bytes_as_weights_are_refused_with_a_model_file_error(panda: g
     head = header if isinstance(header, bytes) else json.dumps(header).encode()
     weights = (len(head).to_bytes(8, "little") + head + data) if with_length else data
     path = write_files((weights, rehash(tiny_gan_files[1], weights)), tmp_path / "weights")
-    _, exc = call(genplan.gan.load_model, panda, path)
+    _, exc = call(genplan.samplers.load_model, panda, path)
     assert isinstance(exc, ModelFileError), f"{type(exc).__name__}: {exc}"
 
 
 def test_a_card_given_as_the_model_is_refused_naming_the_weights(panda: genplan.Robot, tiny_gan_files: Any,
                                                                  tiny_seq2seq_files: Any, tmp_path: Path) -> None:
-    from genplan.gan.loading import load_sampler_model
     from genplan.pancake.model import load_model as load_seq2seq
+    from genplan.samplers.loading import load_sampler_model
 
     for files, load in ((tiny_gan_files, lambda p: load_sampler_model(panda, p)), (tiny_seq2seq_files, load_seq2seq)):
         path = write_files(files, tmp_path / "m")
@@ -1404,7 +1405,7 @@ def _quiet(*_: Any) -> None:
 @pytest.fixture(scope="module")
 def reference_sets(panda: genplan.Robot) -> Callable[[int, int, int], str]:
     """The sha256 of the Panda data set of (size, seed, shard size), computed once each."""
-    from genplan.gan.data import dataset_sha256, valid_configurations
+    from genplan.samplers.data import dataset_sha256, valid_configurations
 
     known: dict[tuple[int, int, int], str] = {}
 
@@ -1420,7 +1421,7 @@ def reference_sets(panda: genplan.Robot) -> Callable[[int, int, int], str]:
 def data_set_files(panda: genplan.Robot, tmp_path_factory: pytest.TempPathFactory) -> dict[str, bytes]:
     """A finished data set (60 Panda configurations, seed 1, 3 shards): its files' bytes."""
     from genplan.executor import LocalExecutor
-    from genplan.gan.data import write_dataset
+    from genplan.samplers.data import write_dataset
 
     out = tmp_path_factory.mktemp("data") / "d"
     write_dataset(out, panda, 60, seed=1, shard_size=20, executor=LocalExecutor(1), progress=False, log=_quiet)
@@ -1455,7 +1456,7 @@ def test_corrupted_data_set_manifests(panda: genplan.Robot, data_set_files: dict
     """A data set whose manifest was changed: read_dataset gives the data set or a GenplanError;
     rerunning the same `genplan data` gives the data set (repaired) or a GenplanError."""
     from genplan.executor import LocalExecutor
-    from genplan.gan.data import dataset_sha256, read_dataset, write_dataset
+    from genplan.samplers.data import dataset_sha256, read_dataset, write_dataset
 
     folder = _fresh(tmp_path) / "d"
     folder.mkdir()
@@ -1491,7 +1492,7 @@ def test_corrupted_lock_files(panda: genplan.Robot, reference_sets: Any, tmp_pat
     import socket
 
     from genplan.executor import LocalExecutor
-    from genplan.gan.data import LOCK, write_dataset
+    from genplan.samplers.data import LOCK, write_dataset
 
     folder = _fresh(tmp_path) / "d"
     folder.mkdir()
@@ -1558,7 +1559,7 @@ def test_corrupted_data_cache(panda: genplan.Robot, tmp_path: Path, monkeypatch:
     import hashlib
 
     from genplan.cache import hash_path
-    from genplan.gan.data import cache_path, valid_configurations
+    from genplan.samplers.data import cache_path, valid_configurations
 
     monkeypatch.setenv("GENPLAN_CACHE", str(_fresh(tmp_path)))
     ref = valid_configurations(panda, 40, 3, progress=False, shard_size=20)

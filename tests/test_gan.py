@@ -1,4 +1,4 @@
-"""genplan.gan: data, training mechanics, model files (safetensors + card), samplers, the shipped
+"""genplan.samplers: data, training mechanics, model files (safetensors + card), samplers, the shipped
 models."""
 
 import copy
@@ -15,9 +15,10 @@ import genplan
 from genplan import projection as P
 from genplan.cli import main
 from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError, ShapeError
-from genplan.gan import data as gan_data
-from genplan.gan.model import TARGET_MARGIN, default_config, load_model, models_dir, train
-from genplan.gan.sampler import GanSampler
+from genplan.samplers import data as gan_data
+from genplan.samplers.base import TARGET_MARGIN, models_dir
+from genplan.samplers.gan import default_config, load_model, train
+from genplan.samplers.sampler import GanSampler
 from tests.model_file_cases import common_cases, tamper
 
 
@@ -194,7 +195,7 @@ def test_non_finite_samples_raise(tiny_panda_model, panda: genplan.Robot) -> Non
     # natively (float64) those weights still give finite samples
     assert np.all(np.isfinite(GanSampler(panda, model).native(seed=0).sample(50)))
     # a deep generator of huge float32 weights overflows float64 too: refused before sampling
-    from genplan.gan.model import EnsembleGenerator
+    from genplan.samplers.gan import EnsembleGenerator
 
     deep = dataclasses.replace(model.config, gen_hidden=(16,) * 10)
     gen = EnsembleGenerator(deep.n_net, deep.noise_dim + 3, deep.gen_hidden, 7)
@@ -225,15 +226,11 @@ def test_samplers(tiny_panda_model, panda: genplan.Robot) -> None:
     assert gan.sample_for(np.zeros((3, 3))).shape == (3, 7)
     with pytest.raises(GenplanError, match="box: expected"):
         GanSampler(panda, tiny_panda_model, box=[[1, 1, 1], [0, 0, 0]])
-    import genplan.gan
-
-    with pytest.raises(AttributeError, match=r"UniformSampler was removed after 0.1.0.*make_sampler\(robot, \"uniform\""):
-        genplan.gan.UniformSampler  # noqa: B018
 
 
 def _unchunked(sampler: GanSampler, n: int) -> tuple[np.ndarray, np.random.Generator]:
     """What GanSampler.sample(n) computed before it ran in chunks: targets, then the model's
-    unchunked sample (python/genplan/gan/model.py), from one stream."""
+    unchunked sample (python/genplan/samplers/gan.py), from one stream."""
     t = sampler.rng.uniform(sampler.box[0], sampler.box[1], size=(n, 3))
     return sampler.model.sample(t, sampler.rng), sampler.rng
 
@@ -242,7 +239,7 @@ def _unchunked(sampler: GanSampler, n: int) -> tuple[np.ndarray, np.random.Gener
 def test_chunked_sampling_is_the_unchunked_sampling(panda: genplan.Robot, n: int) -> None:
     """Below 2 * CHUNK_ROWS rows: one chunk, bit for bit the unchunked call, leaving the
     generator where it left it."""
-    import genplan.gan.sampler as S
+    import genplan.samplers.sampler as S
 
     assert S.CHUNK_ROWS == 2048
     chunked = GanSampler(panda, seed=3)
@@ -257,7 +254,7 @@ def test_chunked_sampling_is_the_unchunked_sampling(panda: genplan.Robot, n: int
 def test_chunking_keeps_the_random_stream(panda: genplan.Robot, monkeypatch) -> None:
     """Many chunks: the same targets, noise and members as one unchunked call (the random stream
     is the same); the float32 products of a chunk may round the last bit differently, ~1e-6."""
-    import genplan.gan.sampler as S
+    import genplan.samplers.sampler as S
 
     monkeypatch.setattr(S, "CHUNK_ROWS", 7)
     for n in (14, 15, 300):
@@ -360,7 +357,8 @@ def test_gan_targets_refuse_complex_strings_and_none(panda: genplan.Robot) -> No
     """GanModel.check_targets reads targets through genplan._arrays: no silent drop of an
     imaginary part, no NaN from None (issue [hardening], kind 2)."""
     from genplan.errors import ShapeError
-    from genplan.gan.model import load_model, models_dir
+    from genplan.samplers.base import models_dir
+    from genplan.samplers.gan import load_model
 
     model = load_model(panda, models_dir() / "panda_gan.safetensors")
     for bad, message in [(np.zeros((2, 3)) + 1j, "complex"), ("abc", "cannot be read"), (None, "None is not a number")]:
@@ -372,7 +370,7 @@ def test_gan_targets_refuse_complex_strings_and_none(panda: genplan.Robot) -> No
 
 
 def test_gradient_penalty_is_taken_on_interpolates() -> None:
-    from genplan.gan.model import gradient_penalty
+    from genplan.samplers.gan import gradient_penalty
 
     class HalfSquare(torch.nn.Module):  # critic 0.5 |x|^2: its gradient at x is x
         def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -385,7 +383,7 @@ def test_gradient_penalty_is_taken_on_interpolates() -> None:
 
 
 def test_gradient_penalty_drives_the_critics_gradient_norm_to_one() -> None:
-    from genplan.gan.model import _mlp, gradient_penalty
+    from genplan.samplers.gan import _mlp, gradient_penalty
 
     torch.manual_seed(0)
     critic = _mlp([4, 32, 32, 1])
@@ -410,7 +408,7 @@ def test_gradient_penalty_drives_the_critics_gradient_norm_to_one() -> None:
 
 
 def test_mode_seeking_loss_penalises_a_generator_that_ignores_its_noise() -> None:
-    from genplan.gan.model import EnsembleGenerator, mode_seeking_loss
+    from genplan.samplers.gan import EnsembleGenerator, mode_seeking_loss
 
     z_a, z_b = torch.randn(2, 64, 3), torch.randn(2, 64, 3)
     same = torch.ones(2, 64, 5)
@@ -439,7 +437,7 @@ def test_mode_seeking_loss_penalises_a_generator_that_ignores_its_noise() -> Non
 
 
 def test_spread_members_picks_rows_apart() -> None:
-    from genplan.gan.model import spread_members
+    from genplan.samplers.gan import spread_members
 
     centers = torch.tensor([[-5.0, 0.0], [5.0, 0.0], [0.0, 5.0], [0.0, -5.0]])
     feats = torch.cat([c + 0.1 * torch.randn(50, 2) for c in centers])
@@ -449,7 +447,7 @@ def test_spread_members_picks_rows_apart() -> None:
 
 
 def test_coverage_options_train_round_trip_and_old_cards_default(panda: genplan.Robot, tmp_path, monkeypatch) -> None:
-    from genplan.gan.model import GanConfig
+    from genplan.samplers.gan import GanConfig
 
     monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
     cfg = default_config("panda", iterations=6, data_size=200, n_net=3, seed=2, loss="wgan_gp", gp_weight=5.0,
@@ -580,7 +578,7 @@ def test_integrity_4_shipped_cards_record_their_robots_kinematics(name: str, rob
     import hashlib
     import warnings
 
-    from genplan.gan.loading import load_sampler_model
+    from genplan.samplers.loading import load_sampler_model
 
     rob = genplan.load(robot)
     folder = REPO / "examples" / "xarm7" if name.startswith("upright") else models_dir()

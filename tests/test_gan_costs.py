@@ -1,4 +1,4 @@
-"""genplan.gan.costs: a GAN's costs for any robot and task, from the native residuals; and the
+"""genplan.samplers.costs: a GAN's costs for any robot and task, from the native residuals; and the
 GAN trained, saved and refused for another robot or task through them (xArm7, not a preset)."""
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import torch
 import genplan
 from genplan import projection as P
 from genplan.errors import GenplanError, ModelFileError, SettingsError, UnknownNameError
-from genplan.gan.costs import NativeCost, condition_term, constraint_terms, manifold_task, sampling_box, tangent_map
-from genplan.gan.model import default_config, load_model, train
+from genplan.samplers.costs import NativeCost, condition_term, constraint_terms, manifold_task, sampling_box, tangent_map
+from genplan.samplers.gan import default_config, load_model, train
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "xarm7"
 
@@ -117,7 +117,7 @@ def test_a_gan_for_a_robot_and_task_of_ones_own(xarm7: genplan.Robot, cup: P.Tas
     monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
     cfg = default_config(xarm7, cup, iterations=30, data_size=400, n_net=2)
     model = train(cfg, robot=xarm7, task=cup, progress=False)
-    # denormal floats are flushed only while training (python/genplan/gan/model.py)
+    # denormal floats are flushed only while training (python/genplan/samplers/gan.py)
     assert torch.tensor([1e-40], dtype=torch.float32).item() != 0.0
     assert model.card["task"]["name"] == "upright_cup"
     assert model.card["command"].startswith(f"genplan train gan --robot {EXAMPLES / 'xarm7.toml'} --task upright_cup")

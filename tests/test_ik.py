@@ -18,7 +18,7 @@ def task(panda):
 @pytest.fixture(scope="module")
 def targets(panda, task):
     """Reachable hand positions: FK of configurations on the IK task's manifold (seed 2000)."""
-    from genplan.gan.data import valid_configurations
+    from genplan.samplers.data import valid_configurations
 
     q = valid_configurations(panda, 300, 2000, progress=False, task=task)
     frame = condition_term(task).frame
@@ -60,7 +60,7 @@ def test_data_init_starts_from_the_nearest_rows_of_the_tasks_data(panda, task, t
     same start as given explicitly); no model."""
     from scipy.spatial import cKDTree
 
-    from genplan.gan.data import valid_configurations
+    from genplan.samplers.data import valid_configurations
 
     data = valid_configurations(panda, 25_000, 0, progress=False, task=task)
     frame = condition_term(task).frame

@@ -1,28 +1,43 @@
 """The layers of python/genplan, read with ``ast`` (nothing is imported).
 
-library (everything but the two below)  <-  genplan.experiments  <-  genplan.cli (front end)
+library (everything but the three below)  <-  genplan.cli.args  <-  genplan.experiments  <-  genplan.cli
 
-The library never imports the experiments or the CLI, the experiments never import the CLI, only
-the library imports ``genplan._core`` (the experiments use the public API), and there is no
-import cycle but the known ones. Imports are every ``import`` / ``from ... import`` anywhere in a module
-(inside functions and ``TYPE_CHECKING`` blocks too) and ``importlib.import_module("...")``; a
+The library never imports the experiments or the command line, the experiments never import the
+command line but its argument types (``genplan.cli.args``, which imports the library only), only
+the library imports ``genplan._core`` (the experiments use the public API), and there is no import
+cycle but the known ones. Imports are every ``import`` / ``from ... import`` anywhere in a module
+(inside functions and ``TYPE_CHECKING`` blocks too, not in an ``if __name__ == "__main__":`` block,
+which runs only when the module is run as a program) and ``importlib.import_module("...")``; a
 module that imports by a computed name (a lazy ``__getattr__``, the CLI's command table) imports
 every genplan module its string literals name.
+
+Two more rules keep one definition per concept: a command line (argparse, ``add_arguments``) lives
+in ``genplan.cli`` (or, for the benchmarks, ``genplan.experiments``), never in the library; and a
+registry of names (an upper-case tuple, list or set of names at module or class level) is not
+repeated by another one holding the same names, which would drift apart from it: derive the second
+from the first.
 """
 
 from __future__ import annotations
 
 import ast
+import itertools
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "python"
 EXPERIMENTS = "genplan.experiments"
-FRONT_END = ("genplan.cli", "genplan.__main__")
-#: import cycles left for later (each the set of its modules): Environment.queries calls
-#: make_queries, which builds Query objects (a lazy import each way)
-KNOWN_CYCLES = [{"genplan.planning.environments", "genplan.planning.queries"}]
+FRONT_END = "genplan.cli"
+#: the command-line argument types, shared by the commands and the benchmarks
+ARGUMENTS = "genplan.cli.args"
+#: import cycles left for later (each the set of its modules)
+KNOWN_CYCLES: list[set[str]] = []
+#: registries that share names but name different things (pair of registries: why)
+DIFFERENT_CONCEPTS = {
+    frozenset({"genplan.samplers.gan.GanConfig.MEMBER_INITS", "genplan.samplers.SAMPLERS"}):
+        "how a GAN's members are initialised ('uniform': PyTorch's default, 'data': at data points), not samplers",
+}
 
 
 def _name(path: Path) -> str:
@@ -34,10 +49,33 @@ FILES = {_name(p): p for p in sorted((ROOT / "genplan").rglob("*.py"))}
 MODULES = set(FILES) | {"genplan._core"}
 
 
+def _within(module: str, package: str) -> bool:
+    return module == package or module.startswith(package + ".")
+
+
 def _layer(module: str) -> str:
-    if module in FRONT_END:
+    if module == ARGUMENTS:
+        return "arguments"
+    if _within(module, FRONT_END) or module == "genplan.__main__":
         return "front end"
-    return "experiments" if module == EXPERIMENTS or module.startswith(EXPERIMENTS + ".") else "library"
+    return "experiments" if _within(module, EXPERIMENTS) else "library"
+
+
+def _is_main_block(node: ast.AST) -> bool:
+    """``if __name__ == "__main__":``"""
+    t = node.test if isinstance(node, ast.If) else None
+    return (isinstance(t, ast.Compare) and isinstance(t.left, ast.Name) and t.left.id == "__name__"
+            and any(isinstance(c, ast.Constant) and c.value == "__main__" for c in t.comparators))
+
+
+def _walk(tree: ast.AST) -> list[ast.AST]:
+    """Every node of ``tree`` but those inside an ``if __name__ == "__main__":`` block."""
+    out, todo = [], [tree]
+    while todo:
+        node = todo.pop()
+        out.append(node)
+        todo += [c for c in ast.iter_child_nodes(node) if not _is_main_block(c)]
+    return out
 
 
 def _is_import_module(call: ast.Call) -> bool:
@@ -52,7 +90,7 @@ def imports(module: str) -> list[tuple[str, int]]:
     package = module if path.name == "__init__.py" else module.rpartition(".")[0]
     found: list[tuple[str, int]] = []
     computed = False
-    for node in ast.walk(tree):
+    for node in _walk(tree):
         if isinstance(node, ast.Import):
             found += [(a.name, node.lineno) for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -69,7 +107,7 @@ def imports(module: str) -> list[tuple[str, int]]:
             else:
                 computed = True
     if computed:
-        found += [(n.value, n.lineno) for n in ast.walk(tree)
+        found += [(n.value, n.lineno) for n in _walk(tree)
                   if isinstance(n, ast.Constant) and isinstance(n.value, str) and n.value in MODULES]
     return sorted({(m, line) for m, line in found if m in MODULES and m != module})
 
@@ -90,24 +128,94 @@ def _violations(importers: set[str], forbidden: set[str]) -> list[str]:
 def test_the_graph_is_read() -> None:
     edges = {m: {i for i, _ in e} for m, e in GRAPH.items()}
     assert "genplan.robots" in edges["genplan.planning"]
-    assert "genplan.gan.model" in edges["genplan.gan"]  # a lazy re-export, by computed name
+    assert "genplan.samplers.gan" in edges["genplan.samplers"]  # a lazy re-export, by computed name
     assert "genplan.experiments.benchmarks.plan" in edges["genplan.cli"]  # the command table
+    assert "genplan.cli" not in edges["genplan.viewer"]  # `python -m genplan.viewer` runs the CLI: not an import
 
 
 def test_the_library_imports_neither_the_experiments_nor_the_cli() -> None:
-    bad = _violations({"library"}, {"experiments", "front end"})
+    bad = _violations({"library"}, {"experiments", "front end", "arguments"})
     assert not bad, "the library must not import genplan.experiments or genplan.cli:\n" + "\n".join(bad)
 
 
 def test_the_experiments_do_not_import_the_cli() -> None:
-    bad = _violations({"experiments"}, {"front end"})
-    assert not bad, "genplan.experiments must not import genplan.cli:\n" + "\n".join(bad)
+    bad = _violations({"experiments", "arguments"}, {"front end"}) + _violations({"arguments"}, {"experiments"})
+    assert not bad, ("genplan.experiments and genplan.cli.args must not import the rest of genplan.cli "
+                     "(genplan.cli.args imports the library only):\n" + "\n".join(bad))
 
 
 def test_only_the_library_imports_the_core() -> None:
     bad = [_where(m, i, line) for m, edges in GRAPH.items() if _layer(m) != "library"
            for i, line in edges if i == "genplan._core"]
     assert not bad, "only the library imports genplan._core (use the public API):\n" + "\n".join(bad)
+
+
+def _command_lines(module: str) -> list[str]:
+    """Where ``module`` defines a command line: an argparse import or an ``add_arguments``."""
+    tree = ast.parse(FILES[module].read_text())
+    where = f"{module} ({FILES[module].relative_to(ROOT.parent)}"
+    found = [f"{where}:{n.lineno}) imports argparse" for n in _walk(tree)
+             if (isinstance(n, ast.Import) and any(a.name == "argparse" for a in n.names))
+             or (isinstance(n, ast.ImportFrom) and n.module == "argparse")]
+    found += [f"{where}:{n.lineno}) defines add_arguments" for n in tree.body
+              if isinstance(n, ast.FunctionDef) and n.name == "add_arguments"]
+    return found
+
+
+def test_command_lines_live_in_the_cli() -> None:
+    bad = [line for m in GRAPH if _layer(m) == "library" for line in _command_lines(m)]
+    assert not bad, ("a command line belongs in genplan.cli (one module per command: add_arguments, main), "
+                     "which calls the library:\n" + "\n".join(bad))
+
+
+def _names(node: ast.AST) -> set[str] | None:
+    """The names a registry literal holds (a tuple, list or set of at least two strings, possibly
+    with other registries spread into it: only its own strings), else None."""
+    if isinstance(node, ast.Call) and getattr(node.func, "id", None) in ("frozenset", "set", "tuple") and node.args:
+        node = node.args[0]
+    if not isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+        return None
+    own = [e.value for e in node.elts if isinstance(e, ast.Constant) and isinstance(e.value, str)]
+    if len(own) + sum(isinstance(e, ast.Starred) for e in node.elts) != len(node.elts) or len(own) < 2:
+        return None
+    return set(own)
+
+
+def registries() -> dict[str, tuple[int, set[str]]]:
+    """Every registry of names in the library: ``module.NAME`` (or ``module.Class.NAME``) ->
+    (line, names)."""
+    out = {}
+    for module in GRAPH:
+        if _layer(module) != "library":
+            continue
+        tree = ast.parse(FILES[module].read_text())
+        scopes = [(tree.body, module)] + [(c.body, f"{module}.{c.name}") for c in tree.body if isinstance(c, ast.ClassDef)]
+        for body, owner in scopes:
+            for n in body:
+                target = n.targets[0] if isinstance(n, ast.Assign) and len(n.targets) == 1 else getattr(n, "target", None)
+                if (isinstance(n, (ast.Assign, ast.AnnAssign)) and isinstance(target, ast.Name)
+                        and target.id.lstrip("_").isupper() and n.value is not None):
+                    names = _names(n.value)
+                    if names is not None:
+                        out[f"{owner}.{target.id}"] = (n.lineno, names)
+    return out
+
+
+def test_the_registries_are_read() -> None:
+    found = registries()
+    assert found["genplan.samplers.SAMPLERS"][1] == {"uniform", "gan", "data"}  # its own, MIXTURES spread in
+    assert "genplan.samplers.WARM_STARTS" not in found  # derived, not a literal
+
+
+def test_no_registry_repeats_another() -> None:
+    """A registry whose names all stand in another registry (both at least two) repeats it."""
+    found = registries()
+    bad = []
+    for (a, (la, na)), (b, (lb, nb)) in itertools.combinations(sorted(found.items()), 2):
+        if (na <= nb or nb <= na) and frozenset({a, b}) not in DIFFERENT_CONCEPTS:
+            bad.append(f"{a} (line {la}) and {b} (line {lb}) both list {sorted(na & nb)}")
+    assert not bad, ("a second registry of the same names: derive one from the other (or, if they name "
+                     "different things, say so in DIFFERENT_CONCEPTS):\n" + "\n".join(bad))
 
 
 def _cycles() -> list[set[str]]:

@@ -58,7 +58,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 def _tiny_gan(robot, seed: int = 0):
     """An untrained small GAN for ``robot`` (nothing here needs it trained)."""
-    from genplan.gan.model import Codec, EnsembleGenerator, GanModel, default_config
+    from genplan.samplers.base import Codec
+    from genplan.samplers.gan import EnsembleGenerator, GanModel, default_config
 
     torch.manual_seed(seed)
     cfg = default_config(robot, n_net=2, gen_hidden=(8,), noise_dim=4)
@@ -70,7 +71,7 @@ def test_integrity_1_a_failed_replacement_keeps_the_old_model_whole(panda, tmp_p
     """Before: the new weights were renamed over the old ones before the card was written, so a
     failure writing the card (disk full) left the old card beside new weights: the old model was
     lost. Now both files are written under temporary names before either is renamed."""
-    from genplan.gan.model import load_model
+    from genplan.samplers.gan import load_model
 
     path = tmp_path / "m.safetensors"
     _tiny_gan(panda, 0).save(path)
@@ -115,8 +116,8 @@ def test_integrity_8_saving_over_a_folder_names_the_path_given(panda, tmp_path) 
 def test_integrity_8_a_card_given_as_the_model_says_give_the_weights(panda, tmp_path) -> None:
     """Before: ``--model m.json`` read the card as the weights: "corrupt or replaced"."""
     from genplan.errors import ModelFileError
-    from genplan.gan.loading import load_sampler_model
     from genplan.pancake.model import load_model as load_seq2seq
+    from genplan.samplers.loading import load_sampler_model
 
     weights, card = _tiny_gan(panda).save(tmp_path / "m.safetensors")
     for load in (lambda: load_sampler_model(panda, card), lambda: load_seq2seq(card)):
@@ -126,7 +127,7 @@ def test_integrity_8_a_card_given_as_the_model_says_give_the_weights(panda, tmp_
 
 
 def _cards() -> list[Path]:
-    from genplan.gan.model import models_dir
+    from genplan.samplers.base import models_dir
 
     return sorted(models_dir().glob("*.json")) + sorted((REPO / "examples" / "xarm7").glob("*_gan.json"))
 
@@ -136,7 +137,7 @@ def test_integrity_1_shipped_cards_retrain_outside_the_package(card: Path) -> No
     """Each shipped card's retraining command names --out, the same file name as the card's
     weights, and a place outside the installed package, from the repository's root (where
     ``models`` links to the package's models) as from anywhere else."""
-    from genplan._cli_args import inside_package
+    from genplan.model_files import inside_package
 
     data = json.loads(card.read_text())
     command = data.get("command", data.get("retrain"))

@@ -234,8 +234,8 @@ def test_training_mechanics(tmp_path) -> None:
 
 def test_integrity_1_retraining_commands_name_an_out_outside_the_package(tmp_path, monkeypatch) -> None:
     """The shipped card's command and a missing file's error name --out; never the package's
-    own models folder (training there is refused: genplan._cli_args.model_output)."""
-    from genplan._cli_args import inside_package
+    own models folder (training there is refused: genplan.cli.args.model_output)."""
+    from genplan.model_files import inside_package
     from genplan.pancake.model import retrain_command
 
     card = json.loads(default_path().with_suffix(".json").read_text())

@@ -276,8 +276,8 @@ def test_native_samplers_draw_the_same_stream_in_any_batch_size(panda, kind) -> 
 def test_the_data_sampler_draws_rows_of_its_data_in_its_box(panda, talos, shelf) -> None:
     """data_sampler: rows of the data given (or of the learned sampler's training data), only those
     whose target frame is in the box, every one reachable; the planner plans with it natively."""
-    from genplan.gan.data import valid_configurations
-    from genplan.gan.model import default_config
+    from genplan.samplers.data import valid_configurations
+    from genplan.samplers.gan import default_config
 
     data = valid_configurations(panda, 25_000, 0, progress=False)
     cfg = default_config(panda)

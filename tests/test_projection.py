@@ -408,3 +408,20 @@ def test_integrity_7_only_the_condition_term_may_leave_its_target_out(tmp_path, 
     task = P.Task(primary=[P.FramePosition(name="elbow", frame="panda_link4")], name="t")
     with pytest.raises(SettingsError, match=r"FramePosition\(panda_link4\).target: not set"):
         P.GaussNewtonProjector(panda, task)
+
+
+def test_the_paper_constants_are_read_when_first_used() -> None:
+    """genplan.projection reads no task file at import: the paper's constants (PANDA_IK_BOX, ...)
+    are read from the shipped task files when first used, once."""
+    import subprocess
+    import sys
+
+    code = ("import genplan.projection as P, genplan.projection.paper as paper\n"
+            "assert 'PANDA_IK_BOX' not in vars(paper)\n"
+            "box = P.PANDA_IK_BOX\n"
+            "assert vars(paper)['PANDA_IK_BOX'] is box and P.PANDA_IK_BOX is box\n"
+            "print(box.tolist(), P.TALOS_COM_BOX.shape, P.PANDA_HAND_OFFSET.shape)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().endswith("(2, 3) (3, 3)"), out
+    assert P.PANDA_IK_BOX.tolist() == [list(P.load_task("panda_ik").condition.low),
+                                       list(P.load_task("panda_ik").condition.high)]

@@ -160,7 +160,7 @@ def test_custom_term_equal_to_a_built_in_one_solves_like_it(panda: genplan.Robot
     np.testing.assert_array_equal(a.iterations, b.iterations)
     np.testing.assert_allclose(a.q, b.q, atol=1e-9)
     assert a.success.sum() >= 6
-    # the weighted residuals the GAN's costs use (genplan.gan.costs) agree too
+    # the weighted residuals the GAN's costs use (genplan.samplers.costs) agree too
     native_a = P.GaussNewtonProjector(panda, built_in).native
     native_b = P.GaussNewtonProjector(panda, custom).native
     assert native_a is not None and native_b is not None
@@ -322,7 +322,10 @@ def test_a_plan_on_a_custom_term_and_its_exceptions(panda: genplan.Robot) -> Non
     typed error naming the term."""
     from genplan.planning import Planner
 
-    task = _upright_task(panda)
+    # the planner holds the chords between a path's states to the task's tolerance: 1e-4 here (a
+    # chord 1/8 of the edge resolution long on this manifold strays by about 1e-5, so 1e-6 cannot
+    # be held and every edge would be refused)
+    task = _upright_task(panda, ToolUpright(robot=panda, name="upright", weight=10.0, tolerance=1e-4))
     solver = P.GaussNewtonProjector(panda, task)
     ends = solver.solve_batch(_starts(panda, 40, seed=5))
     free = ~np.asarray(panda.collision_world().in_collision(ends.q)) & ends.success
@@ -330,7 +333,7 @@ def test_a_plan_on_a_custom_term_and_its_exceptions(panda: genplan.Robot) -> Non
     result = Planner(panda, task=task, seed=0).plan(start, goal[None])
     assert result.success
     z = panda.link_poses(result.path, [panda.frames["hand"]])[:, 0, :2, 2]
-    assert np.abs(z).max() < 1e-5
+    assert np.abs(z).max() < 1e-4 / 10.0  # the term's tolerance over its weight
     boom = Boom("mid-plan")
     faulty = _upright_task(panda, Faulty(robot=panda, name="upright", weight=10.0, tolerance=1e-6, after=40, error=boom))
     with pytest.raises(Boom) as info:

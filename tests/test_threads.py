@@ -98,8 +98,8 @@ def test_latent_updates_run_on_one_thread_unless_told(monkeypatch) -> None:
 
 def test_gan_sampling_and_training_threads(monkeypatch, tmp_path) -> None:
     import genplan
-    from genplan.gan.model import default_config, train
-    from genplan.gan.sampler import GanSampler
+    from genplan.samplers.gan import default_config, train
+    from genplan.samplers.sampler import GanSampler
 
     panda = genplan.load("panda")
     data = panda.random_configurations(200, 0)  # training mechanics only: any configurations do

@@ -1,14 +1,14 @@
 """torch's thread count, chosen per workload for the duration of a genplan call.
 
 torch's default (one thread per core) is slow for genplan's small batches, and on a shared machine
-it is far slower: with another process busy on this 2-core machine, one latent update (27
-problems) took 252 ms on torch's 2 threads against 6 ms on one. genplan therefore sets torch's
-thread count at its entry points, for the duration of the call, and restores the caller's
-afterwards. The choice per workload (:data:`POLICY`) was measured with
-``benches/threads_under_load.py`` (``benches/results/threads_under_load.json``):
+it is far slower: its threads wait for cores another process keeps busy, many times longer than
+one thread takes for the whole batch. genplan therefore sets torch's thread count at its entry
+points, for the duration of the call, and restores the caller's afterwards. The choice per
+workload (:data:`POLICY`) is measured by ``benches/threads_under_load.py``
+(``benches/results/threads_under_load.json``):
 
 * ``"small"`` -- latent updates (:func:`genplan.pancake.adjust`), the seq2seq deformation and
-  evaluation, GAN sampling for a query (:class:`genplan.gan.GanSampler`): one thread.
+  evaluation, GAN sampling for a query (:class:`genplan.samplers.GanSampler`): one thread.
 * ``"training"`` -- training the GAN or the seq2seq model: one thread as well (a batch of 100-128
   gains little from a second thread when idle and loses much when the other core is busy).
 

@@ -1,23 +1,26 @@
-"""Inverse kinematics for users: one call that keeps trying until every target is reached.
+"""Inverse kinematics: :func:`solve_ik`, one call for users that keeps trying until every target
+is reached, and :func:`valid_solutions`, the collision-free solutions of one target that
+planning queries start and end at (:mod:`genplan.planning.queries`).
 
     res = genplan.solve_ik(panda, "panda_ik", targets, restarts=10, time_budget_s=0.005)
     res.q, res.success, res.time_s, res.attempts
 
 The task's [condition] term (e.g. ``hand_position``, a FramePosition) is aimed at each target
 (:func:`genplan.projection.condition_term`); the task's other terms (orientation, joint limits,
-...) hold as in any projection. Each round solves every target still failing in one native batch
-(``GaussNewtonProjector.solve_batch``: Rust, GIL released, rows on all cores), each from a new warm
-start: the task's GAN (``init="gan"``, its shipped model by default: conditioned on the target,
-a new noise draw and ensemble member every round) for the first half of the attempts, then
-uniform random configurations (another basin of attraction when the GAN keeps proposing the same
-one); or, with no model at all, ``init="data"``: the rows of the task's data set (the data a GAN
-is trained on) whose condition frame is nearest the target, nearest first (better warm starts than
-the shipped GANs', at about half their time: ``genplan bench ik``, README "IK for users"). A target stops being retried when it succeeds or after ``restarts``
-retries; no round starts once the call has run for ``time_budget_s`` of wall-clock time (its setup
-included), so the call returns within the budget plus one round (every target gets its first
-attempt). ``time_s`` is each target's real elapsed time, from the call's start until it was
-settled; ``solve_s`` its own share of the work (its solves plus its share of the GAN's sampling),
-the per-target cost to compare solvers with.
+...) hold as in any projection. Each round of :func:`solve_ik` solves every target still failing
+in one native batch (``GaussNewtonProjector.solve_batch``: Rust, GIL released, rows on all cores),
+each from a new warm start (:data:`INITS`): for the first half of the attempts, the task's learned
+sampler (``init="gan"``, its shipped model by default: conditioned on the target, a new noise draw
+and ensemble member every round) or, with no model at all, the rows of the task's data set whose
+condition frame is nearest the target, nearest first (``init="data"``:
+:class:`genplan.samplers.data.TaskData`, the data a learned sampler is trained on); then uniform
+random configurations (another basin of attraction when the first kind keeps proposing the same
+one). ``genplan bench ik`` compares the warm starts. A target stops being retried when it succeeds
+or after ``restarts`` retries; no round starts once the call has run for ``time_budget_s`` of
+wall-clock time (its setup included), so the call returns within the budget plus one round (every
+target gets its first attempt). ``time_s`` is each target's real elapsed time, from the call's
+start until it was settled; ``solve_s`` its own share of the work (its solves plus its share of
+the warm starts' sampling), the per-target cost to compare solvers with.
 
 The solver is the projector's damped Gauss-Newton with two changes for IK (beyond the paper;
 ``settings=SolverSettings(), nominal="start"`` gives the paper's solver back):
@@ -30,12 +33,9 @@ The solver is the projector's damped Gauss-Newton with two changes for IK (beyon
   null-space posture of the paper's tasks) pulls towards the middle of each bounded joint's range
   instead of towards the warm start, which keeps joints off their limits.
 
-Measured on tuning targets (seeds 1 / 2; the tables report seed 0), one attempt of 100
-iterations from uniform random starts: Panda 70.2 / 72.6 % with the paper's solver, 94.8 / 96.0 %
-with both changes (79.0 / 81.0 % with the posture change alone, 85.8 / 89.4 % with whole steps
-alone at the same ``mu``); Talos 94.0 / 94.8 % -> 99.8 / 99.6 %; from GAN starts, Panda 92.8 / 94.6 % -> 97.8 / 98.4 %,
-Talos 99.8 / 100 % -> 100 / 100 %, with fewer iterations (``python benches/ik_settings.py --seeds 1
-2 --out benches/results/ik_settings.json``).
+Each change, and both together more, raises the share of targets one attempt solves, from uniform
+and from learned warm starts, on the Panda and on Talos (tuning targets, not the tables' seeds:
+``python benches/ik_settings.py``, benches/results/ik_settings.json).
 """
 
 from __future__ import annotations
@@ -50,15 +50,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from genplan._arrays import as_float_array
+from genplan._core import SolverSettings
 from genplan.errors import NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
+from genplan.samplers import WARM_STARTS
 
-from genplan._core import SolverSettings
+__all__ = ["ATTEMPT_ITERATIONS", "IK_SETTINGS", "INITS", "NOMINALS", "IKResult", "solve_ik", "valid_solutions"]
 
-__all__ = ["ATTEMPT_ITERATIONS", "IK_SETTINGS", "INITS", "NOMINALS", "IKResult", "solve_ik"]
-
-#: Warm starts :func:`solve_ik` accepts by name (or an (n, nq) array of configurations).
-INITS = ("gan", "data", "uniform")
+#: Warm starts :func:`solve_ik` accepts by name (or an (n, nq) array of configurations): the
+#: samplers that are warm starts (:data:`genplan.samplers.WARM_STARTS`).
+INITS = WARM_STARTS
 #: Nominal postures :func:`solve_ik` accepts by name (or an (nq,) / (n, nq) array): "mid", the
 #: middle of each bounded joint's range (unbounded joints and a free-flyer base: the warm
 #: start's); "start", the warm start (the paper's).
@@ -66,10 +67,9 @@ NOMINALS = ("mid", "start")
 #: :func:`solve_ik`'s default solver settings: whole Gauss-Newton steps (``max_backtracks=1``),
 #: ``mu`` 1e-3, the rest the paper's defaults (see the module text).
 IK_SETTINGS = SolverSettings(mu=1e-3, max_backtracks=1)
-#: Gauss-Newton iterations per attempt. Of the Panda IK targets a GAN attempt solves, nearly all
-#: converge within 20 iterations (95.2 / 97.4 % of 500 targets within 20, 97.8 / 98.4 % within 100,
-#: :data:`IK_SETTINGS`, tuning seeds 1 / 2: benches/results/ik_settings.json), while a failing
-#: attempt then costs 20 iterations instead of 100: more, cheaper attempts fit a time budget.
+#: Gauss-Newton iterations per attempt. Nearly every attempt that converges with
+#: :data:`IK_SETTINGS` does so within 20 iterations (benches/results/ik_settings.json), so an
+#: attempt that has not is abandoned for a new warm start: more, cheaper attempts fit a time budget.
 ATTEMPT_ITERATIONS = 20
 
 
@@ -147,33 +147,13 @@ def _nominals(robot: Robot, nominal: str | NDArray[np.float64], q0: NDArray[np.f
 
 
 def _model(robot: Robot, task: Any, model: Any) -> Any:
-    from genplan.gan.loading import load_sampler_model
-    from genplan.gan.model import SamplerModel, check_model_robot
+    from genplan.samplers.base import SamplerModel, check_model_robot
+    from genplan.samplers.loading import load_sampler_model
 
     if isinstance(model, SamplerModel):
         check_model_robot(model, robot)  # by kinematics, not by name
         return model
     return load_sampler_model(robot, model, task=task)
-
-
-def _nearest_rows(robot: Robot, task: Any, targets: NDArray[np.float64],
-                  k: int) -> tuple[NDArray[np.float64], float]:
-    """Warm starts from the task's data set (:func:`genplan.gan.data.valid_configurations`: the
-    data a learned sampler of the task is trained on, made once and cached): for each target, the
-    ``k`` rows whose condition frame is nearest it, nearest first, (n, k, nq); and the queries'
-    seconds per target (the k-d tree's construction, like a model's loading, is not counted)."""
-    from scipy.spatial import cKDTree
-
-    from genplan.gan.data import valid_configurations
-    from genplan.projection import condition_term
-
-    data = valid_configurations(robot, 25_000, 0, progress=False, task=task)
-    tree = cKDTree(robot.frame_positions(data, condition_term(task).frame))
-    k = min(k, len(data))
-    t0 = time.perf_counter()
-    _, idx = tree.query(targets, k=k)
-    lookup_s = (time.perf_counter() - t0) / len(targets)
-    return data[np.asarray(idx).reshape(len(targets), k)], lookup_s
 
 
 def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike = "gan", restarts: int = 20,
@@ -186,10 +166,10 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
 
     Args:
         robot: the robot (:func:`genplan.load`).
-        init: "gan" (the task's GAN, then uniform), "data" (the rows of the task's data set
-            whose condition frame is nearest the target, the next nearest at each retry, then
-            uniform: no model needed), "uniform", or (n, nq) first warm starts (retries are
-            uniform).
+        init: one of :data:`INITS`: "gan" (the task's learned sampler, then uniform), "data"
+            (the rows of the task's data set whose condition frame is nearest the target, the
+            next nearest at each retry, then uniform: no model needed), "uniform"; or (n, nq)
+            first warm starts (retries are uniform).
         restarts: retries per target after the first attempt (>= 0).
         time_budget_s: wall-clock seconds for the whole call, its setup included: no round
             starts once it is spent (the first, every target's first attempt, always runs); the
@@ -251,7 +231,11 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
     gan = _model(robot, ik_task, model) if isinstance(init, str) and init == "gan" else None
     gan_attempts = (restarts + 2) // 2  # attempts 1 .. this: GAN (or data); later ones uniform
     rng = np.random.default_rng(seed)
-    nearest = _nearest_rows(robot, ik_task, t, gan_attempts) if isinstance(init, str) and init == "data" else None
+    nearest = None
+    if isinstance(init, str) and init == "data":
+        from genplan.samplers.data import TaskData
+
+        nearest = TaskData(robot, ik_task).nearest(t, gan_attempts)
     if gan is not None:
         # the generator run natively (one row costs microseconds; torch's call alone ~0.7 ms),
         # on targets clipped into the box its output is vouched for (GanModel.native_sampler)
@@ -303,3 +287,33 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
         time_s[rows] = time.perf_counter() - wall0  # settled by this round, or until a later one
     return IKResult(q=q, success=success, time_s=time_s, attempts=attempts, residuals=residuals,
                     wall_s=time.perf_counter() - wall0, rounds=rounds, solve_s=solve_s)
+
+
+#: initial guesses tried per batch of :func:`valid_solutions`
+_BATCH = 32
+
+
+def valid_solutions(robot: Robot, ik: Any, term: str, proj: Any, world: Any, target: NDArray[np.float64],
+                    rng: np.random.Generator, want: int, max_tries: int) -> NDArray[np.float64]:
+    """Up to ``want`` valid configurations reaching ``target``, (m, nq) with m <= ``want``: IK
+    (``ik``, a :class:`~genplan.projection.GaussNewtonProjector` whose primary term ``term`` is
+    aimed at ``target``) from batches of uniform guesses drawn from ``rng``, each solution then
+    projected around itself with ``proj`` (the manifold the planner plans on, at its tighter
+    tolerances) and kept when collision-free (``world.in_collision``); at most ``max_tries``
+    guesses (rounded up to whole batches). What planning queries start and end at."""
+    found: list[NDArray[np.float64]] = []
+    tries = 0
+    while len(found) < want and tries < max_tries:
+        q0 = robot.random_configurations(_BATCH, rng)
+        tries += _BATCH
+        res = ik.solve_batch(q0, targets={term: np.repeat(target[None], _BATCH, 0)}, parallel=True)
+        q = res.q[res.success]
+        if len(q) == 0:
+            continue
+        pr = proj.solve_batch(q, q, parallel=True)
+        q = pr.q[pr.success]
+        if len(q) == 0:
+            continue
+        q = q[~np.asarray(world.in_collision(q), dtype=bool)]
+        found.extend(q)
+    return np.array(found[:want]).reshape(-1, robot.nq)

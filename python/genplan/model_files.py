@@ -1,6 +1,8 @@
 """Shipped models: safetensors weights plus a JSON card beside them (never pickles).
 
-Shared by the GAN (:mod:`genplan.gan.model`) and the seq2seq model (:mod:`genplan.pancake.model`).
+Shared by the learned samplers (:mod:`genplan.samplers`) and the seq2seq models
+(:mod:`genplan.seq2seq.model`). The shipped models live in the installed package
+(:func:`models_dir`), which no training command ever writes (:func:`inside_package`).
 A loader refuses, with :class:`~genplan.errors.ModelFileError` naming the file and the problem and
 before building anything, what it cannot vouch for:
 
@@ -22,6 +24,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import os
 import re
 import typing
 from collections.abc import Mapping
@@ -33,7 +36,8 @@ import numpy as np
 from genplan.errors import GenplanError, ModelFileError
 
 __all__ = ["REQUIRED_CARD_KEYS", "ModelCardWarning", "write_model", "read_model", "read_config", "check_tensors",
-           "json_default", "peek_card", "check_sha256", "warn_once"]
+           "json_default", "peek_card", "check_sha256", "warn_once", "package_dir", "inside_package", "models_dir",
+           "out_option"]
 
 T = TypeVar("T")
 
@@ -42,6 +46,29 @@ REQUIRED_CARD_KEYS = frozenset({"format", "config", "weights_sha256"})
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 #: the (card, weights sha256) pairs already warned about by :func:`warn_once`
 _WARNED: set[tuple[str, str]] = set()
+
+
+def package_dir() -> Path:
+    """The installed genplan package's folder (its shipped models, presets and code)."""
+    return Path(__file__).resolve().parent
+
+
+def models_dir() -> Path:
+    """The shipped models: ``genplan/models`` inside the installed package."""
+    return package_dir() / "models"
+
+
+def inside_package(path: str | os.PathLike[str]) -> bool:
+    """True when ``path``, symbolic links followed (a repository checkout's ``models`` links to
+    the package's models), lies inside the installed genplan package."""
+    return Path(path).resolve().is_relative_to(package_dir())
+
+
+def out_option(out: Path) -> str:
+    """The ``--out`` of a model's retraining command (its card's ``command``): `` --out PATH``,
+    the path as given, so the command rewrites that same file and no other (never the shipped
+    place: :func:`genplan.cli.args.model_output`)."""
+    return f" --out {out}"
 
 
 class ModelCardWarning(UserWarning):

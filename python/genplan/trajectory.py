@@ -398,10 +398,10 @@ def _into_limits(robot: Robot, task: Any, q: Array, qd: Array, qdd: Array) -> tu
     constraint). Returns q, qd, qdd and how many samples were moved.
 
     A spline through states at a limit overshoots it between them (the states on the manifold
-    clipped to the limits, the spline smooths the corner): by up to 0.74 mrad on the default
-    Panda shelf plans (1 in 20), 2-4 mrad on sparse paths. Clamping that joint alone would leave
-    the manifold (6.7x the orientation tolerance on that shelf plan): the other joints compensate
-    for it along the spline, hence the projection, which moves them by as little."""
+    clipped to the limits, the spline smooths the corner), by a fraction of a milliradian on dense
+    paths and more on sparse ones. Clamping that joint alone would leave the manifold, well
+    beyond the task's tolerances: the other joints compensate for it along the spline, hence the
+    projection, which moves them by as little."""
     out = (q < robot.lower) | (q > robot.upper)
     rows = np.nonzero(out.any(axis=1))[0]
     if len(rows) == 0:
@@ -497,13 +497,10 @@ def _invalid_samples(world: Any, q: Array) -> NDArray[np.bool_]:
     collision; a checker: not ``is_valid``, booleans or exactly 0 / 1 as the planner reads them).
 
     A collision world checks every sample (``in_collision``, the check the planner's path states
-    had), not certified motions between samples: on the 20 default Panda shelf plans (median
-    11,700 samples at 1 kHz, fastest of 5) the samples cost a median of 13.9 ms, against 120 ms
-    for certifying the motions between them (conservative advancement along the samples, the
-    planner's ``certify_path``, timed through a binding not kept) and 11.1 ms for the
-    parameterisation itself (``python benches/trajectory_check.py`` times the first and the
-    last); at 1 kHz consecutive samples are at most 2.6 mrad apart (the Panda's fastest joint),
-    10x denser than the path's states, which are checked at 25 mrad."""
+    had), not certified motions between samples: checking the samples costs about as much as the
+    parameterisation itself, certifying the motions between them (conservative advancement)
+    several times more (``python benches/trajectory_check.py``), and at 1 kHz consecutive samples
+    lie an order of magnitude closer than the path's states (checked ``edge_resolution`` apart)."""
     if hasattr(world, "in_collision"):
         return np.asarray(world.in_collision(q), dtype=bool)
     flags = np.asarray(world.is_valid(q))

@@ -13,7 +13,7 @@ from genplan.cli import COMMANDS, main
 def test_commands_are_registered() -> None:
     names = {(g, n): m for g, n, m, _ in COMMANDS}
     assert names[("bench", "adjust")] == "genplan.experiments.benchmarks.adjust"
-    assert names[("train", "seq2seq")] == "genplan.pancake.train_cli"
+    assert names[("train", "seq2seq")] == "genplan.cli.train_seq2seq"
 
 
 def test_the_papers_j2_problem() -> None:

@@ -23,7 +23,7 @@ PEERS = {"pink": pink, "placo": placo, "ikpy": ikpy, "pytorch_kinematics": pytor
 def panda_problems() -> K.IKProblems:
     panda = genplan.load("panda")
     task = load_task("panda_ik", panda)
-    from genplan.gan.data import valid_configurations
+    from genplan.samplers.data import valid_configurations
 
     valid = valid_configurations(panda, 6, 2000, progress=False, task=task)
     return K.problems(panda, task, valid, panda.random_configurations(6, 3000))

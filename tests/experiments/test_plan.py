@@ -93,7 +93,7 @@ def test_bench_plan_with_another_learned_sampler_file(tmp_path, monkeypatch) -> 
     """--model ROBOT=FILE: the gan rows of that robot's environments use the file (here a tiny flow,
     which plans otherwise than the shipped GAN), and the JSON names it with its hash; the uniform
     rows are untouched."""
-    from genplan.gan.flow import default_config, train
+    from genplan.samplers.flow import default_config, train
 
     monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
     model = train(default_config("panda", iterations=20, data_size=300, hidden=(16,), steps=2, w_cost=0.0, seed=1),

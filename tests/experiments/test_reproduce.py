@@ -75,3 +75,17 @@ def test_report_names_a_broken_json_file(tmp_path, capsys) -> None:
     assert main(["report", str(tmp_path)]) == 2
     assert capsys.readouterr().err == (f"genplan: error: {tmp_path / 'table1_panda_uniform.json'}.projection: no field "
                                        "'success_rate' (not what a genplan benchmark writes, or from another version)\n")
+
+
+def test_the_quick_run_measures_the_shipped_ablations_and_the_full_run_trains_them(tmp_path) -> None:
+    """--quick's coverage step reads the paper's ablation GANs from the package's models folder
+    (no training: the bulk of the quick run's time before); the full run trains them."""
+    from genplan.experiments.reproduce import FULL, QUICK, _steps
+    from genplan.model_files import models_dir
+
+    def coverage(sizes):  # type: ignore[no-untyped-def]
+        return next(argv for title, argv in _steps(tmp_path, sizes) if title == "GAN coverage")
+
+    quick, full = coverage(QUICK), coverage(FULL)
+    assert quick[quick.index("--models") + 1] == str(models_dir()) and "--quick" in quick
+    assert "--models" not in full and "--quick" not in full

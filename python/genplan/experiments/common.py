@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from genplan._files import atomic_path, write_text
+from genplan.errors import GenplanError
 
 
 def machine() -> dict[str, Any]:
@@ -77,3 +78,39 @@ def _fmt(c: Any) -> str:
     if isinstance(c, float):
         return f"{c:.3g}" if abs(c) < 100 else f"{c:.1f}"
     return str(c)
+
+
+class _Fields(dict[str, Any]):
+    """A JSON object of a benchmark file: a missing field raises GenplanError naming the file and
+    the field (not a bare KeyError)."""
+
+    def __init__(self, data: dict[str, Any], where: str) -> None:
+        super().__init__({k: _fields(v, f"{where}.{k}") for k, v in data.items()})
+        self.where = where
+
+    def __getitem__(self, key: str) -> Any:
+        try:
+            return super().__getitem__(key)
+        except KeyError:
+            raise GenplanError(f"{self.where}: no field {key!r} (not what a genplan benchmark writes, or from "
+                               "another version)") from None
+
+
+def _fields(value: Any, where: str) -> Any:
+    if isinstance(value, dict):
+        return _Fields(value, where)
+    if isinstance(value, list):
+        return [_fields(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    return value
+
+
+def read_json(path: Path) -> Any:
+    """A benchmark's JSON file: a file that is not a JSON object raises GenplanError naming it,
+    and so does a missing field when it is read (FileNotFoundError for a missing file)."""
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise GenplanError(f"{path}: not a valid JSON file ({exc})") from None
+    if not isinstance(data, dict):
+        raise GenplanError(f"{path}: expected a JSON object (a benchmark's results), got {type(data).__name__}")
+    return _Fields(data, str(path))

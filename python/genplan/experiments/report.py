@@ -2,9 +2,12 @@
 benchmarks wrote (nothing here measures anything).
 
     genplan report benches/results      # the committed benchmark JSON -> benches/results/report.md
+    genplan report benches/results --benchmarks docs/BENCHMARKS.md     # the benchmarks page
 
 reads a folder laid out like ``genplan reproduce``'s output (``table1_*.json``,
 ``table2_*.json``, ``coverage.json``, ``adjust/adjust_*.json``, ``control.json``, ``figures/``).
+With ``--benchmarks PAGE`` it writes the benchmarks page instead
+(:mod:`genplan.experiments.benchmarks_md`).
 """
 
 from __future__ import annotations
@@ -14,9 +17,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 from genplan.errors import GenplanError
-from genplan.experiments.common import geometric_mean, table, write_text
+from genplan.experiments.common import geometric_mean, read_json, table, write_text
 
 
 def _f(x: Any, digits: int = 3) -> str:
@@ -142,8 +145,10 @@ def _coverage(res: dict[str, Any]) -> str:
             r = c.get(robot, {}).get(label)
             if r:
                 rows.append([robot, label, _f(r["cluster_coverage"]), _f(r["mmd"]), f"projects {r['projection_success']:.3f}"])
+    source = (f" The GANs were read from `{c['models']}` (each file's card names the command that trained it), "
+              "not trained here." if c.get("models") else "")
     return (f"Share of k-means clusters (k = {c.get('k_clusters')}) of held-out valid data that samples reach, and "
-            "MMD between samples and data (lower is closer); quick runs train fewer iterations.\n\n"
+            f"MMD between samples and data (lower is closer); quick runs train fewer iterations.{source}\n\n"
             + table(["setup", "variant", "cluster coverage", "MMD", "quality"], rows) + "\n")
 
 
@@ -304,56 +309,31 @@ def write_report(out: Path, results: dict[str, Any], extra_sections: dict[str, s
     return write_text(path, "\n".join(lines) + "\n")
 
 
-class _Fields(dict[str, Any]):
-    """A JSON object of a benchmark file: a missing field raises GenplanError naming the file and
-    the field (not a bare KeyError)."""
-
-    def __init__(self, data: dict[str, Any], where: str) -> None:
-        super().__init__({k: _fields(v, f"{where}.{k}") for k, v in data.items()})
-        self.where = where
-
-    def __getitem__(self, key: str) -> Any:
-        try:
-            return super().__getitem__(key)
-        except KeyError:
-            raise GenplanError(f"{self.where}: no field {key!r} (not what a genplan benchmark writes, or from "
-                               "another version)") from None
-
-
-def _fields(value: Any, where: str) -> Any:
-    if isinstance(value, dict):
-        return _Fields(value, where)
-    if isinstance(value, list):
-        return [_fields(v, f"{where}[{i}]") for i, v in enumerate(value)]
-    return value
-
-
 def collect(folder: Path) -> dict[str, Any]:
-    """Every benchmark JSON below ``folder``, keyed by its relative path; a file that is not a
-    JSON object raises GenplanError naming it, and so does a missing field when it is read."""
-    out = {}
-    for p in sorted(folder.glob("**/*.json")):
-        if p.name in ("results.json", "criterion.json"):
-            continue
-        try:
-            data = json.loads(p.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise GenplanError(f"{p}: not a valid JSON file ({exc})") from None
-        if not isinstance(data, dict):
-            raise GenplanError(f"{p}: expected a JSON object (a benchmark's results), got {type(data).__name__}")
-        out[p.relative_to(folder).as_posix()] = _Fields(data, str(p))
-    return out
+    """Every benchmark JSON below ``folder`` (:func:`read_json`), keyed by its relative path."""
+    return {p.relative_to(folder).as_posix(): read_json(p) for p in sorted(folder.glob("**/*.json"))
+            if p.name not in ("results.json", "criterion.json")}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("folder", type=A.existing_folder, help="folder of benchmark JSON (e.g. benches/results)")
     p.add_argument("--out", type=A.output_file, default=None,
                    help="report file (default FOLDER/report.md; folders are created)")
+    p.add_argument("--benchmarks", type=A.output_file, default=None, metavar="PAGE",
+                   help="write the benchmarks page (docs/BENCHMARKS.md: the measured tables, each with the command "
+                        "that wrote its JSON, and their notes) to PAGE instead of the report")
 
 
 def main(args: argparse.Namespace) -> int:
     from genplan.experiments.common import machine
 
+    if args.benchmarks is not None:
+        if args.out is not None:
+            raise A.UsageError("--out: the report's file; --benchmarks writes the benchmarks page instead (give one)")
+        from genplan.experiments.benchmarks_md import write
+
+        print(f"wrote {write(args.folder, args.benchmarks)}")
+        return 0
     out = args.out or A.check_output_file(args.folder / "report.md", "FOLDER")
     results = {"command": f"genplan report {args.folder}", "seed": 0, "machine": machine(),
                "results": collect(args.folder)}

@@ -1,6 +1,6 @@
 """``genplan reproduce``: rerun both papers' experiments with the shipped models, write a report.
 
-    genplan reproduce --quick --out out/quick      # < 10 minutes on a 2-core machine
+    genplan reproduce --quick --out out/quick      # about 5 minutes on a quiet 2-core machine
     genplan reproduce --out out/full               # the papers' N (about an hour or more)
 
 Steps (each is a ``genplan bench ...`` command, run in-process through the benchmark module's own
@@ -11,7 +11,10 @@ those files):
    scipy ``least_squares`` baseline on the same tasks;
 2. Table II: constrained RRT with uniform / GAN / hybrid sampling, and OMPL's
    ProjectedStateSpace + RRTConnect, on the four environments;
-3. coverage of the GAN distributions (Fig. 3 and 4 made measurable);
+3. coverage of the GAN distributions (Fig. 3 and 4 made measurable); the quick run measures the
+   paper's ablations shipped in the package's models folder (``<robot>_coverage_<variant>``,
+   trained as ``genplan bench coverage --quick`` trains them: the command is in each card) instead
+   of training them, the full run trains them with the paper's iterations;
 4. seq2seq paper: J1 adjustment (Fig. 5, 9: latent / random latent / direct U, and CasADi + IPOPT)
    and J2 (Fig. 11);
 5. the 1 kHz controller executing the J2 trajectory (Fig. 12), with and without the DOB;
@@ -33,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 from genplan.experiments.common import machine, write_text
 
 SEED = 0
@@ -49,18 +52,22 @@ class Sizes:
     ompl_queries: int
     ompl_time_limit: float
     coverage_quick: bool
+    #: measure the shipped ablation GANs (``bench coverage --models``) instead of training them
+    coverage_shipped_models: bool
     adjust_j1_updates: int
     adjust_problems: int | None
 
 
 QUICK = Sizes(table1_tasks=100, table1_scipy_tasks=50, plan_queries=10, ompl_queries=3, ompl_time_limit=10.0,
-              coverage_quick=True, adjust_j1_updates=30, adjust_problems=None)
+              coverage_quick=True, coverage_shipped_models=True, adjust_j1_updates=30, adjust_problems=None)
 FULL = Sizes(table1_tasks=500, table1_scipy_tasks=500, plan_queries=100, ompl_queries=20, ompl_time_limit=30.0,
-             coverage_quick=False, adjust_j1_updates=100, adjust_problems=None)
+             coverage_quick=False, coverage_shipped_models=False, adjust_j1_updates=100, adjust_problems=None)
 
 
 def _steps(out: Path, sizes: Sizes) -> list[tuple[str, list[str]]]:
     """(title, genplan command line) of every step."""
+    from genplan.samplers.base import models_dir
+
     fig = out / "figures"
     steps: list[tuple[str, list[str]]] = []
     for robot in ("panda", "talos"):
@@ -79,6 +86,7 @@ def _steps(out: Path, sizes: Sizes) -> list[tuple[str, list[str]]]:
                                          "--ompl-time-limit", str(sizes.ompl_time_limit),
                                          "--out", str(out / "table2_ompl.json")]))
     steps.append(("GAN coverage", ["bench", "coverage", *(["--quick"] if sizes.coverage_quick else []), "--seed", str(SEED),
+                                   *(["--models", str(models_dir())] if sizes.coverage_shipped_models else []),
                                    "--figures", str(fig), "--out", str(out / "coverage.json")]))
     steps.append(("seq2seq J1", ["bench", "adjust", "--method", "all", "--objective", "j1", "--updates",
                                  str(sizes.adjust_j1_updates), "--out-dir", str(out / "adjust"), "--figures", str(fig)]))
@@ -159,7 +167,8 @@ def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--quick", action="store_true", help="smaller N: finishes in under 10 minutes on 2 cores")
+    p.add_argument("--quick", action="store_true",
+                   help="smaller N and the shipped ablation GANs: about 5 minutes on 2 quiet cores")
     p.add_argument("--out", type=A.output_folder, default="out/reproduce",
                    help="output folder (report.md, results.json, figures; created if missing)")
     p.add_argument("--only", nargs="*", default=None, help="run only the steps whose title contains one of these words")

@@ -1,44 +1,44 @@
-"""Conditional ensemble GAN of valid robot configurations (the GAN paper, Section III-A).
-
-* :mod:`genplan.gan.data` -- valid configurations: uniform samples projected onto the manifold.
-* :mod:`genplan.gan.model` -- ensemble generator, discriminator, training, safetensors I/O.
-* :mod:`genplan.gan.sampler` -- :class:`GanSampler`, a planner Sampler (uniform and hybrid sampling:
-  :func:`genplan.planning.make_sampler`).
-* :mod:`genplan.gan.flow` -- beyond the paper: a conditional flow-matching sampler behind the same
-  interface (``genplan train flow``); :mod:`genplan.gan.loading` loads a GAN or a flow file.
-
-Imported lazily, so that ``import genplan`` does not import torch.
+"""Deprecated: the learned samplers (the GAN, the flow and what they share) live in
+:mod:`genplan.samplers`. This alias keeps ``genplan.gan.X`` and ``import genplan.gan.<module>``
+working for one release, each with a DeprecationWarning naming the new place.
 """
 
 from __future__ import annotations
 
 import importlib
+import sys
+import warnings
 from typing import Any
 
-_EXPORTS = {
-    "GanConfig": "genplan.gan.model",
-    "GanModel": "genplan.gan.model",
-    "default_config": "genplan.gan.model",
-    "load_model": "genplan.gan.model",
-    "train": "genplan.gan.model",
-    "GanSampler": "genplan.gan.sampler",
-    "FlowConfig": "genplan.gan.flow",
-    "FlowModel": "genplan.gan.flow",
-    "load_sampler_model": "genplan.gan.loading",
+#: genplan.gan's names and the modules that define them now
+_MOVED = {
+    "GanConfig": "genplan.samplers.gan",
+    "GanModel": "genplan.samplers.gan",
+    "default_config": "genplan.samplers.gan",
+    "load_model": "genplan.samplers.gan",
+    "train": "genplan.samplers.gan",
+    "GanSampler": "genplan.samplers.sampler",
+    "FlowConfig": "genplan.samplers.flow",
+    "FlowModel": "genplan.samplers.flow",
+    "load_sampler_model": "genplan.samplers.loading",
 }
 
-#: Names removed after 0.1.0 and what replaces them (the Python twins of the native samplers).
-_REMOVED = {
-    "UniformSampler": 'genplan.planning.make_sampler(robot, "uniform", seed=...)',
-    "HybridSampler": 'genplan.planning.make_sampler(robot, "hybrid", hybrid_p=..., seed=...)',
-}
+__all__ = sorted(_MOVED)
 
-__all__ = sorted(_EXPORTS)
+
+def _deprecated(old: str, new: str, stacklevel: int = 3) -> None:
+    warnings.warn(f"{old} is deprecated (removed in the next release): use {new}", DeprecationWarning,
+                  stacklevel=stacklevel)
+
+
+def alias_module(old: str, new: str) -> None:
+    """Make the module ``old`` (running this in its body) the module ``new``, with a warning."""
+    _deprecated(old, new, stacklevel=4)  # the importer's line (the import system's frames are skipped)
+    sys.modules[old] = importlib.import_module(new)
 
 
 def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    if name in _REMOVED:
-        raise AttributeError(f"genplan.gan.{name} was removed after 0.1.0 (a Python twin of a native sampler): use {_REMOVED[name]}")
+    if name in _MOVED:
+        _deprecated(f"genplan.gan.{name}", f"{_MOVED[name]}.{name}")
+        return getattr(importlib.import_module(_MOVED[name]), name)
     raise AttributeError(f"module 'genplan.gan' has no attribute '{name}'")

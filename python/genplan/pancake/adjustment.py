@@ -48,8 +48,8 @@ Objective = Union[str, Callable[[ph.Rollout], Tensor]]
 PAPER_LR = {("j1", "latent"): 200.0, ("j1", "random-latent"): 200.0, ("j1", "direct-u"): 1000.0,
             ("j2", "latent"): 100.0, ("j2", "random-latent"): 100.0, ("j2", "direct-u"): 100.0}
 #: the adaptive rule's initial trust radius (RMS of a step): latent units, m/s^2 for direct-u
-#: (the choice among 0.003-0.05 on the 27 J1 problems with the shipped model:
-#: benches/results/adjust_j1.json)
+#: (the best of the radii benches/results/adjust_j1.json compares on the 27 J1 problems with the
+#: shipped model)
 ADAPTIVE_RADIUS = {"latent": 0.02, "random-latent": 0.02, "direct-u": 0.5}
 #: most updates per call (the history keeps one objective per problem and update)
 MAX_UPDATES = generic.MAX_UPDATES

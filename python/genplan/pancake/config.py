@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from genplan._config import check_fields, integer, number, optional
 from genplan.errors import SettingsError
 from genplan.pancake.trajectories import DT, K
 
@@ -35,9 +36,8 @@ class Seq2SeqConfig:
     logvar_min: float = -14.0
     logvar_max: float = 4.0
     #: added to the output position variance (m^2 / rad^2): keeps the NLL finite at k = 0 (where
-    #: the rollout's variance is exactly zero). A larger floor (2.5e-5, 5 mm) was tried: with
-    #: alpha = 30 it kept fewer outputs inside the cone (63 % of held-out inputs against 91 %
-    #: for this floor with alpha = 300, 50k-trajectory runs)
+    #: the rollout's variance is exactly zero); small, because a larger floor lets the model
+    #: explain deviations by variance instead of keeping its outputs inside the friction cone
     var_floor: float = 1e-8
     #: the encoder reads every ``encoder_stride``-th input pose (always including the first and
     #: the last); 1 = every pose, as in the paper
@@ -64,9 +64,10 @@ class Seq2SeqConfig:
     #: ``(var / nll_var_ref) ** beta`` (no gradient through the weight), beta falling linearly
     #: from ``nll_beta`` to ``nll_beta_final`` over the first ``nll_beta_fraction`` of the steps;
     #: with ``nll_beta_final = 0`` the loss ends as the paper's plain NLL. The default keeps
-    #: 0.5: on this budget the plain NLL lets the model give up on following large rotations
-    #: (a large variance is cheaper than a flip), and flips are what the evaluation asks for. Without it the mean learns slowly under a large variance and
-    #: training settles on "do not move" (the cone is then trivially kept).
+    #: 0.5: with the plain NLL the model can give up on following large rotations (a large
+    #: variance is cheaper than a flip), and flips are what the evaluation asks for; without the
+    #: weighting the mean learns slowly under a large variance and training settles on "do not
+    #: move" (the cone is then trivially kept).
     nll_beta: float = 1.0
     nll_beta_final: float = 0.5
     nll_beta_fraction: float = 0.6
@@ -94,39 +95,25 @@ class Seq2SeqConfig:
 
     def validate(self) -> None:
         """SettingsError naming the first field with a value the model or its training cannot use."""
-        ints = {"hidden": 1, "layers": 1, "K": 2, "encoder_stride": 1, "decoder_stride": 1, "seed": 0,
-                "data_seed": 0, "trajectories": 1, "validation": 1, "epochs": 1, "batch_size": 1}
-        for name, least in ints.items():
-            i = getattr(self, name)
-            if isinstance(i, bool) or not isinstance(i, int) or i < least:
-                raise SettingsError(f"Seq2SeqConfig.{name} must be an integer >= {least}, got {i!r}")
+        check_fields(self, {
+            "hidden": integer(1), "layers": integer(1), "K": integer(2), "encoder_stride": integer(1),
+            "decoder_stride": integer(1), "seed": integer(0), "data_seed": integer(0), "trajectories": integer(1),
+            "validation": integer(1), "epochs": integer(1), "batch_size": integer(1)})
         if self.K % self.decoder_stride:
             raise SettingsError(f"bad seq2seq config: K {self.K} must be at least 2 and divisible by "
                                 f"decoder_stride {self.decoder_stride}; strides must be positive")
-        if self.threads is not None and (isinstance(self.threads, bool) or not isinstance(self.threads, int)
-                                         or self.threads < 1):
-            raise SettingsError(f"Seq2SeqConfig.threads must be None or a positive integer, got {self.threads!r}")
-        # (field, values, lower bound, bound included)
-        floats = [("dt", (self.dt,), 0.0, False), ("u_scale", self.u_scale, 0.0, False),
-                  ("in_scale", self.in_scale, 0.0, False), ("var_floor", (self.var_floor,), 0.0, True),
-                  ("alpha", (self.alpha,), 0.0, True), ("alpha_start", (self.alpha_start,), 0.0, False),
-                  ("train_margin", (self.train_margin,), 0.0, True), ("nll_beta", (self.nll_beta,), 0.0, True),
-                  ("nll_beta_final", (self.nll_beta_final,), 0.0, True),
-                  ("nll_var_ref", (self.nll_var_ref,), 0.0, False), ("lr", (self.lr,), 0.0, False),
-                  ("lr_final", (self.lr_final,), 0.0, True), ("grad_clip", (self.grad_clip,), 0.0, False),
-                  ("logvar_min", (self.logvar_min,), -math.inf, False),
-                  ("logvar_max", (self.logvar_max,), self.logvar_min, False)]
-        for name, values, low, closed in floats:
-            vals, count = tuple(values), 3 if name in ("u_scale", "in_scale") else 1
-            if len(vals) != count or not all(
-                    isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                    and (v >= low if closed else v > low) for v in vals):
-                raise SettingsError(f"Seq2SeqConfig.{name} must be {'3 finite numbers' if count == 3 else 'a finite number'} "
-                                    f"{'>=' if closed else '>'} {low}, got {getattr(self, name)!r}")
-        for name in ("alpha_ramp_fraction", "nll_beta_fraction"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
-                raise SettingsError(f"Seq2SeqConfig.{name} must lie in [0, 1], got {v!r}")
+        check_fields(self, {"threads": optional(integer(1))})
+        for name in ("u_scale", "in_scale"):
+            if not isinstance(getattr(self, name), (tuple, list)) or len(getattr(self, name)) != 3:
+                raise SettingsError(f"Seq2SeqConfig.{name} must be 3 finite numbers > 0, got {getattr(self, name)!r}")
+        positive, non_negative = number(above=0), number(at_least=0)
+        check_fields(self, {
+            "dt": positive, "u_scale": number(above=0, each=True),
+            "in_scale": number(above=0, each=True), "var_floor": non_negative, "alpha": non_negative,
+            "alpha_start": positive, "train_margin": non_negative, "nll_beta": non_negative,
+            "nll_beta_final": non_negative, "nll_var_ref": positive, "lr": positive, "lr_final": non_negative,
+            "grad_clip": positive, "logvar_min": number(), "logvar_max": number(above=self.logvar_min),
+            "alpha_ramp_fraction": number(at_least=0, at_most=1), "nll_beta_fraction": number(at_least=0, at_most=1)})
 
     def encoder_indices(self) -> list[int]:
         """The input samples the encoder reads: every encoder_stride-th, plus the last."""

@@ -49,6 +49,7 @@ from numpy.typing import NDArray
 from torch import Tensor
 
 from genplan._threads import uses_torch
+from genplan.model_files import inside_package, models_dir, out_option
 from genplan.pancake import physics as ph
 from genplan.pancake.config import pancake_config
 from genplan.seq2seq.config import Seq2SeqConfig
@@ -79,11 +80,6 @@ def start_state(p_in: Tensor) -> Tensor:
     return torch.cat([p_in[:, 0, :], torch.zeros_like(p_in[:, 0, :])], -1)
 
 
-def models_dir() -> Path:
-    """The shipped models: ``genplan/models`` inside the installed package."""
-    return Path(__file__).resolve().parent.parent / "models"
-
-
 def default_path() -> Path:
     return models_dir() / f"{DEFAULT_NAME}.safetensors"
 
@@ -92,11 +88,9 @@ def retrain_command(cfg: Seq2SeqConfig | None = None, out: str | Path | None = N
                     data_seed: bool = False) -> str:
     """The command that trains the model of ``cfg`` (default: the shipped recipe's seed 0),
     writing ``out``. It always names ``--out`` (training never writes into the installed package:
-    :func:`genplan._cli_args.model_output`): without ``out``, or with one inside the package,
+    :func:`genplan.cli.args.model_output`): without ``out``, or with one inside the package,
     ``pancake_seq2seq.safetensors`` in the current folder. ``data_seed``: name the config's data
     seed too (when it differs from its seed)."""
-    from genplan._cli_args import inside_package, out_option
-
     if out is None or inside_package(out):
         out = f"{DEFAULT_NAME}.safetensors"
     if cfg is None:

@@ -21,9 +21,9 @@ Python object, called back in batches:
 * ``sampler``: ``"uniform"``, ``"gan"`` (the shipped GAN's generator, run natively),
   ``"hybrid"`` (GAN with probability ``hybrid_p``, default 0.8, else uniform), ``"adaptive"``
   (GAN at first, its share halving every ``half_life`` samples of a plan: complete, and as fast
-  as the GAN where it covers the query), :func:`data_sampler` (rows of the data set a learned
-  sampler is trained on, native, no training: about as fast as the GAN on Table II's queries), or
-  any object with ``sample(n) -> (n, nq)`` (e.g. :class:`genplan.gan.GanSampler`, which runs torch);
+  as the GAN where it covers the query), ``"data"`` (:func:`data_sampler`: rows of the data set a
+  learned sampler is trained on, native, no training), or any object with ``sample(n) -> (n, nq)``
+  (e.g. :class:`genplan.samplers.GanSampler`, which runs torch); :data:`SAMPLERS` lists the names;
 * ``projector``: a :class:`~genplan.projection.GaussNewtonProjector` (its native solver is used) or
   any object with ``project(qs, q_noms) -> (q, success[, iterations])``;
 * ``checker``: a :class:`~genplan.collision.CollisionWorld` (native) or any object with
@@ -37,8 +37,8 @@ before the search (see :meth:`Planner.plan`).
 
 from __future__ import annotations
 
-
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -46,14 +46,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
+from genplan import projection as P
 from genplan.collision import CollisionWorld
 from genplan.errors import SettingsError, ShapeError, UnknownNameError
-from genplan.planning.environments import ENVIRONMENT_NAMES, Environment, Query, environment
-from genplan.planning.problem import Outcome, make_query
-from genplan.planning.queries import TOLERANCE_FACTOR
-from genplan import projection as P  # noqa: I001
+from genplan.planning.environments import ENVIRONMENT_NAMES, Environment, environment
+from genplan.planning.queries import TOLERANCE_FACTOR, Query, make_query
 from genplan.projection import ComBox, GaussNewtonProjector, Task, paper_task
 from genplan.robots import Robot
+from genplan.samplers import SAMPLERS
 
 __all__ = [
     "ALGORITHMS",
@@ -75,22 +75,18 @@ __all__ = [
     "uniform_base_box",
 ]
 
-#: Sampler names accepted by :class:`Planner`.
-SAMPLERS = ("uniform", "gan", "hybrid", "adaptive", "data")
 #: Search algorithms (``PlannerSettings.algorithm``, ``Planner(..., algorithm=)``): the paper's
 #: constrained RRT (default) and the bidirectional constrained RRT-Connect.
 ALGORITHMS = ("crrt", "rrt_connect")
 #: Edge checks (``PlannerSettings.edge_check``): states checked at ``edge_resolution`` (default),
 #: or every motion between them certified collision-free as well.
 EDGE_CHECKS = ("sampled", "certified")
-#: The adaptive hybrid's half-life (rows drawn within a plan after which the GAN's share has
-#: halved, ~100 extensions of 16 samples; ``half_life=`` overrides it): see :func:`make_sampler`.
-#: Chosen on tuning queries (seed 1; Table II reports seed 0) by benches/adaptive_half_life.py
-#: (benches/results/adaptive_half_life.json, 20 queries per environment, all at 100 % success):
-#: geometric mean over the four environments of uniform / adaptive plan time, edges checked,
-#: 1.27x (half-life 100), 1.70x (400), 1.92x (1600), 1.40x (6400), against the GAN's 1.66x and
-#: the 0.8 hybrid's 1.37x; tree nodes only 1.42x, 2.13x, 2.39x, 2.59x (GAN 1.80x). Times on a
-#: loaded machine (load 5-6): noisy.
+#: The adaptive sampler's half-life: the rows drawn within a plan after which the learned
+#: sampler's share has halved (about 100 extensions of 16 samples; ``half_life=`` overrides it,
+#: see :func:`make_sampler`). Long enough for the queries the learned sampler covers to be solved
+#: at its speed, short enough for the others to get uniform samples soon: of the half-lives
+#: benches/adaptive_half_life.py compares on tuning queries (seed 1, not the tables' seed 0), the
+#: one that planned fastest over the four environments (benches/results/adaptive_half_life.json).
 ADAPTIVE_HALF_LIFE = 1600.0
 
 
@@ -202,7 +198,7 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
         return uniform
     if kind == "data":
         return data_sampler(robot, box=gan_box, seed=seed)
-    from genplan.gan.sampler import GanSampler
+    from genplan.samplers.sampler import GanSampler
 
     gan = GanSampler(robot, gan_model, box=gan_box, seed=seed).native(seed)
     if kind == "gan":
@@ -219,35 +215,20 @@ def data_sampler(robot: Robot, data: ArrayLike | None = None, *, task: "str | os
     uniformly at random, natively (pass it as a :class:`Planner`'s ``sampler``).
 
     ``data`` (n, nq): the configurations; default: the data set a learned sampler of ``robot`` and
-    ``task`` is trained on (:func:`genplan.gan.data.valid_configurations`, ``size`` rows of seed
-    ``data_seed``, made once and cached), i.e. uniform configurations projected onto the task's
-    manifold. With ``in_box`` (default) only the rows whose target frame (the learned sampler's,
-    :func:`genplan.gan.default_config`) lies in ``box`` are kept; default box: the one the learned
-    sampler draws its targets from when planning. On the Table II queries this plans about as fast
-    as the shipped GAN (README, "What coverage can buy in planning"). Raises ShapeError or
-    NonFiniteError for bad ``data``, SettingsError when the box keeps no row.
+    ``task`` (default: the robot's shipped ``<robot>_ik``) is trained on
+    (:func:`genplan.samplers.data.valid_configurations`, ``size`` rows of seed ``data_seed``, made
+    once and cached), i.e. uniform configurations projected onto the task's manifold. With
+    ``in_box`` (default) only the rows whose condition frame (the one a learned sampler is
+    conditioned on) lies in ``box`` are kept; default box: the one the learned sampler draws its
+    targets from when planning. The rows are :class:`genplan.samplers.data.TaskData`'s, which
+    :func:`genplan.solve_ik`'s ``init="data"`` draws from too. benches/data_sampler_plan.py
+    compares it with the learned samplers. Raises ShapeError or NonFiniteError for bad ``data``,
+    SettingsError when the box keeps no row.
     """
-    from genplan._arrays import as_box, as_configurations
-    from genplan.gan.data import valid_configurations
-    from genplan.gan.model import default_config
+    from genplan.samplers.data import TaskData
 
-    if data is None:
-        rows = valid_configurations(robot, size, data_seed, progress=progress,
-                                    task=None if task is None else P.load_task(task, robot))
-    else:
-        rows = as_configurations(data, robot.nq, "data")
-        if rows.ndim != 2:
-            raise ShapeError(f"data: expected shape (n, {robot.nq}), got {rows.shape}")
-    if in_box:
-        cfg = default_config(robot, task)
-        lo, hi = as_box(cfg.target_box if box is None else box, "box")
-        pos = robot.frame_positions(rows, cfg.target_frame)
-        keep = np.all((pos >= lo) & (pos <= hi), axis=1)
-        if not keep.any():
-            raise SettingsError(f"box: none of the {len(rows)} configurations has its frame '{cfg.target_frame}' in "
-                                f"{[lo.tolist(), hi.tolist()]} (give another box, or in_box=False)")
-        rows = rows[keep]
-    return _core.DataSampler(np.ascontiguousarray(rows), seed)
+    rows = TaskData(robot, task, data, size=size, seed=data_seed, progress=progress)
+    return _core.DataSampler(np.ascontiguousarray(rows.in_box(box) if in_box else rows.rows), seed)
 
 
 def _check_algorithm(algorithm: str) -> str:
@@ -356,6 +337,49 @@ class Planner:
         return PlanResult(native, self.robot, self.task, self.checker)
 
 
+@dataclass(frozen=True)
+class Outcome:
+    """What :func:`plan` did: the query it built, the planner's result, and what they were for."""
+
+    robot: Robot
+    task: P.Task
+    manifold: P.Task
+    world: CollisionWorld
+    query: Query
+    result: Any  # genplan.planning.PlanResult
+    sampler: str
+    #: the obstacles (a genplan.scene.Scene) or None
+    scene: Any = None
+    #: the search algorithm (genplan.planning.ALGORITHMS)
+    algorithm: str = "crrt"
+
+    @property
+    def trail_frame(self) -> str:
+        """The frame the task conditions on (its trail is what a viewer draws)."""
+        return P.condition_term(self.task).frame
+
+    def to_dict(self) -> dict[str, Any]:
+        """The outcome as JSON-able data (what ``genplan plan --out`` writes)."""
+        r = self.result
+        return {
+            "robot": self.robot.name,
+            "task": self.task.name,
+            "manifold": self.manifold.name,
+            "sampler": self.sampler,
+            "algorithm": self.algorithm,
+            "obstacles": list(self.world.obstacle_names),
+            "start": self.query.start.tolist(),
+            "goals": self.query.goals.tolist(),
+            "start_target": self.query.start_target.tolist(),
+            "goal_target": self.query.goal_target.tolist(),
+            "success": bool(r.success),
+            "goal_index": r.goal_index,
+            "path": r.path.tolist(),
+            "waypoints": r.waypoints.tolist(),
+            "stats": r.stats.to_dict(),
+        }
+
+
 def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike[str], scene: Any = None, *,
          start: ArrayLike | str = "default", goal: ArrayLike | None = None, target: ArrayLike | None = None,
          sampler: str = "uniform", model: str | os.PathLike[str] | None = None, k: int = 10, seed: int = 0,
@@ -388,7 +412,7 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
         if model is None:
             raise SettingsError(f"sampler '{sampler}' needs a model: a GAN trained for robot '{rob.name}' and task "
                                 f"'{t.name}' (genplan train gan --robot ... --task ...)")
-        from genplan.gan.loading import load_sampler_model
+        from genplan.samplers.loading import load_sampler_model
 
         gan_model = load_sampler_model(rob, Path(model), task=t)  # another robot's or task's GAN: refused, both named
     world = rob.collision_world()

@@ -28,13 +28,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import tomllib
-from numpy.typing import NDArray
 
 from genplan import scene as S
 from genplan.collision import CollisionWorld
 from genplan.errors import GenplanError, SceneFileError, UnknownNameError
+from genplan.planning.queries import Query, make_queries
 from genplan.robots import Robot
 
 __all__ = ["ENVIRONMENT_NAMES", "Box", "Environment", "Query", "environment"]
@@ -47,17 +46,6 @@ class Box:
     name: str
     half_extents: tuple[float, float, float]
     center: tuple[float, float, float]
-
-
-@dataclass(frozen=True)
-class Query:
-    """One planning problem: a start and K goal configurations (rows), with the task-space
-    targets they were solved for."""
-
-    start: NDArray[np.float64]
-    goals: NDArray[np.float64]
-    start_target: NDArray[np.float64]
-    goal_target: NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -122,9 +110,8 @@ class Environment:
 
     def queries(self, robot: Robot, n: int, seed: int = 0, k: int = 10, progress: bool = False,
                 max_tries: int = 200) -> list[Query]:
-        """n seeded queries: a valid start and k valid goal configurations each."""
-        from genplan.planning.queries import make_queries
-
+        """n seeded queries: a valid start and k valid goal configurations each
+        (:func:`genplan.planning.queries.make_queries`)."""
         return make_queries(self, robot, n, seed=seed, k=k, progress=progress, max_tries=max_tries)
 
 

@@ -11,7 +11,8 @@
 //! * [`gan`]: native inference of a trained GAN generator, as a planner sampler.
 //! * [`planning`]: the constrained RRT, one file per concept (errors, space, samplers,
 //!   projectors, validity checkers, nearest neighbours, the RRT itself).
-//! * [`dynamics`] / [`control`]: rigid-body dynamics of a serial arm and the 1 kHz spatula controller.
+//! * [`dynamics`] / [`control`]: rigid-body dynamics of a fixed-base robot and its 1 kHz P-D +
+//!   disturbance-observer loop (the seq2seq paper's spatula experiment one configuration of it).
 //! * [`error`]: the crate's [`Error`] (the planner has its own, [`planning::PlanError`]).
 //!
 //! Nothing here depends on Python: `cargo test` and `cargo bench` run without it.

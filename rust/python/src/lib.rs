@@ -597,6 +597,30 @@ impl PyCollisionWorld {
         Ok(pairs.into_iter().map(|p| (p.a, p.b, p.distance)).collect())
     }
 
+    /// Signed distances of points (a contiguous float64 array, last axis 3) to the nearest
+    /// obstacle and their gradients (`genplan_core::collision` `point_distances`): arrays of the
+    /// points' shape without its last axis, and of the points' shape. Obstacles `cutoff` or more
+    /// away are skipped (distance `cutoff`, gradient 0). The GIL is released.
+    fn point_distances<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArrayDyn<'py, f64>,
+        cutoff: f64,
+    ) -> PyResult<(Bound<'py, numpy::PyArrayDyn<f64>>, Bound<'py, numpy::PyArrayDyn<f64>>)> {
+        let shape = points.shape().to_vec();
+        if shape.last() != Some(&3) {
+            return Err(err(Kind::Shape, format!("points: expected a last axis of 3 (x, y, z), got shape {shape:?}")));
+        }
+        let flat: Vec<f64> = points.as_array().iter().copied().collect();
+        let n = flat.len() / 3;
+        let (mut d, mut g) = (vec![0.0; n], vec![0.0; 3 * n]);
+        py.detach(|| self.inner.point_distances(&flat, cutoff, &mut d, &mut g)).map_err(to_py)?;
+        let dshape = IxDyn(&shape[..shape.len() - 1]);
+        let d = Array::from_shape_vec(dshape, d).map_err(|e| err(Kind::Shape, e.to_string()))?;
+        let g = Array::from_shape_vec(IxDyn(&shape), g).map_err(|e| err(Kind::Shape, e.to_string()))?;
+        Ok((d.into_pyarray(py), g.into_pyarray(py)))
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "CollisionWorld(geometries={}, self_pairs={}, obstacles={}, check_self={})",
@@ -1189,7 +1213,7 @@ fn sample_timed_spline<'py>(
 ) -> PyResult<Samples<'py>> {
     let shape = c.shape().to_vec();
     if shape.len() != 3 || shape[1] != 4 {
-        return Err(errors::err(errors::Kind::Shape, format!("c: expected shape (m, 4, n), got {shape:?}")));
+        return Err(err(Kind::Shape, format!("c: expected shape (m, 4, n), got {shape:?}")));
     }
     let n = shape[2];
     let cs = c.as_slice()?;

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 from genplan.experiments.common import machine, table, write_json
 from genplan.pancake.trajectories import j1_problems
 

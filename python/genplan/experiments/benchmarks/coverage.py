@@ -9,7 +9,12 @@
 2. Panda and Talos (Fig. 4): the trained conditional GAN with the discriminator, without it, and
    with N_net = 1, each trained here with the same seed and iterations; ``--variants`` picks other
    named GanConfig variants (:data:`VARIANTS`: Wasserstein loss, the mode-seeking term, members
-   initialised apart), each row with its training time and the machine's load.
+   initialised apart), each row with its training time and the machine's load. With ``--models
+   DIR`` each GAN variant is read from ``DIR/<robot>_coverage_<variant>.safetensors`` instead of
+   trained, when its card's configuration is the one this run would train (anything else is an
+   error naming the file and the fields): the package ships the paper's ablations as ``--quick``
+   trains them (:func:`ablation_path`), so ``genplan reproduce --quick`` measures them without
+   training.
 
 Metrics, each against held-out valid data the GAN never saw:
 
@@ -35,10 +40,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 from genplan.experiments.common import machine, save_figure, table, write_json
 
 K_CLUSTERS = 20
+#: generator steps per robot variant of ``--quick`` (the shipped ablations' too)
+QUICK_ITERATIONS = 1500
 
 
 # ---------------------------------------------------------------------------------------------
@@ -121,7 +128,7 @@ def train_unconditional(data: NDArray[np.float64], n_net: int, iterations: int, 
     """An unconditional ensemble GAN (the paper's architecture) on 2-D data; returns a sampler."""
     import torch
 
-    from genplan.gan.model import EnsembleGenerator, _mlp
+    from genplan.samplers.gan import EnsembleGenerator, _mlp
 
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
@@ -224,9 +231,9 @@ def _plot_planar(held_out: NDArray[np.float64], samples: dict[int, NDArray[np.fl
 
 
 #: the named variants ``--variants`` picks from: GanConfig overrides of the robot's default
-#: (genplan.gan.model.default_config), or, with ``"family": "flow"``, FlowConfig overrides of the
-#: flow sampler's (genplan.gan.flow.default_config), or with ``"family": "distill"`` those of a
-#: student (genplan.gan.flow.distill) whose ``teacher`` is another variant's label, or with
+#: (genplan.samplers.gan.default_config), or, with ``"family": "flow"``, FlowConfig overrides of the
+#: flow sampler's (genplan.samplers.flow.default_config), or with ``"family": "distill"`` those of a
+#: student (genplan.samplers.flow.distill) whose ``teacher`` is another variant's label, or with
 #: ``"family": "shipped"`` the shipped GAN itself. The first three are the paper's ablations (Fig. 4).
 VARIANTS: dict[str, dict[str, Any]] = {
     "default": {},
@@ -264,7 +271,7 @@ def variant_list(text: str) -> list[str]:
 def variant_config(robot: str, label: str, **settings: Any) -> tuple[str, Any, dict[str, Any]]:
     """``(family, config, overrides)`` of variant ``label`` of :data:`VARIANTS` for ``robot``, with
     ``settings`` (iterations, seed) applied: a GanConfig, or a FlowConfig for ``"family": "flow"``."""
-    from genplan.gan.model import default_config
+    from genplan.samplers.gan import default_config
 
     overrides = dict(VARIANTS[label])
     family = overrides.pop("family", "gan")
@@ -272,21 +279,46 @@ def variant_config(robot: str, label: str, **settings: Any) -> tuple[str, Any, d
     if "iterations" in settings:
         settings = {**settings, "iterations": settings["iterations"] * factor}
     if family in ("flow", "distill"):
-        from genplan.gan.flow import default_config as flow_config
+        from genplan.samplers.flow import default_config as flow_config
 
         return family, flow_config(robot, **settings, **overrides), overrides
     return family, default_config(robot, **settings, **overrides), overrides
 
 
+def ablation_path(model_dir: Path, robot: str, label: str) -> Path:
+    """The file of variant ``label`` of ``robot`` in a ``--models`` folder."""
+    return model_dir / f"{robot}_coverage_{label}.safetensors"
+
+
+def read_variant(robot: Any, label: str, cfg: Any, model_dir: Path) -> Any:
+    """The GAN of variant ``label`` from the folder ``model_dir`` (:func:`ablation_path`), refused
+    unless its card's configuration is ``cfg``, the one this run would train: a ModelFileError
+    naming the file and each field that differs."""
+    from genplan.errors import ModelFileError
+    from genplan.samplers.gan import load_model
+
+    path = ablation_path(model_dir, robot.name, label)
+    model = load_model(robot, path)
+    want, have = dataclasses.asdict(cfg), dataclasses.asdict(model.config)
+    differ = [f"{k}={have[k]!r} (this run: {want[k]!r})" for k in want if have[k] != want[k]]
+    if differ:
+        raise ModelFileError(f"{path} was trained with {', '.join(differ)}: not variant '{label}' of this run; "
+                             f"leave --models out to train it, or retrain the file: `{model.card['command']}`")
+    return model
+
+
 def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progress: bool,
               threads: int | None = None, variants: "tuple[str, ...] | list[str]" = PAPER_VARIANTS,
-              on_variant: "Callable[[dict[str, Any]], None] | None" = None) -> dict[str, Any]:
-    """Train each of ``variants`` on ``name`` and measure it; ``on_variant(results so far)`` after
-    each (to checkpoint a long run)."""
-    import genplan
+              on_variant: "Callable[[dict[str, Any]], None] | None" = None,
+              model_dir: Path | None = None) -> dict[str, Any]:
+    """Train each of ``variants`` on ``name`` (a GAN variant read from the folder ``model_dir``
+    instead, when given: :func:`read_variant`) and measure it; ``on_variant(results so far)`` after each (to
+    checkpoint a long run)."""
     from genplan import projection as P
-    from genplan.gan.data import valid_configurations
-    from genplan.gan.model import DISC_MIN_STD, Codec, default_config, train
+    import genplan
+    from genplan.samplers.base import Codec
+    from genplan.samplers.data import valid_configurations
+    from genplan.samplers.gan import DISC_MIN_STD, default_config, train
 
     robot = genplan.load(name)
     data = valid_configurations(robot, 25_000, 0, progress=progress)
@@ -303,10 +335,10 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
 
     def trained(label: str) -> tuple[Any, float, float]:
         """Variant ``label``'s model (a distilled one's teacher trained first unless this run has
-        it, its seconds then counted too), its training seconds (the shipped GAN's: its card's)
-        and the load when it started."""
-        from genplan.gan import flow
-        from genplan.gan.model import load_model
+        it, its seconds then counted too), its training seconds (a model read from a file: its
+        card's) and the load when it started."""
+        from genplan.samplers import flow
+        from genplan.samplers.gan import load_model
 
         family, cfg, _ = variant_config(name, label, iterations=iterations, seed=seed)
         load_start = os.getloadavg()[0]
@@ -317,10 +349,13 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
             model = flow.distill(cfg, teacher, progress=progress, threads=threads)
         elif family == "shipped":
             model = load_model(robot)
+        elif family == "gan" and model_dir is not None:
+            model = read_variant(robot, label, cfg, model_dir)
         else:
             trainer: Callable[..., Any] = flow.train if family == "flow" else train
             model = trainer(cfg, data=data, progress=progress, threads=threads)
-        train_s = float(model.card["training"]["seconds"]) if family == "shipped" else time.perf_counter() - t0
+        from_file = family == "shipped" or (family == "gan" and model_dir is not None)
+        train_s = float(model.card["training"]["seconds"]) if from_file else time.perf_counter() - t0
         models[label] = model
         return model, train_s, load_start
 
@@ -340,6 +375,8 @@ def run_robot(name: str, iterations: int, seed: int, figures: Path | None, progr
             "projection_steps_mean": float(res.iterations[res.success].mean()) if res.success.any() else None,
             **({"teacher": cfg.teacher} if family == "distill" else {}),
             **({"train_s_from": "the shipped model's card"} if family == "shipped" else {}),
+            **({"model_file": ablation_path(model_dir, name, label).name, "train_s_from": "the model file's card",
+                "model_command": model.card["command"]} if family == "gan" and model_dir is not None else {}),
             **(member_diagnostics(model, targets, ref, scale, free, seed) if family in ("gan", "shipped")
                else {"mmd_free_features": mmd(ref[:, free], s[:, free], np.random.default_rng(seed))}),
             "native_sample_us": native_sample_us(model, seed),
@@ -397,7 +434,7 @@ def member_diagnostics(model: Any, targets: NDArray[np.float64], ref: NDArray[np
     * ``mmd_free_features``: the MMD over the features the constraints leave free (``free``), so a
       constant offset in the pinned ones (Talos' left arm) does not hide the distribution's match.
     """
-    from genplan.gan.model import Codec
+    from genplan.samplers.base import Codec
 
     robot = model.robot
     rng = np.random.default_rng(seed)
@@ -457,6 +494,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
     p.add_argument("--threads", type=A.positive_int, default=1,
                    help="torch threads (default 1, see `genplan train gan --help`)")
+    p.add_argument("--models", type=A.existing_folder, default=None, metavar="DIR",
+                   help="read each GAN variant from DIR/<robot>_coverage_<variant>.safetensors instead of training "
+                        "it; its card's configuration must be the one this run would train (the package's "
+                        "models folder holds the paper's ablations as --quick --seed 0 trains them)")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -464,9 +505,10 @@ def main(args: argparse.Namespace) -> int:
 
     torch.set_num_threads(args.threads)
     planar_it = 1500 if args.quick else 5000
-    robot_it = args.iterations or (1500 if args.quick else 10_000)
+    robot_it = args.iterations or (QUICK_ITERATIONS if args.quick else 10_000)
     payload: dict[str, Any] = {"benchmark": "coverage", "quick": args.quick, "machine": machine(),
-                               "k_clusters": K_CLUSTERS, "threads": args.threads, "variants": args.variants}
+                               "k_clusters": K_CLUSTERS, "threads": args.threads, "variants": args.variants,
+                               "models": None if args.models is None else str(args.models)}
     if not args.no_planar:
         payload["planar"] = run_planar(planar_it, args.seed, args.figures, True)
     for name in args.robots:
@@ -475,7 +517,7 @@ def main(args: argparse.Namespace) -> int:
             write_json(args.out, {**payload, name: {**part, "partial": True}})
 
         payload[name] = run_robot(name, robot_it, args.seed, args.figures, True, threads=args.threads,
-                                  variants=args.variants, on_variant=checkpoint)
+                                  variants=args.variants, on_variant=checkpoint, model_dir=args.models)
     rows = [["planar", f"N_net={k}", payload["planar"][f"n_net_{k}"]["cluster_coverage"],
              payload["planar"][f"n_net_{k}"]["mmd"], f"valid {payload['planar'][f'n_net_{k}']['valid_rate']:.3f}", "", "", ""]
             for k in (1, 5) if "planar" in payload]

@@ -5,7 +5,7 @@ targets, and ``PlanResult.trajectory`` on Panda shelf plans.
     genplan bench ik --robots panda --targets 50 --plans 2          # quick
 
 IK: the targets are the condition frame's positions (forward kinematics) of configurations on the
-IK task's manifold drawn with seed 2000 + seed (genplan.gan.data.valid_configurations; the GANs
+IK task's manifold drawn with seed 2000 + seed (genplan.samplers.data.valid_configurations; the GANs
 were trained on seed 0, the coverage benchmark holds out 1000 + seed), hence reachable and never
 seen in training. Rows: one GAN-initialised attempt of 50 iterations with the paper's solver (the
 paper's protocol: ``settings=SolverSettings(), nominal="start"``) and with solve_ik's own
@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 import genplan
-from genplan import _cli_args as A
+from genplan.cli import args as A
 from genplan.experiments.common import machine, table, write_json
 
 #: The robots and their paper IK tasks.
@@ -53,8 +53,8 @@ IK_ROWS = ("gan_one_attempt", "gan_one_attempt_ik_solver", "solve_ik", "data_one
 def reachable_targets(robot: genplan.Robot, task: Any, n: int, seed: int) -> np.ndarray:
     """``n`` positions of the task's condition frame at configurations on its manifold drawn with
     ``seed`` (each reachable)."""
-    from genplan.gan.data import valid_configurations
     from genplan.projection import condition_term
+    from genplan.samplers.data import valid_configurations
 
     q = valid_configurations(robot, n, seed, progress=False, task=task)
     return robot.frame_positions(q, condition_term(task).frame)
@@ -72,8 +72,8 @@ def _summary(res: Any, budget_s: float | None) -> dict[str, Any]:
 
 
 def run_ik(robots: list[str], n: int, seed: int, budget_s: float, restarts: int) -> dict[str, Any]:
-    from genplan.gan.model import load_model
     from genplan.projection import SolverSettings, load_task
+    from genplan.samplers.gan import load_model
 
     out: dict[str, Any] = {}
     for name in robots:

@@ -70,9 +70,9 @@ from typing import Any
 import numpy as np
 
 import genplan
-from genplan import _cli_args as A
-from genplan.experiments.common import machine, table, write_json
 from genplan._files import write_text
+from genplan.cli import args as A
+from genplan.experiments.common import machine, table, write_json
 
 SECTIONS = ("fk", "collision", "ik", "plan")
 #: the scene the Panda's table (and the plan section) come from
@@ -444,9 +444,9 @@ def run_ik(sizes: Sizes, repeats: int, seed: int, placo_python: str | None) -> d
     """Panda: uniform random starts (seed 3000 + seed); Talos: starts from its shipped GAN (one
     sample per target, seed ``seed``; the sampling is not timed, for any solver)."""
     from genplan.experiments.peers import ik as K
-    from genplan.gan.data import valid_configurations
-    from genplan.gan.model import load_model
     from genplan.projection import load_task
+    from genplan.samplers.data import valid_configurations
+    from genplan.samplers.gan import load_model
 
     from genplan.experiments.benchmarks.ik import TASKS
 

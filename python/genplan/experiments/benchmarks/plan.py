@@ -7,7 +7,7 @@
     genplan bench plan --env all --model panda=P.safetensors --model talos=T.safetensors --out F.json
 
 ``--model ROBOT=FILE`` plans that robot's environments with another learned sampler's file (a GAN
-or a flow, genplan.gan.load_sampler_model) for the gan, hybrid and adaptive rows; the JSON names
+or a flow, genplan.samplers.load_sampler_model) for the gan, hybrid and adaptive rows; the JSON names
 each file and its weights' hash.
 
 ``--algorithm`` picks genplan's search: ``crrt`` (the paper's constrained RRT, default),
@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 from genplan.experiments.common import geometric_mean, machine, table, write_json
 
 #: Table II of the GAN paper: (success %, T_ave s, Opt. Steps, E).
@@ -100,8 +100,8 @@ def _summary(times: list[float], success: list[bool], **extra: list[float]) -> d
 def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, settings: Any, progress: bool,
                 algorithm: str = "crrt", model: str | None = None) -> dict[str, Any]:
     import genplan
-    from genplan.gan.loading import load_sampler_model
     from genplan.planning import Planner, environment
+    from genplan.samplers.loading import load_sampler_model
 
     env = environment(env_name)
     robot = genplan.load(env.robot)
@@ -142,8 +142,8 @@ def summarize_plans(results: list[Any]) -> dict[str, Any]:
 
 def run_ompl(env_name: str, queries: list[Any], seed: int, time_limit: float, progress: bool) -> dict[str, Any]:
     import genplan
-    from genplan.planning import environment
     from genplan.experiments.peers.ompl import plan_ompl
+    from genplan.planning import environment
     from genplan.projection import paper_task
 
     env = environment(env_name)

@@ -10,7 +10,7 @@ other unless ``--workers K`` or ``--ray``): the JSON holds every seed's results 
 their median across seeds (``aggregate``); see genplan.experiments.sweeps.
 
 With ``--task`` (a task with a [condition], shipped name or file), the projection rows solve its
-manifold (:func:`genplan.gan.costs.manifold_task`) and the IK rows the task itself, its condition
+manifold (:func:`genplan.samplers.costs.manifold_task`) and the IK rows the task itself, its condition
 term aimed at targets drawn in the condition's box; without it, the paper's two tasks of the robot.
 
 The same seed gives the same tasks (initial configurations and IK targets) for every solver, so
@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-import genplan
 from genplan import projection as P
-from genplan import _cli_args as A
+import genplan
+from genplan.cli import args as A
 from genplan.experiments.common import machine, table, write_json
 
 #: Table I of the GAN paper: (success %, T_ave ms, T*_ave ms, steps*).
@@ -53,7 +53,7 @@ def tasks_for(robot: genplan.Robot, task: str | Path | P.Task | None = None) -> 
     paper's projection and IK tasks of the robot when ``task`` is None."""
     if task is None:
         return {kind: P.paper_task(robot, kind) for kind in P.TASK_KINDS}
-    from genplan.gan.costs import manifold_task
+    from genplan.samplers.costs import manifold_task
 
     t = P.load_task(task, robot)
     return {"projection": manifold_task(t, robot), "ik": t}
@@ -83,7 +83,7 @@ def make_problems(robot: genplan.Robot, n: int, seed: int, init: str = "uniform"
         "ik": {"q0": robot.random_configurations(n, rng), "targets": rng.uniform(box[0], box[1], size=(n, 3))},
     }
     if init == "gan":
-        from genplan.gan.loading import load_sampler_model
+        from genplan.samplers.loading import load_sampler_model
 
         model = load_sampler_model(robot, model_path, task=tasks["ik"])
         gbox = np.asarray(model.config.target_box)

@@ -36,9 +36,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 import genplan
-from genplan import _cli_args as A
-from genplan.robots import robots_dir
+from genplan.cli import args as A
 from genplan.experiments.common import machine, table, write_json
+from genplan.robots import robots_dir
 
 
 def xarm7() -> Any:

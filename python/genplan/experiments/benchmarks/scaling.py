@@ -1,4 +1,4 @@
-"""Scaling of data generation (genplan.executor, genplan.gan.data): one data set made on 1 and 2
+"""Scaling of data generation (genplan.executor, genplan.samplers.data): one data set made on 1 and 2
 local workers and on a local Ray with 2 CPUs; the speed-ups, projected samples per second per
 core (Panda and Talos), and the data sets' sha256 (identical on every executor).
 
@@ -21,7 +21,7 @@ import statistics
 import time
 from typing import Any
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 from genplan.experiments.common import machine, table, write_json
 
 
@@ -31,7 +31,7 @@ def _load() -> float:
 
 def timed(robot: Any, n: int, seed: int, shard_size: int, ex: Any) -> dict[str, Any]:
     """One data set of ``n`` configurations on ``ex``: wall time, rate, sha256, load before/after."""
-    from genplan.gan.data import dataset_sha256, generate
+    from genplan.samplers.data import dataset_sha256, generate
 
     load0 = _load()
     t0 = time.perf_counter()
@@ -54,7 +54,7 @@ def run(samples: int, talos_samples: int, repeats: int, workers: int, shard_size
         use_ray: bool = True) -> dict[str, Any]:
     import genplan
     from genplan.executor import LocalExecutor, MissingExtraError, RayExecutor
-    from genplan.gan.data import CHUNK
+    from genplan.samplers.data import CHUNK
 
     panda = genplan.load("panda")
     configs: dict[str, Any] = {"local-1": LocalExecutor(1), f"local-{workers}": LocalExecutor(workers)}
@@ -140,7 +140,7 @@ def print_table(payload: dict[str, Any]) -> None:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from genplan.gan.data import SHARD_SIZE
+    from genplan.samplers.data import SHARD_SIZE
 
     p.add_argument("--samples", type=A.positive_int, default=200_000, help="Panda data set size (default 200,000)")
     p.add_argument("--talos-samples", type=A.positive_int, default=20_000,

@@ -156,7 +156,7 @@ impl Sampler for UniformSampler {
 /// Rows of a fixed set of configurations, each drawn uniformly at random (with replacement): the
 /// data set a learned sampler is trained on, used as it is. It needs no training, its rows are on
 /// the manifold already (to the data's tolerance), and it covers what the data cover and nothing
-/// else (README, "What coverage can buy in planning").
+/// else (docs/BENCHMARKS.md, "What coverage can buy in planning").
 #[derive(Debug, Clone)]
 pub struct DataSampler {
     rows: Arc<Vec<f64>>,

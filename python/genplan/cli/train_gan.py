@@ -1,5 +1,5 @@
 """``genplan train gan``: train the conditional ensemble GAN for a robot and task, evaluate it on
-held-out targets (:mod:`genplan.gan.evaluate`) and write the model and its card.
+held-out targets (:mod:`genplan.samplers.evaluate`) and write the model and its card.
 
     genplan train gan --robot panda --seed 0 --out panda_gan.safetensors   # the paper's (as shipped)
     genplan train gan --robot my_robot.toml --task my_task.toml --out my_gan.safetensors
@@ -9,7 +9,7 @@ held-out targets (:mod:`genplan.gan.evaluate`) and write the model and its card.
 With ``--seeds`` one model is trained per seed (the same data set), written with the seed in its
 name. They run one after the other unless ``--workers K`` asks for K processes (or ``--ray``):
 on a shared 2-core machine two trainings at once were not reliably faster than one after the
-other (README, "Scaling out").
+other (docs/BENCHMARKS.md, "Scaling out").
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -42,9 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="train on a data set written by `genplan data` (checked: robot, task, sha256)")
     p.add_argument("--eval-targets", type=A.positive_int, default=500,
                    help="held-out targets of the card's evaluation (default 500)")
-    p.add_argument("--out", type=A.output_file, default=None,
-                   help="model path (required: the shipped models in the installed package are never overwritten; "
-                        "folders are created; an existing model is replaced once the new one is complete)")
+    A.add_model_out(p)
     p.add_argument("--threads", type=A.positive_int, default=None,
                    help="torch threads (default: genplan's choice for training, one -- batches of 100 gain "
                         "little from more, and on a busy machine extra threads contend and run many times "
@@ -61,10 +59,10 @@ def seed_path(out: Path, seed: int) -> Path:
 def train_one(job: dict[str, Any]) -> str:
     """Train, evaluate and write one model (a shard of ``--seeds``; run in a worker process too)."""
     from genplan import projection as P
-    from genplan.gan.costs import default_task_name
-    from genplan.gan.evaluate import evaluate, summary_line
-    from genplan.gan.model import default_config, train
     from genplan.robots import load
+    from genplan.samplers.costs import default_task_name
+    from genplan.samplers.evaluate import evaluate, summary_line
+    from genplan.samplers.gan import default_config, train
 
     robot = load(job["robot"])
     task = P.load_task(job["task"] if job["task"] is not None else default_task_name(robot), robot)
@@ -84,9 +82,10 @@ def train_one(job: dict[str, Any]) -> str:
 
 def main(args: argparse.Namespace) -> int:
     from genplan import projection as P
-    from genplan.gan.costs import default_task_name
-    from genplan.gan.model import default_config, models_dir, train_command
     from genplan.robots import load
+    from genplan.samplers.base import models_dir, train_command
+    from genplan.samplers.costs import default_task_name
+    from genplan.samplers.gan import default_config
 
     robot = load(args.robot)
     task = P.load_task(args.task if args.task is not None else default_task_name(robot), robot)
@@ -113,7 +112,7 @@ def main(args: argparse.Namespace) -> int:
             overrides[key] = getattr(args, key)
     data, data_set = None, None
     if args.data is not None:
-        from genplan.gan.data import read_dataset
+        from genplan.samplers.data import read_dataset
 
         data, manifest = read_dataset(args.data, robot, task)  # refuses another robot's or task's data
         overrides["data_size"] = len(data)
@@ -134,7 +133,7 @@ def main(args: argparse.Namespace) -> int:
         print(train_one(jobs[0]))
         return 0
     if data is None:  # every training reads the same data set: made (and cached) once, here
-        from genplan.gan.data import valid_configurations
+        from genplan.samplers.data import valid_configurations
 
         valid_configurations(robot, cfg.data_size, cfg.data_seed, task=task)
     from genplan.executor import executor

@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 
 
 def _numbers(text: str) -> list[float]:

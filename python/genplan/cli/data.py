@@ -1,9 +1,12 @@
-"""``genplan data``: a GAN's training set (configurations on a task's manifold) as a folder of
-shards and a manifest.json (:func:`genplan.gan.data.write_dataset`), on the local cores or on Ray.
+"""``genplan data configurations`` (also its former name, ``genplan data``): a learned sampler's
+training set (configurations on a task's manifold) as a folder of shards and a manifest.json
+(:func:`genplan.samplers.data.write_dataset`), on the local cores or on Ray.
 
-    genplan data --robot panda --data-size 200000 --out data/panda            # every local core
+    genplan data configurations --robot panda --data-size 200000 --out data/panda   # every local core
     genplan data --robot talos --data-size 10000000 --out data/talos --ray ray://head:10001
     genplan train gan --robot panda --data data/panda --out models/p.safetensors
+
+(``genplan data trajectories`` writes a trajectory family instead: see its --help.)
 
 The data set depends on the robot, the task, --data-size, --seed and --shard-size only: the same
 bit for bit with any --workers or --ray. Rerunning a command that was interrupted (or whose
@@ -22,11 +25,11 @@ from __future__ import annotations
 import argparse
 import os
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from genplan.gan.data import MAX_SHARDS, SHARD_SIZE
+    from genplan.samplers.data import MAX_SHARDS, SHARD_SIZE
 
     A.add_robot_and_task(p, "the robot's shipped <robot>_ik (the data lie on the task's manifold)")
     p.add_argument("--data-size", type=A.positive_int, required=True,
@@ -49,8 +52,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from genplan import projection as P
     from genplan.executor import executor
-    from genplan.gan.data import check_data_size, write_dataset
     from genplan.robots import load
+    from genplan.samplers.data import check_data_size, write_dataset
 
     robot = load(args.robot)
     task = None if args.task is None else P.load_task(args.task, robot)

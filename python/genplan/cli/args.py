@@ -1,4 +1,5 @@
-"""Argument types and output checks of the ``genplan`` commands (one definition for all of them).
+"""Argument types and output checks of the ``genplan`` commands (one definition for all of them,
+the library's commands in :mod:`genplan.cli` and the benchmarks' in :mod:`genplan.experiments`).
 
 Each command's ``add_arguments(parser)`` uses these as argparse ``type=``: a bad value is an
 argparse error naming the option before anything runs. Output locations (:data:`output_file`,
@@ -25,6 +26,7 @@ from typing import Any
 
 from genplan._files import missing_folders, remove_empty_folders
 from genplan.errors import GenplanError
+from genplan.model_files import inside_package, package_dir
 
 #: largest seed the commands accept (numpy, torch and the Rust samplers all take it)
 MAX_SEED = 2**32 - 1
@@ -180,17 +182,6 @@ def check_output_file(path: Path, what: str) -> Path:
     return path
 
 
-def package_dir() -> Path:
-    """The installed genplan package's folder (its shipped models, presets and code)."""
-    return Path(__file__).resolve().parent
-
-
-def inside_package(path: str | os.PathLike[str]) -> bool:
-    """True when ``path``, symbolic links followed (a repository checkout's ``models`` links to
-    the package's models), lies inside the installed genplan package."""
-    return Path(path).resolve().is_relative_to(package_dir())
-
-
 def _elsewhere(name: str) -> str:
     """``name`` in the current folder, or in the home folder when the current one lies inside
     the package: a place to suggest for a model file."""
@@ -225,13 +216,6 @@ def announce_replacement(paths: list[Path]) -> None:
         print(f"genplan: {what}: replaced once the new model is complete (kept until then)", file=sys.stderr)
 
 
-def out_option(out: Path) -> str:
-    """The ``--out`` of a model's retraining command (its card's ``command``): `` --out PATH``,
-    the path as given, so the command rewrites that same file and no other (never the shipped
-    place: :func:`model_output`)."""
-    return f" --out {out}"
-
-
 def output_actions(parser: argparse.ArgumentParser) -> list[tuple[str, str, Output]]:
     """(dest, option, type) of every output argument of ``parser``."""
     return [(a.dest, a.option_strings[0] if a.option_strings else a.dest, a.type)
@@ -253,6 +237,13 @@ def check_outputs(args: argparse.Namespace, actions: list[tuple[str, str, Output
                     remove_empty_folders(sorted(created, key=lambda p: len(p.parts), reverse=True))
                     raise
     return sorted(created, key=lambda p: len(p.parts), reverse=True)
+
+
+def add_model_out(p: argparse.ArgumentParser) -> None:
+    """``--out``: the model file a training command writes (checked by :func:`model_output`)."""
+    p.add_argument("--out", type=output_file, default=None,
+                   help="model path (required: the shipped models in the installed package are never overwritten; "
+                        "folders are created; an existing model is replaced once the new one is complete)")
 
 
 def add_robot_and_task(p: argparse.ArgumentParser, task_default: str | None, *, task_required: bool = False) -> None:

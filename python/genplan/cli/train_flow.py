@@ -1,12 +1,12 @@
-"""``genplan train flow``: train the conditional flow-matching sampler (:mod:`genplan.gan.flow`)
-for a robot and task, evaluate it on held-out targets as a GAN card is (:mod:`genplan.gan.evaluate`)
+"""``genplan train flow``: train the conditional flow-matching sampler (:mod:`genplan.samplers.flow`)
+for a robot and task, evaluate it on held-out targets as a GAN card is (:mod:`genplan.samplers.evaluate`)
 and write the model and its card. The file goes wherever a GAN file does (``--model``).
 
     genplan train flow --robot talos --seed 0 --steps 8 --w-cost 0 --iterations 10000 --out teacher.safetensors
     genplan train flow --robot my_robot.toml --task my_task.toml --out my_flow.safetensors
 
 ``--distill-from TEACHER`` trains a one-step student of a flow file instead
-(:func:`genplan.gan.flow.distill`), regressed on the teacher's samples; the student costs one
+(:func:`genplan.samplers.flow.distill`), regressed on the teacher's samples; the student costs one
 network pass per sample.
 
     genplan train flow --robot talos --seed 0 --distill-from teacher.safetensors --out student.safetensors
@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from genplan import _cli_args as A
+from genplan.cli import args as A
 
 
 def hidden_list(text: str) -> tuple[int, ...]:
@@ -50,9 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data-size", type=A.positive_int, default=None, help="valid configurations (default 25,000)")
     p.add_argument("--eval-targets", type=A.positive_int, default=500,
                    help="held-out targets of the card's evaluation (default 500)")
-    p.add_argument("--out", type=A.output_file, default=None,
-                   help="model path (required: the shipped models in the installed package are never overwritten; "
-                        "folders are created; an existing model is replaced once the new one is complete)")
+    A.add_model_out(p)
     p.add_argument("--threads", type=A.positive_int, default=None,
                    help="torch threads (default: genplan's choice for training, one; $GENPLAN_TORCH_THREADS "
                         "overrides it too)")
@@ -60,10 +58,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from genplan import projection as P
-    from genplan.gan.costs import default_task_name
-    from genplan.gan.evaluate import evaluate, summary_line
-    from genplan.gan.flow import default_config, shipped_path, train, train_command
     from genplan.robots import load
+    from genplan.samplers.costs import default_task_name
+    from genplan.samplers.evaluate import evaluate, summary_line
+    from genplan.samplers.flow import default_config, shipped_path, train, train_command
 
     robot = load(args.robot)
     task = P.load_task(args.task if args.task is not None else default_task_name(robot), robot)
@@ -77,9 +75,9 @@ def main(args: argparse.Namespace) -> int:
         raise A.UsageError("--pairs: only with --distill-from (the pairs a student is regressed on)")
     teacher = None
     if args.distill_from is not None:
-        from genplan.gan.flow import load_flow
-        from genplan.gan.model import FORMAT as GAN_FORMAT
         from genplan.model_files import peek_card
+        from genplan.samplers.flow import load_flow
+        from genplan.samplers.gan import FORMAT as GAN_FORMAT
 
         if (peek_card(args.distill_from) or {}).get("format") == GAN_FORMAT:
             raise A.UsageError(f"--distill-from {args.distill_from}: a teacher is a flow file (genplan train flow), "
@@ -94,7 +92,7 @@ def main(args: argparse.Namespace) -> int:
     A.announce_replacement([out])
     t0 = time.perf_counter()
     if teacher is not None:
-        from genplan.gan.flow import distill
+        from genplan.samplers.flow import distill
 
         model = distill(cfg, teacher, progress=True, task=task, threads=args.threads)
     else:

@@ -1,15 +1,21 @@
-"""The ``genplan`` command line.
+"""The ``genplan`` command line: one module per command (``add_arguments(parser)``, ``main(args)``),
+each parsing its arguments and calling the library; :data:`COMMANDS` lists them.
 
 Every user error (a bad argument, an output location that cannot be written, a missing or unusable
 input file, any :class:`genplan.errors.GenplanError`) is one line on stderr,
 ``genplan: error: ...``, and exit code 2, before the command starts when the arguments alone
-show it. Arguments are checked by the argparse types of :mod:`genplan._cli_args`; outputs are
+show it. Arguments are checked by the argparse types of :mod:`genplan.cli.args`; outputs are
 checked by :func:`main` once all arguments parsed. A write that fails (disk full, quota, file
 size limit, permission, read-only file system) is such an error too, naming the file: every file
 is written under a temporary name and renamed when whole (:mod:`genplan._files`), so nothing is
 left half-written. Ctrl-C prints ``genplan: interrupted`` and exits with code 130. A command that
 fails or is interrupted removes the output folders it created, when it left them empty. Anything
 else is a bug and keeps its traceback (exit code 1).
+
+Commands are grouped (``bench``, ``train``, ``data``: ``genplan GROUP NAME ...``). A group that
+was one command before keeps its old form (:data:`FORMER_COMMANDS`): ``genplan data --robot
+panda ...`` is ``genplan data configurations --robot panda ...``, told apart by the word after
+the group's name (an option: the old form; a subcommand's name or ``--help``: the group's).
 """
 
 from __future__ import annotations
@@ -17,18 +23,15 @@ from __future__ import annotations
 import argparse
 import errno
 import importlib
-import importlib.metadata
-import platform
 import signal
 import sys
 import threading
-import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
-from genplan._cli_args import UsageError, check_outputs, output_actions
 from genplan._files import remove_empty_folders
+from genplan.cli.args import UsageError, check_outputs, output_actions
 from genplan.errors import GenplanError
 
 #: errors of the user's making: one line and exit code 2 (OSErrors: on a path the user gave)
@@ -41,56 +44,13 @@ USER_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EACCES, 
 INTERRUPTED = 130
 
 
-def _version(dist: str) -> str:
-    try:
-        return importlib.metadata.version(dist)
-    except importlib.metadata.PackageNotFoundError:
-        return "not installed"
-
-
-def cmd_info(args: argparse.Namespace) -> int:
-    """Print versions and the robots genplan can load."""
-    import genplan
-    from genplan import robots
-
-    print(f"genplan {genplan.__version__}  (python {platform.python_version()}, {platform.machine()})")
-    crates = ", ".join(f"{k} {v}" for k, v in sorted(genplan.CRATE_VERSIONS.items()))
-    print(f"  rust core: {crates}")
-    for dist in ("numpy", "pin", "coal", "example-robot-data", "torch", "safetensors", "ompl", "casadi", "viser"):
-        print(f"  {dist:<19}{_version(dist)}")
-    try:
-        root = robots.robots_dir()
-    except FileNotFoundError as exc:
-        print(f"robots: {exc}")
-        return 1
-    print(f"robots ({root}):")
-    status = 0
-    for name in robots.ROBOT_NAMES:
-        t0 = time.perf_counter()
-        try:
-            robot = robots.load(name)
-            world = robot.collision_world()
-        except Exception as exc:  # report every robot, then fail
-            print(f"  {name:<6} FAILED: {exc}")
-            status = 1
-            continue
-        ms = (time.perf_counter() - t0) * 1e3
-        frames = ", ".join(f"{k}={v}" for k, v in robot.frames.items())
-        print(
-            f"  {name:<6} nq={robot.nq:<3} nv={robot.nv:<3} joints={len(robot.joint_names):<3}"
-            f" collision geometries={len(world.geometry_names):<3} self pairs={len(world.self_pairs):<4}"
-            f" loaded in {ms:.0f} ms  frames: {frames}"
-        )
-    return status
-
-
-#: (group, name, module, help) of every command but ``info``. Each module keeps its top-level
-#: imports light (no torch) and defines ``add_arguments(parser)`` and ``main(args) -> int``.
+#: (group, name, module, help) of every command, in the order ``genplan --help`` lists them (a
+#: group where its first command stands). Each
+#: module keeps its top-level imports light (no torch) and defines ``add_arguments(parser)`` and
+#: ``main(args) -> int``: the library's commands are modules of this package, the benchmarks
+#: modules of :mod:`genplan.experiments`.
 COMMANDS: list[tuple[str, str, str, str]] = [
-    ("", "report", "genplan.experiments.report", "report.md from a folder of benchmark JSON (e.g. benches/results)"),
-    ("", "plan", "genplan.planning.plan_cli", "one constrained plan for any robot, task and scene (JSON, HTML view)"),
-    ("", "data", "genplan.gan.data_cli", "a GAN's training set as shards + manifest, on the local cores or Ray (resumable)"),
-    ("", "reproduce", "genplan.experiments.reproduce", "the main job: rerun both papers' experiments with the shipped models, write a report"),
+    ("", "info", "genplan.cli.info", "print versions and the robots found"),
     ("bench", "robots", "genplan.experiments.benchmarks.robots", "any robot through one path: FK vs Pinocchio, collision vs coal, load time"),
     ("bench", "projection", "genplan.experiments.benchmarks.projection", "Table I: projection and IK (Gauss-Newton or scipy)"),
     ("bench", "coverage", "genplan.experiments.benchmarks.coverage", "GAN coverage: planar arm (N_net 1 vs 5), Panda/Talos ablations"),
@@ -100,10 +60,32 @@ COMMANDS: list[tuple[str, str, str, str]] = [
     ("bench", "scaling", "genplan.experiments.benchmarks.scaling", "data generation on 1 vs 2 local workers and Ray: speed-up, samples/s per core, sha256"),
     ("bench", "peers", "genplan.experiments.benchmarks.peers", "genplan beside Pinocchio + coal, pink, placo, ikpy, pytorch-kinematics: FK, collision, IK, plan time vs obstacles"),
     ("bench", "adjust", "genplan.experiments.benchmarks.adjust", "seq2seq paper Figs. 5-9, 11: latent trajectory adjustment (J1, J2) vs direct U and CasADi + IPOPT"),
-    ("train", "gan", "genplan.gan.train_cli", "the conditional ensemble GAN of valid configurations"),
-    ("train", "flow", "genplan.gan.flow_cli", "a conditional flow-matching sampler of valid configurations (beyond the paper)"),
-    ("train", "seq2seq", "genplan.pancake.train_cli", "the pancake seq2seq trajectory deformation model"),
+    ("bench", "adapt", "genplan.experiments.benchmarks.adapt", "a learned family adapted to new goals and obstacles: latent vs direct, replanning, ProMP"),
+    ("train", "gan", "genplan.cli.train_gan", "the conditional ensemble GAN of valid configurations"),
+    ("train", "flow", "genplan.cli.train_flow", "a conditional flow-matching sampler of valid configurations (beyond the paper)"),
+    ("train", "seq2seq", "genplan.cli.train_seq2seq", "a seq2seq model of a trajectory data set (--data), or the pancake's"),
+    ("", "report", "genplan.experiments.report", "report.md, or with --benchmarks docs/BENCHMARKS.md, from a folder of benchmark JSON (benches/results)"),
+    ("", "plan", "genplan.cli.plan", "one constrained plan for any robot, task and scene (JSON, HTML view)"),
+    ("data", "configurations", "genplan.cli.data", "a GAN's training set as shards + manifest, on the local cores or Ray "
+                                                   "(resumable; also `genplan data --robot ...`)"),
+    ("data", "trajectories", "genplan.cli.data_trajectories", "a family of planned trajectories (a seq2seq model's "
+                                                              "training set) as shards + manifest (resumable)"),
+    ("", "reproduce", "genplan.experiments.reproduce", "the main job: rerun both papers' experiments with the shipped models, write a report"),
+    ("", "view", "genplan.cli.view", "plan a query of a paper environment and write its 3D view (one HTML file, offline)"),
+    ("", "adjust", "genplan.cli.adjust", "adjust trajectories to an objective in a seq2seq model's latent space, "
+                                         "then project, check and time them"),
+    ("", "execute", "genplan.cli.execute", "run a trajectory on the simulated robot at 1 kHz (P-D + DOB): tracking, torques, limits"),
 ]
+
+
+#: the command groups: help, and what a group's subcommand is called
+GROUPS = {"bench": ("run a benchmark: print its table, write JSON", "benchmark"),
+          "train": ("train a model (written to models/ with a JSON card)", "model"),
+          "data": ("write a data set as shards + manifest: configurations (a learned sampler's) or trajectories "
+                   "(a seq2seq model's)", "dataset")}
+#: groups that were one command before: their old form (options right after the group's name,
+#: ``genplan data --robot panda ...``) runs this subcommand (``genplan data configurations ...``)
+FORMER_COMMANDS = {"data": "configurations"}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -121,15 +103,12 @@ def build_parser() -> argparse.ArgumentParser:
         "IK and planning, latent trajectory adjustment) with a Rust core.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    p = sub.add_parser("info", help="print versions and the robots found")
-    p.set_defaults(func=cmd_info)
-
-    bench = sub.add_parser("bench", help="run a benchmark: print its table, write JSON")
-    bench_sub = bench.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
-    train = sub.add_parser("train", help="train a model (written to models/ with a JSON card)")
-    train_sub = train.add_subparsers(dest="model", metavar="MODEL", required=True)
-    groups = {"bench": bench_sub, "train": train_sub, "": sub}
+    groups: dict[str, Any] = {"": sub}
     for group, name, module, help_text in COMMANDS:
+        if group not in groups:
+            what = GROUPS[group]
+            groups[group] = sub.add_parser(group, help=what[0]).add_subparsers(dest=what[1], metavar=what[1].upper(),
+                                                                                required=True)
         mod = importlib.import_module(module)
         p = groups[group].add_parser(name, help=help_text, description=mod.__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -148,7 +127,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     created: list[Path] = []
     try:
         parser = build_parser()
-        args = parser.parse_args(argv)
+        args = parser.parse_args(_former_form(list(sys.argv[1:] if argv is None else argv)))
         if not hasattr(args, "func"):
             parser.print_help()
             return 2
@@ -170,6 +149,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
 
 
+def _former_form(argv: list[str]) -> list[str]:
+    """``argv`` with a group's former single-command form (:data:`FORMER_COMMANDS`) spelled as
+    its subcommand: ``data --robot panda ...`` -> ``data configurations --robot panda ...``. The
+    word after the group decides: an option other than ``-h``/``--help`` is the former form; a
+    subcommand's name, help or nothing is the group's."""
+    if len(argv) >= 2 and argv[0] in FORMER_COMMANDS and argv[1].startswith("-") and argv[1] not in ("-h", "--help"):
+        return [argv[0], FORMER_COMMANDS[argv[0]], *argv[1:]]
+    return argv
+
+
 def _one_line(exc: BaseException) -> str:
     """The message of ``exc`` on one line (an OSError with its path)."""
     if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
@@ -178,6 +167,3 @@ def _one_line(exc: BaseException) -> str:
         text = str(exc) or type(exc).__name__
     return " ".join(text.split())
 
-
-if __name__ == "__main__":
-    sys.exit(main())
