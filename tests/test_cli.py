@@ -434,3 +434,21 @@ def test_integrity_6_ctrl_c_is_one_line_exit_130_and_the_data_set_resumes(tmp_pa
     proc = _run_cli(argv, tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert f"resuming d: {m['shards_done']} of 120 shards finished and verified" in proc.stdout
+
+
+def test_integrity_rerun_eval_targets_bounded_before_training(tmp_path, capsys, monkeypatch) -> None:
+    # --eval-targets sizes the card's evaluation arrays: a count beyond the bound is refused while
+    # the arguments are read, naming the option, before the robot is loaded or anything trains.
+    import genplan.samplers.gan as gan
+
+    def no_training(*a, **k):
+        raise AssertionError("trained before --eval-targets was checked")
+
+    monkeypatch.setattr(gan, "train", no_training)
+    for command in ("gan", "flow"):
+        out = tmp_path / command / "m.safetensors"
+        assert main(["train", command, "--robot", "panda", "--eval-targets", "1000000000000", "--iterations", "1",
+                     "--data-size", "100", "--out", str(out)]) == 2
+        line = one_error_line(capsys)
+        assert "--eval-targets" in line and "100,000" in line and "1000000000000" in line, line
+        assert not out.parent.exists()

@@ -287,3 +287,45 @@ def test_adjust_refuses_bad_input_naming_the_file_and_the_field(model, tmp_path,
     assert main([*base, "--input", str(ur5)]) == 2
     assert f"--input {ur5}: a data set of the axes" in _error(capsys)
     assert not list(out.glob("*.npz")) and not (out / "summary.json").exists()
+
+
+def test_integrity_rerun_a_task_frame_the_robot_lacks_is_refused_before_the_old_set_is_touched(family, tmp_path,
+                                                                                              capsys) -> None:
+    import hashlib
+    import shutil
+
+    out = tmp_path / "d"
+    shutil.copytree(family, out)
+    before = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in out.iterdir()}
+    bad = ["data", "trajectories", "--robot", "ur5", "--task", "panda_projection", "--count", "6", "--steps", "8",
+           "--shard-size", "3", "--workers", "1", "--no-progress", "--out", str(out), "--overwrite"]
+    assert main(bad) == 2
+    err = _error(capsys)
+    assert "task 'panda_projection': robot 'ur5' has no frame 'hand'" in err, err
+    assert {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in out.iterdir()} == before
+
+
+def test_integrity_rerun_a_corrupt_npz_input_is_one_line_naming_it(model, tmp_path, capsys) -> None:
+    """A corrupt --input or --targets (junk bytes, or one bit flipped: the zip's CRC fails) ended
+    in a zipfile.BadZipFile traceback and left an empty --out folder; now a one-line error naming
+    the file, exit 2, and no --out folder."""
+    panda = genplan.load("panda")
+    good = tmp_path / "in.npz"
+    np.savez(good, q=np.tile(panda.q_default, (2, 8, 1)))
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"\x00not a zip file\xff" * 50)
+    flipped = tmp_path / "flipped.npz"
+    raw = bytearray(good.read_bytes())
+    raw[raw.find(np.asarray(panda.q_default, dtype=np.float64).tobytes()) + 3] ^= 0x01  # in q's data
+    flipped.write_bytes(bytes(raw))
+    out = tmp_path / "out"
+    base = ["adjust", "--model", str(model), "--objective", str(_reach_objective(tmp_path)), "--out", str(out),
+            "--no-progress"]
+    for option, extra in (("--input", []), ("--targets", ["--input", str(good)])):
+        for bad in (junk, flipped):
+            assert main([*base, *extra, option, str(bad)]) == 2
+            err = capsys.readouterr().err
+            assert err.startswith(f"genplan: error: {option} {bad}: not a readable .npz file (")
+            assert err.count("\n") == 1
+            assert bad == junk or "Bad CRC-32 for file 'q.npy'" in err, err
+            assert not out.exists()

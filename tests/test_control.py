@@ -299,3 +299,33 @@ def test_the_spatula_names_here_are_deprecated_aliases():
     with pytest.warns(DeprecationWarning, match="genplan.pancake.control.execute"):
         log = control.execute(s_curve([0, 0, 0], [0.06, 0.02, -0.4]), settle=0.2)
     assert isinstance(log, pc.SpatulaLog) and not log.slipped
+
+
+def test_integrity_rerun_a_run_too_long_to_log_is_refused_before_allocating(panda, monkeypatch):
+    """A 9000 s trajectory made a log of 10 GB (and aborted the interpreter under a memory
+    limit): the log's size (genplan._execution.log_bytes, exact for every array of a run) and the
+    reference's are bounded by MAX_RUN_BYTES before the run; a longer run is a SettingsError
+    naming the trajectory's duration and the bound, raised before the reference or the native
+    simulation is made."""
+    import genplan._execution as E
+
+    log = control.execute(panda, MOTION, settle=0.1)
+    arrays = [getattr(log, k) for k in E.ARRAYS if getattr(log, k, None) is not None]
+    in_collision = len(log.t)  # one flag per tick with a world
+    assert sum(a.nbytes for a in arrays) + in_collision == E.log_bytes(len(log.t), panda.nq, panda.nv)
+    assert control.MAX_RUN_BYTES == E.MAX_RUN_BYTES == 2**30
+
+    def no_run(*args, **kwargs):
+        pytest.fail("the run started")
+
+    monkeypatch.setattr(control._core, "Simulation", no_run)
+    q0 = panda.q_default
+    with pytest.raises(SettingsError, match=r"^trajectory: 9000 s at dt = 0\.001 s and a settle phase of 500 ticks is "
+                                            r"9000501 ticks, whose log and reference take 7\.\d\d GiB, more than the "
+                                            r"1\.00 GiB a run may take"):
+        control.execute(panda, (np.array([0.0, 9000.0]), np.array([q0, q0])))
+    longest = E.MAX_RUN_BYTES // E.run_bytes(1, panda.nq, panda.nv)
+    with pytest.raises(SettingsError, match=r"more than the 1\.00 GiB"):  # one tick beyond the bound
+        control.joint_reference(panda, (np.array([0.0, longest * 1e-3]), np.array([q0, q0])), 1e-3)
+    t, *_ = control.joint_reference(panda, (np.array([0.0, (longest - 1) * 1e-3]), np.array([q0, q0])), 1e-3)
+    assert len(t) == longest  # at the bound: made

@@ -332,3 +332,56 @@ def test_integrity_2_sizes_are_bounded_before_any_allocation(panda: genplan.Robo
     with pytest.raises(genplan.errors.SettingsError, match="data size"):
         D.write_dataset(tmp_path / "f", panda, 10**12, progress=False)
     assert time.perf_counter() - t0 < 5 and not (tmp_path / "f").exists()
+
+
+def _digests(folder) -> dict[str, str]:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+
+
+def test_integrity_rerun_overwrite_keeps_the_old_set_until_the_first_shard(tmp_path, monkeypatch, capsys) -> None:
+    # --overwrite moves the old data set aside and removes it only once the new run's first shard
+    # is written: a run that fails before that (an input error seen only by the shards) puts it
+    # back unchanged and says so; one killed before that has it put back by the next run.
+    from genplan._shards import REPLACED
+
+    out = tmp_path / "d"
+    make(out)
+    (out / "notes.txt").write_text("mine")
+    before = _digests(out)
+    real = D.project_shard
+
+    def out_of_reach(shard):
+        assert (out / REPLACED / "manifest.json").is_file() and not (out / "manifest.json").exists()
+        raise genplan.errors.GenplanError("shard 0: the task's manifold is out of reach")
+
+    argv = ["data", "--robot", "panda", "--data-size", "40", "--shard-size", "20", "--workers", "1", "--out", str(out)]
+    monkeypatch.setattr(D, "project_shard", out_of_reach)
+    assert main([*argv, "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert "out of reach" in err and f"the data set it was to replace is put back in {out} unchanged" in err, err
+    assert _digests(out) == before  # the same files, the same bytes; no folder left aside
+    # a run killed before its first shard (the set still aside, nothing of its own written yet)
+    (out / REPLACED).mkdir()
+    for f in out.iterdir():
+        if f.name.startswith(("manifest", "shard_")):
+            f.rename(out / REPLACED / f.name)
+    monkeypatch.setattr(D, "project_shard", real)
+    assert main(["data", "--robot", "panda", "--data-size", str(N), "--shard-size", str(SIZE), "--seed", "2",
+                 "--workers", "2", "--out", str(out)]) == 0
+    log = capsys.readouterr().out
+    assert "put back the data set (4 shard files)" in log and "4 of 4 shards finished and verified" in log, log
+    after = _digests(out)  # the manifest is rewritten (its last run), the shards are the same
+    assert {k: v for k, v in after.items() if k != "manifest.json"} == {k: v for k, v in before.items()
+                                                                         if k != "manifest.json"}
+    assert json.loads((out / "manifest.json").read_text())["last_run"]["shards_computed"] == 0
+    # a run that succeeds removes the old set once its first shard is written
+
+    def checked(shard):
+        aside = (out / REPLACED).exists()
+        assert aside == (shard.index == 0), shard.index  # one worker: shard 0 is computed before any is written
+        return real(shard)
+
+    monkeypatch.setattr(D, "project_shard", checked)
+    assert main([*argv, "--overwrite"]) == 0
+    assert sorted(_digests(out)) == ["manifest.json", "notes.txt", "shard_00000.npy", "shard_00001.npy"]
+    assert json.loads((out / "manifest.json").read_text())["complete"]

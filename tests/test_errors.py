@@ -180,9 +180,12 @@ def test_callback_error(shelf) -> None:
         def sample(self, n: int) -> np.ndarray:
             return np.zeros((n, 3))
 
-    # native core: a Python sampler called back from the Rust planner
+    # native core: a Python sampler called back from the Rust planner (a goal farther than one
+    # step: a nearer one is joined by the direct edge without sampling)
+    goal = environment("panda_shelf").queries(planner.robot, n=1, seed=0)[0].goals[0]
+    assert np.linalg.norm(goal - free) > planner.settings.step
     with pytest.raises(CallbackError, match=r"sampler.sample\(n\): expected shape \(16, 7\)"):
-        planner.plan(free, planner.projector.solve(free + 0.1).q[None], sampler=WrongShape())
+        planner.plan(free, goal[None], sampler=WrongShape())
     # Python front end: an objective of the latent adjustment that returns one value, not one per problem
     from genplan.pancake.adjustment import adjust
     from genplan.pancake.trajectories import s_curve

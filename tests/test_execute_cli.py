@@ -88,3 +88,57 @@ def test_execute_writes_the_view_of_the_run_beside_the_plan(trajectory_file, tmp
     names = {m.get("name") for _, m in decode_scene(page)["messages"]}
     assert {"/trail/path", "/executed_trail/path", "/environment/shelf_board_0"} <= names
     assert any(str(n).startswith("/executed/") for n in names) and "largest error" in page
+
+
+def _corrupt_files(folder, source):
+    """A file of junk bytes and a copy of ``source`` with one bit flipped in its arrays' data (the
+    zip member then fails its CRC on reading)."""
+    junk = folder / "junk.npz"
+    junk.write_bytes(b"\x00genplan: not a zip file\xff" * 40)
+    flipped = folder / "flipped.npz"
+    raw = bytearray(source.read_bytes())
+    raw[raw.find(MOTION.q[len(MOTION.q) // 2].tobytes()) + 3] ^= 0x10  # in q's data
+    flipped.write_bytes(bytes(raw))
+    return junk, flipped
+
+
+def test_integrity_rerun_a_corrupt_trajectory_is_one_line_naming_it(trajectory_file, tmp_path, capsys):
+    """Junk bytes, or one flipped bit failing the zip's CRC, given as --trajectory ended in a
+    zipfile.BadZipFile traceback; now a one-line error naming the file, exit 2, and no output
+    (its folder, created for it, removed again)."""
+    for bad in _corrupt_files(tmp_path, trajectory_file):
+        out = tmp_path / "new" / "log.npz"
+        assert main(["execute", "--robot", "panda", "--trajectory", str(bad), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"genplan: error: --trajectory {bad}: not a readable .npz file (") and err.count("\n") == 1
+        assert bad.name == "junk.npz" or "Bad CRC-32 for file 'q.npy'" in err, err
+        assert not (tmp_path / "new").exists()
+
+
+_LONG_RUN_SCRIPT = """
+import resource, sys
+import numpy as np
+import genplan
+from genplan.cli import main
+
+q0 = genplan.load("panda").q_default
+np.savez(sys.argv[1], t=np.array([0.0, 9000.0]), q=np.array([q0, q0]))
+limit = int(2.5e9)
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+sys.exit(main(["execute", "--robot", "panda", "--trajectory", sys.argv[1], "--out", sys.argv[2]]))
+"""
+
+
+def test_integrity_rerun_a_run_too_long_to_log_is_refused_before_allocating(tmp_path):
+    """A 9000 s trajectory under a 2.5 GB address-space limit aborted the interpreter (a failed
+    native allocation of its log, SIGABRT; without a limit it took 10 GB): now its log's size is
+    computed before the run and refused, one line naming the duration and the bound."""
+    import subprocess
+    import sys
+
+    files = [str(tmp_path / "long.npz"), str(tmp_path / "log.npz")]
+    run = subprocess.run([sys.executable, "-c", _LONG_RUN_SCRIPT, *files], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 2, (run.returncode, run.stderr[-2000:])
+    assert run.stderr.startswith("genplan: error: trajectory: 9000 s at dt = 0.001 s") and run.stderr.count("\n") == 1
+    assert "more than the 1.00 GiB a run may take" in run.stderr, run.stderr
+    assert not (tmp_path / "log.npz").exists()

@@ -4,6 +4,7 @@ caller gave, never the temporary name the write went through."""
 from __future__ import annotations
 
 import errno
+import os
 from pathlib import Path
 
 import numpy as np
@@ -80,3 +81,32 @@ def test_an_error_about_another_file_is_left_as_it_is(tmp_path) -> None:
             tmp.write_text((tmp_path / "missing-input.txt").read_text())
     assert info.value.filename == str(tmp_path / "missing-input.txt")
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("spelling", ["absolute", "bytes", "resolved"])
+def test_integrity_rerun_messages_name_the_path_given(tmp_path, monkeypatch, spelling) -> None:
+    """An OSError on the temporary file, however the writer spelled its name (absolute, bytes,
+    the folder's symlinks resolved), is reported on the path the caller gave; and every writer of
+    trajectories and models, on a place that takes no file (/proc, even for root), names the path
+    given."""
+    from genplan.trajectory import Trajectory
+
+    real = tmp_path / "real"
+    real.mkdir()
+    (tmp_path / "link").symlink_to(real)
+    monkeypatch.chdir(tmp_path)
+    path = Path("link") / "t.npz"
+    with pytest.raises(OSError) as info:
+        with atomic_path(path) as tmp:
+            name = {"absolute": str(tmp.absolute()), "bytes": os.fsencode(tmp),
+                    "resolved": str(tmp.parent.resolve() / tmp.name)}[spelling]
+            raise PermissionError(errno.EACCES, "Permission denied", name)
+    assert isinstance(info.value, PermissionError) and info.value.filename == str(path), str(info.value)
+    assert ".tmp" not in str(info.value) and not list(real.iterdir())
+
+    z = np.zeros((2, 2))
+    traj = Trajectory(t=np.array([0.0, 1.0]), q=z, qd=z, qdd=z, joint_names=("a", "b"), rate_hz=1.0)
+    for suffix in (".npz", ".csv", ".json"):
+        with pytest.raises(OSError) as info:
+            traj.save(f"/proc/genplan-t{suffix}")
+        assert info.value.filename == f"/proc/genplan-t{suffix}" and ".tmp" not in str(info.value), str(info.value)

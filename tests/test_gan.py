@@ -12,6 +12,7 @@ import pytest
 import torch
 
 import genplan
+import genplan.planning
 from genplan import projection as P
 from genplan.cli import main
 from genplan.errors import GenplanError, ModelFileError, NonFiniteError, SettingsError, ShapeError
@@ -565,6 +566,41 @@ def test_integrity_4_a_card_without_the_hash_loads_with_one_warning(tiny_panda_m
     tamper(weights, lambda c: c.update(robot_kinematic_hash="not a hash"))
     with pytest.raises(ModelFileError, match="robot_kinematic_hash must be 64 lowercase hex digits"):
         load_model(panda, weights)
+
+
+def test_integrity_rerun_a_card_without_a_task_is_matched_to_its_shipped_task(panda: genplan.Robot,
+                                                                                talos: genplan.Robot, tmp_path) -> None:
+    """Before: the shipped GAN cards record no task, so a task file named panda_ik with other terms
+    (the hand's orientation axes, another frame) was accepted for the Panda GAN and the planner
+    sampled a manifold other than the task's. A card without a task is matched to the shipped
+    task of its task name, as a card recording its task is."""
+    shipped = models_dir() / "panda_gan.safetensors"
+    assert "task" not in json.loads(shipped.with_suffix(".json").read_text())
+    text = (P.TASKS_DIR / "panda_ik.toml").read_text()
+    same = tmp_path / "same.toml"
+    same.write_text(text)
+    for task in ("panda_ik", same, P.panda_task("ik")):  # the shipped task, by name, as a copy, as a Task
+        assert load_model(panda, shipped, task=task).config.task_name == "panda_ik"
+    assert load_model(talos, models_dir() / "talos_gan.safetensors", task="talos_ik").config.task_name == "talos_ik"
+    assert text.count("axes = [1, 1, 0]") == 1 and text.count('frame = "hand"') == 2
+    orient = tmp_path / "t_orient.toml"
+    orient.write_text(text.replace("axes = [1, 1, 0]", "axes = [1, 0, 1]"))
+    tcp = tmp_path / "t_tcp.toml"
+    tcp.write_text(text.replace('frame = "hand"', 'frame = "panda_link8"'))
+    for task in (orient, tcp):
+        assert P.load_task(task, panda).name == "panda_ik"
+        with pytest.raises(ModelFileError, match=r"is a GAN for another task 'panda_ik' than the one given \(same "
+                                                 r"name, other terms"):
+            load_model(panda, shipped, task=task)
+        with pytest.raises(ModelFileError, match="same name, other terms"):
+            genplan.planning.plan(panda, task, sampler="gan", model=shipped)
+    # a card recording neither a task nor a shipped task's name: the terms it was trained for are unknown
+    weights, _ = load_model(panda, shipped).save(tmp_path / "old.safetensors")
+    tamper(weights, lambda c: c["config"].update(task="mine"))
+    mine = tmp_path / "mine.toml"
+    mine.write_text(text.replace('name = "panda_ik"', 'name = "mine"'))
+    with pytest.raises(ModelFileError, match="records no task, and 'mine' .* is not a shipped task"):
+        load_model(panda, weights, task=mine)
 
 
 SHIPPED = [("panda_gan", "panda"), ("talos_gan", "talos"), ("talos_flow", "talos"), ("talos_flow_teacher", "talos"),

@@ -1,5 +1,6 @@
 """genplan.robots: loading, limits, frames, configurations, errors."""
 
+import re
 import warnings
 
 import numpy as np
@@ -280,6 +281,67 @@ def test_integrity_5_mimic_joints_genplan_cannot_follow_are_refused_by_name(tmp_
         robots.load(path)
 
 
+#: j3 follows j2 (q_j3 = 2 q_j2 + OFFSET), all three limited to [-1, 1].
+MIMIC_RANGE = """<robot name="doubled">
+  <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="LOWER" upper="UPPER" effort="1" velocity="1"/></joint>
+  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="j2" multiplier="2" offset="OFFSET"/></joint>
+</robot>"""
+
+
+def test_integrity_rerun_a_mimic_joint_that_leaves_its_limits_is_refused(tmp_path) -> None:
+    """Before: j3 = 2 j2 with both limited to [-1, 1] loaded, and half of the random
+    configurations put j3 outside its limits; a mimic of a locked master (j2 at 0.5, j3 at 1.1)
+    loaded too. A mimic joint is no coordinate: nothing but its master's limits keeps it inside
+    its own, so both are refused at load naming the joints, the ranges and the remedy."""
+    urdf = tmp_path / "doubled.urdf"
+
+    def write(offset: str, lower: str = "-1", upper: str = "1") -> None:
+        urdf.write_text(MIMIC_RANGE.replace("OFFSET", offset).replace("LOWER", lower).replace("UPPER", upper))
+        robots.clear_cache()
+
+    write("0")
+    with pytest.raises(RobotFileError, match=re.escape(
+            "mimic joint 'j3' follows 'j2' (2 * j2 + 0): over the limits of 'j2', [-1, 1], it ranges over [-2, 2], "
+            f"beyond its own limits [-1, 1] ({urdf}); narrow the limits of 'j2' to [-0.5, 0.5] in the URDF")):
+        robots.load(urdf)
+    write("0.1")
+    with pytest.raises(RobotFileError, match=re.escape("it ranges over [-1.9, 2.1], beyond its own limits [-1, 1] "
+                                                       f"({urdf}); narrow the limits of 'j2' to [-0.55, 0.45]")):
+        robots.load(urdf)
+    robot_file = tmp_path / "doubled.toml"
+    robot_file.write_text('urdf = "doubled.urdf"\nlocked_joints = { j2 = 0.5 }\n')
+    with pytest.raises(RobotFileError, match=re.escape(
+            f"robot file {robot_file}: locked joint 'j3' at 1.1 (it mimics 'j2', locked at 0.5: 2 * 0.5 + 0.1) is "
+            f"outside its limits [-1, 1] ({urdf}); lock 'j2' within [-0.55, 0.45]")):
+        robots.load(robot_file)
+    # a constant mimic outside its limits: no value of the master helps
+    urdf.write_text(MIMIC_RANGE.replace('multiplier="2" offset="OFFSET"', 'multiplier="0" offset="1.5"')
+                    .replace("LOWER", "-1").replace("UPPER", "1"))
+    robots.clear_cache()
+    with pytest.raises(RobotFileError, match="no value of 'j2' within its limits puts 'j3' inside them"):
+        robots.load(urdf)
+    # the remedy applied: j3 stays inside its limits over j2's, at them included, and follows j2
+    write("0.1", "-0.55", "0.45")
+    robot = robots.load(urdf)
+    assert robot.joint_names == ["j1", "j2"] and robot.kinematics.mimic_joints == [("j3", "j2", 2.0, 0.1)]
+    q = robot.random_configurations(200, 0)
+    assert np.all(np.abs(2 * q[:, 1] + 0.1) <= 1 + 1e-12)
+    robot_file.write_text('urdf = "doubled.urdf"\nlocked_joints = { j2 = 0.45 }\n')
+    assert robots.load(robot_file).locked_joints == {"j2": 0.45, "j3": pytest.approx(1.0)}
+    # the Panda's fingers (finger 2 mimics finger 1, the same limits) load moving and locked
+    d = robots.robots_dir() / "panda_description"
+    free = robots.load(urdf=d / "urdf/panda.urdf")
+    assert free.joint_names[-1] == "panda_finger_joint1" and free.kinematics.mimic_joints == [
+        ("panda_finger_joint2", "panda_finger_joint1", 1.0, 0.0)]
+    assert robots.load(urdf=d / "urdf/panda.urdf", locked_joints={"panda_finger_joint1": 0.04}).locked_joints == {
+        "panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}
+
+
 def test_integrity_5_a_locked_joint_outside_its_limits_is_refused(two_dir) -> None:
     bad = two_dir / "bad.toml"
     bad.write_text('urdf = "urdf/two.urdf"\nlocked_joints = { j2 = 100.0 }\n')
@@ -420,3 +482,43 @@ def test_integrity_5_other_robot_file_nonsense_is_refused(two_dir) -> None:
         pin.framesForwardKinematics(robot.model, robot.data, q)
         np.testing.assert_allclose(robot.link_poses(q, ["tip"])[0], robot.data.oMf[robot.model.getFrameId("tip")].homogeneous,
                                    atol=1e-12)
+
+
+def test_integrity_rerun_self_collision_cache_is_checked_on_read(two_dir, tmp_path, monkeypatch) -> None:
+    # A cached pair list is read back only when its bytes match the sha256 beside it and every
+    # pair names links of the robot and a known reason; anything else is recomputed (a warning
+    # naming the file when the bytes changed), never used to skip another pair.
+    import json
+
+    from genplan.cache import hash_path, save_text
+    from genplan.robots import compute_disabled_pairs
+
+    monkeypatch.setenv("GENPLAN_CACHE", str(tmp_path / "cache"))
+    robot = robots.load(two_dir / "urdf" / "two.urdf")
+    found = compute_disabled_pairs(robot, samples=2000)
+    (path,) = (tmp_path / "cache" / "self_collision").glob("two_*.json")
+    assert hash_path(path).is_file()
+    data = json.loads(path.read_text())
+    assert ["base", "l1", "Adjacent"] in data["pairs"]
+
+    def rewritten(pairs):
+        return json.dumps({**data, "pairs": pairs}, indent=1)
+
+    # the file edited behind the cache's back: base-l2 (which does collide) would be skipped
+    flipped = [["base", "l2", r] if (a, b) == ("base", "l1") else [a, b, r] for a, b, r in data["pairs"]]
+    path.write_text(rewritten(flipped))
+    with pytest.warns(RuntimeWarning, match=re.escape(str(path))):
+        again = compute_disabled_pairs(robot, samples=2000)
+    assert again == found and ("base", "l2") not in again.pairs
+    assert json.loads(path.read_text()) == data  # rewritten with its hash
+    # consistent hash, but a link the robot lacks or an unknown reason: recomputed
+    for bad in ([["base", "hand", "Adjacent"]], [["base", "l1", "Sometimes"]], [["base", "l1"]], [[1, 2, "Never"]]):
+        save_text(path, rewritten(bad))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert compute_disabled_pairs(robot, samples=2000) == found
+        assert json.loads(path.read_text()) == data
+    # written before the hash existed (no sidecar): recomputed, then kept with its hash
+    hash_path(path).unlink()
+    path.write_text(rewritten(flipped))
+    assert compute_disabled_pairs(robot, samples=2000) == found and hash_path(path).is_file()

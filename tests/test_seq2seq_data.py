@@ -154,3 +154,23 @@ def test_the_planner_as_a_source(panda) -> None:
         plan_trajectories(panda, "panda_projection", count=1, goal_box=[[0, 0, 0], [-1, 0, 0]], progress=False)
     with pytest.raises(UnknownNameError, match="frame 'nope'"):
         plan_trajectories(panda, "panda_projection", count=1, frame="nope", progress=False)
+
+
+def test_integrity_rerun_a_corrupt_npz_recording_is_a_data_file_error_naming_it(tmp_path, panda) -> None:
+    """A recording .npz of junk bytes or with one bit flipped (its zip member failing the CRC)
+    raised zipfile.BadZipFile; now DataFileError naming the file (genplan._files.read_npz)."""
+    from genplan.errors import DataFileError
+
+    t = np.linspace(0.0, 1.0, 5)
+    good = tmp_path / "good.npz"
+    np.savez(good, q=np.tile(panda.q_default, (5, 1)), t=t, joint_names=np.array(panda.joint_names))
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"\x00not a zip file\xff" * 50)
+    flipped = tmp_path / "flipped.npz"
+    raw = bytearray(good.read_bytes())
+    raw[raw.find(np.asarray(panda.q_default, dtype=np.float64).tobytes()) + 3] ^= 0x01  # in q's data
+    flipped.write_bytes(bytes(raw))
+    for bad, why in ((junk, "ValueError"), (flipped, "BadZipFile: Bad CRC-32 for file 'q.npy'")):
+        with pytest.raises(DataFileError, match=rf"^recording {bad}: not a readable \.npz file \({why}"):
+            from_recordings([bad], panda, steps=5)
+    assert from_recordings([good], panda, steps=5).positions.shape == (1, 5, panda.nq)

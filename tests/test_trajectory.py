@@ -399,3 +399,60 @@ def test_integrity_3_genplan_plan_to_its_start_stays(panda, tmp_path, capsys) ->
     assert len(json.loads((tmp_path / "p.json").read_text())["path"]) == 1
     back = Trajectory.load(tmp_path / "t.npz")
     assert len(back) == 1 and back.duration == 0.0
+
+
+def test_integrity_rerun_low_rate_checks_between_samples(panda) -> None:
+    """At rate_hz=10 only the output samples were checked: 2 of 20 Panda shelf plans were
+    accepted although the spline between two samples collides. Now the samples are checked at
+    CHECK_RATE_HZ at least and the trajectory is every k-th of them: a ball the 5 Hz samples miss
+    but the motion between two of them passes through is refused, and a free trajectory at 5 Hz
+    is the 1 kHz one's every 200th sample (and its end)."""
+    from genplan.errors import InvalidTrajectoryError
+    from genplan.trajectory import CHECK_RATE_HZ
+
+    assert CHECK_RATE_HZ >= 1000.0
+    path = _sweep(panda, length=2.5)
+    free = panda.collision_world()
+    slow, fast = parameterize(panda, path, rate_hz=5, world=free), parameterize(panda, path, rate_hz=1000, world=free)
+    assert slow.rate_hz == 5 and fast.stats["check_rate_hz"] == slow.stats["check_rate_hz"] == 1000
+    keep = np.arange(0, len(fast), 200)
+    if keep[-1] != len(fast) - 1:
+        keep = np.append(keep, len(fast) - 1)
+    assert np.array_equal(slow.q, fast.q[keep]) and np.array_equal(slow.t, fast.t[keep])
+    assert np.allclose(np.diff(slow.t[:-1]), 0.2) and slow.t[-1] == fast.t[-1]
+    # a ball at the tool between two 5 Hz samples, away from both
+    k = len(slow) // 2
+    middle = int(np.argmin(np.abs(fast.t - 0.5 * (slow.t[k] + slow.t[k + 1]))))
+    world = panda.collision_world()
+    world.add_sphere("ball", 0.01, panda.frame_positions(fast.q[middle], "tcp"))
+    assert not np.asarray(world.in_collision(slow.q), dtype=bool).any()  # the output samples alone miss it
+    assert np.asarray(world.in_collision(fast.q), dtype=bool).any()
+    with pytest.raises(InvalidTrajectoryError, match=r"of the samples checked at 1000 Hz is in collision: .*ball"):
+        parameterize(panda, path, rate_hz=5, world=world)
+    odd = parameterize(panda, path, rate_hz=300, world=free)  # not a divisor of 1000: checked at 1200 Hz
+    assert odd.stats["check_rate_hz"] == 1200 and odd.rate_hz == 300 and np.allclose(np.diff(odd.t[:-1]), 1 / 300)
+
+
+def test_integrity_rerun_a_corrupt_npz_is_a_data_file_error_naming_it(traj, tmp_path) -> None:
+    """Trajectory.load of junk bytes or of a file with one bit flipped (its zip member failing
+    the CRC) raised zipfile.BadZipFile; now DataFileError (a GenplanError) naming the file."""
+    from genplan.errors import DataFileError
+
+    good = traj.save(tmp_path / "good.npz")
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"\x00not a zip file\xff" * 50)
+    flipped = tmp_path / "flipped.npz"
+    raw = bytearray(good.read_bytes())
+    raw[raw.find(traj.q[len(traj) // 2].tobytes()) + 3] ^= 0x01  # in q's data
+    flipped.write_bytes(bytes(raw))
+    npy = tmp_path / "one.npz"
+    with open(npy, "wb") as fh:
+        np.save(fh, np.zeros(3))
+    for bad, why in ((junk, "ValueError"), (flipped, "BadZipFile: Bad CRC-32 for file 'q.npy'"),
+                     (npy, "ValueError: a single .npy array")):
+        with pytest.raises(DataFileError, match=rf"^trajectory file {bad}: not a readable \.npz file \({why}"):
+            Trajectory.load(bad)
+    np.savez(tmp_path / "plain.npz", t=np.zeros(2))
+    with pytest.raises(DataFileError, match=r"plain\.npz: not a trajectory written by Trajectory\.save \(KeyError"):
+        Trajectory.load(tmp_path / "plain.npz")
+    assert np.array_equal(Trajectory.load(good).q, traj.q)

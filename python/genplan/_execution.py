@@ -18,7 +18,8 @@ from genplan import _core
 from genplan._arrays import as_real
 from genplan.errors import SettingsError, UnknownNameError
 
-__all__ = ["ARRAYS", "CollisionWarning", "ExecutionLog", "LimitWarning", "MAX_SETTLE_S", "MAX_TICKS", "seconds", "ticks"]
+__all__ = ["ARRAYS", "CollisionWarning", "ExecutionLog", "LimitWarning", "MAX_RUN_BYTES", "MAX_SETTLE_S", "MAX_TICKS",
+           "check_run_size", "log_bytes", "run_bytes", "seconds", "ticks"]
 
 Array = NDArray[np.float64]
 
@@ -26,6 +27,10 @@ Array = NDArray[np.float64]
 MAX_TICKS: int = _core.MAX_TICKS
 #: the longest settle phase (s); the paper's robot waited 25 s
 MAX_SETTLE_S = 60.0
+#: the most memory a run's log and reference may take (:func:`run_bytes`): 1 GiB, the bound of
+#: a trajectory's samples (``_core.MAX_TRAJECTORY_BYTES``); about 21 minutes of a 7-joint arm at
+#: 1 kHz
+MAX_RUN_BYTES: int = _core.MAX_TRAJECTORY_BYTES
 
 
 class LimitWarning(RuntimeWarning):
@@ -52,6 +57,34 @@ def ticks(duration: float, dt: float, what: str, budget: int = MAX_TICKS) -> int
         raise SettingsError(f"{what}: {duration} s at dt = {dt} s is {n:.3g} ticks; a run is limited to "
                             f"{MAX_TICKS} ticks ({max(budget, 0)} left for it)")
     return int(round(n))
+
+
+def log_bytes(ticks: int, nq: int, nv: int, channels: int = 0) -> int:
+    """The bytes of the arrays of a log (:data:`ARRAYS`) of ``ticks`` ticks: per tick ``t``,
+    ``q`` and ``q_ref`` (nq), ``v``, ``tau``, ``tau_dis_hat``, ``tau_dis``, ``error_joint`` (nv),
+    the tool frame's ``position_cmd``, ``position`` (3), ``rotation`` (9), ``velocity``,
+    ``acceleration`` (6), six scalars and ``channels`` payload channels (float64), and the flags
+    ``damped``, ``saturated``, ``in_collision``."""
+    return ticks * (8 * (1 + 2 * nq + 5 * nv + 33 + channels) + 3)
+
+
+def run_bytes(ticks: int, nq: int, nv: int) -> int:
+    """The bytes a run of ``ticks`` ticks holds at once, at least: its log (:func:`log_bytes`)
+    and its reference (``t``, ``q``, ``qd``, ``qdd`` per tick)."""
+    return log_bytes(ticks, nq, nv) + ticks * 8 * (1 + nq + 2 * nv)
+
+
+def check_run_size(ticks: int, nq: int, nv: int, dt: float, what: str) -> None:
+    """SettingsError when a run of ``ticks`` ticks of ``dt`` would hold more than
+    :data:`MAX_RUN_BYTES` (:func:`run_bytes`), naming ``what`` (the run's duration, e.g.
+    "trajectory: 9000 s at dt = 0.001 s"), the size and the bound; checked before anything of the
+    run is allocated."""
+    size = run_bytes(ticks, nq, nv)
+    if size > MAX_RUN_BYTES:
+        longest = MAX_RUN_BYTES // run_bytes(1, nq, nv)
+        raise SettingsError(f"{what} is {ticks} ticks, whose log and reference take {size / 2**30:.2f} GiB, more than "
+                            f"the {MAX_RUN_BYTES / 2**30:.2f} GiB a run may take (at most {longest} ticks, "
+                            f"{longest * dt:.6g} s, for this robot): execute it in parts, or at a larger dt")
 
 
 #: the arrays of a log, in its .npz file

@@ -1,6 +1,6 @@
 """Files written whole or not at all: a temporary name beside the target, then a rename (the
 library's and the experiments' one definition of an atomic write); and the data files (robot,
-task, scene: TOML) read with errors that name the file."""
+task, scene: TOML; arrays: ``.npz``) read with errors that name the file."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_path", "read_toml", "write_text"]
+__all__ = ["atomic_path", "read_npz", "read_toml", "write_text"]
 
 
 @contextmanager
@@ -35,11 +35,21 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         yield tmp
         os.replace(tmp, path)
     except OSError as exc:
-        if exc.errno is None or exc.filename not in (None, str(tmp), tmp):
+        if exc.errno is None or not (exc.filename is None or _is_temporary(exc.filename, tmp)):
             raise
         raise OSError(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def _is_temporary(filename: Any, tmp: Path) -> bool:
+    """``filename`` (an OSError's: str, bytes or path-like, relative or absolute, as the writer
+    spelled it) names the temporary file ``tmp``: its name, unique to this write (process id and
+    random hex), is ``tmp``'s."""
+    try:
+        return Path(os.fsdecode(filename)).name == tmp.name
+    except TypeError:  # a file descriptor
+        return False
 
 
 def write_text(path: str | os.PathLike[str], text: str) -> Path:
@@ -64,6 +74,34 @@ def read_toml(path: str | os.PathLike[str], kind: str, error: type[Exception]) -
         raise error(f"{kind} file {path}: {exc}") from None
     data.setdefault("name", path.stem)
     return data
+
+
+def read_npz(path: str | os.PathLike[str], what: str = "file") -> dict[str, Any]:
+    """Every array of the ``.npz`` file ``path``, read whole (no pickles): the one reader of the
+    ``.npz`` files a user gives (trajectories, inputs, targets, recordings). FileNotFoundError
+    when it does not exist; :class:`~genplan.errors.DataFileError` naming ``what`` and ``path``
+    when it cannot be read: not a zip file, a member failing its CRC (one flipped bit), truncated,
+    a member that is no array (or a pickle), an array too large to allocate, a folder, no
+    permission."""
+    import zipfile
+    import zlib
+
+    import numpy as np
+
+    from genplan.errors import DataFileError
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{what} {path} does not exist")
+    try:
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise ValueError("a single .npy array, not an .npz file of named arrays")
+        with z:
+            return {k: np.asarray(z[k]) for k in z.files}
+    except (OSError, ValueError, EOFError, KeyError, MemoryError, zipfile.BadZipFile, zlib.error) as exc:
+        reason = " ".join((str(exc) or type(exc).__name__).split())
+        raise DataFileError(f"{what} {path}: not a readable .npz file ({type(exc).__name__}: {reason})") from None
 
 
 def missing_folders(path: str | os.PathLike[str]) -> list[Path]:

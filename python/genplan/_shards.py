@@ -10,8 +10,12 @@ executor, :mod:`genplan.executor`), and how a shard is stored, verified and hash
   same folder is refused naming the first; a lock whose process is gone (this host) is taken
   over, ``force`` takes any;
 * refuses a folder holding another data set (another header: :func:`differences` names what
-  differs) unless ``overwrite``, which removes that data set's files (:data:`OWN_FILES`: the
-  manifest and the shards genplan wrote, of any kind) and nothing else;
+  differs) unless ``overwrite``, which replaces that data set's files (:data:`OWN_FILES`: the
+  manifest and the shards genplan wrote, of any kind) and nothing else: they are moved aside
+  (into the hidden folder :data:`REPLACED` inside ``out``: renames on one file system) and
+  removed once the new run's first shard and manifest are written; a run that ends before that
+  (an error, Ctrl-C) puts them back unchanged and says so, and the next run into the folder does
+  the same for a run that was killed;
 * keeps the shards the folder's manifest lists and that still verify (their sha256), computes the
   rest, writes each shard atomically (:mod:`genplan._files`) and rewrites the manifest as shards
   finish (at most once a second) and when the run ends, failed or not; a run that fails before
@@ -38,7 +42,7 @@ from typing import Any, Protocol
 from genplan._files import missing_folders, remove_empty_folders, write_text
 from genplan.errors import GenplanError
 
-__all__ = ["LOCK", "MANIFEST", "OWN_FILES", "FolderLock", "write_shards", "load_manifest", "read_manifest",
+__all__ = ["LOCK", "MANIFEST", "OWN_FILES", "REPLACED", "FolderLock", "write_shards", "load_manifest", "read_manifest",
            "differences", "record", "same", "shard_file"]
 
 MANIFEST = "manifest.json"
@@ -52,6 +56,9 @@ FORMAT_PREFIXES = ("genplan-dataset/", "genplan-trajectories/")
 #: the shards (configurations: .npy; trajectories: .npz), and the temporary files of either left
 #: by a killed run
 OWN_FILES = re.compile(r"manifest\.json|shard_\d{5,}\.np[yz]|\.(manifest|shard_\d{5,})\..*\.tmp\.(json|np[yz])")
+#: the hidden folder inside a data set folder holding the data set an ``overwrite`` run replaces,
+#: until that run's first shard is written
+REPLACED = ".genplan-replaced"
 
 
 def shard_file(index: int, suffix: str) -> str:
@@ -261,13 +268,76 @@ def differences(old: Mapping[str, Any], header: Mapping[str, Any], keys: Sequenc
     return diffs
 
 
-def _remove_dataset(out: Path, log: Callable[[str], Any]) -> None:
-    """Remove the files genplan wrote in ``out`` (manifest, shards, their temporary files), and
-    nothing else."""
-    gone = [f for f in out.iterdir() if f.is_file() and OWN_FILES.fullmatch(f.name)]
-    for f in sorted(gone):
+def _own_files(out: Path) -> list[Path]:
+    """The files genplan wrote in ``out`` (:data:`OWN_FILES`), in name order."""
+    return sorted(f for f in out.iterdir() if f.is_file() and OWN_FILES.fullmatch(f.name))
+
+
+def _set_aside(out: Path, log: Callable[[str], Any]) -> Path:
+    """Move the files genplan wrote in ``out`` (manifest, shards, their temporary files) into
+    ``out / REPLACED``, and nothing else; all of them or (an error) none."""
+    aside = out / REPLACED
+    aside.mkdir()
+    files = sorted(_own_files(out), key=lambda f: f.name != MANIFEST)  # the manifest first
+    try:
+        for f in files:
+            os.rename(f, aside / f.name)
+    except BaseException:
+        _put_back(out, aside, clear=False)
+        raise
+    log(f"overwriting {out}: its manifest and {sum(f.name.startswith('shard_') for f in files)} shard files are "
+        f"moved aside to {aside} and removed once this run's first shard is written")
+    return aside
+
+
+def _put_back(out: Path, aside: Path, clear: bool = True) -> int:
+    """Put the data set set aside in ``aside`` back into ``out``, its manifest last
+    (:func:`_set_aside` moves it first: while ``aside`` exists, a manifest in ``out`` is the
+    replacing run's); with ``clear``, the files the replacing run wrote in ``out`` are removed
+    first (only when all of the old set is known to be in ``aside``). Returns the count of its
+    shard files."""
+    if clear:
+        for f in _own_files(out):
+            f.unlink(missing_ok=True)
+    files = sorted(aside.iterdir(), key=lambda f: f.name == MANIFEST)
+    for f in files:
+        os.rename(f, out / f.name)
+    aside.rmdir()
+    return sum(f.name.startswith("shard_") for f in files)
+
+
+def _drop(aside: Path) -> None:
+    """Remove the replaced data set set aside in ``aside``."""
+    for f in aside.iterdir():
         f.unlink(missing_ok=True)
-    log(f"overwriting {out}: removed its manifest and {sum(f.name.startswith('shard_') for f in gone)} shard files")
+    aside.rmdir()
+
+
+def _recover(out: Path, log: Callable[[str], Any]) -> None:
+    """Finish what a killed ``overwrite`` run left in ``out``: the data set it set aside is put
+    back when the run wrote no manifest (it ended before its first shard, maybe while moving the
+    set aside: what it wrote is left, overwritten by the set's files of the same name), else
+    removed."""
+    aside = out / REPLACED
+    if not aside.is_dir():
+        return
+    if (out / MANIFEST).is_file():
+        _drop(aside)
+    else:
+        n = _put_back(out, aside, clear=False)
+        log(f"{out}: put back the data set ({n} shard files) that an interrupted --overwrite run had moved aside to "
+            f"{aside}")
+
+
+def _say_put_back(exc: BaseException, text: str, log: Callable[[str], Any]) -> None:
+    """Add ``text`` to the error ``exc`` that ends a run: to its message when that is its one
+    string argument (as a GenplanError's), else printed with ``log``; a note either way."""
+    if (isinstance(exc, Exception) and type(exc).__str__ is BaseException.__str__ and len(exc.args) == 1
+            and isinstance(exc.args[0], str)):
+        exc.args = (f"{exc.args[0]} ({text})",)
+    else:
+        log(text)
+    exc.add_note(text)
 
 
 class ShardSpec(Protocol):
@@ -312,7 +382,9 @@ def write_shards(out: Path, header: dict[str, Any], parts: Sequence[ShardSpec], 
     except BaseException:
         remove_empty_folders(created)
         raise
+    aside: Path | None = None  # where the data set this run replaces waits until its first shard
     try:
+        _recover(out, log)
         path = out / MANIFEST
         done: dict[int, dict[str, Any]] = {}
         listed = False  # whether the folder holds a manifest of this data set
@@ -323,7 +395,7 @@ def write_shards(out: Path, header: dict[str, Any], parts: Sequence[ShardSpec], 
                 raise GenplanError(f"{out} holds another data set ({'; '.join(diffs)}): give another folder, or "
                                    "--overwrite to replace it (overwrite=True)")
             if diffs:
-                _remove_dataset(out, log)
+                aside = _set_aside(out, log)
             else:
                 listed = True
                 bad = 0
@@ -338,8 +410,8 @@ def write_shards(out: Path, header: dict[str, Any], parts: Sequence[ShardSpec], 
                         bad += 1
                 log(f"resuming {out}: {len(done)} of {len(parts)} shards finished and verified"
                     + (f", {bad} listed but missing or not matching their sha256 (recomputed)" if bad else ""))
-        elif overwrite and any(OWN_FILES.fullmatch(f.name) for f in out.iterdir()):
-            _remove_dataset(out, log)
+        elif overwrite and _own_files(out):
+            aside = _set_aside(out, log)
         todo = [s for s in parts if s.index not in done]
         last = [0.0]
 
@@ -349,10 +421,14 @@ def write_shards(out: Path, header: dict[str, Any], parts: Sequence[ShardSpec], 
 
         def finished(k: int, data: Any) -> None:
             i = todo[k].index  # k: the position in todo
+            nonlocal aside
             done[i] = store(out, i, data)
-            if time.monotonic() - last[0] > 1.0:
+            if time.monotonic() - last[0] > 1.0 or aside is not None:
                 write_text(path, json.dumps(manifest(False), indent=1))
                 last[0] = time.monotonic()
+            if aside is not None:  # this run's first shard and manifest are written: the old set goes
+                _drop(aside)
+                aside = None
 
         ex = executor or LocalExecutor()
         t0 = time.perf_counter()
@@ -375,7 +451,21 @@ def write_shards(out: Path, header: dict[str, Any], parts: Sequence[ShardSpec], 
             result.update(finish(result))
         result["last_run"] = {**ex.describe(), "shards_computed": len(todo), "seconds": seconds}
         write_text(path, json.dumps(result, indent=1, default=json_default))
+        if aside is not None:  # no shard to compute: the new manifest is the first thing written
+            _drop(aside)
+            aside = None
         return result
+    except BaseException as exc:
+        if aside is not None:
+            try:
+                n = _put_back(out, aside)
+            except OSError as put:
+                _say_put_back(exc, f"the data set it was to replace could not be put back ({put}): its files are in "
+                                   f"{aside}; the next run into {out} puts them back", log)
+            else:
+                _say_put_back(exc, f"the data set it was to replace is put back in {out} unchanged: its manifest and "
+                                   f"{n} shard files", log)
+        raise
     finally:
         lock.release()
         remove_empty_folders(created)  # the folders this run made, when it wrote nothing there

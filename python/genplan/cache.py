@@ -1,9 +1,10 @@
 """The on-disk cache of generated data sets (``$GENPLAN_CACHE``, default ``~/.cache/genplan``).
 
 Arrays are ``.npy`` files (read with ``allow_pickle=False``), written atomically, each with the
-sha256 of its bytes beside it (``<name>.npy.sha256``, written after the array). A file that is
-missing, unreadable, without its hash, of another shape or dtype, or holding NaN reads as
-absent, so the caller regenerates it; one whose bytes no longer match its hash (a flipped bit, a
+sha256 of its bytes beside it (``<name>.npy.sha256``, written after the array); text files (the
+self-collision pairs of :mod:`genplan.robots`) likewise (:func:`save_text`, :func:`load_text`).
+A file that is missing, unreadable, without its hash, of another shape or dtype, or holding NaN
+reads as absent, so the caller regenerates it; one whose bytes no longer match its hash (a flipped bit, a
 file edited or replaced) reads as absent too, with a warning.
 """
 
@@ -20,7 +21,8 @@ from numpy.typing import DTypeLike, NDArray
 
 from genplan._files import atomic_path, write_text
 
-__all__ = ["cache_dir", "hash_path", "load_array", "read_npy", "save_array", "sha256_file", "write_npy"]
+__all__ = ["cache_dir", "hash_path", "load_array", "load_text", "read_npy", "save_array", "save_text", "sha256_file",
+           "write_npy"]
 
 
 def cache_dir() -> Path:
@@ -33,18 +35,27 @@ def hash_path(path: Path) -> Path:
     return path.with_name(path.name + ".sha256")
 
 
+def _hash_matches(path: Path, data: bytes | None = None) -> bool:
+    """Whether the cached file ``path`` (its bytes ``data`` when already read) matches the sha256
+    kept beside it (:func:`hash_path`): False when either is missing or unreadable (written
+    without its hash: regenerated), False with a RuntimeWarning naming the file when they differ."""
+    try:
+        expected = hash_path(path).read_text().strip()
+        actual = sha256_file(path) if data is None else hashlib.sha256(data).hexdigest()
+    except (OSError, UnicodeDecodeError):
+        return False
+    if actual != expected:
+        warnings.warn(f"{path}: its bytes do not match their sha256 ({hash_path(path).name}): the file changed after "
+                      "it was written; regenerating it", RuntimeWarning, stacklevel=3)
+        return False
+    return True
+
+
 def load_array(path: Path, shape: tuple[int, ...], dtype: DTypeLike | None = None) -> NDArray | None:
     """The cached array at ``path`` if its bytes match their sha256 and it has ``shape`` (and
     ``dtype``) and is finite, else None (a RuntimeWarning when the bytes do not match)."""
     path = Path(path)
-    try:
-        expected = hash_path(path).read_text().strip()
-        actual = sha256_file(path)
-    except (OSError, UnicodeDecodeError):
-        return None  # missing, unreadable, or written without its hash: regenerated
-    if actual != expected:
-        warnings.warn(f"{path}: its bytes do not match their sha256 ({hash_path(path).name}): the file changed after "
-                      "it was written; regenerating it", RuntimeWarning, stacklevel=2)
+    if not _hash_matches(path):
         return None
     try:
         data = read_npy(path)
@@ -53,6 +64,29 @@ def load_array(path: Path, shape: tuple[int, ...], dtype: DTypeLike | None = Non
     if data.shape != shape or (dtype is not None and data.dtype != np.dtype(dtype)) or not np.all(np.isfinite(data)):
         return None
     return data
+
+
+def load_text(path: Path) -> str | None:
+    """The cached text file at ``path`` (UTF-8) if its bytes match their sha256, else None (a
+    RuntimeWarning when the bytes do not match): what the caller reads from it, it still checks."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return None
+    if not _hash_matches(path, data):
+        return None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+
+
+def save_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (UTF-8), then its sha256 (:func:`hash_path`)."""
+    path = Path(path)
+    write_text(path, text)
+    write_text(hash_path(path), hashlib.sha256(text.encode("utf-8")).hexdigest() + "\n")
 
 
 def save_array(path: Path, data: NDArray) -> None:

@@ -42,8 +42,8 @@ from numpy.typing import NDArray
 
 from genplan import _core
 from genplan._arrays import as_configurations, as_float_array, as_real
-from genplan._execution import (ARRAYS, MAX_SETTLE_S, MAX_TICKS, CollisionWarning, ExecutionLog, LimitWarning, seconds,
-                                ticks)
+from genplan._execution import (ARRAYS, MAX_RUN_BYTES, MAX_SETTLE_S, MAX_TICKS, CollisionWarning, ExecutionLog,
+                                LimitWarning, check_run_size, seconds, ticks)
 from genplan.errors import GenplanError, LimitExceededError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 
 ControllerSettings = _core.ControllerSettings
@@ -55,7 +55,7 @@ RunSummary = _core.RunSummary
 __all__ = [
     "ARRAYS", "ControllerSettings", "Disturbances", "Payload", "JointLimits", "RunSummary", "ExecutionLog", "LimitWarning",
     "CollisionWarning", "execute", "joint_reference", "joint_values", "from_joint_values", "tool_frame", "frame_link",
-    "MAX_TICKS", "MAX_SETTLE_S", "SETTLE_S",
+    "MAX_TICKS", "MAX_RUN_BYTES", "MAX_SETTLE_S", "SETTLE_S",
 ]
 
 Array = NDArray[np.float64]
@@ -141,7 +141,8 @@ def _times(t: Any, n: int) -> Array:
     return times
 
 
-def joint_reference(robot: Any, trajectory: Any, dt: float) -> tuple[Array, Array, Array, Array]:
+def joint_reference(robot: Any, trajectory: Any, dt: float, *,
+                    settle_ticks: int = 0) -> tuple[Array, Array, Array, Array]:
     """The reference ``(t, q, qd, qdd)`` every ``dt`` of ``trajectory``: a
     :class:`genplan.trajectory.Trajectory` (its joints must be the robot's), a mapping with
     ``t`` and ``q`` (optionally ``qd``, ``qdd``), or a tuple ``(t, q)`` / ``(t, q, qd)``.
@@ -150,7 +151,10 @@ def joint_reference(robot: Any, trajectory: Any, dt: float) -> tuple[Array, Arra
     otherwise a cubic spline through the samples (Hermite through their velocities when given;
     else clamped: at rest at both ends) is sampled every ``dt`` from the first time to the last,
     continuous joints on their circle. Errors name the field (ShapeError: another robot's joint
-    count or times that do not increase; NonFiniteError)."""
+    count or times that do not increase; NonFiniteError); a run of the reference's ticks and
+    ``settle_ticks`` longer than :data:`MAX_TICKS`, or whose log and reference would take more
+    than :data:`MAX_RUN_BYTES`, is a SettingsError naming the trajectory's duration and the bound,
+    before the reference is allocated."""
     from genplan.trajectory import Trajectory
 
     qd_in: Any = None
@@ -183,6 +187,15 @@ def joint_reference(robot: Any, trajectory: Any, dt: float) -> tuple[Array, Arra
             raise ShapeError(f"{what}: expected shape ({len(q)}, {robot.nv}), got {a.shape}")
     steps = np.diff(times)
     on_grid = len(times) == 1 or bool(np.all(np.abs(steps - dt) <= 1e-9 * max(1.0, dt)))
+    span = float(times[-1] - times[0])
+    n = float(len(times)) if on_grid else span / dt + 1e-9 + 1.0  # a float: inf for a tiny dt
+    what = f"trajectory: {span:.6g} s at dt = {dt:g} s"
+    if settle_ticks:
+        what += f" and a settle phase of {settle_ticks} ticks"
+    if not n + settle_ticks <= MAX_TICKS:
+        raise SettingsError(f"{what} is {n + settle_ticks:.6g} ticks; a run is limited to {MAX_TICKS}")
+    count = len(times) if on_grid else int(math.floor(span / dt + 1e-9)) + 1
+    check_run_size(count + settle_ticks, robot.nq, robot.nv, dt, what)
     if on_grid and qd is not None and qdd is not None:
         return times - times[0], q, qd, qdd
     if len(times) == 1:
@@ -193,10 +206,6 @@ def joint_reference(robot: Any, trajectory: Any, dt: float) -> tuple[Array, Arra
     x = joint_values(robot, q)
     spline = (CubicHermiteSpline(times, x, qd) if qd is not None
               else CubicSpline(times, x, bc_type="clamped"))
-    count = int(math.floor((times[-1] - times[0]) / dt + 1e-9)) + 1
-    if count > MAX_TICKS:
-        raise SettingsError(f"trajectory: {times[-1] - times[0]:.4g} s at dt = {dt} s is {count} ticks; a run is "
-                            f"limited to {MAX_TICKS}")
     grid = times[0] + dt * np.arange(count)
     xs = spline(grid)
     return grid - times[0], np.ascontiguousarray(from_joint_values(robot, xs)), spline(grid, 1), spline(grid, 2)
@@ -268,7 +277,9 @@ def execute(robot: Any, trajectory: Any = None, *, controller: Any = None, distu
             executed motion (``log.residuals``).
 
     Bad input raises before the run: ShapeError (another robot's joint count), NonFiniteError,
-    UnknownNameError (a frame the robot does not have), SettingsError (a setting, naming it),
+    UnknownNameError (a frame the robot does not have), SettingsError (a setting, naming it; a run
+    longer than :data:`MAX_TICKS` or whose log would take more than :data:`MAX_RUN_BYTES`, naming
+    the trajectory's duration and the bound, before anything of the run is allocated),
     :class:`~genplan.errors.InvalidTrajectoryError` (a sample outside the joint range, over the
     velocity limits, or a jump one tick at the velocity limit cannot follow). A run over the
     limits warns (:class:`LimitWarning`) unless ``strict``.
@@ -304,10 +315,7 @@ def execute(robot: Any, trajectory: Any = None, *, controller: Any = None, distu
         dist = dist.replace(payload=_on_link(rob, dist.payload))
     settle_s = seconds(SETTLE_S if settle is None else settle, "settle", MAX_SETTLE_S)
     settle_ticks = ticks(settle_s, ctrl.dt, "settle")
-    t, q, qd, qdd = joint_reference(rob, trajectory, ctrl.dt)
-    if len(t) + settle_ticks > MAX_TICKS:
-        raise SettingsError(f"settle: {settle_ticks} ticks and a trajectory of {len(t)} exceed the {MAX_TICKS} ticks "
-                            "of a run")
+    t, q, qd, qdd = joint_reference(rob, trajectory, ctrl.dt, settle_ticks=settle_ticks)  # its size bounded first
     sim = _core.Simulation(rob.description, ctrl, dist, payloads, lim, int(substeps))
     out = sim.run(np.ascontiguousarray(q), np.ascontiguousarray(qd), np.ascontiguousarray(qdd), settle=settle_ticks,
                   paced=bool(paced), strict=bool(strict))

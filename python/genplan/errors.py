@@ -12,13 +12,15 @@ Every class is a subclass of :class:`GenplanError`, itself a subclass of :class:
 The native core raises the same classes (``genplan._core`` looks them up here), so an error has
 one type whichever layer found it. A file that does not exist raises the standard
 :class:`FileNotFoundError`; a file that exists but cannot be used raises :class:`RobotFileError`,
-:class:`TaskFileError`, :class:`SceneFileError` or :class:`ModelFileError`. See docs/ARCHITECTURE.md ("Errors").
+:class:`TaskFileError`, :class:`SceneFileError`, :class:`ModelFileError` or
+:class:`DataFileError`. See docs/ARCHITECTURE.md ("Errors").
 """
 
 from __future__ import annotations
 
 __all__ = [
     "CallbackError",
+    "DataFileError",
     "GenplanError",
     "InvalidGoalError",
     "InvalidStartError",
@@ -88,6 +90,12 @@ class ObjectiveFileError(GenplanError):
     """An objective (objective file or its data, :mod:`genplan.seq2seq.objectives`) that cannot be
     used: bad TOML, an unknown term kind or key, a value of the wrong form, a python term without
     the opt-in; the message names the file, the term and the key."""
+
+
+class DataFileError(GenplanError):
+    """A file of arrays (``.npz``: a trajectory, an input, targets, a recording) that exists but
+    cannot be read: not a zip file, a member failing its checksum (a flipped bit), truncated, an
+    array that is not one; the message names the file and the reason."""
 
 
 class ModelFileError(GenplanError):

@@ -40,7 +40,7 @@ from numpy.typing import ArrayLike, DTypeLike, NDArray
 from genplan import _core
 from genplan._arrays import as_configurations
 from genplan._files import write_text
-from genplan.cache import cache_dir
+from genplan.cache import cache_dir, load_text, save_text
 from genplan.collision import CollisionWorld
 from genplan.errors import RobotFileError, RobotWarning, SettingsError, ShapeError, UnknownNameError
 
@@ -109,6 +109,7 @@ class Robot:
         kinematics, q_default, locked, messages = _core.read_robot(d)
         for message in messages:
             warnings.warn(f"{origin}: {message}", RobotWarning, stacklevel=4)
+        _check_mimic_limits(self.urdf_path, origin, kinematics.mimic_joints, locked)
         # mimic joints that move follow their masters in Pinocchio as in the core; the others
         # are locked (with their masters, or held where the core cannot follow them), so that
         # Pinocchio reads them as plain joints and the reduced model holds them
@@ -384,20 +385,40 @@ def compute_disabled_pairs(robot: Robot, samples: int = 10_000, seed: int = 0, c
     if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= 10_000_000:
         raise SettingsError(f"samples: expected an integer in 1..10000000, got {samples!r}")
     path = cache_dir() / "self_collision" / f"{robot.name}_{_files_digest(robot)}_{samples}_{seed}.json"
-    if cache and path.is_file():
-        try:
-            data = json.loads(path.read_text())
-            entries = tuple((str(a), str(b), str(r)) for a, b, r in data["pairs"])
-            if all(r in REASONS for *_, r in entries):
-                return DisabledPairs(entries, samples, seed)
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # a broken cache file is recomputed
+    if cache:
+        cached = _cached_pairs(robot, path, "pairs", REASONS)
+        if cached is not None:
+            return DisabledPairs(tuple((a, b, str(r)) for a, b, r in cached), samples, seed)
     native = _core.CollisionWorld(robot.kinematics, robot.collision_urdf_path, robot.package_dirs, None)
     entries = tuple(native.compute_disabled_pairs(robot.q_default, samples=samples, seed=seed))
     if cache:
-        write_text(path, json.dumps({"robot": robot.name, "samples": samples, "seed": seed,
-                                     "pairs": [list(e) for e in entries]}, indent=1))
+        save_text(path, json.dumps({"robot": robot.name, "samples": samples, "seed": seed,
+                                    "pairs": [list(e) for e in entries]}, indent=1))
     return DisabledPairs(entries, samples, seed)
+
+
+def _cached_pairs(robot: Robot, path: Path, key: str, values: tuple[str, ...] | None) -> list[tuple[str, str, Any]] | None:
+    """The link pairs ``(a, b, value)`` of the self-collision cache file ``path`` (its field
+    ``key``), or None when it is to be recomputed: missing, not matching its sha256 (a
+    RuntimeWarning naming it, :func:`genplan.cache.load_text`), not JSON, or naming a link the
+    robot lacks, a value not in ``values`` (the reasons) or, without ``values``, not a count."""
+    text = load_text(path)
+    if text is None:
+        return None
+    try:
+        rows = json.loads(text)[key]
+        links = set(robot.kinematics.link_names)
+        pairs = [(a, b, v) for a, b, v in rows]
+    except (ValueError, KeyError, TypeError):
+        return None  # a broken cache file is recomputed
+    for a, b, v in pairs:
+        if not (isinstance(a, str) and isinstance(b, str) and a in links and b in links):
+            return None
+        if values is not None and v not in values:
+            return None
+        if values is None and (isinstance(v, bool) or not isinstance(v, int) or v < 0):
+            return None
+    return pairs
 
 
 #: Random configurations over which the pairs in contact at the default configuration are
@@ -414,17 +435,14 @@ def default_contacts(robot: Robot, samples: int = CONTACT_SAMPLES, seed: int = 0
     SRDF files' contents."""
     digest = _files_digest(robot, robot.srdf_path)
     path = cache_dir() / "self_collision" / f"{robot.name}_{digest}_contacts_{samples}_{seed}.json"
-    if path.is_file():
-        try:
-            data = json.loads(path.read_text())
-            return tuple((str(a), str(b), float(h) / samples) for a, b, h in data["contacts"])
-        except (OSError, ValueError, KeyError, TypeError, ZeroDivisionError):
-            pass  # a broken cache file is recomputed
+    cached = _cached_pairs(robot, path, "contacts", None)
+    if cached is not None and samples > 0 and all(h <= samples for *_, h in cached):
+        return tuple((a, b, h / samples) for a, b, h in cached)
     native = _core.CollisionWorld(robot.kinematics, robot.collision_urdf_path, robot.package_dirs, robot.srdf_path)
     found = native.default_contacts(robot.q_default, samples=samples, seed=seed)
     try:
-        write_text(path, json.dumps({"robot": robot.name, "samples": samples, "seed": seed,
-                                     "contacts": [list(c) for c in found]}, indent=1))
+        save_text(path, json.dumps({"robot": robot.name, "samples": samples, "seed": seed,
+                                    "contacts": [list(c) for c in found]}, indent=1))
     except OSError:
         pass  # an unwritable cache only costs the check again
     return tuple((a, b, h / samples if samples else 1.0) for a, b, h in found)
@@ -438,6 +456,89 @@ def _contacts_message(robot: Robot, origin: str) -> str:
             "every configuration) are invalid. Remedy: merge_computed_pairs=True (in a robot file: "
             "merge_computed_pairs = true) also skips the pairs genplan computes as MoveIt's setup assistant does "
             "(robot.write_srdf writes them), or add <disable_collisions> for these pairs to the SRDF")
+
+
+def _urdf_limits(root: Any) -> dict[str, tuple[float, float, str, float, float]]:
+    """Each joint of the URDF ``root``: (lower, upper, master, multiplier, offset), the master ""
+    for a joint without a ``<mimic>``; the limits infinite unless it is revolute or prismatic
+    (URDF's defaults: limits 0, multiplier 1, offset 0)."""
+    out: dict[str, tuple[float, float, str, float, float]] = {}
+    for joint in root.findall("joint"):
+        limit, mimic = joint.find("limit"), joint.find("mimic")
+        bounded = joint.get("type") in ("revolute", "prismatic")
+        lo = float(limit.get("lower", 0.0)) if bounded and limit is not None else -np.inf
+        hi = float(limit.get("upper", 0.0)) if bounded and limit is not None else np.inf
+        if mimic is None:
+            out[str(joint.get("name"))] = (lo, hi, "", 1.0, 0.0)
+        else:
+            out[str(joint.get("name"))] = (lo, hi, str(mimic.get("joint")), float(mimic.get("multiplier", 1.0)),
+                                           float(mimic.get("offset", 0.0)))
+    return out
+
+
+def _check_mimic_limits(urdf: Path, origin: str, mimics: Sequence[tuple[str, str, float, float]],
+                        locked: Mapping[str, float]) -> None:
+    """RobotFileError unless every mimic joint of ``urdf`` stays within its own limits: a mimic of
+    a locked master at its value (``locked``, which holds the mimics of locked joints at the values
+    they follow), a mimic of a moving master (``mimics``: joint, master, multiplier, offset) over
+    its master's whole range. Its value is not a coordinate (it follows its master), so nothing
+    else keeps it inside them: a sampler drawing its master within limits would put it outside.
+    Limits are inclusive, with a rounding allowance of 1e-9 (relative)."""
+    if not (mimics or locked):
+        return
+    text = urdf.read_bytes()
+    if b"<mimic" not in text:
+        return
+    import xml.etree.ElementTree as ET
+
+    joints = _urdf_limits(ET.fromstring(text))
+
+    def fmt(x: float) -> str:
+        return f"{x + 0.0:.6g}"  # + 0.0: no "-0"
+
+    def outside(x: float, lo: float, hi: float) -> bool:
+        slack = 1e-9 * max(1.0, abs(x))
+        return x < lo - slack or x > hi + slack
+
+    def remedy(name: str, master: str, lo: float, hi: float, mult: float, off: float, locked: bool) -> str:
+        """What puts the mimic back inside [lo, hi]: its master's values, within the master's
+        own limits, that keep it there (to lock the master within, or to narrow its limits to)."""
+        mlo, mhi = joints[master][:2]
+        ends = sorted(((lo - off) / mult, (hi - off) / mult)) if mult != 0 else [np.inf, -np.inf]
+        a, b = max(ends[0], mlo), min(ends[1], mhi)
+        if a > b:
+            return (f"no value of '{master}' within its limits puts '{name}' inside them: correct the <mimic> or "
+                    "the limits in the URDF")
+        if a == b or locked:
+            within = f"at {fmt(a)}" if a == b else f"within [{fmt(a)}, {fmt(b)}]"
+            only = " (the only value that puts it inside them), or correct the <mimic> or the limits in the URDF"
+            return f"lock '{master}' {within}" + (only if a == b else "")
+        return f"narrow the limits of '{master}' to [{fmt(a)}, {fmt(b)}] in the URDF"
+
+    for name, value in locked.items():
+        info = joints.get(name)
+        if info is None or not info[2] or info[2] not in locked:
+            continue
+        lo, hi, master, mult, off = info
+        if outside(value, lo, hi):
+            raise RobotFileError(
+                f"{origin}: locked joint '{name}' at {fmt(value)} (it mimics '{master}', locked at "
+                f"{fmt(locked[master])}: {fmt(mult)} * {fmt(locked[master])} + {fmt(off)}) is outside its limits "
+                f"[{fmt(lo)}, {fmt(hi)}] ({urdf}); {remedy(name, master, lo, hi, mult, off, True)}")
+    for name, master, mult, off in mimics:
+        own, of_master = joints.get(name), joints.get(master)
+        if own is None or of_master is None:
+            continue
+        lo, hi = own[:2]
+        mlo, mhi = of_master[:2]
+        ends = (mult * mlo + off, mult * mhi + off) if mult != 0 else (off, off)
+        flo, fhi = min(ends), max(ends)
+        if not (outside(flo, lo, hi) or outside(fhi, lo, hi)):
+            continue
+        raise RobotFileError(
+            f"{origin}: mimic joint '{name}' follows '{master}' ({fmt(mult)} * {master} + {fmt(off)}): over the "
+            f"limits of '{master}', [{fmt(mlo)}, {fmt(mhi)}], it ranges over [{fmt(flo)}, {fmt(fhi)}], beyond its own "
+            f"limits [{fmt(lo)}, {fmt(hi)}] ({urdf}); {remedy(name, master, lo, hi, mult, off, False)}")
 
 
 def _pinocchio_model(urdf: Path, floating_base: bool, origin: str, mimic: bool, locked: set[str]) -> pin.Model:
@@ -561,7 +662,8 @@ def load(
     unknown preset (the known ones listed) or a name the files lack (a locked joint, a frame's
     link, an SRDF's link or reference state), RobotFileError naming the file and the key for a
     bad robot file, a malformed URDF or SRDF (with the parser's reason), a value outside a
-    joint's limits, a mimic joint genplan cannot follow. A RobotWarning reports what loads but
+    joint's limits, a mimic joint genplan cannot follow or that its master would take outside
+    its own limits. A RobotWarning reports what loads but
     may not be meant: an unused SRDF state naming unknown joints, self-collision pairs in
     contact at the default configuration (``merge_computed_pairs=True`` is the remedy; see
     docs/ROBOTS.md).

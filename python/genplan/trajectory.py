@@ -10,7 +10,9 @@ at ``rate_hz``:
 
     q = p(s),  qd = p'(s) s',  qdd = p'(s) s'' + p''(s) s'^2.
 
-Every sample is checked, not only the grid points; a trajectory that fails a check is an
+Every sample is checked, not only the grid points, at :data:`CHECK_RATE_HZ` at least (a lower
+``rate_hz`` is sampled at the smallest multiple of it that high, checked, and every k-th sample
+kept: what lies between the kept samples is checked too); a trajectory that fails a check is an
 :class:`~genplan.errors.InvalidTrajectoryError` naming the first bad sample (its index, time, and
 the joint, term or pair), never a trajectory:
 
@@ -56,8 +58,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from genplan import _core
-from genplan.errors import (GenplanError, InvalidTrajectoryError, NonFiniteError, SettingsError, ShapeError,
-                            UnknownNameError)
+from genplan.errors import (DataFileError, GenplanError, InvalidTrajectoryError, NonFiniteError, SettingsError,
+                            ShapeError, UnknownNameError)
 from genplan.robots import Robot
 
 __all__ = ["DEFAULT_ACCELERATION_FACTOR", "FORMATS", "Trajectory", "parameterize"]
@@ -74,6 +76,13 @@ GRID_BASE = 40
 #: A state whose curvature could demand this fraction of an acceleration limit is a grid point;
 #: four times as much and its intervals are split in four.
 GRID_CRITICAL = 1.0
+#: The least rate (Hz) the samples are checked at, whatever ``rate_hz`` the trajectory is asked
+#: at: a lower rate is sampled at the smallest multiple of it at least this high, checked there,
+#: and every k-th of those samples (and the end) is the trajectory. At 1 kHz consecutive samples
+#: of a plan's trajectory lie an order of magnitude closer than the path's states
+#: (``edge_resolution`` apart); 10 Hz samples, a few centimetres of motion apart, would let the
+#: spline between them pass through an obstacle unchecked.
+CHECK_RATE_HZ = 1000.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,12 +183,11 @@ class Trajectory:
         suffix = _suffix(path)
         if not path.exists():
             raise FileNotFoundError(f"trajectory file {path} does not exist")
+        if suffix == ".npz":
+            from genplan._files import read_npz
+
+            return cls._from_npz(read_npz(path, "trajectory file"), path)
         try:
-            if suffix == ".npz":
-                with np.load(path, allow_pickle=False) as z:
-                    meta = json.loads(str(z["meta"]))
-                    arrays = {k: np.asarray(z[k], dtype=np.float64) for k in ("t", "q", "qd", "qdd")}
-                return cls._from(arrays, meta)
             if suffix == ".json":
                 data = json.loads(path.read_text())
                 return cls._from({k: np.asarray(data[k], dtype=np.float64) for k in ("t", "q", "qd", "qdd")}, data)
@@ -193,7 +201,18 @@ class Trajectory:
             return cls(t=t, q=values[:, 1:1 + n], qd=values[:, 1 + n:1 + 2 * n], qdd=values[:, 1 + 2 * n:1 + 3 * n],
                        joint_names=tuple(names), rate_hz=round(rate, 6))
         except (KeyError, ValueError, IndexError) as exc:
-            raise GenplanError(f"trajectory file {path}: not a trajectory written by Trajectory.save ({exc})") from None
+            raise DataFileError(f"trajectory file {path}: not a trajectory written by Trajectory.save "
+                                f"({exc})") from None
+
+    @classmethod
+    def _from_npz(cls, arrays: dict[str, Any], path: Path) -> "Trajectory":
+        """The trajectory of the arrays of an ``.npz`` file of :meth:`save` (genplan._files.read_npz)."""
+        try:
+            meta = json.loads(str(arrays["meta"]))
+            return cls._from({k: np.asarray(arrays[k], dtype=np.float64) for k in ("t", "q", "qd", "qdd")}, meta)
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise DataFileError(f"trajectory file {path}: not a trajectory written by Trajectory.save "
+                                f"({type(exc).__name__}: {exc})") from None
 
     @classmethod
     def _from(cls, arrays: dict[str, Array], meta: dict[str, Any]) -> "Trajectory":
@@ -346,17 +365,23 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     coefficients = np.ascontiguousarray(np.moveaxis(spline.c, 0, 1), dtype=np.float64)
     timed = (spline.x.tolist(), coefficients, grid.tolist(), knots_t.tolist(), sdot.tolist(), sdd.tolist())
 
+    # the samples are checked at check_rate (every = 1: the asked rate itself), the trajectory is
+    # every `every`-th of them and the end
+    every = max(1, math.ceil(CHECK_RATE_HZ / rate - 1e-9))
+    check_rate = rate * every
+
     def sample(scale: float) -> tuple[Array, Array, Array, Array]:
         # native: q = p(s(t)), qd = p'(s) s', qdd = p'(s) s'' + p''(s) s'^2 at each tick; the
         # memory the samples take bounded before anything is allocated
         duration = float(knots_t[-1]) * scale
-        size = _core.sample_bytes(duration, rate, robot.nq)
-        what = f"rate_hz: a {duration:.4g} s trajectory of {robot.nq} joints at {rate:g} Hz needs {size / 2**30:.2f} GiB"
+        size = _core.sample_bytes(duration, check_rate, robot.nq)
+        at = f"{rate:g} Hz" if every == 1 else f"{rate:g} Hz (checked at {check_rate:g} Hz)"
+        what = f"rate_hz: a {duration:.4g} s trajectory of {robot.nq} joints at {at} needs {size / 2**30:.2f} GiB"
         if not size <= _core.MAX_TRAJECTORY_BYTES:
             raise SettingsError(f"{what}, more than the {_core.MAX_TRAJECTORY_BYTES / 2**30:.2f} GiB a trajectory may take "
                                 "(lower rate_hz, or raise velocity_scale / acceleration_scale)")
         try:
-            return _core.sample_timed_spline(*timed, rate, scale)
+            return _core.sample_timed_spline(*timed, check_rate, scale)
         except SettingsError as e:  # the allocation failed (the core's own bound is the one above)
             raise SettingsError(f"{what}, which could not be allocated ({e})") from None
 
@@ -375,10 +400,18 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     qd[0] = qd[-1] = 0.0
     q, qd, qdd, moved = _into_limits(robot, task, q, qd, qdd)
     stats = {"parameterisation_s": time.perf_counter() - t0, "gridpoints": int(len(grid)), "time_scaling": scale,
-             "optimal_duration_s": float(knots_t[-1]), "path_states": int(len(states)), "samples_into_limits": moved}
-    traj = Trajectory(t=t, q=q, qd=qd, qdd=qdd, joint_names=names, rate_hz=rate, velocity_limits=vlim,
-                      acceleration_limits=alim, robot=robot.name, stats=stats)
-    return _checked(traj, robot, task, world)
+             "optimal_duration_s": float(knots_t[-1]), "path_states": int(len(states)), "samples_into_limits": moved,
+             "check_rate_hz": check_rate}
+    checked = _checked(Trajectory(t=t, q=q, qd=qd, qdd=qdd, joint_names=names, rate_hz=check_rate,
+                                  velocity_limits=vlim, acceleration_limits=alim, robot=robot.name, stats=stats),
+                       robot, task, world, "" if every == 1 else f" of the samples checked at {check_rate:g} Hz")
+    if every == 1:
+        return checked
+    # the asked rate's samples: the checked ones at its ticks, and the end (a superset checked)
+    keep = np.arange(0, len(t), every)
+    if t[-1] - t[keep[-1]] > 1e-9:
+        keep = np.append(keep, len(t) - 1)
+    return checked.replace(t=t[keep], q=q[keep], qd=qd[keep], qdd=qdd[keep], rate_hz=rate)
 
 
 def _check_states(robot: Robot, states: Array, names: tuple[str, ...]) -> None:
@@ -440,12 +473,12 @@ def _gridpoints(spline: Any, ss: Array, vlim: Array, alim: Array) -> Array:
     return np.unique(np.concatenate([ss[idx], extra, even]))
 
 
-def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any) -> Trajectory:
+def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any, where: str = "") -> Trajectory:
     """``traj`` if every sample is within the joint, velocity and acceleration limits (no
     tolerance), on the manifold of ``task`` (each primary term within its tolerance; the
     residuals are recorded) and valid in ``world``; else InvalidTrajectoryError naming the
-    earliest sample that fails a check, and why. The times taken are in ``stats["check_s"]`` (all
-    checks) and ``stats["collision_check_s"]``."""
+    earliest sample that fails a check (``where`` follows its index and time), and why. The
+    times taken are in ``stats["check_s"]`` (all checks) and ``stats["collision_check_s"]``."""
     t0 = time.perf_counter()
     failures: list[tuple[int, str]] = []  # per check that fails: its first sample, and why
 
@@ -487,7 +520,7 @@ def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any) -> Trajector
             failures.append((i, _why_invalid(world, traj.q[i])))
     if failures:
         i, why = min(failures, key=lambda f: f[0])
-        raise InvalidTrajectoryError(f"trajectory: sample {i} (t = {traj.t[i]:.3f} s) {why}")
+        raise InvalidTrajectoryError(f"trajectory: sample {i} (t = {traj.t[i]:.3f} s){where} {why}")
     stats["check_s"] = time.perf_counter() - t0
     return traj.replace(stats=stats)
 

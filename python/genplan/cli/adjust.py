@@ -88,6 +88,7 @@ def _model_robot(model: Any) -> dict[str, Any]:
 
 def _inputs(path_text: str, model: Any, model_path: Path) -> tuple[np.ndarray, dict[str, Any]]:
     """The input trajectories (B, K, n) and where they came from, checked against the model."""
+    from genplan._files import read_npz
     from genplan.errors import GenplanError, NonFiniteError, ShapeError, UnknownNameError
     from genplan.seq2seq.data import read_trajectories, resample
     from genplan.seq2seq.model import check_trajectories
@@ -110,11 +111,7 @@ def _inputs(path_text: str, model: Any, model_path: Path) -> tuple[np.ndarray, d
         return data.positions, {"data_set": str(path), "sha256": data.sha256, "scene": data.scene}
     if not path.is_file():
         raise FileNotFoundError(f"--input {path}: no such file or folder")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: np.asarray(z[k]) for k in z.files}
-    except (OSError, ValueError, EOFError) as exc:
-        raise GenplanError(f"--input {path}: not a .npz file ({exc})") from None
+    arrays = read_npz(path, "--input")
     if "q" not in arrays:
         raise GenplanError(f"--input {path}: no array 'q' (the trajectories, shape (B, {cfg.K}, {cfg.dim})); it holds "
                            f"{sorted(arrays)}")
@@ -140,15 +137,12 @@ def _inputs(path_text: str, model: Any, model_path: Path) -> tuple[np.ndarray, d
 
 def _targets(path: Path | None, objective: Any, batch: int) -> dict[str, np.ndarray]:
     """The per-problem targets of ``path``, keyed by the objective's term names."""
+    from genplan._files import read_npz
     from genplan.errors import GenplanError, NonFiniteError, ShapeError, UnknownNameError
 
     if path is None:
         return {}
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            targets = {k: np.asarray(z[k]) for k in z.files}
-    except (OSError, ValueError, EOFError) as exc:
-        raise GenplanError(f"--targets {path}: not a .npz file ({exc})") from None
+    targets = read_npz(path, "--targets")
     names = [t.name for t in objective.terms]
     unknown = sorted(set(targets) - set(names))
     if unknown:

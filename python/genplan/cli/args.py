@@ -52,6 +52,18 @@ def positive_int(text: str) -> int:
     return _int(text, "a positive integer", 1)
 
 
+#: the most held-out targets a card's evaluation takes (``--eval-targets``): its arrays grow with
+#: the count (targets, samples and the solver's results per start), and the rates it reports
+#: are settled long before (the default is 500)
+MAX_EVAL_TARGETS = 100_000
+
+
+def eval_targets(text: str) -> int:
+    """The held-out targets of a card's evaluation: an integer in 1..:data:`MAX_EVAL_TARGETS`
+    (checked while the arguments are read, before any training)."""
+    return _int(text, f"an integer in 1..{MAX_EVAL_TARGETS:,}", 1, MAX_EVAL_TARGETS)
+
+
 def non_negative_int(text: str) -> int:
     """An integer >= 0."""
     return _int(text, "an integer >= 0", 0)

@@ -57,17 +57,22 @@ def read_trajectory(path: Path) -> Any:
     """A Trajectory file, or an .npz with arrays ``t`` and ``q`` (and optionally ``qd``, ``qdd``)."""
     import numpy as np
 
-    from genplan.errors import GenplanError
+    from genplan._files import read_npz
+    from genplan.errors import DataFileError
     from genplan.trajectory import Trajectory
 
-    if path.suffix.lower() == ".npz":
-        with np.load(path, allow_pickle=False) as z:
-            if "meta" not in z.files:
-                if "t" not in z.files or "q" not in z.files:
-                    raise GenplanError(f"--trajectory {path}: an .npz needs the arrays t and q (or a Trajectory file), "
-                                       f"has {sorted(z.files)}")
-                return {k: np.asarray(z[k], dtype=np.float64) for k in ("t", "q", "qd", "qdd") if k in z.files}
-    return Trajectory.load(path)
+    if path.suffix.lower() != ".npz":
+        return Trajectory.load(path)
+    arrays = read_npz(path, "--trajectory")
+    if "meta" in arrays:
+        return Trajectory._from_npz(arrays, path)
+    if "t" not in arrays or "q" not in arrays:
+        raise DataFileError(f"--trajectory {path}: an .npz needs the arrays t and q (or a Trajectory file), "
+                            f"has {sorted(arrays)}")
+    try:
+        return {k: np.asarray(arrays[k], dtype=np.float64) for k in ("t", "q", "qd", "qdd") if k in arrays}
+    except (TypeError, ValueError) as exc:
+        raise DataFileError(f"--trajectory {path}: an array is not numbers ({exc})") from None
 
 
 def main(args: argparse.Namespace) -> int:

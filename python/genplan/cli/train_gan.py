@@ -40,8 +40,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data-size", type=A.positive_int, default=None, help="valid configurations (default 25,000)")
     p.add_argument("--data", type=A.existing_folder, default=None,
                    help="train on a data set written by `genplan data` (checked: robot, task, sha256)")
-    p.add_argument("--eval-targets", type=A.positive_int, default=500,
-                   help="held-out targets of the card's evaluation (default 500)")
+    p.add_argument("--eval-targets", type=A.eval_targets, default=500,
+                   help="held-out targets of the card's evaluation (default 500, at most 100,000)")
     A.add_model_out(p)
     p.add_argument("--threads", type=A.positive_int, default=None,
                    help="torch threads (default: genplan's choice for training, one -- batches of 100 gain "

@@ -193,7 +193,9 @@ def check_model_fits(path: Path, kind: str, cfg: Any, card: dict[str, Any], rob:
                      task: "str | os.PathLike[str] | P.Task | None") -> None:
     """ModelFileError unless the model file ``path`` (a ``kind``, "GAN" or "flow", of config
     ``cfg`` and card ``card``) is for robot ``rob``, for ``task`` (when given: by name, and by its
-    terms when the card records them), and its target frame is a frame of ``rob``.
+    terms: those the card records, else those of the shipped task of the card's task name, which
+    a card written before tasks were files was trained for), and its target frame is a frame of
+    ``rob``.
 
     The robot is matched by the kinematic hash its card records
     (:attr:`~genplan.robots.Robot.kinematic_hash`: the active joints and the chain between them),
@@ -224,12 +226,25 @@ def check_model_fits(path: Path, kind: str, cfg: Any, card: dict[str, Any], rob:
         t = P.load_task(task, rob)
         if t.name != cfg.task_name:
             raise ModelFileError(f"{path} is a {kind} for task '{cfg.task_name}', not '{t.name}' (robot '{rob.name}')")
-        if "task" in card and _comparable(card["task"]) != _comparable(t.to_dict()):
+        terms = card["task"] if "task" in card else _shipped_task(path, kind, cfg, rob)
+        if _comparable(terms) != _comparable(t.to_dict()):
             raise ModelFileError(f"{path} is a {kind} for another task '{cfg.task_name}' than the one given (same "
                                  "name, other terms: retrain it for this task)")
     if cfg.target_frame not in rob.frames and not rob.model.existFrame(cfg.target_frame):
         raise ModelFileError(f"{path}: the {kind}'s target frame '{cfg.target_frame}' is not a frame of "
                              f"'{rob.name}' (roles: {sorted(rob.frames)}, or any link name)")
+
+
+def _shipped_task(path: Path, kind: str, cfg: Any, rob: Robot) -> dict[str, Any]:
+    """The terms (:meth:`~genplan.projection.Task.to_dict`) of the task a model whose card records
+    none was trained for: the shipped task of its task name (``<robot>_ik`` for a card written
+    before tasks were files). ModelFileError when no shipped task has that name: the terms the
+    model was trained for are then unknown, and a task given cannot be matched to them."""
+    name = cfg.task_name
+    if name not in P.task_names():
+        raise ModelFileError(f"{path}: its card records no task, and '{name}' (the task it names) is not a shipped "
+                             f"task, so the terms the {kind} was trained for are unknown; retrain it for the task given")
+    return P.load_task(name, rob).to_dict()
 
 
 def _comparable(task: dict[str, Any]) -> str:

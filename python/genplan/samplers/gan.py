@@ -352,8 +352,8 @@ def load_model(robot: str | Robot, path: str | Path | None = None,
 
     ``task`` (a :class:`~genplan.projection.Task`, a shipped task's name or a task file): the
     task the caller samples for; a GAN trained for another task is refused naming both (by name,
-    and when the card records the task, by its terms). A missing file raises FileNotFoundError
-    naming the command that trains it; a file that cannot be vouched for (see
+    and by its terms: those the card records, else the shipped task's of that name). A missing
+    file raises FileNotFoundError naming the command that trains it; a file that cannot be vouched for (see
     :mod:`genplan.model_files`: no or another weights sha256, a bad card or config, NaN weights,
     missing, extra or misshapen tensors, a GAN for another robot or target frame, a non-positive
     codec scale) raises :class:`~genplan.errors.ModelFileError` naming the file and the problem,

@@ -276,12 +276,16 @@ def _planned(robot: Any, task: Any, scene: Any, *, count: int, steps: int, seed:
     """The shards of :func:`plan_trajectories` (every argument checked), the robot, task and scene
     loaded, and the source record (the run's parameters)."""
     from genplan.executor import chunks
-    from genplan.projection import load_task
+    from genplan.projection import GaussNewtonProjector, load_task, manifold_task
     from genplan.robots import Robot, load
     from genplan.scene import load_scene
 
     robot_obj = robot if isinstance(robot, Robot) else load(robot)
     task_obj = load_task(task, robot_obj)
+    try:  # the task's frames exist on the robot: what every shard's projector needs, checked here once
+        GaussNewtonProjector(robot_obj, manifold_task(task_obj, robot_obj) if task_obj.condition is not None else task_obj)
+    except UnknownNameError as exc:
+        raise UnknownNameError(f"task '{task_obj.name}': {exc}") from None
     scene_obj = load_scene(scene) if scene is not None else None
     for name, v in (("count", count), ("steps", steps), ("shard_size", shard_size),
                     ("max_attempts_factor", max_attempts_factor)):

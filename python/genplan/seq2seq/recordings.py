@@ -61,15 +61,17 @@ def read_recording(path: Path, *, joint_names: Sequence[str] | None = None, topi
 
 
 def _npz(path: Path, joint_names: Sequence[str] | None) -> Recording:
+    from genplan._files import read_npz
+
+    z = read_npz(path, "recording")
+    missing = [k for k in ("q", "t") if k not in z]
+    if missing:
+        raise GenplanError(f"{path}: no array {missing} (a recording holds q (m, joints) and t (m,))")
     try:
-        with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in ("q", "t") if k not in z.files]
-            if missing:
-                raise GenplanError(f"{path}: no array {missing} (a recording holds q (m, joints) and t (m,))")
-            q = np.asarray(z["q"], dtype=np.float64)
-            t = np.asarray(z["t"], dtype=np.float64).reshape(-1)
-            names = [str(n) for n in z["joint_names"]] if "joint_names" in z.files else None
-    except (OSError, ValueError) as exc:
+        q = np.asarray(z["q"], dtype=np.float64)
+        t = np.asarray(z["t"], dtype=np.float64).reshape(-1)
+        names = [str(n) for n in np.atleast_1d(z["joint_names"])] if "joint_names" in z else None
+    except (TypeError, ValueError) as exc:
         raise GenplanError(f"{path}: not a readable .npz recording ({exc})") from None
     if names is None:
         if joint_names is None:

@@ -492,6 +492,34 @@ fn integrity_3_a_start_at_the_goal_is_a_one_state_path() {
     }
 }
 
+/// A goal within one step whose direct edge is valid is joined by that edge: a short path along
+/// the manifold, not a tree grown away and back (found by a hostile rerun: goals 0.003-0.2 rad
+/// away gave 238-state, 5.7 rad paths); a goal farther than a step is left to the search.
+#[test]
+fn integrity_rerun_a_goal_within_a_step_is_joined_directly() {
+    for algorithm in [Algorithm::Crrt, Algorithm::RrtConnect] {
+        let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings { algorithm, ..Settings::default() }).unwrap();
+        let step = planner.settings.step;
+        let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
+        let (mut projector, mut checker, mut interrupt) = (SphereProjector { radius: 1.0 }, Band, no_interrupt);
+        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+        let start = [0.0, 0.0, -1.0];
+        for angle in [0.003, 0.05, 0.2] {
+            let goal = [f64::sin(angle), 0.0, -f64::cos(angle)];
+            let sol = planner.plan(&start, &goal, &mut c).unwrap();
+            assert!(sol.success, "{algorithm:?} {angle}");
+            let length: f64 = sol.path.chunks(3).zip(sol.path.chunks(3).skip(1))
+                .map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt())
+                .sum();
+            assert!(length <= angle * 1.01 + 1e-9, "{algorithm:?} {angle}: a path {length} long");
+            assert_eq!(sol.stats.samples, 0, "{algorithm:?} {angle}: no sample drawn");
+        }
+        let far = [f64::sin(2.0 * step), 0.0, -f64::cos(2.0 * step)];
+        let sol = planner.plan(&start, &far, &mut c).unwrap();
+        assert!(sol.success && sol.stats.samples > 0, "{algorithm:?}: a goal two steps away is searched for");
+    }
+}
+
 /// The unit sphere whose chords are held to `chord`: a chord's midpoint is within `chord` of
 /// the sphere (the sagitta of a chord d long is about d^2 / 8: 7.8e-5 at 0.025).
 struct ChordSphere {

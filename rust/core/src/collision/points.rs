@@ -114,7 +114,8 @@ mod tests {
         w.add_cylinder("post", 0.05, 0.3, Isometry3::new(Vector3::new(0.5, 0.5, 0.0), Vector3::new(0.3, 0.0, 0.0))).unwrap();
         w.add_capsule("rod", 0.04, 0.2, Isometry3::new(Vector3::new(-0.5, 0.2, 0.1), Vector3::new(0.0, 0.7, 0.0))).unwrap();
         let h = 1e-6;
-        for p in [[0.62, 0.51, 0.05], [0.5, 0.5, 0.01], [-0.4, 0.3, 0.0], [-0.5, 0.2, 0.1]] {
+        // outside and inside each shape, off their axes (where the nearest surface point jumps)
+        for p in [[0.62, 0.51, 0.05], [0.53, 0.5, 0.0], [-0.4, 0.3, 0.0], [-0.5, 0.22, 0.1]] {
             let (mut d, mut g) = ([0.0], [0.0; 3]);
             w.point_distances(&p, 2.0, &mut d, &mut g).unwrap();
             for i in 0..3 {

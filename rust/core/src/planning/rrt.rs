@@ -427,11 +427,17 @@ impl Planner {
         }
 
         let mut solution = None;
+        // a goal within one step: the direct edge first (a tree grown from the start would wander
+        // away and back before it connects)
+        let mut direct = run.direct_attempt(start, goals, &valid_goals)?;
         for attempt in 0..=self.settings.retries {
             run.space.stats.retries = attempt;
-            let found = match self.settings.algorithm {
-                Algorithm::Crrt => run.crrt_attempt(start, goals, &valid_goals)?,
-                Algorithm::RrtConnect => run.connect_attempt(start, goals, &valid_goals)?,
+            let found = match direct.take() {
+                Some(found) => Some(found),
+                None => match self.settings.algorithm {
+                    Algorithm::Crrt => run.crrt_attempt(start, goals, &valid_goals)?,
+                    Algorithm::RrtConnect => run.connect_attempt(start, goals, &valid_goals)?,
+                },
             };
             if let Some(Found { mut waypoints, mut edges, goal }) = found {
                 if self.settings.simplify {
@@ -561,6 +567,35 @@ impl Run<'_> {
         }
         self.space.stats.nodes = tree.len();
         Ok(found)
+    }
+
+    /// The direct edge from the start to its nearest valid goal, when that goal lies within one
+    /// `step` and the edge is valid end to end (projected and checked as every edge is); None
+    /// otherwise, and for a goal farther away (then the search decides).
+    fn direct_attempt(&mut self, start: &[f64], goals: &[f64], valid_goals: &[usize]) -> PlanResult<Option<Found>> {
+        let space = self.ambient();
+        let nq = space.nq();
+        let Some((g, d)) = valid_goals
+            .iter()
+            .map(|&g| (g, space.distance(start, &goals[g * nq..(g + 1) * nq])))
+            .min_by(|x, y| x.1.total_cmp(&y.1))
+        else {
+            return Ok(None);
+        };
+        if d.is_nan() || d > self.st.step {
+            return Ok(None);
+        }
+        let goal = &goals[g * nq..(g + 1) * nq];
+        let mut tree = Tree::new(nq, space.nv(), self.st.neighbors);
+        tree.add(space, start, usize::MAX, Some(&[]));
+        self.space.stats.extensions += 1;
+        let b = self.extend(&mut tree, 0, goal, true)?;
+        if b.reached && space.distance(tree.node(b.node), goal) <= self.st.goal_tolerance && self.validate_path(&mut tree, b.node)? {
+            let (waypoints, edges) = extract(&tree, b.node);
+            self.space.stats.nodes = tree.len();
+            return Ok(Some(Found { waypoints, edges, goal: g }));
+        }
+        Ok(None)
     }
 
     /// The next (projected, when `project_samples`) sample, refilling the buffer in batches.
