@@ -6,7 +6,7 @@ form, the cache and what the generator refuses.
 The samplers and the coal comparison are benches/spheres.py's (one definition, used by the
 benchmark and here). The mesh robots are covered at a coarser ``max_error`` than the default to
 keep the suite's time down: the cover is by construction at every ``max_error``, and
-benches/results/spheres.json checks the default."""
+`python benches/spheres.py` checks the default (docs/ROBOTS.md has its table)."""
 
 from __future__ import annotations
 
