@@ -1,4 +1,4 @@
-"""The 1 kHz loop on every robot ([execute]): the cost of one tick, and what the disturbance
+"""The 1 kHz loop on every robot: the cost of one tick, and what the disturbance
 observer buys on the Panda's shelf plans.
 
     python benches/execute.py --plans 20 --out benches/results/execute.json

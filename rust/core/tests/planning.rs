@@ -493,8 +493,7 @@ fn integrity_3_a_start_at_the_goal_is_a_one_state_path() {
 }
 
 /// A goal within one step whose direct edge is valid is joined by that edge: a short path along
-/// the manifold, not a tree grown away and back (found by a hostile rerun: goals 0.003-0.2 rad
-/// away gave 238-state, 5.7 rad paths); a goal farther than a step is left to the search.
+/// the manifold, not a tree grown away and back; a goal farther than a step is left to the search.
 #[test]
 fn integrity_rerun_a_goal_within_a_step_is_joined_directly() {
     for algorithm in [Algorithm::Crrt, Algorithm::RrtConnect] {

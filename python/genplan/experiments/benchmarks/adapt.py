@@ -1,4 +1,4 @@
-"""Adapt a learned family of motions to new goals and obstacles ([trajectories]): the seq2seq
+"""Adapt a learned family of motions to new goals and obstacles: the seq2seq
 paper's latent adjustment on a robot's joint-space family, against direct optimisation of the same
 objective, replanning from scratch, and ProMP conditioning.
 
@@ -48,7 +48,7 @@ PROMP_ITERATIONS = 10
 PROMP_DEMONSTRATIONS = 300
 #: the obstacle case's Adam learning rate (latent units)
 OBSTACLE_LR = 0.02
-#: [trajectories]' targets on held-out problems
+#: the targets on held-out problems (printed beside the rows)
 TARGETS = {"success_percent": 95.0, "end_error_mm": 1.0, "ms_per_problem": 20.0, "obstacle_success_percent": 90.0}
 
 
