@@ -411,11 +411,12 @@ impl Planner {
         }
         // the start within goal_tolerance of a valid goal (the nearest such one) has reached it:
         // a path of one state, without a search (which would grow a tree away and back)
-        let at_goal = valid_goals
+        // the nearest valid goal (total_cmp puts NaN distances last)
+        let nearest = valid_goals
             .iter()
             .map(|&g| (g, space.distance(start, &goals[g * nq..(g + 1) * nq])))
-            .filter(|&(_, d)| d <= self.settings.goal_tolerance)
             .min_by(|x, y| x.1.total_cmp(&y.1));
+        let at_goal = nearest.filter(|&(_, d)| d <= self.settings.goal_tolerance);
         if let Some((g, _)) = at_goal {
             let mut stats = run.space.stats;
             stats.success = true;
@@ -429,7 +430,7 @@ impl Planner {
         let mut solution = None;
         // a goal within one step: the direct edge first (a tree grown from the start would wander
         // away and back before it connects)
-        let mut direct = run.direct_attempt(start, goals, &valid_goals)?;
+        let mut direct = run.direct_attempt(start, goals, nearest)?;
         for attempt in 0..=self.settings.retries {
             run.space.stats.retries = attempt;
             let found = match direct.take() {
@@ -569,17 +570,14 @@ impl Run<'_> {
         Ok(found)
     }
 
-    /// The direct edge from the start to its nearest valid goal, when that goal lies within one
-    /// `step` and the edge is valid end to end (projected and checked as every edge is); None
-    /// otherwise, and for a goal farther away (then the search decides).
-    fn direct_attempt(&mut self, start: &[f64], goals: &[f64], valid_goals: &[usize]) -> PlanResult<Option<Found>> {
+    /// The direct edge from the start to its nearest valid goal (`nearest`: its row in the goals
+    /// and its distance), when that goal lies within one `step` and the edge is valid end to end
+    /// (projected and checked as every edge is); None otherwise, and for a goal farther away
+    /// (then the search decides).
+    fn direct_attempt(&mut self, start: &[f64], goals: &[f64], nearest: Option<(usize, f64)>) -> PlanResult<Option<Found>> {
         let space = self.ambient();
         let nq = space.nq();
-        let Some((g, d)) = valid_goals
-            .iter()
-            .map(|&g| (g, space.distance(start, &goals[g * nq..(g + 1) * nq])))
-            .min_by(|x, y| x.1.total_cmp(&y.1))
-        else {
+        let Some((g, d)) = nearest else {
             return Ok(None);
         };
         if d.is_nan() || d > self.st.step {
