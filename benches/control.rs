@@ -212,6 +212,14 @@ fn control(c: &mut Criterion) {
             black_box(&out);
         })
     });
+    c.bench_function("dynamics/ur5/aba", |b| {
+        b.iter(|| {
+            let (q, v) = next();
+            arm.update_kinematics_unchecked(black_box(q), Some(v), &mut ws);
+            arm.aba_from_kinematics(&tau, &mut ws, &mut out).unwrap();
+            black_box(&out);
+        })
+    });
     c.bench_function("dynamics/ur5/jacobian_and_time_variation", |b| {
         b.iter(|| {
             let (q, v) = next();

@@ -9,7 +9,8 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::f64::consts::{FRAC_PI_2, PI};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use genplan_core::control::{
     attitude_matrix, phi, reference_disturbances, wrap_angle, ControlSpace, ControllerSettings, Disturbances, JointLimits, LimitKind,
@@ -22,26 +23,31 @@ use genplan_core::Error;
 use nalgebra::Vector3;
 use rand::{rngs::StdRng, Rng, SeedableRng};
 
-/// Counts the allocations made while `COUNTING` is set (this test binary's allocator).
+/// Counts the allocations a thread makes while its `COUNTING` is set (this test binary's
+/// allocator): per thread, so that tests running at the same time do not count.
 struct Counting;
 
-static COUNTING: AtomicBool = AtomicBool::new(false);
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+fn count_allocation() {
+    if COUNTING.try_with(Cell::get).unwrap_or(false) {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    }
+}
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.load(Ordering::Relaxed) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
+        count_allocation();
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.load(Ordering::Relaxed) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
+        count_allocation();
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -314,7 +320,7 @@ fn the_plant_integrator_is_fourth_order_and_conserves_energy() {
         let e0 = energy(&plant.q, &plant.v, plant.model());
         let mut qdd = [0.0; 6];
         for k in 0..periods {
-            plant.step(&[0.0; 6], 1e-3, k as u64, &mut qdd).unwrap();
+            plant.step(&[0.0; 6], 1e-3, k as u64, None, &mut qdd).unwrap();
         }
         let de = energy(&plant.q, &plant.v, plant.model()) - e0;
         (plant.q.clone(), plant.v.clone(), de)
@@ -501,11 +507,11 @@ fn a_tick_allocates_nothing() {
         let joint = reference.joint_command(0);
         sim.tick(&cmd, joint).unwrap(); // first tick: nothing left to allocate lazily
         ALLOCATIONS.store(0, Ordering::SeqCst);
-        COUNTING.store(true, Ordering::SeqCst);
+        COUNTING.set(true);
         for _ in 0..100 {
             sim.tick(&cmd, joint).unwrap();
         }
-        COUNTING.store(false, Ordering::SeqCst);
+        COUNTING.set(false);
         assert_eq!(ALLOCATIONS.load(Ordering::SeqCst), 0, "{robot} {space:?}: allocations in 100 ticks");
     }
 }
@@ -685,6 +691,38 @@ fn a_joint_reference_is_checked_before_the_run() {
 
 #[test]
 #[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn the_plant_steps_the_same_from_the_controllers_kinematics() {
+    // the controller's nominal model lacks the plant's payload, not its joints: the plant's
+    // first RK4 stage may take the kinematics the controller measured, and steps bit for bit
+    // as from its own
+    let arm = panda();
+    let controller = hand(ControlSpace::Task);
+    let disturbances = Disturbances { payload: Some(Payload::point(0.6, [0.0, 0.0, 0.1])), coulomb: vec![1.0; 7], ..Default::default() };
+    let mut sim = Simulation::new(&arm, SimConfig { controller, disturbances, substeps: 2, ..Default::default() }).unwrap();
+    assert!(sim.plant.shares_kinematics_with(&sim.controller.nominal));
+    let mut rng = StdRng::seed_from_u64(8);
+    for k in 0..20 {
+        let q: Vec<f64> = [0.0, -0.3, 0.0, -2.0, 0.0, 1.9, 0.8].iter().map(|c| c + rng.random_range(-0.5..0.5)).collect();
+        let v: Vec<f64> = (0..7).map(|_| rng.random_range(-1.5..1.5)).collect();
+        let tau: Vec<f64> = (0..7).map(|_| rng.random_range(-10.0..10.0)).collect();
+        let mut results = vec![];
+        for shared in [false, true] {
+            sim.plant.reset(&q).unwrap();
+            sim.plant.v.copy_from_slice(&v);
+            sim.controller.measure(&q, &v);
+            let start = if shared { Some(sim.controller.workspace()) } else { None };
+            let mut qdd = vec![0.0; 7];
+            sim.plant.step(&tau, 1e-3, k, start, &mut qdd).unwrap();
+            results.push((sim.plant.q.clone(), sim.plant.v.clone(), qdd));
+        }
+        assert_eq!(results[0], results[1], "state {k}");
+    }
+    // another robot's geometry is not shared
+    assert!(!sim.plant.shares_kinematics_with(&ur5()));
+}
+
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
 fn continuous_joints_are_integrated_on_their_circle() {
     let arm = Dynamics::from_description(&preset("kinova").unwrap()).unwrap();
     assert!(arm.nq > arm.nv, "the Kinova has continuous joints");
@@ -715,7 +753,7 @@ fn continuous_joints_are_integrated_on_their_circle() {
         let e0 = energy(&sim.plant.q, &sim.plant.v);
         let mut qdd = vec![0.0; arm.nv];
         for k in 0..500 {
-            sim.plant.step(&vec![0.0; arm.nv], 1e-3, k, &mut qdd).unwrap();
+            sim.plant.step(&vec![0.0; arm.nv], 1e-3, k, None, &mut qdd).unwrap();
         }
         let (q, v) = (sim.plant.q.clone(), sim.plant.v.clone());
         (energy(&q, &v) - e0, q, v)

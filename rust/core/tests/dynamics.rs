@@ -1,7 +1,8 @@
 //! Rigid-body dynamics: closed forms on a planar 2R arm, internal consistency on small URDFs
 //! with every joint kind (CRBA vs RNEA columns, energy, power, finite differences of the
-//! kinematics for J and dJ/dt, Christoffel property), and on the UR5 and Panda presets (those
-//! need example-robot-data: ignored by a bare `cargo test`, run by `--include-ignored`).
+//! kinematics for J and dJ/dt, Christoffel property, the articulated-body algorithm against
+//! CRBA + Cholesky), and on the presets (those need example-robot-data: ignored by a bare
+//! `cargo test`, run by `--include-ignored`).
 //! The cross-check against Pinocchio is tests/test_dynamics.py.
 
 use genplan_core::dynamics::{cholesky_in_place, Dynamics, Frame};
@@ -173,6 +174,67 @@ fn crba_equals_rnea_columns_and_forward_dynamics_inverts_rnea() {
                 assert!((back[k] - tau[k]).abs() < 1e-10, "{back:?} {tau:?}");
             }
         }
+    }
+}
+
+/// The articulated-body algorithm against CRBA + RNEA + Cholesky at random states and torques,
+/// at rest and moving, with a payload added off the last body's axes: the largest difference
+/// relative to `1 + |qdd|_inf`.
+fn aba_versus_crba(d: &Dynamics, seed: u64, n: usize) -> f64 {
+    let mut with_payload = d.clone();
+    let last = d.frame(&d.bodies[d.n_bodies() - 1].link, &Isometry3::translation(0.05, -0.02, 0.1)).unwrap();
+    let inertia = Matrix3::new(0.02, 0.001, 0.0, 0.001, 0.03, 0.002, 0.0, 0.002, 0.01);
+    with_payload.add_inertia(&last, 0.8, Vector3::new(0.01, 0.02, 0.03), inertia).unwrap();
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut worst = 0.0_f64;
+    for model in [d, &with_payload] {
+        let mut ws = model.workspace();
+        let (mut expected, mut got) = (vec![0.0; model.nv], vec![0.0; model.nv]);
+        for k in 0..n {
+            let (q, mut v) = random_state(model, &mut rng);
+            if k % 4 == 0 {
+                v.fill(0.0);
+            }
+            let tau: Vec<f64> = (0..model.nv).map(|_| rng.random_range(-20.0..20.0)).collect();
+            model.forward_dynamics(&q, &v, &tau, &mut ws, &mut expected).unwrap();
+            let mut fresh = model.workspace();
+            model.update_kinematics_unchecked(&q, Some(&v), &mut fresh);
+            model.aba_from_kinematics(&tau, &mut fresh, &mut got).unwrap();
+            let scale = 1.0 + expected.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+            for i in 0..model.nv {
+                worst = worst.max((got[i] - expected[i]).abs() / scale);
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn aba_equals_crba_and_cholesky() {
+    for text in [planar(), MIXED.to_string()] {
+        let d = dynamics(&text);
+        let err = aba_versus_crba(&d, 21, 200);
+        assert!(err < 1e-9, "{}: ABA differs from CRBA + Cholesky by {err:e}", d.joint_names.join(","));
+    }
+    // a body without inertia fails as the Cholesky factor does, naming the joint
+    let massless = MIXED.replace("<mass value=\"0.9\"/>", "<mass value=\"0\"/>").replace(
+        "ixx=\"0.004\" ixy=\"0\" ixz=\"0\" iyy=\"0.02\" iyz=\"0\" izz=\"0.021\"",
+        "ixx=\"0\" ixy=\"0\" ixz=\"0\" iyy=\"0\" iyz=\"0\" izz=\"0\"",
+    );
+    let d = dynamics(&massless);
+    let mut ws = d.workspace();
+    d.update_kinematics_unchecked(&[0.0, 1.0, 0.0, 0.0], Some(&[0.0; 3]), &mut ws);
+    let e = d.aba_from_kinematics(&[0.0; 3], &mut ws, &mut [0.0; 3]).unwrap_err();
+    assert!(e.to_string().contains("not positive definite") && e.to_string().contains("elbow"), "{e}");
+}
+
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn aba_equals_crba_and_cholesky_on_the_presets() {
+    for name in ["ur3", "ur5", "ur10", "panda", "kinova"] {
+        let d = Dynamics::from_description(&preset(name).unwrap()).unwrap();
+        let err = aba_versus_crba(&d, 22, 200);
+        assert!(err < 1e-9, "{name}: ABA differs from CRBA + Cholesky by {err:e}");
     }
 }
 

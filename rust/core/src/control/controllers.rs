@@ -219,6 +219,11 @@ impl Controller {
         &self.ws.mass
     }
 
+    /// The nominal model's workspace: the kinematics of the last [`measure`](Self::measure).
+    pub fn workspace(&self) -> &DynWorkspace {
+        &self.ws
+    }
+
     /// The nominal model at the measured state (q, v): mass matrix, bias torque, the frame's
     /// pose, Jacobian, velocity and `dJ/dt v`. The inputs are not checked (the loop checks once).
     pub fn measure(&mut self, q: &[f64], v: &[f64]) {

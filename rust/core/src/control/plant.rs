@@ -23,11 +23,16 @@ impl Forces {
     /// The joint acceleration at (q, v) under the applied torque `tau` plus the offset minus the
     /// friction `coulomb tanh(v / friction_velocity) + viscous v`.
     fn accel(&mut self, tau: &[f64], q: &[f64], v: &[f64], out: &mut [f64]) -> Result<()> {
+        self.model.update_local_kinematics_unchecked(q, Some(v), &mut self.ws);
+        self.accel_from_kinematics(tau, v, out)
+    }
+
+    /// As [`accel`](Self::accel) at the state whose kinematics `self.ws` holds (speed `v`).
+    fn accel_from_kinematics(&mut self, tau: &[f64], v: &[f64], out: &mut [f64]) -> Result<()> {
         for i in 0..tau.len() {
             let fr = self.coulomb[i] * (v[i] / self.friction_velocity).tanh() + self.viscous[i] * v[i];
             self.torque[i] = tau[i] + self.offset[i] - fr;
         }
-        self.model.update_local_kinematics_unchecked(q, Some(v), &mut self.ws);
         self.model.forward_dynamics_from_kinematics(&self.torque, &mut self.ws, out)
     }
 }
@@ -110,10 +115,21 @@ impl Plant {
         Ok(())
     }
 
+    /// Whether [`step`](Self::step) can take its first stage's kinematics from a workspace of
+    /// `model` (the same joints and placements as the plant's robot; see
+    /// [`Dynamics::same_kinematics`]).
+    pub fn shares_kinematics_with(&self, model: &Dynamics) -> bool {
+        self.forces.model.same_kinematics(model)
+    }
+
     /// Advance by one period `dt` under the held torque `tau` (RK4, `substeps`); `qdd0` gets the
-    /// joint acceleration at the period's start. The state changes only when the whole period
-    /// succeeds; `tick` names the tick in the error of a non-finite state (the plant diverged).
-    pub fn step(&mut self, tau: &[f64], dt: f64, tick: u64, qdd0: &mut [f64]) -> Result<()> {
+    /// joint acceleration at the period's start. `start`: the kinematics of the current state
+    /// (q, v) already computed on a model for which
+    /// [`shares_kinematics_with`](Self::shares_kinematics_with) holds (the controller's, which
+    /// has just measured this state), copied instead of recomputed; None: computed here. The
+    /// state changes only when the whole period succeeds; `tick` names the tick in the error of
+    /// a non-finite state (the plant diverged).
+    pub fn step(&mut self, tau: &[f64], dt: f64, tick: u64, start: Option<&DynWorkspace>, qdd0: &mut [f64]) -> Result<()> {
         let h = dt / self.substeps as f64;
         let nv = self.v.len();
         let f = &mut self.forces;
@@ -121,7 +137,13 @@ impl Plant {
         self.v_step.copy_from_slice(&self.v);
         let (q, v) = (&mut self.q_step, &mut self.v_step);
         for sub in 0..self.substeps {
-            f.accel(tau, q, v, &mut self.k1)?;
+            match start {
+                Some(ws) if sub == 0 => {
+                    f.model.copy_kinematics(ws, &mut f.ws);
+                    f.accel_from_kinematics(tau, v, &mut self.k1)?;
+                }
+                _ => f.accel(tau, q, v, &mut self.k1)?,
+            }
             if sub == 0 {
                 qdd0.copy_from_slice(&self.k1);
             }

@@ -248,6 +248,9 @@ pub struct Simulation {
     pub payload_state: Vec<f64>,
     qdd0: Vec<f64>,
     scratch: Vec<f64>,
+    /// The plant's robot has the controller's kinematics (payloads change inertias only): the
+    /// plant's first stage takes the kinematics the controller measured.
+    share_kinematics: bool,
 }
 
 /// The frame a payload is attached to: its link's frame, or the controller's frame.
@@ -296,7 +299,9 @@ impl Simulation {
         let plant = Plant::new(true_model, &config.disturbances, config.substeps)?;
         let controller = Controller::new(c.clone(), nominal, frame)?;
         let observer = DisturbanceObserver::new(nv, c.dob_cutoff_hz, c.dt);
+        let share_kinematics = plant.shares_kinematics_with(&controller.nominal);
         Ok(Simulation {
+            share_kinematics,
             controller,
             plant,
             observer,
@@ -356,8 +361,9 @@ impl Simulation {
         let h = if mc { Some(self.controller.h.as_slice()) } else { None };
         self.observer.remember(&self.tau, h, self.controller.mass(), v);
         let (ep, er) = (self.controller.err_pos.norm(), self.controller.err_rot.norm());
-        // the plant: RK4 under the held torque
-        self.plant.step(&self.tau, dt, self.ticks, &mut self.qdd0)?;
+        // the plant: RK4 under the held torque, from the kinematics the controller measured
+        let start = if self.share_kinematics { Some(self.controller.workspace()) } else { None };
+        self.plant.step(&self.tau, dt, self.ticks, start, &mut self.qdd0)?;
         // the frame's achieved motion at the tick's start, the unexplained torque, the payload
         let c = &self.controller;
         gemv(&c.jac, &self.qdd0, self.acc.as_mut_slice());
