@@ -29,7 +29,7 @@ use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Matrix6, SMatrix, Vector3};
 
 use crate::error::{check_finite, check_vector, Error, Result};
 use crate::kinematics::KinematicModel;
-use crate::lie::{jlog3, jlog6, log3, log6};
+use crate::lie::{action, jlog3, jlog6, log3, log6, skew};
 
 /// The largest absolute value of a term's numbers (target and box coordinates in m, weights,
 /// masks, tolerances, margins, posture weights and values) and of the damping settings: 1e6.
@@ -140,6 +140,54 @@ pub enum TermKind {
         offset: Matrix3<f64>,
         /// Per component of the residual; 0 drops it.
         mask: [f64; 3],
+    },
+    /// The pose of one link in another's frame: r = mask * log6(T_ref^-1 T_B(q)^-1 T_A(q)), A
+    /// the link, B `relative_to` (the error convention of [`FramePose`](Self::FramePose), with
+    /// `T_B^-1 T_A` for the link's pose in the world; a mask on the linear part alone leaves an
+    /// orientation with free axes).
+    RelativePose {
+        /// Index of the link (A).
+        link: usize,
+        /// Index of the link whose frame the pose is measured in (B), not `link`.
+        relative_to: usize,
+        /// T_ref, the pose of A in B's frame.
+        target: Isometry3<f64>,
+        /// Per component of the residual (linear, then angular); 0 drops it.
+        mask: [f64; 6],
+    },
+    /// The position of one link's origin in another's frame: r = mask * (R_B^T (p_A - p_B) - p_ref).
+    RelativePosition {
+        /// Index of the link (A).
+        link: usize,
+        /// Index of the link whose frame the position is measured in (B), not `link`.
+        relative_to: usize,
+        /// p_ref, in B's frame.
+        target: Vector3<f64>,
+        /// Per component of the residual (B's axes); 0 drops it.
+        mask: [f64; 3],
+    },
+    /// An axis of a link pointing through a point: r = E^T R^T (c - p), the part of the point's
+    /// offset from the link's origin (in the link's frame) orthogonal to the axis, in the
+    /// orthonormal basis E (3 x 2) of the plane orthogonal to the axis that [`axis_complement`]
+    /// gives. Two rows, each with a Jacobian of full rank (a third row along the axis would be
+    /// zero to first order); their norm is the point's distance from the axis's line. The point
+    /// may lie on either side of the origin along the axis.
+    PointAt {
+        /// Index of the link.
+        link: usize,
+        /// The axis, a unit vector in the link's frame.
+        axis: Vector3<f64>,
+        /// c, the point, in the world.
+        point: Vector3<f64>,
+    },
+    /// A link's origin on a plane: r = n . p - d (one row, the signed distance from the plane).
+    Plane {
+        /// Index of the link.
+        link: usize,
+        /// n, the plane's unit normal, in the world.
+        normal: Vector3<f64>,
+        /// d, the plane's offset along the normal from the world's origin.
+        offset: f64,
     },
     /// r = min(q - lower, 0) + max(q - upper, 0) over the bounded joints.
     JointLimits {
@@ -327,9 +375,9 @@ impl Projector {
         Ok(Projector { model, primary, secondary, settings, bounded })
     }
 
-    /// Aim primary term `term` at `target`: 3 numbers for a FramePosition, a row-major 4x4 pose
-    /// (16 numbers) for a FramePose. The new target is checked like [`new`](Self::new) checks
-    /// terms: finite, a position within [`MAX_MAGNITUDE`], a rotation block orthonormal within
+    /// Aim primary term `term` at `target`: 3 numbers for a FramePosition or a RelativePosition,
+    /// a row-major 4x4 pose (16 numbers) for a FramePose or a RelativePose. The new target is
+    /// checked like [`new`](Self::new) checks terms: finite, a position within [`MAX_MAGNITUDE`], a rotation block orthonormal within
     /// [`ROTATION_TOLERANCE`]; on an error the projector is unchanged.
     pub fn retarget(&mut self, term: usize, target: &[f64]) -> Result<()> {
         check_finite("target", target)?;
@@ -339,8 +387,10 @@ impl Projector {
             check_rotation(&t.name, "target rotation", &r)?;
         }
         match (&mut t.kind, target.len()) {
-            (TermKind::FramePosition { target: tg, .. }, 3) => *tg = Vector3::new(target[0], target[1], target[2]),
-            (TermKind::FramePose { target: tg, .. }, 16) => {
+            (TermKind::FramePosition { target: tg, .. } | TermKind::RelativePosition { target: tg, .. }, 3) => {
+                *tg = Vector3::new(target[0], target[1], target[2])
+            }
+            (TermKind::FramePose { target: tg, .. } | TermKind::RelativePose { target: tg, .. }, 16) => {
                 let r = Matrix3::from_fn(|i, j| target[4 * i + j]);
                 *tg = Isometry3::from_parts(
                     nalgebra::Translation3::new(target[3], target[7], target[11]),
@@ -349,7 +399,7 @@ impl Projector {
             }
             _ => {
                 return Err(Error::Invalid(format!(
-                    "term '{}' takes no target of {} numbers (FramePosition: 3, FramePose: 16)",
+                    "term '{}' takes no target of {} numbers (FramePosition, RelativePosition: 3; FramePose, RelativePose: 16)",
                     t.name,
                     target.len()
                 )))
@@ -375,8 +425,10 @@ impl Projector {
 
     fn dim(&self, t: &Term) -> usize {
         match &t.kind {
-            TermKind::FramePose { .. } => 6,
-            TermKind::FramePosition { .. } | TermKind::FrameOrientation { .. } | TermKind::ComBox { .. } => 3,
+            TermKind::FramePose { .. } | TermKind::RelativePose { .. } => 6,
+            TermKind::FramePosition { .. } | TermKind::FrameOrientation { .. } | TermKind::ComBox { .. } | TermKind::RelativePosition { .. } => 3,
+            TermKind::PointAt { .. } => 2,
+            TermKind::Plane { .. } => 1,
             TermKind::JointLimits { .. } => self.bounded.len(),
             TermKind::Posture { .. } => self.model.nv,
             TermKind::Custom(c) => c.dim(),
@@ -420,6 +472,20 @@ impl Projector {
                 let (w, _) = log3(&rel);
                 DVector::from_iterator(3, (0..3).map(|k| mask[k] * w[k]))
             }
+            TermKind::RelativePose { link, relative_to, target, mask } => {
+                let r = log6(&(target.inverse() * s.poses[*relative_to].inverse() * s.poses[*link]));
+                DVector::from_iterator(6, (0..6).map(|k| mask[k] * r[k]))
+            }
+            TermKind::RelativePosition { link, relative_to, target, mask } => {
+                let d = relative_position(&s.poses[*link], &s.poses[*relative_to]) - target;
+                DVector::from_iterator(3, (0..3).map(|k| mask[k] * d[k]))
+            }
+            TermKind::PointAt { link, axis, point } => {
+                let d = s.poses[*link].rotation.inverse_transform_vector(&(point - s.poses[*link].translation.vector));
+                let (e1, e2) = axis_complement(axis);
+                DVector::from_vec(vec![e1.dot(&d), e2.dot(&d)])
+            }
+            TermKind::Plane { link, normal, offset } => DVector::from_element(1, normal.dot(&s.poses[*link].translation.vector) - offset),
             TermKind::JointLimits { .. } => DVector::from_iterator(
                 self.bounded.len(),
                 self.bounded.iter().map(|&(iq, _, lo, hi)| (s.q[iq] - lo).min(0.0) + (s.q[iq] - hi).max(0.0)),
@@ -461,6 +527,43 @@ impl Projector {
                 let m = Matrix3::from_fn(|r, c| m[(r, c)] * mask[r]);
                 small_times_columns(&m, frame_jac, 3)
             }
+            TermKind::RelativePose { link, relative_to, target, mask } => {
+                // the body velocity of T_rel = T_B^-1 T_A is V_A - Ad(T_rel^-1) V_B (V_A, V_B the
+                // links' body velocities, `frame_jacobian_local`); log6's derivative maps it
+                let rel = s.poses[*relative_to].inverse() * s.poses[*link];
+                let jl = jlog6(&(target.inverse() * rel));
+                let ma = Matrix6::from_fn(|r, c| jl[(r, c)] * mask[r]);
+                let mb = -ma * action(&rel.inverse());
+                self.two_frames(s, *link, &ma, *relative_to, &mb, frame_jac)
+            }
+            TermKind::RelativePosition { link, relative_to, mask, .. } => {
+                // d/dt R_B^T (p_A - p_B) = R_rel v_A - v_B + [p_rel]x w_B (body velocities)
+                let rel = s.poses[*relative_to].inverse() * s.poses[*link];
+                let r_rel = rel.rotation.to_rotation_matrix().into_inner();
+                let px = skew(&rel.translation.vector);
+                let ma = SMatrix::<f64, 3, 6>::from_fn(|r, c| if c < 3 { r_rel[(r, c)] * mask[r] } else { 0.0 });
+                let mb = SMatrix::<f64, 3, 6>::from_fn(|r, c| mask[r] * if c >= 3 { px[(r, c - 3)] } else if r == c { -1.0 } else { 0.0 });
+                self.two_frames(s, *link, &ma, *relative_to, &mb, frame_jac)
+            }
+            TermKind::PointAt { link, axis, point } => {
+                // d = R^T (c - p) moves as [d]x w - v (the link's body velocity)
+                self.model.frame_jacobian_local(&s.poses, *link, frame_jac);
+                let d = s.poses[*link].rotation.inverse_transform_vector(&(point - s.poses[*link].translation.vector));
+                let dx = skew(&d);
+                let (e1, e2) = axis_complement(axis);
+                let m = SMatrix::<f64, 2, 6>::from_fn(|r, c| {
+                    let e = if r == 0 { &e1 } else { &e2 };
+                    if c < 3 { -e[c] } else { (0..3).map(|k| e[k] * dx[(k, c - 3)]).sum() }
+                });
+                rows_times_columns(&m, frame_jac, None)
+            }
+            TermKind::Plane { link, normal, .. } => {
+                // d/dt n . p = n^T R v
+                self.model.frame_jacobian_local(&s.poses, *link, frame_jac);
+                let nr = s.poses[*link].rotation.inverse_transform_vector(normal);
+                let m = SMatrix::<f64, 1, 6>::from_fn(|_, c| if c < 3 { nr[c] } else { 0.0 });
+                rows_times_columns(&m, frame_jac, None)
+            }
             TermKind::JointLimits { margin } => {
                 let mut j = DMatrix::zeros(self.bounded.len(), nv);
                 for (row, &(iq, iv, lo, hi)) in self.bounded.iter().enumerate() {
@@ -489,6 +592,23 @@ impl Projector {
             }
             TermKind::Custom(_) => unreachable!("custom terms are evaluated by Projector::custom"),
         }
+    }
+
+    /// `ma J_A + mb J_B`, `J_A`, `J_B` the local frame Jacobians (6 x nv) of links `a` and `b`
+    /// (`frame_jac`, the caller's buffer, holds `J_A`).
+    fn two_frames<const D: usize>(
+        &self,
+        s: &State,
+        a: usize,
+        ma: &SMatrix<f64, D, 6>,
+        b: usize,
+        mb: &SMatrix<f64, D, 6>,
+        frame_jac: &mut DMatrix<f64>,
+    ) -> DMatrix<f64> {
+        let mut jb = DMatrix::zeros(6, self.model.nv);
+        self.model.frame_jacobian_local(&s.poses, b, &mut jb);
+        self.model.frame_jacobian_local(&s.poses, a, frame_jac);
+        rows_times_columns(ma, frame_jac, Some((mb, &jb)))
     }
 
     /// The terms' unweighted residuals and, when `with_jac`, their weighted Jacobians stacked.
@@ -697,6 +817,56 @@ impl Projector {
         self.primary.iter().map(|t| self.dim(t)).sum()
     }
 
+    /// Per row of `qs` (rows of `nq` numbers) and primary term, the term's residual size at that
+    /// row ([`residual_size`]: what [`Outcome::residuals`] reports and the terms' tolerances
+    /// bound), row after row (rows x primary terms): the residual-only check of many
+    /// configurations, such as a timed trajectory's samples, with no solver step, no clipping
+    /// and no Jacobian (one forward kinematics a row). Every row is checked like
+    /// [`solve`](Self::solve) before any is evaluated. Rows run on rayon's threads when
+    /// `parallel`; a failing custom term's error is returned intact (the first one met).
+    pub fn try_residual_sizes(&self, qs: &[f64], parallel: bool) -> std::result::Result<Vec<f64>, SolveError> {
+        use rayon::prelude::*;
+        let nq = self.model.nq.max(1);
+        if qs.len() % nq != 0 {
+            return Err(Error::Invalid(format!("q: {} numbers are not rows of {nq}", qs.len())).into());
+        }
+        for q in qs.chunks(nq) {
+            self.model.check_configuration(q)?;
+        }
+        let terms = self.primary.len();
+        let mut out = vec![0.0; qs.len() / nq * terms];
+        if terms == 0 {
+            return Ok(out);
+        }
+        // only a Posture term reads its nominal (the row itself, or its own): the others are
+        // given the row, with no copy per term
+        let postures = self.primary.iter().any(|t| matches!(t.kind, TermKind::Posture { .. }));
+        let empty = || State { q: Vec::with_capacity(nq), poses: Vec::new() };
+        // one row, in a state kept across rows (no allocation for q and the poses), each term's
+        // size into `sizes`
+        let row = |s: &mut State, q: &[f64], sizes: &mut [f64]| -> TermResult<()> {
+            s.q.clear();
+            s.q.extend_from_slice(q);
+            self.model.forward_kinematics_unchecked(q, &mut s.poses);
+            let nominal = if postures { nominals(&self.primary, q) } else { Vec::new() };
+            let mut no_jacobian = DMatrix::zeros(0, 0);
+            for (i, (t, size)) in self.primary.iter().zip(sizes.iter_mut()).enumerate() {
+                let n = nominal.get(i).map_or(q, Vec::as_slice);
+                *size = residual_size(&self.eval(t, s, n, false, &mut no_jacobian)?.0);
+            }
+            Ok(())
+        };
+        if parallel {
+            out.par_chunks_mut(terms).zip(qs.par_chunks(nq)).try_for_each_init(empty, |s, (sizes, q)| row(s, q, sizes))?;
+        } else {
+            let mut s = empty();
+            for (sizes, q) in out.chunks_mut(terms).zip(qs.chunks(nq)) {
+                row(&mut s, q, sizes)?;
+            }
+        }
+        Ok(out)
+    }
+
     /// Project `q0`; the posture task regularises around `q_nom` (default: `q0`). The answer is
     /// finite ([`solve_unchecked`](Self::solve_unchecked)). A failing custom term's error becomes
     /// a core [`Error`] ([`TermFailure::into_error`]); [`try_solve`](Self::try_solve) returns it
@@ -841,14 +1011,7 @@ impl Projector {
             s = s_new;
             raws = raws_new;
         }
-        let residuals = raws
-            .iter()
-            .map(|r| match r.len() {
-                0 => 0.0,
-                _ if r.iter().any(|x| x.is_nan()) => f64::INFINITY,
-                _ => r.amax(),
-            })
-            .collect();
+        let residuals = raws.iter().map(residual_size).collect();
         Ok(Outcome {
             success: self.satisfied(&raws),
             q: s.q,
@@ -871,6 +1034,16 @@ type Stacked = (Vec<DVector<f64>>, Option<DMatrix<f64>>);
 
 /// The nominal posture of each term: a Posture's own `q_nom`, else the solve's nominal with
 /// the term's overrides applied.
+/// A term's residual size: the largest absolute component of its unweighted residual `r` (0
+/// for a term of no rows, +inf when a component is NaN), the measure its tolerance bounds.
+pub fn residual_size(r: &DVector<f64>) -> f64 {
+    match r.len() {
+        0 => 0.0,
+        _ if r.iter().any(|x| x.is_nan()) => f64::INFINITY,
+        _ => r.amax(),
+    }
+}
+
 fn nominals(terms: &[Term], nominal: &[f64]) -> Vec<Vec<f64>> {
     terms
         .iter()
@@ -1005,6 +1178,36 @@ fn small_times_columns<const D: usize>(m: &SMatrix<f64, D, D>, frame_jac: &DMatr
     out
 }
 
+/// `ma * ja` (+ `mb * jb`), `ja`, `jb` 6 x nv frame Jacobians, column by column with fixed-size
+/// products (as [`small_times_columns`]).
+fn rows_times_columns<const D: usize>(ma: &SMatrix<f64, D, 6>, ja: &DMatrix<f64>, b: Option<(&SMatrix<f64, D, 6>, &DMatrix<f64>)>) -> DMatrix<f64> {
+    let nv = ja.ncols();
+    let mut out = DMatrix::zeros(D, nv);
+    for c in 0..nv {
+        let mut col = ma * ja.fixed_view::<6, 1>(0, c);
+        if let Some((mb, jb)) = b {
+            col += mb * jb.fixed_view::<6, 1>(0, c);
+        }
+        out.fixed_view_mut::<D, 1>(0, c).copy_from(&col);
+    }
+    out
+}
+
+/// The position of `a`'s origin in `b`'s frame, `R_B^T (p_A - p_B)`.
+fn relative_position(a: &Isometry3<f64>, b: &Isometry3<f64>) -> Vector3<f64> {
+    b.rotation.inverse_transform_vector(&(a.translation.vector - b.translation.vector))
+}
+
+/// An orthonormal basis `(e1, e2)` of the plane orthogonal to the unit vector `axis`, the rows of
+/// a [`TermKind::PointAt`] residual: `e1` is `axis x e_k` normalised, `e_k` the coordinate axis
+/// least aligned with `axis` (the first of equals), and `e2 = axis x e1`. `genplan.projection`'s
+/// `PointAt` uses the same rule.
+pub fn axis_complement(axis: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let k = (0..3).fold(0, |best, i| if axis[i].abs() < axis[best].abs() { i } else { best });
+    let e1 = axis.cross(&Vector3::ith(k, 1.0)).normalize();
+    (e1, axis.cross(&e1))
+}
+
 /// `a * b` for a sparse `a` (a posture Jacobian: diagonal but for the free-flyer's block): each
 /// non-zero of `a` adds a multiple of a row of `b` (a column of `b^T`, contiguous).
 fn sparse_mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
@@ -1023,7 +1226,8 @@ fn sparse_mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
 
 /// Check a term against the model (see the module doc): the link index; every number finite
 /// and at most [`MAX_MAGNITUDE`] in absolute value (`weight` and `tolerance` positive, margins
-/// not negative); rotations orthonormal within [`ROTATION_TOLERANCE`]; a box's lower corner
+/// not negative); rotations orthonormal and axes or normals of unit length within
+/// [`ROTATION_TOLERANCE`]; a relative term's two links distinct; a box's lower corner
 /// below its upper one; posture vectors of the model's sizes. The error names the term and the
 /// field.
 fn validate(model: &KinematicModel, t: &Term) -> Result<()> {
@@ -1035,18 +1239,46 @@ fn validate(model: &KinematicModel, t: &Term) -> Result<()> {
         }
     }
     let link_ok = |l: usize| l < model.n_links();
+    // a relative term's links: both in range, and two of them
+    let link_pair_ok = |link: usize, relative_to: usize| -> Result<()> {
+        if let Some(l) = [link, relative_to].into_iter().find(|&l| !link_ok(l)) {
+            return bad(format!("link index {l} out of range"));
+        }
+        if link == relative_to {
+            return bad(format!("relative_to is the link itself (index {link}): its pose in its own frame never changes"));
+        }
+        Ok(())
+    };
     match &t.kind {
-        TermKind::FramePose { link, .. } | TermKind::FramePosition { link, .. } | TermKind::FrameOrientation { link, .. } if !link_ok(*link) => {
+        TermKind::FramePose { link, .. }
+        | TermKind::FramePosition { link, .. }
+        | TermKind::FrameOrientation { link, .. }
+        | TermKind::PointAt { link, .. }
+        | TermKind::Plane { link, .. }
+            if !link_ok(*link) =>
+        {
             bad(format!("link index {link} out of range"))
         }
+        TermKind::RelativePose { link, relative_to, target, mask } => {
+            link_pair_ok(*link, *relative_to)?;
+            check_pose(name, target)?;
+            bounded(name, "mask", mask)
+        }
+        TermKind::RelativePosition { link, relative_to, target, mask } => {
+            link_pair_ok(*link, *relative_to)?;
+            bounded(name, "target", target.as_slice())?;
+            bounded(name, "mask", mask)
+        }
+        TermKind::PointAt { axis, point, .. } => {
+            check_unit(name, "axis", axis)?;
+            bounded(name, "point", point.as_slice())
+        }
+        TermKind::Plane { normal, offset, .. } => {
+            check_unit(name, "normal", normal)?;
+            bounded(name, "offset", &[*offset])
+        }
         TermKind::FramePose { target, mask, .. } => {
-            bounded(name, "target translation", target.translation.vector.as_slice())?;
-            let r = target.rotation.coords;
-            check_finite(&format!("term '{name}' target rotation"), r.as_slice())?;
-            let norm = crate::lie::stable_norm(r.as_slice()); // huge components do not overflow
-            if (norm - 1.0).abs() > ROTATION_TOLERANCE {
-                return bad(format!("target rotation: not a unit quaternion (norm {norm:?})"));
-            }
+            check_pose(name, target)?;
             bounded(name, "mask", mask)
         }
         TermKind::FramePosition { target, mask, .. } => {
@@ -1106,6 +1338,29 @@ fn bounded(term: &str, field: &str, values: &[f64]) -> Result<()> {
         ))),
         None => Ok(()),
     }
+}
+
+/// A target pose: its translation bounded ([`bounded`]), its rotation a unit quaternion within
+/// [`ROTATION_TOLERANCE`].
+fn check_pose(term: &str, target: &Isometry3<f64>) -> Result<()> {
+    bounded(term, "target translation", target.translation.vector.as_slice())?;
+    let r = target.rotation.coords;
+    check_finite(&format!("term '{term}' target rotation"), r.as_slice())?;
+    let norm = crate::lie::stable_norm(r.as_slice()); // huge components do not overflow
+    if (norm - 1.0).abs() > ROTATION_TOLERANCE {
+        return Err(Error::Invalid(format!("term '{term}': target rotation: not a unit quaternion (norm {norm:?})")));
+    }
+    Ok(())
+}
+
+/// A unit vector: finite, of norm 1 within [`ROTATION_TOLERANCE`].
+fn check_unit(term: &str, field: &str, v: &Vector3<f64>) -> Result<()> {
+    check_finite(&format!("term '{term}' {field}"), v.as_slice())?;
+    let norm = crate::lie::stable_norm(v.as_slice());
+    if (norm - 1.0).abs() > ROTATION_TOLERANCE {
+        return Err(Error::Invalid(format!("term '{term}': {field} must be a unit vector, got norm {norm:?}")));
+    }
+    Ok(())
 }
 
 /// A margin: finite, in [0, [`MAX_MAGNITUDE`]].

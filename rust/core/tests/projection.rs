@@ -156,3 +156,194 @@ fn frame_orientation_with_a_free_axis() {
     let z = poses[tool].rotation * Vector3::z();
     assert!((z - Vector3::z()).amax() < 1e-6, "{z}");
 }
+
+/// Central finite differences of the projector's (single, weight 1) term's residual along each
+/// tangent direction.
+fn fd_residual(p: &Projector, q: &[f64]) -> DMatrix<f64> {
+    let m = &p.model;
+    let h = 1e-6;
+    let rows = p.primary_dim();
+    let mut out = DMatrix::zeros(rows, m.nv);
+    let (mut qp, mut qm) = (vec![0.0; m.nq], vec![0.0; m.nq]);
+    for k in 0..m.nv {
+        let mut e = vec![0.0; m.nv];
+        e[k] = h;
+        m.integrate(q, &e, &mut qp);
+        e[k] = -h;
+        m.integrate(q, &e, &mut qm);
+        let (a, b) = (p.primary_residuals(&qp, false).unwrap().0, p.primary_residuals(&qm, false).unwrap().0);
+        out.column_mut(k).copy_from(&((a - b) / (2.0 * h)));
+    }
+    out
+}
+
+/// The relative, point-at and plane terms with non-trivial targets, masks, axes and normals.
+fn multi_frame_terms(m: &KinematicModel) -> Vec<Term> {
+    let [l1, l2, l3, tool] = ["l1", "l2", "l3", "tool"].map(|n| m.link_index(n).unwrap());
+    let target = nalgebra::Isometry3::new(Vector3::new(0.1, -0.3, 0.2), Vector3::new(0.4, -0.2, 0.9));
+    let term = |name: &str, kind| Term { name: name.into(), kind, weight: 1.0, tolerance: 1e-6 };
+    vec![
+        term("pose", TermKind::RelativePose { link: tool, relative_to: l2, target, mask: [1.0, 0.5, 2.0, 1.0, 0.0, 3.0] }),
+        term("pose_in_base_link", TermKind::RelativePose { link: l3, relative_to: l1, target, mask: [1.0; 6] }),
+        term("position", TermKind::RelativePosition { link: tool, relative_to: l1, target: Vector3::new(0.2, 0.1, -0.1), mask: [1.0, 2.0, 0.5] }),
+        // the second link further down the chain than the first
+        term("position_inverse", TermKind::RelativePosition { link: l1, relative_to: tool, target: Vector3::zeros(), mask: [1.0; 3] }),
+        term("point_at", TermKind::PointAt { link: tool, axis: Vector3::new(0.3, -0.2, 0.9).normalize(), point: Vector3::new(0.5, 0.4, 0.3) }),
+        term("point_at_x", TermKind::PointAt { link: l3, axis: Vector3::x(), point: Vector3::new(-0.2, 0.1, 0.8) }),
+        term("plane", TermKind::Plane { link: tool, normal: Vector3::new(0.2, 0.5, -0.8).normalize(), offset: 0.3 }),
+    ]
+}
+
+#[test]
+fn relative_point_at_and_plane_jacobians_match_finite_differences() {
+    for floating in [false, true] {
+        let m = model(floating);
+        for q in configurations(&m) {
+            for t in multi_frame_terms(&m) {
+                let name = t.name.clone();
+                let p = Projector::new(m.clone(), vec![t], vec![], Settings::default()).unwrap();
+                let (_, j) = p.primary_residuals(&q, true).unwrap();
+                let j = j.unwrap();
+                let numeric = fd_residual(&p, &q);
+                let err = (&j - &numeric).amax();
+                assert!(err < 1e-6, "{name} floating={floating} q={q:?}: {err}\n{j}\n{numeric}");
+            }
+        }
+    }
+}
+
+/// The residuals are what they measure: a RelativePose's target is `T_B^-1 T_A` at the
+/// configuration it was taken from, a RelativePosition's `R_B^T (p_A - p_B)`; a PointAt is zero
+/// when the point is on the axis, its norm the distance from the axis's line; a Plane the signed
+/// distance.
+#[test]
+fn relative_point_at_and_plane_residuals_measure_their_geometry() {
+    let m = model(true);
+    let [l1, tool] = ["l1", "tool"].map(|n| m.link_index(n).unwrap());
+    let q = &configurations(&m)[0];
+    let mut poses = Vec::new();
+    m.forward_kinematics(q, &mut poses).unwrap();
+    let rel = poses[l1].inverse() * poses[tool];
+    let axis = Vector3::new(0.0, 0.6, 0.8);
+    let on_axis = poses[tool] * nalgebra::Point3::from(axis * 0.7);
+    let off = poses[tool].rotation * Vector3::new(0.0, 0.8, -0.6) * 0.05; // orthogonal to the axis
+    let normal = Vector3::new(0.0, 0.0, 1.0);
+    let term = |kind| Term { name: "t".into(), kind, weight: 1.0, tolerance: 1e-6 };
+    let res = |kind| Projector::new(m.clone(), vec![term(kind)], vec![], Settings::default()).unwrap().primary_residuals(q, false).unwrap().0;
+    assert!(res(TermKind::RelativePose { link: tool, relative_to: l1, target: rel, mask: [1.0; 6] }).amax() < 1e-12);
+    let p_rel = rel.translation.vector;
+    assert!(res(TermKind::RelativePosition { link: tool, relative_to: l1, target: p_rel, mask: [1.0; 3] }).amax() < 1e-12);
+    assert!(res(TermKind::PointAt { link: tool, axis, point: on_axis.coords }).amax() < 1e-12);
+    assert!((res(TermKind::PointAt { link: tool, axis, point: on_axis.coords + off }).norm() - 0.05).abs() < 1e-12);
+    let z = poses[tool].translation.vector.z;
+    assert!((res(TermKind::Plane { link: tool, normal, offset: 0.25 })[0] - (z - 0.25)).abs() < 1e-12);
+}
+
+#[test]
+fn relative_pose_point_at_and_plane_are_solved() {
+    let m = model(false);
+    let [l1, l2, tool] = ["l1", "l2", "tool"].map(|n| m.link_index(n).unwrap());
+    let mut poses = Vec::new();
+    m.forward_kinematics(&[0.8, -0.5, 0.7, 0.05], &mut poses).unwrap();
+    let goal = poses[l1].inverse() * poses[tool];
+    let pose = Term {
+        name: "rel".into(),
+        kind: TermKind::RelativePose { link: tool, relative_to: l1, target: goal, mask: [1.0; 6] },
+        weight: 1.0,
+        tolerance: 1e-8,
+    };
+    let p = Projector::new(m.clone(), vec![pose], vec![], Settings::default()).unwrap();
+    // j1 moves both frames alike: the relative pose does not see it, so it stays where it starts
+    let out = p.solve(&[-1.0, 0.1, 0.0, 0.0], None).unwrap();
+    assert!(out.success, "{out:?}");
+    m.forward_kinematics(&out.q, &mut poses).unwrap();
+    let got = poses[l1].inverse() * poses[tool];
+    assert!((got.to_homogeneous() - goal.to_homogeneous()).amax() < 1e-7);
+    assert!((out.q[0] + 1.0).abs() < 1e-9, "{out:?}");
+
+    // retargeted with a pose (16 numbers) like a FramePose; 3 numbers are refused
+    let moved = nalgebra::Translation3::new(0.01, 0.0, -0.02) * goal;
+    let flat: Vec<f64> = (0..4).flat_map(|i| (0..4).map(move |j| moved.to_homogeneous()[(i, j)])).collect();
+    assert!(p.retargeted(0, &flat).is_ok());
+    assert!(p.retargeted(0, &[1.0, 2.0, 3.0]).is_err());
+    let position = Term {
+        name: "relpos".into(),
+        kind: TermKind::RelativePosition { link: tool, relative_to: l2, target: Vector3::zeros(), mask: [1.0; 3] },
+        weight: 1.0,
+        tolerance: 1e-8,
+    };
+    let p = Projector::new(m.clone(), vec![position], vec![], Settings::default()).unwrap();
+    m.forward_kinematics(&[0.0, 0.0, 0.4, 0.03], &mut poses).unwrap();
+    let t = poses[l2].inverse() * poses[tool];
+    let p = p.retargeted(0, t.translation.vector.as_slice()).unwrap();
+    let out = p.solve(&[0.3, 0.2, -0.5, 0.08], None).unwrap();
+    assert!(out.success && out.residuals[0] < 1e-8, "{out:?}");
+
+    // the tool's z axis through a point, its origin on a plane, together (both met at a known q)
+    m.forward_kinematics(&[0.5, 0.6, -0.9, 0.02], &mut poses).unwrap();
+    let point = poses[tool] * nalgebra::Point3::new(0.0, 0.0, 0.5);
+    let (point, height) = (point.coords, poses[tool].translation.vector.z);
+    let terms = vec![
+        Term { name: "look".into(), kind: TermKind::PointAt { link: tool, axis: Vector3::z(), point }, weight: 1.0, tolerance: 1e-8 },
+        Term { name: "plane".into(), kind: TermKind::Plane { link: tool, normal: Vector3::z(), offset: height }, weight: 1.0, tolerance: 1e-8 },
+    ];
+    let p = Projector::new(m.clone(), terms, vec![], Settings::default()).unwrap();
+    let out = p.solve(&[0.3, 0.4, -0.5, 0.05], None).unwrap();
+    assert!(out.success, "{out:?}");
+    m.forward_kinematics(&out.q, &mut poses).unwrap();
+    let (origin, z) = (poses[tool].translation.vector, poses[tool].rotation * Vector3::z());
+    assert!((origin.z - height).abs() < 1e-8);
+    assert!((point - origin).cross(&z).norm() < 1e-7);
+}
+
+#[test]
+fn bad_relative_point_at_and_plane_terms_name_the_term_and_field() {
+    let m = model(false);
+    let [l1, tool] = ["l1", "tool"].map(|n| m.link_index(n).unwrap());
+    let term = |kind| Term { name: "bad".into(), kind, weight: 1.0, tolerance: 1e-6 };
+    let err = |kind| Projector::new(m.clone(), vec![term(kind)], vec![], Settings::default()).unwrap_err().to_string();
+    let id = nalgebra::Isometry3::identity();
+    let e = err(TermKind::RelativePose { link: tool, relative_to: tool, target: id, mask: [1.0; 6] });
+    assert!(e.contains("term 'bad'") && e.contains("relative_to is the link itself"), "{e}");
+    let e = err(TermKind::RelativePosition { link: tool, relative_to: 99, target: Vector3::zeros(), mask: [1.0; 3] });
+    assert!(e.contains("link index 99 out of range"), "{e}");
+    let e = err(TermKind::RelativePosition { link: tool, relative_to: l1, target: Vector3::new(f64::NAN, 0.0, 0.0), mask: [1.0; 3] });
+    assert!(e.contains("term 'bad' target"), "{e}");
+    let e = err(TermKind::PointAt { link: tool, axis: Vector3::new(0.0, 0.0, 2.0), point: Vector3::zeros() });
+    assert!(e.contains("axis must be a unit vector, got norm 2.0"), "{e}");
+    let e = err(TermKind::Plane { link: tool, normal: Vector3::z(), offset: 1e9 });
+    assert!(e.contains("offset element 0 is 1000000000.0"), "{e}");
+    let e = err(TermKind::Plane { link: 42, normal: Vector3::z(), offset: 0.0 });
+    assert!(e.contains("link index 42 out of range"), "{e}");
+}
+
+#[test]
+fn residual_sizes_are_the_unstepped_solves_residuals() {
+    let m = model(false);
+    let tool = m.link_index("tool").unwrap();
+    let terms = vec![
+        Term { name: "tool".into(), kind: TermKind::FramePosition { link: tool, target: Vector3::new(0.3, 0.1, 0.4), mask: [1.0; 3] }, weight: 10.0, tolerance: 1e-6 },
+        Term { name: "limits".into(), kind: TermKind::JointLimits { margin: 1e-3 }, weight: 10.0, tolerance: 1e-6 },
+        Term { name: "posture".into(), kind: TermKind::Posture { q_nom: Some(vec![0.1; m.nq]), weights: vec![1.0; m.nv], overrides: vec![] }, weight: 1.0, tolerance: 1.0 },
+    ];
+    let unstepped = Settings { max_iterations: 0, clip_to_limits: false, ..Settings::default() };
+    let p = Projector::new(m.clone(), terms, vec![], unstepped).unwrap();
+    // a row beyond a joint limit too, so that the limits term is not zero everywhere
+    let mut rows = configurations(&m);
+    rows.push(vec![0.2, 9.0, -0.3, 0.02]);
+    let flat: Vec<f64> = rows.concat();
+    for parallel in [false, true] {
+        let sizes = p.try_residual_sizes(&flat, parallel).unwrap();
+        assert_eq!(sizes.len(), rows.len() * 3);
+        for (q, row) in rows.iter().zip(sizes.chunks(3)) {
+            let out = p.solve(q, None).unwrap();
+            assert_eq!(out.iterations, 0);
+            assert_eq!(row, out.residuals.as_slice(), "q {q:?}");
+        }
+        assert!(sizes.iter().any(|&x| x > 0.0) && sizes[3 * 3 + 1] > 1.0, "{sizes:?}");
+    }
+    assert!(p.try_residual_sizes(&[], true).unwrap().is_empty());
+    // rows are checked before any work: a NaN, a partial row
+    assert!(p.try_residual_sizes(&[0.0, f64::NAN, 0.0, 0.0], false).is_err());
+    assert!(p.try_residual_sizes(&[0.0; 6], true).is_err());
+}
