@@ -68,7 +68,7 @@ fn sphere(c: &mut Criterion) {
     let mut checker = Band;
     let mut interrupt = no_interrupt;
     let from = [0.0, -1.0, 0.0];
-    let mut c_ = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c_ = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
     // a full extension: 10 steps of 0.3 rad along the equator's door side
     c.bench_function("constrained_extend/sphere_10_steps", |b| {
         b.iter(|| black_box(planner.extend(black_box(&from), &[0.0, 1.0, 0.05], false, &mut c_).unwrap()))
@@ -78,7 +78,7 @@ fn sphere(c: &mut Criterion) {
         b.iter(|| {
             seed += 1;
             let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(seed) };
-            let mut c_ = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+            let mut c_ = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
             let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c_).unwrap();
             assert!(sol.success);
             black_box(sol)
@@ -119,7 +119,7 @@ fn panda(c: &mut Criterion) {
                 let mut projector = GaussNewtonProjector::new(gn.clone(), false);
                 let mut checker = CollisionChecker::new(world.clone(), false);
                 let mut interrupt = no_interrupt;
-                let mut c_ = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+                let mut c_ = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
                 let sol = planner.plan(&start, &goal, &mut c_).unwrap();
                 black_box(sol)
             })
@@ -141,7 +141,7 @@ fn constrained_space(c: &mut Criterion) {
     // a valid state on the manifold and a step of 0.3 rad from it towards a random target
     let mut sampler = UniformSampler::new(model.clone(), None, 4).unwrap();
     let (a, target, b) = {
-        let mut space = ConstrainedSpace::new(model.as_ref(), &mut projector, &mut checker, &settings);
+        let mut space = ConstrainedSpace::new(model.as_ref(), Some(&mut projector), &mut checker, &settings);
         let mut q = vec![0.0; 7];
         loop {
             sampler.sample(1, &mut q).unwrap();
@@ -160,10 +160,10 @@ fn constrained_space(c: &mut Criterion) {
             }
         }
     };
-    let mut space = ConstrainedSpace::new(model.as_ref(), &mut projector, &mut checker, &settings);
+    let mut space = ConstrainedSpace::new(model.as_ref(), Some(&mut projector), &mut checker, &settings);
     c.bench_function("constrained_space/panda_step", |bch| bch.iter(|| black_box(space.step(black_box(&a), &target, false).unwrap())));
     c.bench_function("constrained_space/panda_edge_check", |bch| bch.iter(|| black_box(space.geodesic(black_box(&a), &b, false).unwrap())));
-    let mut space = ConstrainedSpace::new(model.as_ref(), &mut with_posture as &mut dyn Projector, &mut checker, &settings);
+    let mut space = ConstrainedSpace::new(model.as_ref(), Some(&mut with_posture as &mut dyn Projector), &mut checker, &settings);
     c.bench_function("constrained_space/panda_edge_check_with_posture", |bch| {
         bch.iter(|| black_box(space.geodesic(black_box(&a), &b, false).unwrap()))
     });

@@ -127,7 +127,7 @@ fn plan_on_the_sphere(settings: Settings, start: &[f64], goals: &[f64], seed: u6
     let mut projector = SphereProjector { radius: 1.0 };
     let mut checker = Band;
     let mut interrupt = no_interrupt;
-    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
     let finite_input = start.len() == 3 && goals.len() % 3 == 0 && !goals.is_empty() && start.iter().chain(goals).all(|x| x.is_finite());
     match planner.plan(start, goals, &mut c) {
         Err(PlanError::Internal(m)) => return Err(TestCaseError::fail(format!("internal error: {m}"))),

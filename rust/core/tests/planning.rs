@@ -23,7 +23,7 @@ fn sphere_plan(algorithm: Algorithm, neighbors: NeighborIndex, lazy_edges: bool,
     let mut projector = SphereProjector { radius: 1.0 };
     let mut checker = Band;
     let mut interrupt = no_interrupt;
-    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
     planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap()
 }
 
@@ -75,7 +75,7 @@ fn on_the_sphere<R>(f: impl FnOnce(&Planner, &mut Components<'_>) -> R) -> R {
     let mut projector = SphereProjector { radius: 1.0 };
     let mut checker = Band;
     let mut interrupt = no_interrupt;
-    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
     f(&planner, &mut c)
 }
 
@@ -145,7 +145,7 @@ fn off_the_manifold_cases(planner: &Planner, c: &mut Components<'_>) {
     assert_eq!(&sol.path[sol.path.len() - 3..], &goal);
     // a start or goal the projector cannot project
     let mut projector = RefusesTheTop(SphereProjector { radius: 1.0 });
-    let mut c = Components { sampler: &mut *c.sampler, projector: &mut projector, checker: &mut *c.checker, interrupt: &mut *c.interrupt };
+    let mut c = Components { sampler: &mut *c.sampler, projector: Some(&mut projector), checker: &mut *c.checker, interrupt: &mut *c.interrupt };
     match planner.plan(&start, &goal, &mut c) {
         Err(PlanError::InvalidGoal(m)) => assert_eq!(m, "goals[0]: not on the constraint manifold: the projector could not project it"),
         other => panic!("expected InvalidGoal, got {:?}", other.map(|s| s.success)),
@@ -192,7 +192,7 @@ fn component_errors_come_back_intact() {
     let mut checker = Band;
     let mut interrupt = no_interrupt;
     let mut sampler = FailingSampler;
-    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
     match planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c) {
         Err(PlanError::Component(e)) => assert!(e.downcast_ref::<Boom>().is_some()),
         other => panic!("expected the sampler's error, got {:?}", other.map(|s| s.success)),
@@ -208,7 +208,7 @@ fn component_errors_come_back_intact() {
             Ok(())
         }
     };
-    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
     assert!(matches!(planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c), Err(PlanError::Component(_))));
     // a projector that returns NaN never puts NaN in the tree: the samples are rejected
     let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
@@ -216,7 +216,7 @@ fn component_errors_come_back_intact() {
     let mut interrupt = no_interrupt;
     let settings = Settings { max_empty_batches: 3, ..Settings::default() };
     let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
-    let mut c = Components { sampler: &mut sampler, projector: &mut nan, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut nan), checker: &mut checker, interrupt: &mut interrupt };
     match planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c) {
         Err(PlanError::NoProjectableSample(m)) => assert!(m.contains("no sample could be projected"), "{m}"),
         other => panic!("expected an error, got {:?}", other.map(|s| s.success)),
@@ -268,7 +268,7 @@ fn panda_keeps_its_gripper_horizontal_around_a_box() {
             let uniform2 = UniformSampler::new(model.clone(), None, 12).unwrap();
             let mut mixture = MixtureSampler::new(Box::new(uniform), Box::new(uniform2), 0.8, 7, 5).unwrap();
             let mut interrupt = no_interrupt;
-            let mut c = Components { sampler: &mut mixture, projector, checker, interrupt: &mut interrupt };
+            let mut c = Components { sampler: &mut mixture, projector: Some(projector), checker, interrupt: &mut interrupt };
             planner.plan(&start, &goal, &mut c).unwrap()
         };
         let sol = plan(&mut projector, &mut checker);
@@ -473,7 +473,7 @@ fn integrity_3_a_start_at_the_goal_is_a_one_state_path() {
         let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings { algorithm, ..Settings::default() }).unwrap();
         let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
         let (mut projector, mut checker, mut interrupt) = (SphereProjector { radius: 1.0 }, Band, no_interrupt);
-        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+        let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
         let start = [0.0, 0.0, -1.0];
         let sol = planner.plan(&start, &start, &mut c).unwrap();
         assert!(sol.success, "{algorithm:?}");
@@ -501,7 +501,7 @@ fn integrity_rerun_a_goal_within_a_step_is_joined_directly() {
         let step = planner.settings.step;
         let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(0) };
         let (mut projector, mut checker, mut interrupt) = (SphereProjector { radius: 1.0 }, Band, no_interrupt);
-        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+        let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
         let start = [0.0, 0.0, -1.0];
         for angle in [0.003, 0.05, 0.2] {
             let goal = [f64::sin(angle), 0.0, -f64::cos(angle)];
@@ -551,7 +551,7 @@ fn integrity_3_every_chord_keeps_the_chord_tolerance() {
         let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings.clone()).unwrap();
         let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(2) };
         let (mut projector, mut checker, mut interrupt) = (ChordSphere { chord, calls: 0 }, Band, no_interrupt);
-        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+        let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
         let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
         assert!(sol.success, "{algorithm:?}");
         assert!(sol.stats.chord_checks > 0);
@@ -570,7 +570,7 @@ fn integrity_3_every_chord_keeps_the_chord_tolerance() {
     let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings::default()).unwrap();
     let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(2) };
     let (mut projector, mut checker, mut interrupt) = (SphereProjector { radius: 1.0 }, Band, no_interrupt);
-    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
     let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
     let path: Vec<&[f64]> = sol.path.chunks(3).collect();
     assert!(sol.success && sol.stats.chord_checks == 0);
@@ -579,7 +579,134 @@ fn integrity_3_every_chord_keeps_the_chord_tolerance() {
     let planner = Planner::new(Arc::new(EuclideanSpace(3)), Settings { max_extensions: 20, retries: 0, ..Settings::default() }).unwrap();
     let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(2) };
     let (mut projector, mut checker, mut interrupt) = (ChordSphere { chord: 1e-7, calls: 0 }, Band, no_interrupt);
-    let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
     let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
     assert!(!sol.success && sol.stats.pruned > 0);
+}
+
+/// A square wall in the plane, |x| < 0.1 and |y| < 0.6, blocks the straight line between the
+/// free-space test's start and goal.
+struct Wall;
+
+impl Wall {
+    fn ok(q: &[f64]) -> bool {
+        !(q[0].abs() < 0.1 && q[1].abs() < 0.6)
+    }
+}
+
+impl ValidityChecker for Wall {
+    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+        for (q, v) in qs.chunks(2).zip(valid.iter_mut()) {
+            *v = Wall::ok(q);
+        }
+        Ok(())
+    }
+}
+
+/// The identity projector (the plane is its own manifold), counting the rows it is given.
+#[derive(Default)]
+struct CountingIdentity(usize);
+
+impl Projector for CountingIdentity {
+    fn project(&mut self, qs: &[f64], _q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        self.0 += reports.len();
+        out.copy_from_slice(qs);
+        reports.fill(Projection { success: true, iterations: 0 });
+        Ok(())
+    }
+}
+
+/// Free space (no projector): the planner goes round the wall without projecting anything (no
+/// projection counted, no time in the projector, no chord checked), every state valid and the
+/// states of the dense path at most the edge spacing apart; and it grows the same trees, hence the
+/// same waypoints, as with a projector that leaves every configuration where it is (which is
+/// called, and costs its time, on every sample, step and edge state).
+#[test]
+fn free_space_plans_project_nothing_and_match_the_identity_projector() {
+    for (algorithm, simplify, lazy_edges) in [(Algorithm::Crrt, false, true), (Algorithm::Crrt, true, false), (Algorithm::RrtConnect, true, true)] {
+        let settings = Settings { algorithm, simplify, lazy_edges, ..Settings::default() };
+        let planner = Planner::new(Arc::new(EuclideanSpace(2)), settings.clone()).unwrap();
+        let (start, goal) = ([-0.8, 0.0], [0.8, 0.0]);
+        let plan = |projector: Option<&mut dyn Projector>| {
+            let mut sampler = CubeSampler { dim: 2, half: 1.0, rng: StdRng::seed_from_u64(4) };
+            let (mut checker, mut interrupt) = (Wall, no_interrupt);
+            let projector = projector.map(|p| -> &mut dyn Projector { p });
+            let mut c = Components { sampler: &mut sampler, projector, checker: &mut checker, interrupt: &mut interrupt };
+            planner.plan(&start, &goal, &mut c).unwrap()
+        };
+        let sol = plan(None);
+        assert!(sol.success, "{algorithm:?}: {:?}", sol.stats);
+        let s = &sol.stats;
+        assert_eq!((s.projections, s.projection_calls, s.edge_projections, s.chord_checks, s.samples_rejected), (0, 0, 0, 0, 0), "{algorithm:?}");
+        assert_eq!(s.projector_s, 0.0);
+        let path: Vec<&[f64]> = sol.path.chunks(2).collect();
+        assert_eq!((path[0], *path.last().unwrap()), (&start[..], &goal[..]));
+        assert!(path.iter().all(|q| Wall::ok(q)), "{algorithm:?}: a state in the wall");
+        // round the wall, not through it
+        assert!(path.iter().any(|q| q[1].abs() >= 0.6 && q[0].abs() < 0.1));
+        for w in path.windows(2) {
+            assert!(EuclideanSpace(2).distance(w[0], w[1]) <= genplan_core::planning::MAX_SPACING * settings.edge_resolution + 1e-12);
+        }
+        let mut identity = CountingIdentity::default();
+        let same = plan(Some(&mut identity));
+        assert!(identity.0 > 0);
+        assert_eq!(same.waypoints, sol.waypoints, "{algorithm:?}");
+        assert_eq!(same.path, sol.path, "{algorithm:?}");
+        assert_eq!((same.stats.extensions, same.stats.nodes, same.stats.samples), (s.extensions, s.nodes, s.samples));
+    }
+}
+
+/// The Panda in free space around a box (no projector, the native collision checker: joint
+/// limits and collisions), with sampled and with certified edges: every state of the path within
+/// the joint limits and collision-free, nothing projected.
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn panda_plans_in_free_space_around_a_box() {
+    use genplan_core::planning::EdgeCheck;
+    let (model, mut world) = preset("panda").unwrap().load().unwrap();
+    world
+        .add_box("wall", [0.05, 0.3, 0.3], nalgebra::Isometry3::translation(0.45, 0.0, 0.35))
+        .unwrap();
+    let world = Arc::new(world);
+    let mut checker = genplan_core::planning::CollisionChecker::new(world.clone(), false);
+    // start and goal: valid random configurations, the hand on either side of the box
+    let mut sampler = UniformSampler::new(model.clone(), None, 5).unwrap();
+    let hand = model.link_index("panda_hand").unwrap();
+    let mut pick = |want_y_positive: bool| -> Vec<f64> {
+        let mut q = vec![0.0; 7];
+        loop {
+            sampler.sample(1, &mut q).unwrap();
+            let mut poses = Vec::new();
+            model.forward_kinematics(&q, &mut poses).unwrap();
+            let p = poses[hand].translation.vector;
+            let mut v = [false];
+            checker.check(&q, &mut v).unwrap();
+            if v[0] && (p.y > 0.0) == want_y_positive && p.y.abs() > 0.3 && p.x > 0.3 && p.z > 0.1 {
+                return q.clone();
+            }
+        }
+    };
+    let (start, goal) = (pick(false), pick(true));
+    for (algorithm, edge_check) in [(Algorithm::Crrt, EdgeCheck::Sampled), (Algorithm::RrtConnect, EdgeCheck::Sampled), (Algorithm::RrtConnect, EdgeCheck::Certified)] {
+        let settings = Settings { algorithm, edge_check, simplify: true, ..Settings::default() };
+        let planner = Planner::new(model.clone(), settings.clone()).unwrap();
+        let mut uniform = UniformSampler::new(model.clone(), None, 9).unwrap();
+        let mut interrupt = no_interrupt;
+        let mut c = Components { sampler: &mut uniform, projector: None, checker: &mut checker, interrupt: &mut interrupt };
+        let sol = planner.plan(&start, &goal, &mut c).unwrap();
+        assert!(sol.success, "{algorithm:?} {edge_check:?}: {:?}", sol.stats);
+        assert_eq!((sol.stats.projections, sol.stats.edge_projections, sol.stats.chord_checks), (0, 0, 0));
+        assert_eq!(sol.stats.projector_s, 0.0);
+        let path: Vec<&[f64]> = sol.path.chunks(7).collect();
+        assert_eq!((path[0], *path.last().unwrap()), (&start[..], &goal[..]));
+        for q in &path {
+            for (i, x) in q.iter().enumerate() {
+                assert!(model.lower[i] <= *x && *x <= model.upper[i], "{algorithm:?}: joint {i} at {x} outside its limits");
+            }
+            assert!(!world.in_collision(q).unwrap(), "{algorithm:?}: a state in collision");
+        }
+        for w in path.windows(2) {
+            assert!(model.as_ref().distance(w[0], w[1]) <= genplan_core::planning::MAX_SPACING * settings.edge_resolution + 1e-9);
+        }
+    }
 }

@@ -11,6 +11,10 @@
 //! * [`onto_manifold`](ConstrainedSpace::onto_manifold): a plan's inputs checked against the
 //!   manifold.
 //!
+//! Without a projector the space is free: the ambient space is the manifold, nothing is
+//! projected (samples, steps, edge states, chords), and the checker alone says which states are
+//! valid; the steps and edges are the same straight lines, checked at the same resolution.
+//!
 //! The planners (`rrt`: the paper's cRRT; `rrt_connect`) keep the tree logic only; every state
 //! they add and every edge they return went through this type, which also keeps the plan's
 //! counts of projections and checks and the time spent in the projector and the checker
@@ -21,13 +25,13 @@ use std::time::Instant;
 use super::rrt::short;
 use super::{EdgeCheck, PlanError, PlanResult, Projection, Projector, Settings, Space, Stats, ValidityChecker, MAX_SPACING};
 
-/// The constrained space of one plan: the ambient space, the projector and the validity checker,
-/// with the planner's settings (`step`, `max_jump`, `edge_resolution`, `lazy_edges`,
-/// `goal_tolerance`).
+/// The constrained space of one plan: the ambient space, the projector (None: free space) and the
+/// validity checker, with the planner's settings (`step`, `max_jump`, `edge_resolution`,
+/// `lazy_edges`, `goal_tolerance`).
 pub struct ConstrainedSpace<'a> {
     /// The ambient configuration space.
     pub ambient: &'a dyn Space,
-    projector: &'a mut dyn Projector,
+    projector: Option<&'a mut dyn Projector>,
     checker: &'a mut dyn ValidityChecker,
     settings: &'a Settings,
     /// What the space's calls cost so far (projections, edge projections, checks, projector and
@@ -48,15 +52,21 @@ pub struct Step {
 }
 
 impl<'a> ConstrainedSpace<'a> {
-    /// The constrained space of `ambient` whose manifold `projector` defines and whose valid
-    /// states `checker` says, with `settings` (validated by the caller).
+    /// The constrained space of `ambient` whose manifold `projector` defines (None: the whole
+    /// ambient space, free space) and whose valid states `checker` says, with `settings`
+    /// (validated by the caller).
     pub fn new(
         ambient: &'a dyn Space,
-        projector: &'a mut dyn Projector,
+        projector: Option<&'a mut dyn Projector>,
         checker: &'a mut dyn ValidityChecker,
         settings: &'a Settings,
     ) -> ConstrainedSpace<'a> {
         ConstrainedSpace { ambient, projector, checker, settings, stats: Stats::default() }
+    }
+
+    /// A projector defines the manifold (false: free space, nothing is projected).
+    pub fn constrained(&self) -> bool {
+        self.projector.is_some()
     }
 
     /// The settings the space walks with.
@@ -74,10 +84,17 @@ impl<'a> ConstrainedSpace<'a> {
     }
 
     /// Project the rows of `qs`, each around its row of `q_noms` (timed in `projector_s`; the
-    /// caller counts the iterations where they belong).
+    /// caller counts the iterations where they belong). In free space the rows are copied as
+    /// they are, each a success in no iteration (callers skip the call there; this keeps the
+    /// method total).
     pub fn project(&mut self, qs: &[f64], q_noms: &[f64], out: &mut [f64], reports: &mut [Projection]) -> PlanResult<()> {
+        let Some(projector) = self.projector.as_deref_mut() else {
+            out.copy_from_slice(qs);
+            reports.fill(Projection { success: true, iterations: 0 });
+            return Ok(());
+        };
         let t = Instant::now();
-        let r = self.projector.project(qs, q_noms, out, reports);
+        let r = projector.project(qs, q_noms, out, reports);
         self.stats.projector_s += t.elapsed().as_secs_f64();
         r
     }
@@ -85,14 +102,18 @@ impl<'a> ConstrainedSpace<'a> {
     /// The start and goals checked against the manifold (see
     /// [`Planner::plan`](super::Planner::plan)): each projected around itself in one batch;
     /// refused when the projection fails or moves it by more than `goal_tolerance`, else replaced
-    /// by its projection. Not counted in the stats (an input check, not the search).
+    /// by its projection. Not counted in the stats (an input check, not the search). In free
+    /// space every configuration is on the manifold: the start and goals are returned as given.
     pub fn onto_manifold(&mut self, start: &[f64], goals: &[f64]) -> PlanResult<(Vec<f64>, Vec<f64>)> {
+        let Some(projector) = self.projector.as_deref_mut() else {
+            return Ok((start.to_vec(), goals.to_vec()));
+        };
         let nq = self.ambient.nq();
         let rows = [start, goals].concat();
         let n = rows.len() / nq;
         let mut out = vec![0.0; rows.len()];
         let mut reps = vec![Projection::default(); n];
-        self.projector.project(&rows, &rows, &mut out, &mut reps)?;
+        projector.project(&rows, &rows, &mut out, &mut reps)?;
         let tol = self.settings.goal_tolerance;
         let why = |i: usize| -> Option<String> {
             let (q, p) = (&rows[i * nq..(i + 1) * nq], &out[i * nq..(i + 1) * nq]);
@@ -123,7 +144,8 @@ impl<'a> ConstrainedSpace<'a> {
     /// within `step`: then unprojected if `target_on_manifold`), projected around itself. None
     /// when the projection fails, lands more than `max_jump * step` from `from` (another branch
     /// of the manifold) or does not move, or the state (with eager edges: the edge) is not valid.
-    /// Projections are counted in `projection_calls` and `projections`.
+    /// Projections are counted in `projection_calls` and `projections`; in free space the state
+    /// on the line is taken as it is.
     pub fn step(&mut self, from: &[f64], target: &[f64], target_on_manifold: bool) -> PlanResult<Option<Step>> {
         let space = self.ambient;
         let st = self.settings;
@@ -133,7 +155,7 @@ impl<'a> ConstrainedSpace<'a> {
         if !last {
             space.interpolate(from, target, st.step / dist, &mut candidate);
         }
-        if !(last && target_on_manifold) {
+        if !(last && target_on_manifold) && self.constrained() {
             let mut out = vec![0.0; candidate.len()];
             let mut rep = [Projection::default()];
             self.project(&candidate, &candidate, &mut out, &mut rep)?;
@@ -181,6 +203,9 @@ impl<'a> ConstrainedSpace<'a> {
     ///
     /// With [`EdgeCheck::Certified`] the motion between consecutive states is certified as well
     /// (`certify_states`: [`ValidityChecker::certify_path`]), and states are added where it cannot be.
+    ///
+    /// In free space the states are the interpolations themselves, evenly spaced: nothing is
+    /// projected and no chord can stray.
     pub fn geodesic(&mut self, a: &[f64], b: &[f64], check_end: bool) -> PlanResult<Option<Vec<f64>>> {
         let space = self.ambient;
         let nq = space.nq();
@@ -198,7 +223,12 @@ impl<'a> ConstrainedSpace<'a> {
             0
         };
         let mut states = vec![0.0; (n_mid + 1) * nq];
-        if n_mid > 0 {
+        if n_mid > 0 && !self.constrained() {
+            for k in 0..n_mid {
+                let t = (k + 1) as f64 / (n_mid + 1) as f64;
+                space.interpolate(a, b, t, &mut states[k * nq..(k + 1) * nq]);
+            }
+        } else if n_mid > 0 {
             let mut lin = vec![0.0; n_mid * nq];
             for k in 0..n_mid {
                 let t = (k + 1) as f64 / (n_mid + 1) as f64;
@@ -261,6 +291,9 @@ impl<'a> ConstrainedSpace<'a> {
     /// [`Settings::MAX_EDGE_STATES`] states. Timed in `projector_s`; the midpoints checked are
     /// counted in `chord_checks`.
     fn hold_chords(&mut self, a: &[f64], rest: Vec<f64>, tree_edge: bool) -> PlanResult<Option<Vec<f64>>> {
+        if !self.constrained() {
+            return Ok(Some(rest));
+        }
         let space = self.ambient;
         let nq = space.nq();
         let finest = self.settings.edge_resolution / Settings::CERTIFY_REFINEMENT;
@@ -277,7 +310,10 @@ impl<'a> ConstrainedSpace<'a> {
             }
             let mut ok = vec![true; pending.len()];
             let t = Instant::now();
-            let checked = self.projector.check_chords(&mids, &mut ok);
+            let checked = match self.projector.as_deref_mut() {
+                Some(projector) => projector.check_chords(&mids, &mut ok),
+                None => Ok(false),
+            };
             self.stats.projector_s += t.elapsed().as_secs_f64();
             if !checked? {
                 return Ok(Some(rest));
@@ -337,13 +373,19 @@ impl<'a> ConstrainedSpace<'a> {
     /// those of a tree edge without the posture step, which changes nothing there; those of a
     /// longer one (a shortcut, far off the manifold between its ends) with it: without, its
     /// states drift apart (wider chords: tests/test_planning.py). Timed in `projector_s`,
-    /// counted in `edge_projections`.
+    /// counted in `edge_projections`. In free space the states are copied as they are (callers
+    /// skip the call there).
     fn project_edge_states(&mut self, lin: &[f64], tree_edge: bool, out: &mut [f64], reps: &mut [Projection]) -> PlanResult<()> {
+        let Some(projector) = self.projector.as_deref_mut() else {
+            out.copy_from_slice(lin);
+            reps.fill(Projection { success: true, iterations: 0 });
+            return Ok(());
+        };
         let t = Instant::now();
         let r = if tree_edge {
-            self.projector.project_edge(lin, lin, out, reps)
+            projector.project_edge(lin, lin, out, reps)
         } else {
-            self.projector.project(lin, lin, out, reps)
+            projector.project(lin, lin, out, reps)
         };
         self.stats.projector_s += t.elapsed().as_secs_f64();
         r?;
@@ -454,7 +496,7 @@ mod tests {
         st.validate().unwrap();
         let space = EuclideanSpace(2);
         let (mut projector, mut checker) = (Identity, AlwaysValid);
-        let mut cs = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st);
+        let mut cs = ConstrainedSpace::new(&space, Some(&mut projector), &mut checker, &st);
         // the longest tree edge (max_jump * step = 0.9: 900000 states) is validated
         let states = cs.geodesic(&[0.0, 0.0], &[0.9, 0.0], true).unwrap().expect("a tree edge is validated");
         assert!(states.len() % 2 == 0 && (899_999..=900_000).contains(&(states.len() / 2)), "{} states", states.len() / 2);
@@ -504,7 +546,7 @@ mod tests {
         let st = Settings::default();
         let space = EuclideanSpace(2);
         let (mut projector, mut checker) = (Circle, Gap);
-        let mut cs = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st);
+        let mut cs = ConstrainedSpace::new(&space, Some(&mut projector), &mut checker, &st);
         let (a, b) = (on_circle(0.0), on_circle(30.0));
         let states = cs.geodesic(&a, &b, true).unwrap().expect("a free arc");
         let n = states.len() / 2;
@@ -524,7 +566,7 @@ mod tests {
         assert!(!cs.check_motion(&on_circle(60.0), &on_circle(80.5)).unwrap());
         // no resolution: the ends only
         let st0 = Settings { edge_resolution: 0.0, ..Settings::default() };
-        let mut cs0 = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st0);
+        let mut cs0 = ConstrainedSpace::new(&space, Some(&mut projector), &mut checker, &st0);
         assert_eq!(cs0.geodesic(&on_circle(70.0), &on_circle(110.0), false).unwrap(), Some(vec![]));
     }
 
@@ -553,7 +595,7 @@ mod tests {
         let st = Settings::default();
         let space = EuclideanSpace(2);
         let (mut projector, mut checker) = (Counting::default(), AlwaysValid);
-        let mut cs = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st);
+        let mut cs = ConstrainedSpace::new(&space, Some(&mut projector), &mut checker, &st);
         let tree_edge = st.max_jump * st.step;
         assert_eq!(cs.geodesic(&[0.0, 0.0], &[tree_edge, 0.0], false).unwrap().unwrap().len() / 2, 35);
         assert!(cs.geodesic(&[0.0, 0.0], &[tree_edge + 0.01, 0.0], false).unwrap().is_some());
@@ -566,7 +608,7 @@ mod tests {
         let st = Settings { lazy_edges: false, ..Settings::default() };
         let space = EuclideanSpace(2);
         let (mut projector, mut checker) = (Circle, Gap);
-        let mut cs = ConstrainedSpace::new(&space, &mut projector, &mut checker, &st);
+        let mut cs = ConstrainedSpace::new(&space, Some(&mut projector), &mut checker, &st);
         let from = on_circle(0.0);
         let s = cs.step(&from, &on_circle(60.0), true).unwrap().expect("a free step");
         assert!(!s.reached && (s.q[0].hypot(s.q[1]) - 1.0).abs() < 1e-12);

@@ -308,8 +308,10 @@ pub struct Solution {
 pub struct Components<'a> {
     /// Draws the configurations the tree grows towards.
     pub sampler: &'a mut dyn Sampler,
-    /// Projects samples, extension steps and edge states onto the manifold.
-    pub projector: &'a mut dyn Projector,
+    /// Projects samples, extension steps and edge states onto the manifold; None plans in free
+    /// space (no constraint but the checker's: the joint limits and collisions), where nothing
+    /// is projected and the ambient space is the manifold.
+    pub projector: Option<&'a mut dyn Projector>,
     /// Says which states are valid.
     pub checker: &'a mut dyn ValidityChecker,
     /// Called once per iteration; an error (e.g. a KeyboardInterrupt) ends the plan.
@@ -338,7 +340,7 @@ impl<'a> Run<'a> {
     fn new(space: &'a dyn Space, st: &'a Settings, c: &'a mut Components<'_>) -> Run<'a> {
         let Components { sampler, projector, checker, interrupt } = c;
         Run {
-            space: ConstrainedSpace::new(space, &mut **projector, &mut **checker, st),
+            space: ConstrainedSpace::new(space, projector.as_mut().map(|p| &mut **p as &mut dyn Projector), &mut **checker, st),
             st,
             sampler: &mut **sampler,
             interrupt: &mut **interrupt,
@@ -613,7 +615,7 @@ impl Run<'_> {
                     .map_err(|e| PlanError::Sampler(format!("the sampler returned a bad configuration: {e}")))?;
             }
             self.space.stats.samples += n;
-            if self.st.project_samples {
+            if self.st.project_samples && self.space.constrained() {
                 let mut out = vec![0.0; n * nq];
                 let mut reps = vec![Projection::default(); n];
                 self.space.project(&raw, &raw, &mut out, &mut reps)?;

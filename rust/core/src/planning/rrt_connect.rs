@@ -149,7 +149,7 @@ mod tests {
                 let planner = Planner::new(Arc::new(EuclideanSpace(3)), st.clone()).unwrap();
                 let (mut sampler, mut projector, mut checker) = (Cube(StdRng::seed_from_u64(seed)), Sphere, Wall);
                 let mut interrupt = || Ok(());
-                let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+                let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
                 let sol = planner.plan(&[0.0, 0.0, -1.0], &goals, &mut c).unwrap();
                 assert!(sol.success, "seed {seed}: {:?}", sol.stats);
                 assert_eq!(sol.goal_index, Some(0));
@@ -190,7 +190,7 @@ mod tests {
         let planner = Planner::new(Arc::new(EuclideanSpace(3)), st).unwrap();
         let (mut sampler, mut projector, mut checker) = (Cube(StdRng::seed_from_u64(1)), Sphere, Closed);
         let mut interrupt = || Ok(());
-        let mut c = Components { sampler: &mut sampler, projector: &mut projector, checker: &mut checker, interrupt: &mut interrupt };
+        let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
         let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
         assert!(!sol.success && sol.path.is_empty() && sol.goal_index.is_none());
         assert_eq!((sol.stats.extensions, sol.stats.retries), (120, 1));
