@@ -15,19 +15,9 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 /// Radius of the probe sphere the test robot carries.
 const PROBE: f64 = 0.1;
 
-/// Three prismatic joints (x, y, z) carrying a sphere of radius [`PROBE`]: q is the sphere's centre.
-const XYZ: &str = r#"<robot name="xyz">
-  <link name="base"/>
-  <link name="lx"/>
-  <link name="ly"/>
-  <link name="probe"><collision><geometry><sphere radius="0.1"/></geometry></collision></link>
-  <joint name="x" type="prismatic"><parent link="base"/><child link="lx"/><axis xyz="1 0 0"/>
-    <limit lower="-5" upper="5" effort="1" velocity="1"/></joint>
-  <joint name="y" type="prismatic"><parent link="lx"/><child link="ly"/><axis xyz="0 1 0"/>
-    <limit lower="-5" upper="5" effort="1" velocity="1"/></joint>
-  <joint name="z" type="prismatic"><parent link="ly"/><child link="probe"/><axis xyz="0 0 1"/>
-    <limit lower="-5" upper="5" effort="1" velocity="1"/></joint>
-</robot>"#;
+#[path = "common/probe.rs"]
+mod probe;
+use probe::XYZ;
 
 fn world() -> CollisionWorld {
     let urdf = Urdf::parse(XYZ).unwrap();

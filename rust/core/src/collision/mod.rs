@@ -12,19 +12,25 @@
 //! `broad_phase` (the pair lists and the bounding-volume filters that rule pairs out before the
 //! exact test), `obstacles` ([`Obstacles`]: the obstacle list and the bounding-volume hierarchy
 //! over it that finds the obstacles near a robot shape), `motion` ([`MotionBounds`]: how far
-//! each geometry can move along a motion, to certify motions with `CollisionWorld::clear_by`), `world` ([`CollisionWorld`]: obstacles and the queries). Everything is
+//! each geometry can move along a motion, to certify motions with `CollisionWorld::clear_by`), `world` ([`CollisionWorld`]: obstacles and the queries), `cloud` ([`Cloud`]: point clouds as
+//! obstacles, each point a ball, and their voxel down-sampling), `points` (signed distances of
+//! points to the obstacles), `spheres` (the robot's covering spheres tested against the obstacles,
+//! configurations as f32 lanes: the fast path of a planner's checks). Everything is
 //! re-exported here: the paths are `genplan_core::collision::X`.
 
 pub mod allowed;
 mod broad_phase;
+mod cloud;
 mod geometry;
 mod groups;
 mod hull;
 mod motion;
 mod obstacles;
 mod points;
+pub mod spheres;
 mod world;
 
+pub use cloud::{voxel_downsample, Cloud, MIN_VOXEL};
 pub use geometry::{load_mesh_vertices, RobotGeometry};
 pub use hull::Hull;
 pub use motion::{Levers, MotionBounds, Sweep};

@@ -56,6 +56,12 @@ impl Obstacles {
         self.index = OnceLock::new();
     }
 
+    /// Put `o` in place of obstacle `i` (same index: the order of the others is kept).
+    pub(super) fn replace(&mut self, i: usize, o: Obstacle) {
+        self.list[i] = o;
+        self.index = OnceLock::new();
+    }
+
     pub(super) fn clear(&mut self) {
         self.list.clear();
         self.index = OnceLock::new();

@@ -16,7 +16,7 @@ use super::broad_phase::{self_pairs, Obb, Target};
 use super::groups::{GroupPair, LinkGroups};
 use super::obstacles::Obstacles;
 use super::geometry::{bounding_sphere, load_mesh_vertices, robot_geometries};
-use super::{Hull, RobotGeometry};
+use super::{Cloud, Hull, RobotGeometry};
 use crate::error::{check_finite, check_vector, unknown, Error, Result};
 use crate::lie::{stable_norm, unit_vector};
 use crate::kinematics::KinematicModel;
@@ -58,6 +58,9 @@ pub struct Obstacle {
     pub(super) obb: Option<Obb>,
     /// For a half-space {x : n.x <= offset}: its unit normal n and offset (None otherwise).
     pub(super) plane: Option<(Vector3<f64>, f64)>,
+    /// For a point cloud ([`CollisionWorld::add_points`]): its radius, voxel and size (None for
+    /// every other obstacle).
+    pub cloud: Option<Cloud>,
 }
 
 impl Obstacle {
@@ -137,6 +140,12 @@ impl CollisionWorld {
         if self.obstacles.iter().any(|o| o.name == name) {
             return Err(Error::Invalid(format!("an obstacle named '{name}' already exists")));
         }
+        self.obstacles.push(Self::make_obstacle(name, pose, shape));
+        Ok(())
+    }
+
+    /// An obstacle with its bounding volumes (not a cloud: the caller sets [`Obstacle::cloud`]).
+    pub(super) fn make_obstacle(name: &str, pose: Isometry3<f64>, shape: SharedShape) -> Obstacle {
         let (c, r, aabb, obb) = if shape.as_halfspace().is_some() {
             (Point3::origin(), f64::INFINITY, None, None)
         } else {
@@ -147,17 +156,7 @@ impl CollisionWorld {
             let n = pose.rotation * h.normal.into_inner();
             (n, n.dot(&pose.translation.vector))
         });
-        self.obstacles.push(Obstacle {
-            name: name.to_string(),
-            pose,
-            shape,
-            center: c,
-            radius: r,
-            aabb,
-            obb,
-            plane,
-        });
-        Ok(())
+        Obstacle { name: name.to_string(), pose, shape, center: c, radius: r, aabb, obb, plane, cloud: None }
     }
 
     /// Add a box with the given half extents at `pose`: the half extents positive, finite and at
@@ -369,10 +368,35 @@ impl CollisionWorld {
     /// parry's intersection test of robot geometry `i` and target `t` at their poses in `s`.
     #[inline]
     fn narrow_phase(&self, i: usize, t: Target, s: &Scratch) -> bool {
+        if let Target::Obstacle(k) = t {
+            if let Some(cloud) = self.obstacles[k].cloud {
+                return self.touches_cloud(i, k, cloud.radius, s);
+            }
+        }
         let (pose_b, shape_b, _, _) = self.target(t, &s.poses);
         // Unsupported shape pairs cannot occur with the shapes built here; count them as
         // colliding to stay on the safe side.
         query::intersection_test(&s.poses[i], &*self.geometries[i].shape, &pose_b, &**shape_b).unwrap_or(true)
+    }
+
+    /// Does robot geometry `i` touch a ball of cloud obstacle `k` (radius `r`)? The balls whose
+    /// boxes meet the geometry's world box (the cloud's hierarchy; its pose is the identity, so
+    /// the balls' centres are world points), then the geometry's oriented box, then the exact
+    /// test parry's ball-against-shape intersection makes (the centre projected on the solid
+    /// shape, within `r`): the answer of parry's composite query, with a cheap filter per ball.
+    fn touches_cloud(&self, i: usize, k: usize, r: f64, s: &Scratch) -> bool {
+        let Some(c) = self.obstacles[k].shape.as_compound() else { return true };
+        let g = &self.geometries[i];
+        let parts = c.shapes();
+        let b = &s.aabbs[i];
+        c.bvh().leaves(|n| n.aabb().intersects(b)).any(|l| {
+            let p = Point3::from(parts[l as usize].0.translation.vector);
+            if s.obbs[i].farther_than(&p, r) {
+                return false;
+            }
+            let proj = g.shape.project_point(&s.poses[i], &p, true);
+            proj.is_inside || (p - proj.point).norm_squared() <= r * r
+        })
     }
 
     /// Does self pair `k` of the link groups' order (geometries `i` and `j`) intersect? As
@@ -945,7 +969,7 @@ fn y_to_z() -> Isometry3<f64> {
 }
 
 /// Each coordinate of a finite position within [`MAX_OBSTACLE_EXTENT`] of the origin.
-fn check_position(what: &str, field: &str, p: &[f64; 3]) -> Result<()> {
+pub(super) fn check_position(what: &str, field: &str, p: &[f64; 3]) -> Result<()> {
     if p.iter().any(|x| x.abs() > MAX_OBSTACLE_EXTENT) {
         return Err(Error::Invalid(format!(
             "{what}: {field} must be within {MAX_OBSTACLE_EXTENT:e} m of the origin in each coordinate, got {p:?}"

@@ -1,13 +1,16 @@
 //! Validity checkers: the [`ValidityChecker`] trait and the native ones, joint limits plus the
 //! parry collision world ([`CollisionChecker`]) and no check at all ([`AlwaysValid`]). A checker
 //! may also certify whole motions ([`ValidityChecker::certify_motion`]): the collision checker
-//! does it with the swept-motion bounds of `collision/motion.rs`.
+//! does it with the swept-motion bounds of `collision/motion.rs`. [`SphereChecker`] checks the
+//! robot's covering spheres instead of its exact geometry (`collision/spheres.rs`): faster and
+//! conservative (free by the spheres is free by the exact geometry).
 
 use std::sync::Arc;
 
 use rayon::prelude::*;
 
 use super::PlanResult;
+use crate::collision::spheres::{SphereScratch, SphereWorld, LANES};
 use crate::collision::{CollisionWorld, Levers, MotionBounds, Scratch, Sweep};
 use crate::kinematics::KinematicModel;
 
@@ -212,6 +215,50 @@ impl ValidityChecker for CollisionChecker {
             }
         }
         Ok(queries)
+    }
+}
+
+/// Valid = within the joint limits and free by the robot's spheres
+/// ([`SphereWorld`]: a conservative check, so a valid state is free by the exact geometry too).
+/// A batch is checked [`LANES`] configurations at a time; with `parallel`, blocks of them on
+/// rayon's threads. Motions are not certified (the planner checks their states).
+pub struct SphereChecker {
+    /// The spheres and the world.
+    pub spheres: Arc<SphereWorld>,
+    /// Check the blocks of a batch on rayon's threads.
+    pub parallel: bool,
+    scratch: SphereScratch<LANES>,
+}
+
+impl SphereChecker {
+    /// A checker of the configurations against `spheres`.
+    pub fn new(spheres: Arc<SphereWorld>, parallel: bool) -> SphereChecker {
+        SphereChecker { spheres, parallel, scratch: SphereScratch::default() }
+    }
+}
+
+impl ValidityChecker for SphereChecker {
+    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+        let m = &self.spheres.world.model;
+        let nq = m.nq;
+        // rows outside the limits are answered without the spheres
+        let block = nq * LANES;
+        let sw = &self.spheres;
+        let run = |rows: &[f64], out: &mut [bool], s: &mut SphereScratch<LANES>| {
+            sw.in_collision_batch(rows, out, s);
+            for (q, v) in rows.chunks(nq).zip(out.iter_mut()) {
+                *v = !*v && CollisionChecker::in_limits(m, q);
+            }
+        };
+        if self.parallel && valid.len() > 2 * LANES {
+            valid
+                .par_chunks_mut(4 * LANES)
+                .zip(qs.par_chunks(4 * block))
+                .for_each_init(SphereScratch::default, |s, (out, rows)| run(rows, out, s));
+        } else {
+            run(qs, valid, &mut self.scratch);
+        }
+        Ok(())
     }
 }
 

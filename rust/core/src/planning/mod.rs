@@ -51,7 +51,7 @@ mod sampler;
 mod space;
 mod tree;
 
-pub use checker::{AlwaysValid, CollisionChecker, ValidityChecker};
+pub use checker::{AlwaysValid, CollisionChecker, SphereChecker, ValidityChecker};
 pub use error::{ComponentError, PlanError, PlanResult};
 pub use nearest::{KdForest, LinearNearest, NearestNeighbors, NeighborIndex, KD_MAX_DIM};
 pub use projector::{GaussNewtonProjector, Projection, Projector};

@@ -1,0 +1,749 @@
+//! The robot as spheres ([`SphereModel`]: each link's geometry covered by spheres, given in the
+//! link frames) checked against a world's obstacles ([`SphereWorld`]): the fast, conservative
+//! collision check.
+//!
+//! The spheres come from `genplan.spheres.robot_spheres` (a guaranteed cover of each link's
+//! collision solid) or from the caller. Because they cover the links, a configuration free by the
+//! spheres is free by the exact geometry; the converse does not hold (the spheres reach a little
+//! beyond the links: false positives).
+//!
+//! A check runs on `N` configurations at once, as lanes ([`SphereScratch`]): the kinematics'
+//! joints that place the links with spheres (only those) run in `f32` across the lanes, each
+//! joint one product of rotation matrices per lane (its angle's sine and cosine in `f64`), so
+//! that the kinematics, placing the spheres and testing them against each obstacle are loops
+//! over the lanes of fixed-size arrays, which the compiler turns into vector instructions (`N` = [`LANES`] = 8: one AVX register of `f32`, two SSE
+//! ones). On x86-64 the kernel is compiled a second time with AVX2 and FMA enabled and chosen at
+//! run time when the processor has them (the build targets the x86-64 baseline: no
+//! `target-cpu` in the build's flags). One configuration is the same kernel with `N` = 1; a
+//! motion's states are the lanes of one pass ([`SphereWorld::motion_free`]: VAMP's "rake").
+//!
+//! Obstacles are tested in closed form: box (the squared distance from the centre to the box
+//! in its frame), sphere, cylinder (radial and axial excess), capsule (distance to its segment),
+//! half-space (height above the plane). A mesh obstacle is the world's convex hull of it, tested
+//! with parry's ball-versus-shape intersection test per lane: the same hull the exact check
+//! uses, so no geometry differs between the two checks, and the test runs only for the spheres
+//! of a link whose bounding sphere meets the hull's box. A point cloud is refused (its obstacle
+//! is named): the spheres would need a test of their own against its points.
+//!
+//! The broad phase: each link's spheres have a bounding sphere; an obstacle is tested against a
+//! link's spheres only in the lanes where that bounding sphere meets the obstacle's world box (or
+//! reaches below a half-space's plane). Self-collision tests the sphere pairs of the link pairs
+//! the world checks (its self pairs, the SRDF's and the computed disabled pairs left out),
+//! after the same test on the two links' bounding spheres. A batch stops when every lane is in
+//! collision; a motion at its first state in collision.
+//!
+//! The `f32` rounding (of the link poses, the obstacles and the arithmetic: relative 6e-8, so
+//! below 1 um within 10 m of the origin) is covered by [`F32_SLACK`], added to every radius.
+
+use std::sync::Arc;
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use parry3d_f64::query;
+use parry3d_f64::shape::Ball;
+
+use super::CollisionWorld;
+use crate::error::{check_finite, Error, Result};
+use crate::kinematics::KinematicModel;
+
+/// Lanes of the batch kernel: configurations checked together.
+pub const LANES: usize = 8;
+
+/// A block of fewer rows than this is checked one row at a time.
+pub const SHORT_BLOCK: usize = 3;
+
+/// Added to every sphere radius (m) in the `f32` tests, so that rounding never hides a contact.
+pub const F32_SLACK: f32 = 1e-5;
+
+/// Per-link spheres as struct-of-arrays: sphere i belongs to link `link[i]` (an index into the
+/// kinematic model's links) with centre (`x[i]`, `y[i]`, `z[i]`) in that link's frame and radius
+/// `radius[i]` (m). Sorted by link (the spheres of one link are contiguous, in the given order).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SphereModel {
+    /// Link index of each sphere.
+    pub link: Vec<usize>,
+    /// Centre x in the link frame.
+    pub x: Vec<f64>,
+    /// Centre y in the link frame.
+    pub y: Vec<f64>,
+    /// Centre z in the link frame.
+    pub z: Vec<f64>,
+    /// Radius (positive).
+    pub radius: Vec<f64>,
+}
+
+impl SphereModel {
+    /// Spheres from per-sphere link names (links of `model`), centres in the link frames and
+    /// radii, checked: as many of each, known links, finite centres, positive finite radii.
+    pub fn new(model: &KinematicModel, links: &[&str], centers: &[[f64; 3]], radii: &[f64]) -> Result<SphereModel> {
+        let n = links.len();
+        for (what, len) in [("centers", centers.len()), ("radii", radii.len())] {
+            if len != n {
+                return Err(Error::Shape { what: format!("spheres: {what} (one per link name)"), expected: n, got: len });
+            }
+        }
+        let flat: Vec<f64> = centers.iter().flatten().copied().collect();
+        check_finite("spheres: centers", &flat)?;
+        check_finite("spheres: radii", radii)?;
+        if let Some(i) = radii.iter().position(|&r| r <= 0.0) {
+            return Err(Error::Invalid(format!("spheres: radii: element {i} must be positive, got {}", radii[i])));
+        }
+        let mut order: Vec<(usize, usize)> = Vec::with_capacity(n);
+        for (i, name) in links.iter().enumerate() {
+            order.push((model.link_index(name)?, i));
+        }
+        // stable: the spheres of one link keep their order
+        order.sort_by_key(|&(l, _)| l);
+        let mut m = SphereModel::default();
+        for (l, i) in order {
+            m.link.push(l);
+            m.x.push(centers[i][0]);
+            m.y.push(centers[i][1]);
+            m.z.push(centers[i][2]);
+            m.radius.push(radii[i]);
+        }
+        Ok(m)
+    }
+
+    /// The number of spheres.
+    pub fn len(&self) -> usize {
+        self.link.len()
+    }
+
+    /// True when there is no sphere.
+    pub fn is_empty(&self) -> bool {
+        self.link.is_empty()
+    }
+}
+
+/// The spheres of one link, `start..end` of the model's, with a sphere bounding them (link frame).
+#[derive(Clone, Debug)]
+struct LinkSpheres {
+    link: usize,
+    start: usize,
+    end: usize,
+    center: [f32; 3],
+    radius: f32,
+}
+
+/// An obstacle in the form the kernel tests (world frame, `f32`).
+#[derive(Clone, Debug)]
+enum Shape {
+    Sphere { c: [f32; 3], r: f32 },
+    /// `rt`: the rows of the world-to-box rotation; `t`: the centre; `h`: the half extents.
+    Box { rt: [[f32; 3]; 3], t: [f32; 3], h: [f32; 3] },
+    /// parry's cylinder: its axis along the local y of the pose.
+    Cylinder { rt: [[f32; 3]; 3], t: [f32; 3], radius: f32, half_height: f32 },
+    /// The segment from `a` to `a + ab` and the radius.
+    Capsule { a: [f32; 3], ab: [f32; 3], r: f32 },
+    /// {x : n.x <= offset}.
+    Plane { n: [f32; 3], offset: f32 },
+    /// Any other parry shape (a mesh's convex hull): obstacle `index` of the world, in `f64`.
+    Other { index: usize },
+}
+
+#[derive(Clone, Debug)]
+struct Compiled {
+    shape: Shape,
+    /// World box (none for a half-space).
+    aabb: Option<([f32; 3], [f32; 3])>,
+}
+
+/// The robot's spheres against the obstacles of a [`CollisionWorld`] (as it was when this was
+/// built): see the module text.
+#[derive(Clone)]
+pub struct SphereWorld {
+    /// The world the obstacles, the self pairs and the kinematics come from.
+    pub world: Arc<CollisionWorld>,
+    spheres: SphereModel,
+    local: [Vec<f32>; 4],
+    links: Vec<LinkSpheres>,
+    /// Self pairs as indices into `links`.
+    pairs: Vec<(usize, usize)>,
+    obstacles: Vec<Compiled>,
+    /// The joints that place every link with spheres (the kinematics' order, parents first),
+    /// in `f32`.
+    joints: Vec<LaneJoint>,
+}
+
+/// A joint of the kinematics for the lane kinematics: its origin's rotation (row-major) and
+/// translation, and how it moves.
+#[derive(Clone, Debug)]
+struct LaneJoint {
+    parent: usize,
+    child: usize,
+    rotation: [f32; 9],
+    translation: [f32; 3],
+    motion: LaneMotion,
+}
+
+#[derive(Clone, Debug)]
+enum LaneMotion {
+    Fixed,
+    /// About the unit axis by the angle `multiplier * q[index] + offset`; `continuous`: the
+    /// angle of (q[index], q[index + 1]) instead.
+    Revolute { axis: [f32; 3], index: usize, multiplier: f64, offset: f64, continuous: bool },
+    /// Along the unit axis by `multiplier * q[index] + offset`.
+    Prismatic { axis: [f32; 3], index: usize, multiplier: f64, offset: f64 },
+}
+
+/// Buffers of a check of `N` configurations at once.
+#[derive(Clone, Debug)]
+pub struct SphereScratch<const N: usize> {
+    /// For a short last block of a batch: its rows one at a time, or four lanes.
+    one: Vec<SphereScratch<1>>,
+    four: Vec<SphereScratch<4>>,
+    /// Per link of the model (up to the last one with spheres): its rotation (row-major, 9)
+    /// and translation (3), per lane.
+    frames: Vec<[[f32; N]; 12]>,
+    /// Per sphere: world centre per lane.
+    centers: Vec<[[f32; N]; 3]>,
+    /// Per link with spheres: world centre of its bounding sphere per lane.
+    bounds: Vec<[[f32; N]; 3]>,
+    state: Vec<f64>,
+    dq: Vec<f64>,
+}
+
+impl<const N: usize> Default for SphereScratch<N> {
+    fn default() -> Self {
+        SphereScratch { one: Vec::new(), four: Vec::new(), frames: Vec::new(), centers: Vec::new(), bounds: Vec::new(), state: Vec::new(), dq: Vec::new() }
+    }
+}
+
+fn f3(v: &Vector3<f64>) -> [f32; 3] {
+    [v.x as f32, v.y as f32, v.z as f32]
+}
+
+/// The rows of the inverse (transpose) of the pose's rotation, and its translation.
+fn inverse_rows(pose: &Isometry3<f64>) -> ([[f32; 3]; 3], [f32; 3]) {
+    let m = pose.rotation.to_rotation_matrix().into_inner();
+    let rt = [0, 1, 2].map(|i| [m[(0, i)] as f32, m[(1, i)] as f32, m[(2, i)] as f32]);
+    (rt, f3(&pose.translation.vector))
+}
+
+impl SphereWorld {
+    /// The spheres against `world`'s obstacles and self pairs. A point cloud obstacle is refused
+    /// ([`Error::Invalid`] naming it); so are spheres on a link of another model.
+    pub fn new(world: Arc<CollisionWorld>, spheres: SphereModel) -> Result<SphereWorld> {
+        let model = &world.model;
+        if let Some(&l) = spheres.link.iter().find(|&&l| l >= model.n_links()) {
+            return Err(Error::Invalid(format!("spheres: link index {l} out of range (the model has {} links)", model.n_links())));
+        }
+        let mut links: Vec<LinkSpheres> = Vec::new();
+        for i in 0..spheres.len() {
+            match links.last_mut() {
+                Some(ls) if ls.link == spheres.link[i] => ls.end = i + 1,
+                _ => links.push(LinkSpheres { link: spheres.link[i], start: i, end: i + 1, center: [0.0; 3], radius: 0.0 }),
+            }
+        }
+        if links.windows(2).any(|w| w[0].link >= w[1].link) {
+            return Err(Error::Invalid("spheres: not sorted by link (build them with SphereModel::new)".into()));
+        }
+        for ls in &mut links {
+            // the centre of the spheres' box, the radius reaching the farthest sphere
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for i in ls.start..ls.end {
+                for (k, c) in [spheres.x[i], spheres.y[i], spheres.z[i]].into_iter().enumerate() {
+                    lo[k] = lo[k].min(c - spheres.radius[i]);
+                    hi[k] = hi[k].max(c + spheres.radius[i]);
+                }
+            }
+            let c = Point3::new(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]));
+            let r = (ls.start..ls.end)
+                .map(|i| (Point3::new(spheres.x[i], spheres.y[i], spheres.z[i]) - c).norm() + spheres.radius[i])
+                .fold(0.0, f64::max);
+            ls.center = f3(&c.coords);
+            ls.radius = (r * (1.0 + 1e-6)) as f32 + F32_SLACK;
+        }
+        // the link pairs the world checks for self-collision, among the links with spheres
+        let slot = |l: usize| links.iter().position(|ls| ls.link == l);
+        let mut pairs: Vec<(usize, usize)> = Vec::new();
+        if world.check_self {
+            for gp in &world.groups.group_pairs {
+                let (la, lb) = (world.groups.groups[gp.a as usize].link, world.groups.groups[gp.b as usize].link);
+                if let (Some(a), Some(b)) = (slot(la), slot(lb)) {
+                    let p = (a.min(b), a.max(b));
+                    if a != b && !pairs.contains(&p) {
+                        pairs.push(p);
+                    }
+                }
+            }
+        }
+        let mut obstacles = Vec::with_capacity(world.obstacles.len());
+        for (index, o) in world.obstacles.iter().enumerate() {
+            if o.cloud.is_some() {
+                return Err(Error::Invalid(format!(
+                    "obstacle '{}': a point cloud cannot be checked with spheres (use the exact checker)",
+                    o.name
+                )));
+            }
+            let s = &o.shape;
+            let shape = if let Some(b) = s.as_ball() {
+                Shape::Sphere { c: f3(&o.pose.translation.vector), r: b.radius as f32 }
+            } else if let Some(b) = s.as_cuboid() {
+                let (rt, t) = inverse_rows(&o.pose);
+                Shape::Box { rt, t, h: f3(&b.half_extents) }
+            } else if let Some(c) = s.as_cylinder() {
+                let (rt, t) = inverse_rows(&o.pose);
+                Shape::Cylinder { rt, t, radius: c.radius as f32, half_height: c.half_height as f32 }
+            } else if let Some(c) = s.as_capsule() {
+                let (a, b) = (o.pose * c.segment.a, o.pose * c.segment.b);
+                Shape::Capsule { a: f3(&a.coords), ab: f3(&(b - a)), r: c.radius as f32 }
+            } else if let Some((n, offset)) = o.plane {
+                Shape::Plane { n: f3(&n), offset: offset as f32 }
+            } else {
+                Shape::Other { index }
+            };
+            let aabb = o.aabb.map(|b| (f3(&b.mins.coords), f3(&b.maxs.coords)));
+            obstacles.push(Compiled { shape, aabb });
+        }
+        let link_ids: Vec<usize> = links.iter().map(|l| l.link).collect();
+        let joints = lane_joints(model, model.joints_placing(&link_ids));
+        let local = [&spheres.x, &spheres.y, &spheres.z, &spheres.radius].map(|v| v.iter().map(|&a| a as f32).collect());
+        Ok(SphereWorld { world, spheres, local, links, pairs, obstacles, joints })
+    }
+
+    /// The spheres.
+    pub fn spheres(&self) -> &SphereModel {
+        &self.spheres
+    }
+
+    /// The link pairs tested for self-collision, as link indices of the model.
+    pub fn self_link_pairs(&self) -> Vec<(usize, usize)> {
+        self.pairs.iter().map(|&(a, b)| (self.links[a].link, self.links[b].link)).collect()
+    }
+
+    /// Is the checked configuration `q` in collision by the spheres (input checked: length,
+    /// finite)? Joint limits are not part of the answer.
+    pub fn in_collision(&self, q: &[f64]) -> Result<bool> {
+        self.world.model.check_configuration(q)?;
+        Ok(self.in_collision_unchecked(q, &mut SphereScratch::default()))
+    }
+
+    /// [`in_collision`](Self::in_collision) without input checks, reusing buffers.
+    pub fn in_collision_unchecked(&self, q: &[f64], s: &mut SphereScratch<1>) -> bool {
+        self.place([q], s);
+        self.collide(s, [true], true)[0]
+    }
+
+    /// For each row of `qs` (checked configurations, n x nq): `out[i]` = in collision by the
+    /// spheres. Rows are checked [`LANES`] at a time; a last block of fewer than
+    /// [`SHORT_BLOCK`] rows one row at a time, one of at most 4 in four lanes (the lanes cost
+    /// the same whether used or not: a planner's edges are often a few states).
+    pub fn in_collision_batch(&self, qs: &[f64], out: &mut [bool], s: &mut SphereScratch<LANES>) {
+        let nq = self.world.model.nq;
+        for (rows, res) in qs.chunks(nq * LANES).zip(out.chunks_mut(LANES)) {
+            let n = res.len();
+            if n < SHORT_BLOCK {
+                if s.one.is_empty() {
+                    s.one.push(SphereScratch::default());
+                }
+                for (q, r) in rows.chunks(nq).zip(res.iter_mut()) {
+                    *r = self.in_collision_unchecked(q, &mut s.one[0]);
+                }
+            } else if n <= 4 {
+                if s.four.is_empty() {
+                    s.four.push(SphereScratch::default());
+                }
+                self.block(rows, res, &mut s.four[0]);
+            } else {
+                self.block(rows, res, s);
+            }
+        }
+    }
+
+    /// The rows of `rows` (at most `N`) in `N` lanes, a short block repeating its last row in
+    /// the idle lanes (their answers are dropped).
+    fn block<const N: usize>(&self, rows: &[f64], res: &mut [bool], s: &mut SphereScratch<N>) {
+        let nq = self.world.model.nq;
+        let n = res.len();
+        let lane = |l: usize| &rows[l.min(n - 1) * nq..(l.min(n - 1) + 1) * nq];
+        let mut live = [false; N];
+        live[..n].fill(true);
+        self.place(std::array::from_fn(lane), s);
+        let hit = self.collide(s, live, false);
+        res.copy_from_slice(&hit[..n]);
+    }
+
+    /// Is every state of the motion from `a` to `b` (`a (+) t (b (-) a)` at t = k / m, k = 0..=m,
+    /// the least m that makes consecutive states at most `resolution` apart in every
+    /// coordinate of the tangent) free by the spheres? The states are the lanes of one pass,
+    /// [`LANES`] at a time, stopping at the first block with a state in collision. `a`, `b`
+    /// checked configurations; `resolution` > 0.
+    pub fn motion_free(&self, a: &[f64], b: &[f64], resolution: f64, s: &mut SphereScratch<LANES>) -> bool {
+        let m: &KinematicModel = &self.world.model;
+        let (nq, nv) = (m.nq, m.nv);
+        let mut dq = std::mem::take(&mut s.dq);
+        dq.resize(nv, 0.0);
+        m.difference(a, b, &mut dq);
+        let span = dq.iter().fold(0.0f64, |x, d| x.max(d.abs()));
+        let steps = ((span / resolution).ceil() as usize).max(1);
+        let mut states = std::mem::take(&mut s.state);
+        states.resize(LANES * nq, 0.0);
+        let mut v = vec![0.0; nv];
+        let mut free = true;
+        let mut k0 = 0;
+        while k0 <= steps && free {
+            let n = (steps + 1 - k0).min(LANES);
+            for l in 0..LANES {
+                let t = (k0 + l.min(n - 1)) as f64 / steps as f64;
+                for (vi, di) in v.iter_mut().zip(&dq) {
+                    *vi = t * di;
+                }
+                m.integrate(a, &v, &mut states[l * nq..(l + 1) * nq]);
+            }
+            let mut live = [false; LANES];
+            live[..n].fill(true);
+            self.place(std::array::from_fn(|l| &states[l * nq..(l + 1) * nq]), s);
+            free = !self.collide(s, live, true).iter().any(|&h| h);
+            k0 += n;
+        }
+        s.dq = dq;
+        s.state = states;
+        free
+    }
+
+    /// Pose the links with spheres for each lane's configuration and place every sphere and
+    /// every link's bounding sphere in the world. The kinematics run in `f32` across the lanes
+    /// (the joint angles' sines and cosines in `f64`); a floating base is placed by
+    /// [`KinematicModel::forward_kinematics_prefix`] (`f64`).
+    fn place<const N: usize>(&self, qs: [&[f64]; N], s: &mut SphereScratch<N>) {
+        let m = &self.world.model;
+        let n_links = m.n_links();
+        s.frames.resize(n_links, [[0.0; N]; 12]);
+        let mut root = [[0.0f32; N]; 12];
+        for l in 0..N {
+            let p = if m.floating_base { KinematicModel::base_pose(qs[l]) } else { Isometry3::identity() };
+            let r = p.rotation.to_rotation_matrix().into_inner();
+            for i in 0..3 {
+                for j in 0..3 {
+                    root[3 * i + j][l] = r[(i, j)] as f32;
+                }
+                root[9 + i][l] = p.translation.vector[i] as f32;
+            }
+        }
+        s.frames[m.root] = root;
+        // the joints' values per lane: the angle's cosine and sine, or the displacement
+        let mut a = [[0.0f32; N]; 2];
+        for j in &self.joints {
+            match &j.motion {
+                LaneMotion::Fixed => {}
+                LaneMotion::Revolute { index, multiplier, offset, continuous, .. } => {
+                    for l in 0..N {
+                        let q = qs[l];
+                        let t = if *continuous { q[index + 1].atan2(q[*index]) } else { multiplier * q[*index] + offset };
+                        let (sn, cs) = t.sin_cos();
+                        a[0][l] = cs as f32;
+                        a[1][l] = sn as f32;
+                    }
+                }
+                LaneMotion::Prismatic { index, multiplier, offset, .. } => {
+                    for l in 0..N {
+                        a[0][l] = (multiplier * qs[l][*index] + offset) as f32;
+                    }
+                }
+            }
+            let child = dispatch_joint(j, &s.frames[j.parent], &a);
+            s.frames[j.child] = child;
+        }
+        dispatch_place(self, s);
+    }
+
+    /// The kernel of [`place`](Self::place) after the frames are written.
+    #[inline(always)]
+    fn place_spheres<const N: usize>(&self, s: &mut SphereScratch<N>) {
+        s.centers.resize(self.spheres.len(), [[0.0; N]; 3]);
+        s.bounds.resize(self.links.len(), [[0.0; N]; 3]);
+        let [x, y, z, _] = &self.local;
+        for (k, ls) in self.links.iter().enumerate() {
+            let f = &s.frames[ls.link];
+            let put = |p: [f32; 3], out: &mut [[f32; N]; 3]| {
+                for i in 0..3 {
+                    for l in 0..N {
+                        out[i][l] = f[3 * i][l] * p[0] + f[3 * i + 1][l] * p[1] + f[3 * i + 2][l] * p[2] + f[9 + i][l];
+                    }
+                }
+            };
+            put(ls.center, &mut s.bounds[k]);
+            for i in ls.start..ls.end {
+                put([x[i], y[i], z[i]], &mut s.centers[i]);
+            }
+        }
+    }
+
+    /// Which lanes are in collision (`live` lanes only). `any`: stop at the first lane in
+    /// collision (else when every live lane is).
+    fn collide<const N: usize>(&self, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+        dispatch_collide(self, s, live, any)
+    }
+
+    #[inline(always)]
+    fn collide_kernel<const N: usize>(&self, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+        let mut hit = [false; N];
+        let done = |hit: &[bool; N]| if any { hit.iter().any(|&h| h) } else { (0..N).all(|l| hit[l] || !live[l]) };
+        let radius = &self.local[3];
+        for (k, ls) in self.links.iter().enumerate() {
+            let bc = &s.bounds[k];
+            for o in &self.obstacles {
+                // lanes where the link's bounding sphere meets the obstacle's box (or plane)
+                let mut near = [false; N];
+                match (&o.aabb, &o.shape) {
+                    (Some((lo, hi)), _) => {
+                        for l in 0..N {
+                            let mut d2 = 0.0;
+                            for i in 0..3 {
+                                let e = (lo[i] - bc[i][l]).max(0.0) + (bc[i][l] - hi[i]).max(0.0);
+                                d2 += e * e;
+                            }
+                            near[l] = live[l] && !hit[l] && d2 <= ls.radius * ls.radius;
+                        }
+                    }
+                    (None, _) => near = std::array::from_fn(|l| live[l] && !hit[l]),
+                }
+                if !near.iter().any(|&n| n) {
+                    continue;
+                }
+                for i in ls.start..ls.end {
+                    let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK, &near);
+                    for l in 0..N {
+                        hit[l] |= h[l] && near[l];
+                    }
+                }
+                if done(&hit) {
+                    return hit;
+                }
+            }
+        }
+        for &(a, b) in &self.pairs {
+            let (la, lb) = (&self.links[a], &self.links[b]);
+            let (ca, cb) = (&s.bounds[a], &s.bounds[b]);
+            let reach = la.radius + lb.radius;
+            let near: [bool; N] = std::array::from_fn(|l| {
+                let d2 = (0..3).map(|i| (ca[i][l] - cb[i][l]) * (ca[i][l] - cb[i][l])).sum::<f32>();
+                live[l] && !hit[l] && d2 <= reach * reach
+            });
+            if !near.iter().any(|&n| n) {
+                continue;
+            }
+            for i in la.start..la.end {
+                let p = &s.centers[i];
+                for j in lb.start..lb.end {
+                    let q = &s.centers[j];
+                    let rr = radius[i] + radius[j] + 2.0 * F32_SLACK;
+                    for l in 0..N {
+                        let d2 = (p[0][l] - q[0][l]) * (p[0][l] - q[0][l])
+                            + (p[1][l] - q[1][l]) * (p[1][l] - q[1][l])
+                            + (p[2][l] - q[2][l]) * (p[2][l] - q[2][l]);
+                        hit[l] |= near[l] && d2 <= rr * rr;
+                    }
+                }
+            }
+            if done(&hit) {
+                return hit;
+            }
+        }
+        hit
+    }
+
+    /// Does the sphere (world centre per lane `c`, radius `r`) meet obstacle `o`, per lane?
+    #[inline(always)]
+    fn sphere_hits<const N: usize>(&self, o: &Compiled, c: &[[f32; N]; 3], r: f32, near: &[bool; N]) -> [bool; N] {
+        let mut out = [false; N];
+        match &o.shape {
+            Shape::Sphere { c: oc, r: or } => {
+                let rr = r + or;
+                for l in 0..N {
+                    let d2 = (c[0][l] - oc[0]).powi(2) + (c[1][l] - oc[1]).powi(2) + (c[2][l] - oc[2]).powi(2);
+                    out[l] = d2 <= rr * rr;
+                }
+            }
+            Shape::Box { rt, t, h } => {
+                for l in 0..N {
+                    let d = [c[0][l] - t[0], c[1][l] - t[1], c[2][l] - t[2]];
+                    let mut d2 = 0.0;
+                    for i in 0..3 {
+                        let p = rt[i][0] * d[0] + rt[i][1] * d[1] + rt[i][2] * d[2];
+                        let e = (p.abs() - h[i]).max(0.0);
+                        d2 += e * e;
+                    }
+                    out[l] = d2 <= r * r;
+                }
+            }
+            Shape::Cylinder { rt, t, radius, half_height } => {
+                for l in 0..N {
+                    let d = [c[0][l] - t[0], c[1][l] - t[1], c[2][l] - t[2]];
+                    let p: [f32; 3] = std::array::from_fn(|i| rt[i][0] * d[0] + rt[i][1] * d[1] + rt[i][2] * d[2]);
+                    let radial = (p[0] * p[0] + p[2] * p[2]).sqrt();
+                    let er = (radial - radius).max(0.0);
+                    let ey = (p[1].abs() - half_height).max(0.0);
+                    out[l] = er * er + ey * ey <= r * r;
+                }
+            }
+            Shape::Capsule { a, ab, r: cr } => {
+                let len2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
+                let inv = if len2 > 0.0 { 1.0 / len2 } else { 0.0 };
+                let rr = r + cr;
+                for l in 0..N {
+                    let d = [c[0][l] - a[0], c[1][l] - a[1], c[2][l] - a[2]];
+                    let t = ((d[0] * ab[0] + d[1] * ab[1] + d[2] * ab[2]) * inv).clamp(0.0, 1.0);
+                    let e = [d[0] - t * ab[0], d[1] - t * ab[1], d[2] - t * ab[2]];
+                    out[l] = e[0] * e[0] + e[1] * e[1] + e[2] * e[2] <= rr * rr;
+                }
+            }
+            Shape::Plane { n, offset } => {
+                for l in 0..N {
+                    out[l] = n[0] * c[0][l] + n[1] * c[1][l] + n[2] * c[2][l] - offset <= r;
+                }
+            }
+            Shape::Other { index } => {
+                let ob = &self.world.obstacles[*index];
+                let ball = Ball::new(r as f64 + 1e-9);
+                for l in 0..N {
+                    if near[l] {
+                        let at = Isometry3::translation(c[0][l] as f64, c[1][l] as f64, c[2][l] as f64);
+                        out[l] = query::intersection_test(&at, &ball, &ob.pose, &*ob.shape).unwrap_or(true);
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The joints of `model` that [`KinematicModel::forward_kinematics_prefix`] would run (the first
+/// `count`), in `f32` for the lanes.
+fn lane_joints(model: &KinematicModel, count: usize) -> Vec<LaneJoint> {
+    use crate::kinematics::Motion;
+    let f = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
+    model.joints[..count.min(model.joints.len())]
+        .iter()
+        .map(|j| {
+            let r = j.origin.rotation.to_rotation_matrix().into_inner();
+            let (index, multiplier, offset) = match j.mimic {
+                None => (j.q_index, 1.0, 0.0),
+                Some(m) => (m.q_index, m.multiplier, m.offset),
+            };
+            let motion = match &j.motion {
+                Motion::Fixed => LaneMotion::Fixed,
+                Motion::Revolute { axis } => LaneMotion::Revolute { axis: f(axis), index, multiplier, offset, continuous: false },
+                Motion::Continuous { axis } => {
+                    LaneMotion::Revolute { axis: f(axis), index: j.q_index, multiplier: 1.0, offset: 0.0, continuous: true }
+                }
+                Motion::Prismatic { axis } => LaneMotion::Prismatic { axis: f(axis), index, multiplier, offset },
+            };
+            LaneJoint {
+                parent: j.parent,
+                child: j.child,
+                rotation: std::array::from_fn(|k| r[(k / 3, k % 3)] as f32),
+                translation: f(&j.origin.translation.vector),
+                motion,
+            }
+        })
+        .collect()
+}
+
+/// The child frame of joint `j` per lane from its parent's `p` (rotation row-major, then
+/// translation) and its values `a` (cosine and sine of the angle, or the displacement in `a[0]`):
+/// parent * origin * motion.
+#[inline(always)]
+fn joint_frame<const N: usize>(j: &LaneJoint, p: &[[f32; N]; 12], a: &[[f32; N]; 2]) -> [[f32; N]; 12] {
+    let (o, t0) = (&j.rotation, &j.translation);
+    let mut c = [[0.0f32; N]; 12];
+    // placed = parent * origin
+    for i in 0..3 {
+        for k in 0..3 {
+            for l in 0..N {
+                c[3 * i + k][l] = p[3 * i][l] * o[k] + p[3 * i + 1][l] * o[3 + k] + p[3 * i + 2][l] * o[6 + k];
+            }
+        }
+        for l in 0..N {
+            c[9 + i][l] = p[3 * i][l] * t0[0] + p[3 * i + 1][l] * t0[1] + p[3 * i + 2][l] * t0[2] + p[9 + i][l];
+        }
+    }
+    match &j.motion {
+        LaneMotion::Fixed => c,
+        LaneMotion::Revolute { axis: u, .. } => {
+            // R(u, t) = cos I + sin [u]x + (1 - cos) u u^T, per lane; the child's rotation c * R
+            let mut out = c;
+            for l in 0..N {
+                let (cs, sn) = (a[0][l], a[1][l]);
+                let v = 1.0 - cs;
+                let rm = [
+                    cs + v * u[0] * u[0], v * u[0] * u[1] - sn * u[2], v * u[0] * u[2] + sn * u[1],
+                    v * u[1] * u[0] + sn * u[2], cs + v * u[1] * u[1], v * u[1] * u[2] - sn * u[0],
+                    v * u[2] * u[0] - sn * u[1], v * u[2] * u[1] + sn * u[0], cs + v * u[2] * u[2],
+                ];
+                for i in 0..3 {
+                    for k in 0..3 {
+                        out[3 * i + k][l] = c[3 * i][l] * rm[k] + c[3 * i + 1][l] * rm[3 + k] + c[3 * i + 2][l] * rm[6 + k];
+                    }
+                }
+            }
+            out
+        }
+        LaneMotion::Prismatic { axis: u, .. } => {
+            let mut out = c;
+            for i in 0..3 {
+                for l in 0..N {
+                    let d = a[0][l];
+                    out[9 + i][l] += d * (c[3 * i][l] * u[0] + c[3 * i + 1][l] * u[1] + c[3 * i + 2][l] * u[2]);
+                }
+            }
+            out
+        }
+    }
+}
+
+/// [`joint_frame`], compiled with AVX2 and FMA where the processor has them.
+fn dispatch_joint<const N: usize>(j: &LaneJoint, p: &[[f32; N]; 12], a: &[[f32; N]; 2]) -> [[f32; N]; 12] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if avx2() {
+            #[target_feature(enable = "avx2,fma")]
+            fn joint_avx2<const N: usize>(j: &LaneJoint, p: &[[f32; N]; 12], a: &[[f32; N]; 2]) -> [[f32; N]; 12] {
+                joint_frame(j, p, a)
+            }
+            // SAFETY: the processor has AVX2 and FMA (checked at run time just above)
+            return unsafe { joint_avx2(j, p, a) };
+        }
+    }
+    joint_frame(j, p, a)
+}
+
+/// [`SphereWorld::place_spheres`], compiled with AVX2 and FMA where the processor has them.
+fn dispatch_place<const N: usize>(w: &SphereWorld, s: &mut SphereScratch<N>) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if avx2() {
+            #[target_feature(enable = "avx2,fma")]
+            fn place_avx2<const N: usize>(w: &SphereWorld, s: &mut SphereScratch<N>) {
+                w.place_spheres(s)
+            }
+            // SAFETY: the processor has AVX2 and FMA (checked at run time just above)
+            return unsafe { place_avx2(w, s) };
+        }
+    }
+    w.place_spheres(s)
+}
+
+/// [`SphereWorld::collide_kernel`], compiled with AVX2 and FMA where the processor has them.
+fn dispatch_collide<const N: usize>(w: &SphereWorld, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if avx2() {
+            #[target_feature(enable = "avx2,fma")]
+            fn collide_avx2<const N: usize>(w: &SphereWorld, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+                w.collide_kernel(s, live, any)
+            }
+            // SAFETY: the processor has AVX2 and FMA (checked at run time just above)
+            return unsafe { collide_avx2(w, s, live, any) };
+        }
+    }
+    w.collide_kernel(s, live, any)
+}
+
+/// Does the processor have AVX2 and FMA (detected once)?
+#[cfg(target_arch = "x86_64")]
+fn avx2() -> bool {
+    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *HAS.get_or_init(|| is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"))
+}

@@ -1,0 +1,239 @@
+//! The sphere check (src/collision/spheres.rs) and its planner checker
+//! (`planning::SphereChecker`): each obstacle shape's closed-form test against the exact world
+//! on a robot that is one sphere, conservativeness on the Panda against the exact world, the
+//! batch and motion forms against the one-configuration form, and the input checks.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld, LANES};
+use genplan_core::collision::CollisionWorld;
+use genplan_core::error::Error;
+use genplan_core::kinematics::{KinematicModel, ModelOptions};
+use genplan_core::planning::{CollisionChecker, SphereChecker, ValidityChecker};
+use genplan_core::robot::preset;
+use genplan_core::urdf::Urdf;
+use nalgebra::{Isometry3, Vector3};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+#[path = "common/probe.rs"]
+mod probe;
+use probe::XYZ;
+
+/// The unit cube [-0.5, 0.5]^3 as an OBJ file.
+const CUBE_OBJ: &str = "v -0.5 -0.5 -0.5\nv 0.5 -0.5 -0.5\nv 0.5 0.5 -0.5\nv -0.5 0.5 -0.5\n\
+v -0.5 -0.5 0.5\nv 0.5 -0.5 0.5\nv 0.5 0.5 0.5\nv -0.5 0.5 0.5\n\
+f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n";
+
+fn probe_world() -> CollisionWorld {
+    let urdf = Urdf::parse(XYZ).unwrap();
+    let model = Arc::new(KinematicModel::from_urdf(&urdf, &ModelOptions::default()).unwrap());
+    CollisionWorld::from_urdf(model, &urdf, &[], None).unwrap()
+}
+
+fn cube_file() -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("genplan-spheres-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("cube.obj");
+    std::fs::write(&p, CUBE_OBJ).unwrap();
+    p
+}
+
+fn random_pose(rng: &mut StdRng, spread: f64) -> Isometry3<f64> {
+    let c = Vector3::new(rng.random_range(-spread..spread), rng.random_range(-spread..spread), 0.4 + rng.random_range(-spread..spread));
+    let axis = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+    Isometry3::new(c, axis * rng.random_range(0.0..3.0))
+}
+
+/// One obstacle of kind `kind` (0 box, 1 sphere, 2 cylinder, 3 capsule, 4 half-space, 5 mesh).
+fn add(w: &mut CollisionWorld, rng: &mut StdRng, kind: usize, name: &str, spread: f64, cube: &PathBuf) {
+    let pose = random_pose(rng, spread);
+    let mut size = || rng.random_range(0.02..0.25);
+    match kind {
+        0 => w.add_box(name, [size(), size(), size()], pose).unwrap(),
+        1 => w.add_sphere(name, size(), pose.translation.vector.into()).unwrap(),
+        2 => w.add_cylinder(name, size(), size(), pose).unwrap(),
+        3 => w.add_capsule(name, size(), size(), pose).unwrap(),
+        4 => {
+            let n = [rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)];
+            w.add_halfspace(name, n, rng.random_range(-1.5..-0.3)).unwrap()
+        }
+        _ => w.add_mesh(name, cube, [size() * 2.0, size() * 2.0, size() * 2.0], pose).unwrap(),
+    }
+}
+
+#[test]
+fn every_shape_is_tested_exactly_on_a_one_sphere_robot() {
+    let cube = cube_file();
+    let mut rng = StdRng::seed_from_u64(11);
+    let (mut hits, mut misses) = ([0usize; 6], [0usize; 6]);
+    for kind in 0..6 {
+        for trial in 0..40 {
+            let mut w = probe_world();
+            add(&mut w, &mut rng, kind, &format!("o{trial}"), 0.3, &cube);
+            let model = w.model.clone();
+            let spheres = SphereModel::new(&model, &["probe"], &[[0.0; 3]], &[0.1]).unwrap();
+            let sw = SphereWorld::new(Arc::new(w.clone()), spheres).unwrap();
+            let mut s = SphereScratch::default();
+            for _ in 0..50 {
+                let q = [rng.random_range(-0.8..0.8), rng.random_range(-0.8..0.8), 0.4 + rng.random_range(-0.8..0.8)];
+                let d = w.min_distance(&q).unwrap();
+                let by_spheres = sw.in_collision_unchecked(&q, &mut s);
+                // the same sphere: the answers differ only within the f32 slack of a contact
+                if d < 0.0 {
+                    assert!(by_spheres, "kind {kind}: exact distance {d} at {q:?}, free by the sphere");
+                    hits[kind] += 1;
+                } else if d > 1e-4 {
+                    assert!(!by_spheres, "kind {kind}: exact distance {d} at {q:?}, in collision by the sphere");
+                    misses[kind] += 1;
+                }
+            }
+        }
+    }
+    for kind in 0..6 {
+        assert!(hits[kind] > 20 && misses[kind] > 50, "kind {kind}: {} hits and {} misses: both must be met", hits[kind], misses[kind]);
+    }
+}
+
+/// A cover of the Panda's collision geometry: each shape's local box cut into cells of at most
+/// 4 cm, each cell in the sphere through its corners (so every point of every shape is covered).
+fn box_cover(w: &CollisionWorld) -> SphereModel {
+    let model = &w.model;
+    let (mut links, mut centers, mut radii) = (Vec::new(), Vec::new(), Vec::new());
+    for g in w.geometries() {
+        let b = g.shape.compute_local_aabb();
+        let ext = b.maxs - b.mins;
+        let n: Vec<usize> = (0..3).map(|i| ((ext[i] / 0.04).ceil() as usize).max(1)).collect();
+        let cell = Vector3::new(ext[0] / n[0] as f64, ext[1] / n[1] as f64, ext[2] / n[2] as f64);
+        let r = 0.5 * cell.norm() * (1.0 + 1e-9) + 1e-9;
+        for i in 0..n[0] {
+            for j in 0..n[1] {
+                for k in 0..n[2] {
+                    let c = b.mins + Vector3::new((i as f64 + 0.5) * cell.x, (j as f64 + 0.5) * cell.y, (k as f64 + 0.5) * cell.z);
+                    let c = g.offset * c;
+                    links.push(model.link_names[g.link].as_str());
+                    centers.push([c.x, c.y, c.z]);
+                    radii.push(r);
+                }
+            }
+        }
+    }
+    SphereModel::new(model, &links, &centers, &radii).unwrap()
+}
+
+fn draw(model: &KinematicModel, rng: &mut StdRng) -> Vec<f64> {
+    model.lower.iter().zip(&model.upper).map(|(&l, &u)| rng.random_range(l..=u)).collect()
+}
+
+#[test]
+fn free_by_spheres_is_free_by_the_exact_geometry_on_the_panda() {
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    let cube = cube_file();
+    let mut rng = StdRng::seed_from_u64(7);
+    for k in 0..30 {
+        add(&mut w, &mut rng, k % 6, &format!("o{k}"), 0.8, &cube);
+    }
+    let spheres = box_cover(&w);
+    let sw = SphereWorld::new(Arc::new(w.clone()), spheres).unwrap();
+    assert!(!sw.self_link_pairs().is_empty());
+    // 2,000 configurations: a debug build (CI's) checks them in well under a minute
+    let n = 2000;
+    let qs: Vec<f64> = (0..n).flat_map(|_| draw(&model, &mut rng)).collect();
+    let mut batch = vec![false; n];
+    sw.in_collision_batch(&qs, &mut batch, &mut SphereScratch::default());
+    let mut one = SphereScratch::default();
+    // every length of a last block (one row at a time, four lanes, eight lanes)
+    let mut s8 = SphereScratch::default();
+    for len in 1..=17 {
+        let mut part = vec![false; len];
+        sw.in_collision_batch(&qs[..len * model.nq], &mut part, &mut s8);
+        assert_eq!(part, batch[..len], "a batch of {len} rows");
+    }
+    let (mut exact_hits, mut false_positives) = (0, 0);
+    for (i, q) in qs.chunks(model.nq).enumerate() {
+        let exact = w.in_collision(q).unwrap();
+        let by_spheres = sw.in_collision_unchecked(q, &mut one);
+        assert_eq!(by_spheres, batch[i], "batch and single differ at row {i}");
+        assert!(by_spheres || !exact, "row {i}: in collision by the exact geometry, free by the spheres");
+        exact_hits += exact as usize;
+        false_positives += (by_spheres && !exact) as usize;
+    }
+    assert!(exact_hits > n / 10 && exact_hits < n * 9 / 10, "{exact_hits} of {n} in collision: the scene must be met");
+    assert!(false_positives < n, "{false_positives} false positives");
+}
+
+#[test]
+fn a_motion_is_free_when_every_state_is() {
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    w.add_box("table", [0.3, 0.3, 0.02], Isometry3::translation(0.5, 0.0, 0.3)).unwrap();
+    w.add_sphere("ball", 0.08, [0.3, 0.3, 0.6]).unwrap();
+    let sw = SphereWorld::new(Arc::new(w), box_cover(&preset("panda").unwrap().load().unwrap().1)).unwrap();
+    let mut rng = StdRng::seed_from_u64(3);
+    let (mut s8, mut s1) = (SphereScratch::<LANES>::default(), SphereScratch::default());
+    let (mut free, mut blocked) = (0, 0);
+    for _ in 0..200 {
+        let a = draw(&model, &mut rng);
+        let b: Vec<f64> = a.iter().zip(draw(&model, &mut rng)).map(|(x, y)| x + 0.3 * (y - x)).collect();
+        let res = 0.05;
+        let got = sw.motion_free(&a, &b, res, &mut s8);
+        let steps = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((y - x).abs())) / res;
+        let steps = (steps.ceil() as usize).max(1);
+        let want = (0..=steps).all(|k| {
+            let t = k as f64 / steps as f64;
+            let q: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + t * (y - x)).collect();
+            !sw.in_collision_unchecked(&q, &mut s1)
+        });
+        assert_eq!(got, want);
+        free += got as usize;
+        blocked += !got as usize;
+    }
+    assert!(free > 10 && blocked > 10, "{free} free and {blocked} blocked motions: both must be met");
+}
+
+#[test]
+fn the_sphere_checker_is_the_limits_and_the_spheres() {
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    w.add_box("table", [0.3, 0.3, 0.02], Isometry3::translation(0.5, 0.0, 0.3)).unwrap();
+    let spheres = box_cover(&w);
+    let sw = Arc::new(SphereWorld::new(Arc::new(w.clone()), spheres).unwrap());
+    let mut rng = StdRng::seed_from_u64(5);
+    let n = 301;
+    let mut qs: Vec<f64> = (0..n).flat_map(|_| draw(&model, &mut rng)).collect();
+    // a few rows past the limits
+    for i in (0..n).step_by(17) {
+        qs[i * model.nq] = model.upper[0] + 0.1;
+    }
+    let mut one = SphereScratch::default();
+    let want: Vec<bool> = qs
+        .chunks(model.nq)
+        .map(|q| q[0] <= model.upper[0] && !sw.in_collision_unchecked(q, &mut one))
+        .collect();
+    let mut exact = vec![false; n];
+    CollisionChecker::new(Arc::new(w), false).check(&qs, &mut exact).unwrap();
+    for parallel in [false, true] {
+        let mut valid = vec![false; n];
+        SphereChecker::new(sw.clone(), parallel).check(&qs, &mut valid).unwrap();
+        assert_eq!(valid, want, "parallel {parallel}");
+        // conservative: valid by the spheres is valid by the exact checker
+        assert!(valid.iter().zip(&exact).all(|(&v, &e)| !v || e));
+    }
+    assert!(want.iter().any(|&v| v) && want.iter().any(|&v| !v));
+}
+
+#[test]
+fn bad_spheres_and_point_clouds_are_refused_by_name() {
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    let e = SphereModel::new(&model, &["panda_link1", "panda_link2"], &[[0.0; 3]], &[0.1, 0.1]).unwrap_err();
+    assert!(matches!(e, Error::Shape { ref what, .. } if what.contains("centers")), "{e}");
+    let e = SphereModel::new(&model, &["nowhere"], &[[0.0; 3]], &[0.1]).unwrap_err();
+    assert!(matches!(e, Error::UnknownName { ref name, .. } if name == "nowhere"), "{e}");
+    let e = SphereModel::new(&model, &["panda_link1"], &[[0.0; 3]], &[0.0]).unwrap_err();
+    assert!(e.to_string().contains("radii"), "{e}");
+    let e = SphereModel::new(&model, &["panda_link1"], &[[f64::NAN, 0.0, 0.0]], &[0.1]).unwrap_err();
+    assert!(matches!(e, Error::NonFinite { .. }), "{e}");
+    let spheres = SphereModel::new(&model, &["panda_link1"], &[[0.0; 3]], &[0.1]).unwrap();
+    w.add_points("scan", &[0.5, 0.0, 0.5, 0.6, 0.0, 0.5], 0.01, None).unwrap();
+    let e = SphereWorld::new(Arc::new(w), spheres).err().unwrap();
+    assert!(e.to_string().contains("'scan'"), "{e}");
+}
