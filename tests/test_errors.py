@@ -4,7 +4,10 @@ check, with a message that names the argument at fault."""
 
 from __future__ import annotations
 
+import ast
+import inspect
 import json
+import pickle
 import shutil
 
 import numpy as np
@@ -31,10 +34,58 @@ def test_every_error_is_a_value_error_and_a_genplan_error() -> None:
         for b in classes:
             if a is not b and b is not GenplanError:
                 assert not issubclass(a, b), (a, b)
-    # the native core raises these very classes (it looks them up in genplan.errors)
+    # the native core raises these very classes (defined in genplan._core, re-exported here)
     with pytest.raises(SettingsError) as info:
         PlannerSettings(step=-1.0)
     assert type(info.value) is SettingsError
+
+
+def test_native_error_classes_are_defined_once_and_shared() -> None:
+    native = _core.ERRORS
+    names = [cls.__name__ for cls in native]
+    # one table: each class once, GenplanError first, the others its direct subclasses
+    assert len(set(names)) == len(names) == len({id(cls) for cls in native})
+    assert native[0] is GenplanError and GenplanError.__bases__ == (ValueError,)
+    for cls in native[1:]:
+        assert cls.__bases__ == (GenplanError,), cls
+    for cls in native:
+        # the same object under the native module and the public one, named after the public one
+        assert getattr(_core, cls.__name__) is cls and getattr(E, cls.__name__) is cls
+        assert (cls.__module__, cls.__qualname__) == ("genplan.errors", cls.__name__)
+        assert cls.__doc__, cls
+    # genplan/errors.py defines none of them again: its class statements are the errors only
+    # Python raises, each a GenplanError (apart from the warning)
+    tree = ast.parse(inspect.getsource(E))
+    defined = {node.name for node in tree.body if isinstance(node, ast.ClassDef)}
+    assert defined and not defined & set(names)
+    assert set(E.__all__) == defined | set(names)
+    for name in defined - {"RobotWarning"}:
+        assert issubclass(getattr(E, name), GenplanError) and getattr(E, name).__module__ == "genplan.errors", name
+
+
+def _pickled(exc: BaseException) -> BaseException:
+    back = pickle.loads(pickle.dumps(exc))
+    assert type(back) is type(exc) and back.args == exc.args and str(back) == str(exc)
+    return back
+
+
+@pytest.mark.parametrize("name", [n for n in E.__all__ if n != "RobotWarning"])
+def test_every_error_pickles(name: str) -> None:
+    cls = getattr(E, name)
+    if cls is E.ShardsFailedError:
+        exc = cls("2 of 4 shards failed", {1: "boom", 3: "bang"})
+        assert _pickled(exc).failures == {1: "boom", 3: "bang"}  # type: ignore[attr-defined]
+        return
+    exc = cls(f"q: a {name}")
+    exc.__notes__ = ["a note"]  # what add_note (Python 3.11) sets; an attribute pickle must keep
+    assert _pickled(exc).__notes__ == ["a note"]  # type: ignore[attr-defined]
+
+
+def test_a_native_error_pickles_as_raised(panda: genplan.Robot) -> None:
+    with pytest.raises(ShapeError) as info:
+        panda.kinematics.forward_kinematics(np.zeros((2, 3, 7)))
+    back = _pickled(info.value)
+    assert isinstance(back, E.ShapeError) and isinstance(back, ValueError)
 
 
 def test_shape_error(panda: genplan.Robot) -> None:

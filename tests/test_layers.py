@@ -15,7 +15,9 @@ Two more rules keep one definition per concept: a command line (argparse, ``add_
 in ``genplan.cli`` (or, for the benchmarks, ``genplan.experiments``), never in the library; and a
 registry of names (an upper-case tuple, list or set of names at module or class level) is not
 repeated by another one holding the same names, which would drift apart from it: derive the second
-from the first.
+from the first. The names the native settings take are the core's tables too: the stub's
+``Literal`` types of them (``python/genplan/_core.pyi``) hold the same names as the tables
+``genplan._core`` exposes (the one test here that imports the module).
 """
 
 from __future__ import annotations
@@ -216,6 +218,49 @@ def test_no_registry_repeats_another() -> None:
             bad.append(f"{a} (line {la}) and {b} (line {lb}) both list {sorted(na & nb)}")
     assert not bad, ("a second registry of the same names: derive one from the other (or, if they name "
                      "different things, say so in DIFFERENT_CONCEPTS):\n" + "\n".join(bad))
+
+
+#: the stub's Literal types of names -> the core's table (a tuple of ``genplan._core``) they spell
+LITERALS = {"_Algorithm": "ALGORITHMS", "_EdgeCheck": "EDGE_CHECKS", "_ControlSpace": "CONTROL_SPACES",
+            "_LimitPolicy": "LIMIT_POLICIES"}
+#: the settings of the stub typed by them: (class, field) -> Literal type
+TYPED_SETTINGS = {("PlannerSettings", "algorithm"): "_Algorithm", ("PlannerSettings", "edge_check"): "_EdgeCheck",
+                  ("ControllerSettings", "space"): "_ControlSpace", ("JointLimits", "policy"): "_LimitPolicy"}
+
+
+def _stub_literals(tree: ast.Module) -> dict[str, tuple[object, ...]]:
+    """The module-level ``Name: TypeAlias = Literal[...]`` of a stub: name -> its values."""
+    out = {}
+    for n in tree.body:
+        if (isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name) and isinstance(n.value, ast.Subscript)
+                and getattr(n.value.value, "id", None) == "Literal"):
+            s = n.value.slice
+            out[n.target.id] = tuple(e.value for e in (s.elts if isinstance(s, ast.Tuple) else [s])
+                                     if isinstance(e, ast.Constant))
+    return out
+
+
+def test_the_stub_literals_are_the_core_tables() -> None:
+    from genplan import _core, planning
+
+    tree = ast.parse((ROOT / "genplan" / "_core.pyi").read_text())
+    literals = _stub_literals(tree)
+    assert set(literals) == set(LITERALS), "a Literal type of the stub without its table in LITERALS (or gone)"
+    for alias, table in LITERALS.items():
+        assert literals[alias] == getattr(_core, table), f"{alias} of _core.pyi is not _core.{table}"
+    # each setting is typed by its Literal, in the constructor and the attribute
+    classes = {c.name: c for c in tree.body if isinstance(c, ast.ClassDef)}
+    for (cls, field), alias in TYPED_SETTINGS.items():
+        seen = []
+        for f in classes[cls].body:
+            if isinstance(f, ast.FunctionDef):
+                seen += [ast.unparse(a.annotation) for a in f.args.args + f.args.kwonlyargs
+                         if a.arg == field and a.annotation is not None]
+                if f.name == field and f.returns is not None:
+                    seen.append(ast.unparse(f.returns))
+        assert seen == [alias, alias], f"{cls}.{field}: typed {seen}, not {alias} (constructor and attribute)"
+    # the library's own lists of the planner's names hold the tables' names
+    assert (planning.ALGORITHMS, planning.EDGE_CHECKS) == (_core.ALGORITHMS, _core.EDGE_CHECKS)
 
 
 def _cycles() -> list[set[str]]:

@@ -9,14 +9,30 @@ Every class is a subclass of :class:`GenplanError`, itself a subclass of :class:
     except UnknownNameError as exc:
         print(exc)          # unknown link 'no_such_link' (known: ...)
 
-The native core raises the same classes (``genplan._core`` looks them up here), so an error has
-one type whichever layer found it. A file that does not exist raises the standard
-:class:`FileNotFoundError`; a file that exists but cannot be used raises :class:`RobotFileError`,
-:class:`TaskFileError`, :class:`SceneFileError`, :class:`ModelFileError` or
-:class:`DataFileError`. See docs/ARCHITECTURE.md ("Errors").
+The classes the native core raises are defined once, in ``genplan._core`` (the table in
+rust/python/src/errors.rs, whose classes say ``genplan.errors`` as their module), and re-exported
+here: ``genplan.errors.ShapeError is genplan._core.ShapeError``, so an error has one type
+whichever layer found it. The errors only Python raises are defined below, as subclasses of them.
+A file that does not exist raises the standard :class:`FileNotFoundError`; a file that exists but
+cannot be used raises :class:`RobotFileError`, :class:`TaskFileError`, :class:`SceneFileError`,
+:class:`ModelFileError` or :class:`DataFileError`. See docs/ARCHITECTURE.md ("Errors").
 """
 
 from __future__ import annotations
+
+from genplan._core import (
+    CallbackError,
+    GenplanError,
+    InvalidGoalError,
+    InvalidStartError,
+    InvalidTrajectoryError,
+    LimitExceededError,
+    NonFiniteError,
+    RobotFileError,
+    SettingsError,
+    ShapeError,
+    UnknownNameError,
+)
 
 __all__ = [
     "CallbackError",
@@ -39,31 +55,6 @@ __all__ = [
     "TaskFileError",
     "UnknownNameError",
 ]
-
-
-class GenplanError(ValueError):
-    """An argument genplan cannot use; the message names the argument and the problem."""
-
-
-class ShapeError(GenplanError):
-    """An array or vector of the wrong shape or length (or not readable as numbers)."""
-
-
-class NonFiniteError(GenplanError):
-    """A NaN or infinity where a finite number is needed; the message gives the first one."""
-
-
-class UnknownNameError(GenplanError):
-    """A name (robot, link, joint, frame, term, sampler, environment, ...) that is not known;
-    the message lists the known ones."""
-
-
-class SettingsError(GenplanError):
-    """A setting with a bad value, of the wrong type, or not known; the message names the field."""
-
-
-class RobotFileError(GenplanError):
-    """A robot description (URDF, SRDF, mesh) that exists but cannot be read into a model."""
 
 
 class RobotWarning(UserWarning):
@@ -103,32 +94,6 @@ class ModelFileError(GenplanError):
     another robot, or otherwise cannot be vouched for."""
 
 
-class InvalidStartError(GenplanError):
-    """A planning start that the result's guarantee cannot rest on (e.g. in collision)."""
-
-
-class InvalidGoalError(GenplanError):
-    """Planning goals that the result's guarantee cannot rest on (e.g. none of them valid)."""
-
-
-class InvalidTrajectoryError(GenplanError):
-    """A path that cannot be timed (a state outside the joint limits, no parameterisation within
-    the velocity and acceleration limits) or a trajectory that fails its own check (a sample
-    outside the joint limits, in collision, or off the task's manifold); the message names the
-    first bad state or sample (index, time) and the limit, pair or term it breaks."""
-
-
-class CallbackError(GenplanError):
-    """A Python sampler, projector or checker called back from the native core returned a value
-    of the wrong shape or type."""
-
-
-class LimitExceededError(GenplanError):
-    """A trajectory whose execution exceeds the robot's rated joint limits (torque or speed),
-    refused under strict checking (``genplan.control.execute(..., strict=True)``); the message
-    names the joint, the time, the value and the limit."""
-
-
 class MissingExtraError(GenplanError):
     """An optional part of genplan that needs a package not installed (e.g. Ray for ``--ray``, a peer of a benchmark);
     the message says what to install."""
@@ -141,3 +106,9 @@ class ShardsFailedError(GenplanError):
     def __init__(self, message: str, failures: dict[int, str]) -> None:
         super().__init__(message)
         self.failures = failures
+
+    def __reduce__(self) -> tuple[type[ShardsFailedError], tuple[str, dict[int, str]], dict[str, object]]:
+        # pickled with both arguments (the default passes ``args``, the message alone, which
+        # __init__ refuses), so that the error crosses a process boundary intact; the instance's
+        # other attributes (notes) as the default keeps them
+        return (type(self), (str(self), self.failures), dict(vars(self)))

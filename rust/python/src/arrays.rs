@@ -21,7 +21,7 @@ use pyo3::types::{PyFloat, PyInt, PyList, PyTuple};
 
 use genplan_core::KinematicModel;
 
-use crate::{err, to_py_in, Kind};
+use crate::errors::{err, to_py_in, Kind};
 
 /// A shape as Python prints a tuple: `()`, `(7,)`, `(2, 7)`.
 pub(crate) fn shape_str(s: &[usize]) -> String {

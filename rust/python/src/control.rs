@@ -31,7 +31,7 @@ use genplan_core::kinematics::ModelOptions;
 use genplan_core::urdf::Urdf;
 
 use crate::settings::{record_class, settings_class, Field};
-use crate::{err, to_py, Kind};
+use crate::errors::{err, to_py, Kind};
 
 /// A (position (3,), rotation (3, 3)) pair of numpy arrays.
 type PyPose<'py> = (Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>);
@@ -50,7 +50,7 @@ fn dmatrix<'py>(py: Python<'py>, m: &DMatrix<f64>) -> PyResult<Bound<'py, PyArra
 /// A 1-D float64 vector of length n from a numpy array.
 fn vector(arr: &PyReadonlyArrayDyn<'_, f64>, n: usize, what: &str) -> PyResult<Vec<f64>> {
     if arr.shape() != [n] {
-        return Err(crate::err(crate::Kind::Shape, format!("{what}: expected shape ({n},), got {:?}", arr.shape())));
+        return Err(err(Kind::Shape, format!("{what}: expected shape ({n},), got {:?}", arr.shape())));
     }
     Ok(arr.as_array().iter().copied().collect())
 }
@@ -62,7 +62,7 @@ fn placement(offset: Option<[[f64; 4]; 4]>) -> PyResult<Isometry3<f64>> {
             let r = Matrix3::from_fn(|i, j| t[i][j]);
             let err = (r.transpose() * r - Matrix3::identity()).amax();
             if !err.is_finite() || err > 1e-9 || (r.determinant() - 1.0).abs() > 1e-9 {
-                return Err(crate::err(crate::Kind::Settings, "offset: the 3x3 block is not a rotation matrix"));
+                return Err(crate::errors::err(Kind::Settings, "offset: the 3x3 block is not a rotation matrix"));
             }
             Ok(Isometry3::from_parts(
                 Translation3::new(t[0][3], t[1][3], t[2][3]),
@@ -90,7 +90,7 @@ impl PyDynamics {
     /// `read_robot_file` / `robot_description`).
     #[staticmethod]
     fn from_description(description: &Bound<'_, PyDict>) -> PyResult<Self> {
-        let robot = crate::description_from_py(description)?;
+        let robot = crate::robot::description_from_py(description)?;
         Ok(Self { inner: Dynamics::from_description(&robot).map_err(to_py)? })
     }
 
@@ -519,7 +519,7 @@ impl PySimulation {
         limits: Option<&Bound<'_, PyJointLimits>>,
         substeps: usize,
     ) -> PyResult<Self> {
-        let robot = crate::description_from_py(robot)?;
+        let robot = crate::robot::description_from_py(robot)?;
         let arm = Dynamics::from_description(&robot).map_err(to_py)?;
         let config = SimConfig {
             controller: controller.get().inner.clone(),
@@ -644,7 +644,7 @@ impl PySpatulaSimulation {
         substeps: usize,
         settle_ticks: usize,
     ) -> PyResult<Self> {
-        let robot = crate::description_from_py(robot)?;
+        let robot = crate::robot::description_from_py(robot)?;
         let arm = Dynamics::from_description(&robot).map_err(to_py)?;
         let d = SpatulaConfig::default();
         let config = SpatulaConfig {
@@ -738,7 +738,7 @@ impl PySpatulaSimulation {
 fn trajectory_rows(arr: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<f64>> {
     let shape = arr.shape();
     if shape.len() != 2 || shape[1] != 3 || shape[0] < 2 {
-        return Err(crate::err(crate::Kind::Shape, format!(
+        return Err(err(Kind::Shape, format!(
             "trajectory: expected shape (K, 3) with K >= 2 rows [y, z, theta], got {shape:?}"
         )));
     }
@@ -757,7 +757,7 @@ fn spatula_reference_disturbances() -> PyDisturbances {
 fn pancake_phi<'py>(py: Python<'py>, theta: PyReadonlyArrayDyn<'py, f64>, acc: PyReadonlyArrayDyn<'py, f64>, g: f64) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let n = theta.len();
     if acc.shape() != [n, 2] || theta.shape().len() != 1 {
-        return Err(crate::err(crate::Kind::Shape, format!(
+        return Err(err(Kind::Shape, format!(
             "pancake_phi: expected theta (n,) and acc (n, 2), got {:?} and {:?}",
             theta.shape(),
             acc.shape()
@@ -784,5 +784,9 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(pancake_phi, m)?)?;
     m.add_function(wrap_pyfunction!(spatula_reference_disturbances, m)?)?;
     m.add("MAX_TICKS", control::MAX_TICKS)?;
+    // the names `ControllerSettings.space` and `JointLimits.policy` take, from the core's tables
+    // (the stub's Literal types are checked against them)
+    m.add("CONTROL_SPACES", pyo3::types::PyTuple::new(m.py(), ControlSpace::NAMES.map(|(n, _)| n))?)?;
+    m.add("LIMIT_POLICIES", pyo3::types::PyTuple::new(m.py(), LimitPolicy::NAMES.map(|(n, _)| n))?)?;
     Ok(())
 }

@@ -13,7 +13,7 @@
 //! The plan runs without the GIL; a Python component takes it back for each (batched) call. An
 //! exception raised in a component ends the plan and is re-raised to the caller as it was; Ctrl-C
 //! is checked every 50 ms. The native samplers' batched `sample` runs in chunks that answer
-//! Ctrl-C too (`crate::for_chunks`).
+//! Ctrl-C too (`crate::batch::for_chunks`).
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -25,15 +25,18 @@ use pyo3::prelude::*;
 use pyo3::types::{PyList, PyTuple};
 
 use genplan_core::planning::{
-    self, Algorithm, CollisionChecker, Components, EdgeCheck, Named, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
+    self, Algorithm, CollisionChecker, SphereChecker, Components, EdgeCheck, Named, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
     Projection, Sampler, Settings, Space, Stats, ValidityChecker,
 };
 
 use genplan_core::{codec, flow, gan};
 
-use crate::errors::{err, Kind};
+use crate::batch::for_chunks;
+use crate::collision::{PyCollisionWorld, PySphereChecker};
+use crate::errors::{err, to_py, Kind};
+use crate::kinematics::PyKinematicModel;
+use crate::projection::PyProjector;
 use crate::settings::{record_class, settings_class, Field};
-use crate::{for_chunks, to_py, PyCollisionWorld, PyKinematicModel, PyProjector};
 
 fn component_error(e: PyErr) -> PlanError {
     PlanError::Component(Box::new(e))
@@ -683,7 +686,8 @@ impl PyPlanner {
     /// Plan from `start` (nq,) to any row of `goals` (k, nq). `chord_tolerance`: with a native
     /// projector, the chords between consecutive states of every edge are held to its primary
     /// terms' tolerances times this (GaussNewtonProjector::with_chord_tolerance); None: not
-    /// checked (a Python projector's chords never are).
+    /// checked (a Python projector's chords never are). `projector` None: free space, nothing
+    /// projected (the checker alone says which states are valid).
     #[pyo3(signature = (start, goals, sampler, projector, checker, parallel=false, chord_tolerance=None))]
     #[allow(clippy::too_many_arguments)]
     fn plan<'py>(
@@ -692,7 +696,7 @@ impl PyPlanner {
         start: Vec<f64>,
         goals: PyReadonlyArray2<'py, f64>,
         sampler: &Bound<'py, PyAny>,
-        projector: &Bound<'py, PyAny>,
+        projector: Option<&Bound<'py, PyAny>>,
         checker: &Bound<'py, PyAny>,
         parallel: bool,
         chord_tolerance: Option<f64>,
@@ -703,23 +707,9 @@ impl PyPlanner {
         }
         let goals: Vec<f64> = goals.as_array().iter().copied().collect();
         let mut sampler = sampler_from(py, sampler, nq)?;
-        let mut projector: Box<dyn planning::Projector> = if let Ok(p) = projector.cast::<PyProjector>() {
-            let inner = &p.get().inner;
-            if inner.model.nq != nq {
-                return Err(err(Kind::Generic, "projector: built for another model"));
-            }
-            let native = GaussNewtonProjector::new(Arc::new(inner.clone()), parallel);
-            Box::new(match chord_tolerance {
-                Some(scale) => native.with_chord_tolerance(scale).map_err(plan_error_to_py)?,
-                None => native,
-            })
-        } else if projector.hasattr("project")? {
-            Box::new(PyProjectorAdapter { obj: projector.clone().unbind(), nq })
-        } else {
-            return Err(PyTypeError::new_err(format!(
-                "projector: expected a genplan._core.Projector or an object with project(qs, q_noms), got {}",
-                projector.get_type().name()?
-            )));
+        let mut projector: Option<Box<dyn planning::Projector>> = match projector {
+            None => None,
+            Some(projector) => Some(projector_from(projector, nq, parallel, chord_tolerance)?),
         };
         let mut checker: Box<dyn ValidityChecker> = if let Ok(w) = checker.cast::<PyCollisionWorld>() {
             let world = &w.borrow().inner;
@@ -727,11 +717,17 @@ impl PyPlanner {
                 return Err(err(Kind::Generic, "checker: collision world built for another model"));
             }
             Box::new(CollisionChecker::new(Arc::new(world.clone()), parallel))
+        } else if let Ok(c) = checker.cast::<PySphereChecker>() {
+            let spheres = &c.get().inner;
+            if spheres.world.model.nq != nq {
+                return Err(err(Kind::Generic, "checker: sphere checker built for another model"));
+            }
+            Box::new(SphereChecker::new(spheres.clone(), parallel))
         } else if checker.hasattr("is_valid")? {
             Box::new(PyChecker { obj: checker.clone().unbind(), nq })
         } else {
             return Err(PyTypeError::new_err(format!(
-                "checker: expected a genplan._core.CollisionWorld or an object with is_valid(qs), got {}",
+                "checker: expected a genplan._core.CollisionWorld, a genplan._core.SphereChecker or an object with is_valid(qs), got {}",
                 checker.get_type().name()?
             )));
         };
@@ -748,7 +744,7 @@ impl PyPlanner {
                 };
                 let mut c = Components {
                     sampler: &mut *sampler,
-                    projector: &mut *projector,
+                    projector: projector.as_deref_mut().map(|p| p as &mut dyn planning::Projector),
                     checker: &mut *checker,
                     interrupt: &mut interrupt,
                 };
@@ -765,6 +761,29 @@ impl PyPlanner {
     }
 }
 
+/// The planner's projector from `projector`: a native `Projector` (its chords held to
+/// `chord_tolerance` when given) or a Python object with `project(qs, q_noms)`.
+fn projector_from(projector: &Bound<'_, PyAny>, nq: usize, parallel: bool, chord_tolerance: Option<f64>) -> PyResult<Box<dyn planning::Projector>> {
+    if let Ok(p) = projector.cast::<PyProjector>() {
+        let inner = &p.get().inner;
+        if inner.model.nq != nq {
+            return Err(err(Kind::Generic, "projector: built for another model"));
+        }
+        let native = GaussNewtonProjector::new(Arc::new(inner.clone()), parallel);
+        Ok(Box::new(match chord_tolerance {
+            Some(scale) => native.with_chord_tolerance(scale).map_err(plan_error_to_py)?,
+            None => native,
+        }))
+    } else if projector.hasattr("project")? {
+        Ok(Box::new(PyProjectorAdapter { obj: projector.clone().unbind(), nq }))
+    } else {
+        Err(PyTypeError::new_err(format!(
+            "projector: expected a genplan._core.Projector or an object with project(qs, q_noms), got {}",
+            projector.get_type().name()?
+        )))
+    }
+}
+
 /// The bytes the samples of a timed path `total` seconds long take at `rate` Hz with `n` joints,
 /// at most (genplan_core::timing::sample_bytes: what `sample_timed_spline` checks against
 /// `MAX_TRAJECTORY_BYTES` before it allocates).
@@ -776,6 +795,10 @@ fn sample_bytes(total: f64, rate: f64, n: usize) -> f64 {
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sample_bytes, m)?)?;
     m.add("MAX_TRAJECTORY_BYTES", genplan_core::timing::MAX_SAMPLE_BYTES)?;
+    // the names `PlannerSettings` takes, from the core's tables (the stub's Literal types are
+    // checked against them)
+    m.add("ALGORITHMS", PyTuple::new(m.py(), Algorithm::NAMES.iter().map(|(n, _)| *n))?)?;
+    m.add("EDGE_CHECKS", PyTuple::new(m.py(), EdgeCheck::NAMES.iter().map(|(n, _)| *n))?)?;
     m.add_class::<PyPlanner>()?;
     m.add_class::<PyPlannerSettings>()?;
     m.add_class::<PyPlanStats>()?;
