@@ -82,6 +82,8 @@ def one_error_line(capsys) -> str:
     ("bench plan --algorithm rrt", "bench plan: argument --algorithm: invalid choice: 'rrt'"),
     ("plan --robot panda --task panda_ik --target 0.5 0 0.5 --out x.json --algorithm prm",
      "plan: argument --algorithm: invalid choice: 'prm'"),
+    ("plan --robot panda --target 0.5 0 0.5 1 --frame hand --out x.json",
+     "--target: expected 3 numbers (X Y Z) or 7 (X Y Z QX QY QZ QW), got 4"),
     ("bench", "bench: the following arguments are required: BENCHMARK"),
     ("train gan", "train gan: the following arguments are required: --robot"),
     ("nope", "argument COMMAND: invalid choice: 'nope'"),
@@ -452,3 +454,37 @@ def test_integrity_rerun_eval_targets_bounded_before_training(tmp_path, capsys, 
         line = one_error_line(capsys)
         assert "--eval-targets" in line and "100,000" in line and "1000000000000" in line, line
         assert not out.parent.exists()
+
+
+def test_plan_without_a_task_plans_in_free_space(tmp_path, capsys) -> None:
+    """``genplan plan --robot R --scene S --start Q --goal Q``: the shipped free task, nothing
+    projected, a valid path from the start to the goal; a pose of --frame as the goal too."""
+    import json
+
+    import numpy as np
+
+    import genplan
+
+    panda = genplan.load("panda")
+    start, goal = "0 -0.5 0 -2.4 0 1.9 0.8", "0.5 -0.3 0.2 -2.2 0 2.0 0.8"
+    out = tmp_path / "plan.json"
+    argv = ["plan", "--robot", "panda", "--scene", "panda_shelf", "--start", start, "--goal", goal, "--out", str(out)]
+    assert main(argv) == 0, capsys.readouterr()
+    d = json.loads(out.read_text())
+    assert d["task"] == "free" and d["manifold"] == "free" and d["success"]
+    assert d["stats"]["projections"] == 0 and d["stats"]["projector_s"] == 0
+    path = np.array(d["path"])
+    assert np.allclose(path[0], [float(x) for x in start.split()]) and np.allclose(path[-1], [float(x) for x in goal.split()])
+    assert np.all(path >= panda.lower) and np.all(path <= panda.upper)
+    world = genplan.planning.environment("panda_shelf").world(panda)
+    assert not np.any(world.in_collision(path))
+    pose = panda.frame_placement(np.array([float(x) for x in goal.split()]), "hand")
+    import pinocchio as pin
+
+    quat = pin.Quaternion(pose.rotation).coeffs()
+    argv = ["plan", "--robot", "panda", "--scene", "panda_shelf", "--start", start, "--target",
+            *map(str, [*pose.translation, *quat]), "--frame", "hand", "--goals", "2", "--out", str(out)]
+    assert main(argv) == 0, capsys.readouterr()
+    d = json.loads(out.read_text())
+    end = panda.frame_placement(np.array(d["path"][-1]), "hand")
+    assert d["success"] and np.abs(pin.log6(pose.inverse() * end).vector).max() < 1e-3

@@ -181,6 +181,49 @@ def test_bad_input_raises_typed_errors_naming_the_argument(panda, task, kwargs, 
         solve_ik(panda, task, **args)
 
 
+@pytest.mark.parametrize("form", ["matrix", "quaternion"])
+def test_pose_targets_reach_position_and_orientation(panda, form) -> None:
+    """6-D IK: a whole pose of the frame (a 4x4 matrix, or x y z qx qy qz qw), of any frame
+    (frame_task), reached within the term's tolerance; the position alone leaves the rotation
+    free (the control: it lands elsewhere)."""
+    import pinocchio as pin
+
+    from genplan.ik import frame_task
+
+    q = panda.random_configurations(6, np.random.default_rng(11))
+    poses = [panda.frame_placement(x, "hand") for x in q]
+    if form == "matrix":
+        targets = np.array([p.homogeneous for p in poses])
+    else:
+        targets = np.array([np.concatenate([p.translation, pin.Quaternion(p.rotation).coeffs()]) for p in poses])
+    task = frame_task(panda, "hand")
+    res = solve_ik(panda, task, targets, init="uniform", restarts=30, seed=1)
+    assert res.success.all()
+    for x, pose in zip(res.q, poses):
+        err = pin.log6(pose.inverse() * panda.frame_placement(x, "hand")).vector
+        assert np.abs(err).max() <= 1e-4
+        assert np.all(x >= panda.lower) and np.all(x <= panda.upper)
+    one = solve_ik(panda, task, targets[0], init="uniform", restarts=30, seed=1)  # one pose: a batch of one
+    assert len(one) == 1 and one.success[0]
+    position_only = solve_ik(panda, task, targets[:, :3] if form == "quaternion" else targets[:, :3, 3],
+                             init="uniform", restarts=30, seed=1)
+    rot = [pin.log3(p.rotation.T @ panda.frame_placement(x, "hand").rotation) for x, p in zip(position_only.q, poses)]
+    assert position_only.success.all() and max(np.abs(r).max() for r in rot) > 1e-2
+
+
+@pytest.mark.parametrize("targets, error, words", [
+    (np.zeros((2, 4)), ShapeError, r"targets: expected positions \(n, 3\), poses .*\(n, 4, 4\).*\(n, 7\)"),
+    (np.zeros((2, 3, 3)), ShapeError, "targets: expected positions"),
+    ([0.5, 0.0, 0.6, 0.0, 0.0, 0.0, 2.0], genplan.errors.GenplanError, r"targets\[0\]: the quaternion .* norm 2, not 1"),
+    (np.diag([1.0, 1.0, -1.0, 1.0]), genplan.errors.GenplanError, r"targets\[0\]: not a pose"),
+    (np.array([[1.0, 0, 0, 0.5], [0, 1, 0, 0], [0, 0, 1, 0.6], [0, 0, 1, 1]]), genplan.errors.GenplanError, "not a pose"),
+    ([0.5, 0.0, 0.6, 0.0, 0.0, np.nan, 1.0], NonFiniteError, "targets"),
+])
+def test_bad_pose_targets_are_refused_naming_them(panda, task, targets, error, words) -> None:
+    with pytest.raises(error, match=words):
+        solve_ik(panda, task, targets, init="uniform")
+
+
 def test_a_task_without_condition_is_refused(panda) -> None:
     with pytest.raises(genplan.errors.GenplanError, match="condition"):
         solve_ik(panda, "panda_projection", [[0.5, 0.0, 0.6]], init="uniform")

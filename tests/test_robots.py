@@ -159,8 +159,8 @@ def test_robot_input_errors_name_the_file_and_the_key(two_dir, monkeypatch) -> N
     (two_dir / "broken.urdf").write_text("<robot name='b'><link name='a'>")
     with pytest.raises(RobotFileError, match="broken.urdf"):
         robots.load("broken.urdf")
-    with pytest.raises(TypeError, match="takes no keywords"):
-        robots.load("panda", frames={"a": "b"})
+    with pytest.raises(TypeError, match="'panda' names its URDF; give urdf= without a preset"):
+        robots.load("panda", urdf=two_dir / "urdf" / "two.urdf")
     with pytest.raises(TypeError, match="give a preset name, a robot file, or urdf=PATH"):
         robots.load()
 
@@ -522,3 +522,33 @@ def test_integrity_rerun_self_collision_cache_is_checked_on_read(two_dir, tmp_pa
     hash_path(path).unlink()
     path.write_text(rewritten(flipped))
     assert compute_disabled_pairs(robot, samples=2000) == found and hash_path(path).is_file()
+
+
+def test_a_preset_takes_the_keywords_of_a_urdf() -> None:
+    """The Panda with its fingers open for a grasp: a preset's keys replaced by keywords, another
+    robot (cached apart from the preset, the same one for the same keywords), checked as a robot
+    file is (a joint it lacks, a value outside the limits: errors naming the key)."""
+    import pinocchio as pin
+
+    closed = robots.load("panda")
+    assert robots.load("panda") is closed
+    fingers = {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}
+    open_ = robots.load("panda", locked_joints=fingers)
+    assert open_ is robots.load("panda", locked_joints=dict(fingers))
+    assert open_ is not closed and robots.load("panda") is closed
+    assert open_.name == "panda" and open_.nq == closed.nq == 7
+    assert open_.description["locked_joints"] == fingers
+    # the fingers stand 4 cm from the hand's middle plane each; the preset's at its SRDF's
+    # "default" state, 1 mm
+    def width(robot: genplan.Robot) -> float:
+        data = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data, closed.q_default)
+        left, right = (data.oMf[robot.model.getFrameId(f)].translation for f in ("panda_leftfinger", "panda_rightfinger"))
+        return float(np.linalg.norm(left - right))
+
+    assert abs(width(open_) - 0.08) < 1e-9 and abs(width(closed) - 0.002) < 1e-9
+    assert robots.load("panda", locked_joints=fingers, name="panda_open").name == "panda_open"
+    with pytest.raises(UnknownNameError, match=r"unknown joint 'nope' \(locked_joints of robot 'panda'"):
+        robots.load("panda", locked_joints={"nope": 0.0})
+    with pytest.raises(RobotFileError, match="locked joint 'panda_finger_joint1' at 0.5 is outside its limits"):
+        robots.load("panda", locked_joints={"panda_finger_joint1": 0.5})

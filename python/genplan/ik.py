@@ -7,7 +7,13 @@ planning queries start and end at (:mod:`genplan.planning.queries`).
 
 The task's [condition] term (e.g. ``hand_position``, a FramePosition) is aimed at each target
 (:func:`genplan.projection.condition_term`); the task's other terms (orientation, joint limits,
-...) hold as in any projection. Each round of :func:`solve_ik` solves every target still failing
+...) hold as in any projection. A target is a position of the condition term's frame, or a whole
+pose of it (6-D IK: a 4x4 homogeneous matrix, or a position and a unit quaternion ``x y z qx qy
+qz qw``): the condition term is then a :class:`~genplan.projection.FramePose` of that frame, with
+its weight and tolerance (a log6 error, metres and radians). :func:`frame_task` is the IK task of
+any frame of any robot (its pose within the joint limits):
+
+    res = genplan.solve_ik(panda, frame_task(panda, "hand"), pose_4x4, init="uniform") Each round of :func:`solve_ik` solves every target still failing
 in one native batch (``GaussNewtonProjector.solve_batch``: Rust, GIL released, rows on all cores),
 each from a new warm start (:data:`INITS`): for the first half of the attempts, the task's learned
 sampler (``init="gan"``, its shipped model by default: conditioned on the target, a new noise draw
@@ -40,6 +46,7 @@ and from learned warm starts, on the Panda and on Talos (tuning targets, not the
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -47,15 +54,17 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from genplan._arrays import as_float_array
 from genplan._core import SolverSettings
-from genplan.errors import NonFiniteError, SettingsError, ShapeError, UnknownNameError
+from genplan.errors import GenplanError, NonFiniteError, SettingsError, ShapeError, UnknownNameError
 from genplan.robots import Robot
 from genplan.samplers import WARM_STARTS
 
-__all__ = ["ATTEMPT_ITERATIONS", "IK_SETTINGS", "INITS", "NOMINALS", "IKResult", "solve_ik", "valid_solutions"]
+__all__ = ["ATTEMPT_ITERATIONS", "IK_SETTINGS", "INITS", "NOMINALS", "IKResult", "frame_task", "solve_ik",
+           "valid_solutions"]
 
 #: Warm starts :func:`solve_ik` accepts by name (or an (n, nq) array of configurations): the
 #: samplers that are warm starts (:data:`genplan.samplers.WARM_STARTS`).
@@ -104,16 +113,60 @@ class IKResult:
                 f"attempts <= {int(self.attempts.max()) if len(self) else 0}, wall {1e3 * self.wall_s:.1f} ms)")
 
 
-def _targets(targets: ArrayLike) -> NDArray[np.float64]:
-    t = as_float_array(targets, "targets")
-    if t.ndim == 1:
-        t = t[None, :]
-    if t.ndim != 2 or t.shape[1] != 3:
-        raise ShapeError(f"targets: expected positions of shape (n, 3) (or one (3,)), got {np.shape(targets)}")
+#: What :func:`solve_ik` takes as targets, for its shape errors.
+_TARGET_SHAPES = ("positions (n, 3), poses as 4x4 homogeneous matrices (n, 4, 4) or as a position and a unit "
+                  "quaternion x y z qx qy qz qw (n, 7); one target without the leading n")
+
+
+def _targets(targets: ArrayLike, what: str = "targets") -> NDArray[np.float64]:
+    """The targets as positions (n, 3) or poses (n, 4, 4): a position + quaternion (x y z qx qy
+    qz qw) becomes its 4x4 matrix. ShapeError for another shape, NonFiniteError for NaN or
+    inf, GenplanError for a pose that is not one (a rotation that is not, a last row that is not
+    0 0 0 1, a quaternion whose norm is not 1 within 1e-3)."""
+    t = as_float_array(targets, what)
+    if t.ndim == 1 or (t.ndim == 2 and t.shape == (4, 4)):
+        t = t[None]
+    if not ((t.ndim == 2 and t.shape[1] in (3, 7)) or (t.ndim == 3 and t.shape[1:] == (4, 4))):
+        raise ShapeError(f"{what}: expected {_TARGET_SHAPES}; got shape {np.shape(targets)}")
     if not np.all(np.isfinite(t)):
-        rows = np.nonzero(~np.isfinite(t).all(axis=1))[0]
-        raise NonFiniteError(f"targets: rows {rows[:5].tolist()} are not finite")
+        rows = np.nonzero(~np.isfinite(t.reshape(len(t), -1)).all(axis=1))[0]
+        raise NonFiniteError(f"{what}: rows {rows[:5].tolist()} are not finite")
+    if t.ndim == 2 and t.shape[1] == 7:
+        norm = np.linalg.norm(t[:, 3:], axis=1)
+        bad = np.nonzero(np.abs(norm - 1.0) > 1e-3)[0]
+        if len(bad):
+            raise GenplanError(f"{what}[{bad[0]}]: the quaternion (qx qy qz qw) has norm {norm[bad[0]]:.6g}, not 1")
+        poses = np.tile(np.eye(4), (len(t), 1, 1))
+        for i, row in enumerate(t):
+            x, y, z, w = row[3:] / norm[i]
+            poses[i, :3, :3] = pin.Quaternion(w, x, y, z).toRotationMatrix()
+            poses[i, :3, 3] = row[:3]
+        t = poses
+    elif t.ndim == 3:
+        rot = t[:, :3, :3]
+        off = np.abs(np.einsum("nji,njk->nik", rot, rot) - np.eye(3)).max(axis=(1, 2))
+        det = np.linalg.det(rot)
+        bad = np.nonzero((off > 1e-6) | (det < 0) | np.any(np.abs(t[:, 3] - [0.0, 0.0, 0.0, 1.0]) > 1e-9, axis=1))[0]
+        if len(bad):
+            raise GenplanError(f"{what}[{bad[0]}]: not a pose: expected a 4x4 homogeneous matrix (a rotation, a "
+                               "translation, last row 0 0 0 1)")
     return np.ascontiguousarray(t)
+
+
+def frame_task(robot: Robot, frame: str, task: Any = None) -> Any:
+    """The IK task of ``frame`` (a frame of ``robot``): its position as the [condition] term
+    ``frame_target`` (:func:`solve_ik` aims it at a position, or at a whole pose), with the
+    primary and secondary terms of ``task`` (a Task or what :func:`genplan.projection.load_task`
+    takes; default: the joint limits, with the posture in their null space). UnknownNameError
+    names a frame the robot lacks."""
+    from genplan import projection as P
+
+    robot.frame_id(frame)  # an unknown frame: UnknownNameError naming it
+    base = P.Task(primary=(P.JointLimits(),), secondary=(P.Posture(),)) if task is None else P.load_task(task, robot)
+    term = P.FramePosition(frame=frame, name="frame_target", tolerance=1e-4)
+    box = (-1e3, -1e3, -1e3), (1e3, 1e3, 1e3)  # no sampler draws from it: any position is a target
+    return P.Task(primary=(term, *base.primary), secondary=tuple(base.secondary), name=f"{base.name}_{frame}_ik",
+                  condition=P.Condition(term.name, *box))
 
 
 def _nominal_rows(robot: Robot, nominal: str | ArrayLike, n: int) -> str | NDArray[np.float64]:
@@ -161,8 +214,10 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
              iterations: int = ATTEMPT_ITERATIONS, parallel: bool = True,
              settings: SolverSettings | None = None, nominal: str | ArrayLike = "mid") -> IKResult:
     """Solve the IK of ``task`` (a :class:`~genplan.projection.Task`, a shipped task's name or a
-    task file, with a [condition]) for each row of ``targets`` ((n, 3) positions of the condition
-    term's frame; one (3,) target is a batch of one), retrying the failures; see the module text.
+    task file, with a [condition]; :func:`frame_task` makes one for any frame) for each row of
+    ``targets``: (n, 3) positions of the condition term's frame, or whole poses of it, (n, 4, 4)
+    homogeneous matrices or (n, 7) positions and unit quaternions ``x y z qx qy qz qw`` (one
+    target without the leading n is a batch of one), retrying the failures; see the module text.
 
     Args:
         robot: the robot (:func:`genplan.load`).
@@ -189,11 +244,12 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
             of configurations.
 
     Raises:
-        ShapeError / NonFiniteError (``targets``, ``init``), UnknownNameError (``init``),
+        ShapeError / NonFiniteError (``targets``, ``init``), GenplanError (a target pose that is
+        not one: see the shapes above), UnknownNameError (``init``),
         SettingsError (``restarts``, ``time_budget_s``, ``iterations``, ``settings``), UnknownNameError /
         ShapeError / NonFiniteError (``nominal``), GenplanError (a task without [condition]).
     """
-    from genplan.projection import GaussNewtonProjector, condition_term, load_task
+    from genplan.projection import FramePose, GaussNewtonProjector, condition_term, load_task
 
     wall0 = time.perf_counter()
     if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
@@ -223,19 +279,27 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
         if first.shape != (n, robot.nq):
             raise ShapeError(f"init: expected ({n}, {robot.nq}) configurations (one per target), got {first.shape}")
     nominal_rows = _nominal_rows(robot, nominal, n)
-    ik_task = load_task(task, robot)
-    term = condition_term(ik_task).name
+    task_of_model = load_task(task, robot)  # the task a learned sampler or data set is made for
+    cond = condition_term(task_of_model)
+    term = cond.name
+    ik_task = task_of_model
+    # the warm starts are drawn for the targets' positions
+    positions = t if t.ndim == 2 else np.ascontiguousarray(t[:, :3, 3])
+    if t.ndim == 3:  # whole poses: the condition term aims the frame's pose
+        # each row's pose is given per row; the term's own target only lets the solver be built
+        pose = FramePose(frame=cond.frame, name=term, weight=cond.weight, tolerance=cond.tolerance, target=t[0])
+        ik_task = dataclasses.replace(ik_task, primary=tuple(pose if tm.name == term else tm for tm in ik_task.primary))
     solver = GaussNewtonProjector(robot, ik_task, settings.replace(max_iterations=int(iterations)))
     labels = [tm.label() for tm in ik_task.primary]
     tols = np.array([float(tm.tolerance) for tm in ik_task.primary])
-    gan = _model(robot, ik_task, model) if isinstance(init, str) and init == "gan" else None
+    gan = _model(robot, task_of_model, model) if isinstance(init, str) and init == "gan" else None
     gan_attempts = (restarts + 2) // 2  # attempts 1 .. this: GAN (or data); later ones uniform
     rng = np.random.default_rng(seed)
     nearest = None
     if isinstance(init, str) and init == "data":
         from genplan.samplers.data import TaskData
 
-        nearest = TaskData(robot, ik_task).nearest(t, gan_attempts)
+        nearest = TaskData(robot, task_of_model).nearest(positions, gan_attempts)
     if gan is not None:
         # the generator run natively (one row costs microseconds; torch's call alone ~0.7 ms),
         # on targets clipped into the box its output is vouched for (GanModel.native_sampler)
@@ -243,7 +307,7 @@ def solve_ik(robot: Robot, task: Any, targets: ArrayLike, init: str | ArrayLike 
         box = np.asarray(gan.config.target_box, dtype=np.float64)
 
         def gan_starts(rows: NDArray[np.intp]) -> NDArray[np.float64]:
-            return gan.draw_native(native_gan, np.clip(t[rows], box[0], box[1]), rng)
+            return gan.draw_native(native_gan, np.clip(positions[rows], box[0], box[1]), rng)
 
     q = np.tile(robot.q_default, (n, 1)) if first is None else first.copy()
     success = np.zeros(n, dtype=bool)

@@ -656,6 +656,12 @@ def load(
     """Load a robot: a preset name (:data:`ROBOT_NAMES`), a robot file (``.toml``), a URDF path,
     or ``urdf=PATH`` with keywords (the keys of a robot file; see docs/ROBOTS.md).
 
+    A preset or robot file takes the same keywords but ``urdf``: each replaces the file's key,
+    e.g. the Panda with its fingers open for a grasp,
+    ``load("panda", locked_joints={"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04})``.
+    Such a robot keeps the preset's name unless ``name`` is given, and is another robot than the
+    preset (cached apart: ``load("panda") is load("panda")``, not the one with keywords).
+
     Relative paths in a robot file are relative to the file; in keywords, to the current folder.
     ``package://PKG/...`` resolves against ``package_dirs`` then example-robot-data. Cached: the
     same description of unchanged files gives the same object. Errors: UnknownNameError for an
@@ -681,21 +687,33 @@ def load(
             raise TypeError("load(): give the URDF either as the first argument or as urdf=, not both")
         keywords["urdf"], robot = str(robot), None
     if robot is not None:
-        if given:
-            raise TypeError(f"load(): a preset or robot file takes no keywords (got {', '.join(given)}); "
-                            "put them in a robot file, or give urdf= with keywords")
+        if urdf is not None:
+            raise TypeError(f"load(): {robot!r} names its URDF; give urdf= without a preset or robot file")
         if not isinstance(robot, (str, os.PathLike)):
             raise TypeError(f"load(): expected a preset name or a path, got {type(robot).__name__}")
         if isinstance(robot, os.PathLike) or "/" in robot or os.sep in robot or robot.endswith(".toml"):
             path = Path(robot)
             if not path.is_file():
                 raise FileNotFoundError(f"robot file {path} does not exist")
-            return _cached(_core.read_robot_file(path, defaults))
-        if str(robot) not in ROBOT_NAMES:
+        elif str(robot) not in ROBOT_NAMES:
             raise UnknownNameError(
                 f"unknown robot '{robot}' (known: {', '.join(ROBOT_NAMES)}; or a robot file .toml, or urdf=PATH)"
             )
-        return _cached(_core.read_robot_file(PRESETS_DIR / f"{robot}.toml", defaults))
+        else:
+            path = PRESETS_DIR / f"{robot}.toml"
+        desc = _core.read_robot_file(path, defaults)
+        if not given:
+            return _cached(desc)
+        # the file's keys (paths as read: absolute; its package folders beyond the defaults), each
+        # keyword in place of its own, checked again; the file's values are part of the cache key
+        fields: dict[str, Any] = {k: str(v) if isinstance(v, os.PathLike) else v for k, v in desc.items()
+                                  if k not in ("source", "package_dirs")}
+        own_dirs = [str(p) for p in desc.get("package_dirs") or [] if Path(p) not in defaults]
+        fields["package_dirs"] = own_dirs + [str(p) for p in package_dirs]
+        fields.update({k: keywords[k] for k in given if k != "package_dirs"})
+        fields = {k: v for k, v in fields.items() if v is not None and v != []}
+        origin = f"robot '{fields.get('name', desc['name'])}' ({path} with {', '.join(given)})"
+        return _cached(_core.robot_description(fields, defaults, origin, str(desc["name"]), Path.cwd()))
     if keywords["urdf"] is None:
         raise TypeError("load(): give a preset name, a robot file, or urdf=PATH")
     fields = {k: v for k, v in keywords.items() if v is not None}

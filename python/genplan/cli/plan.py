@@ -1,13 +1,19 @@
-"""``genplan plan``: one constrained plan for any robot, task and scene (genplan.planning.plan).
+"""``genplan plan``: one plan for any robot, task and scene (genplan.planning.plan): in free
+space by default, or on a task's constraint manifold.
+
+    genplan plan --robot panda --scene panda_shelf --goal "0 -0.3 0 -2.2 0 2 0.8" --out plan.json
 
     genplan plan --robot examples/xarm7/xarm7.toml --task examples/xarm7/upright_cup.toml \\
         --scene examples/xarm7/table_box.toml --start default --target 0.4 -0.3 0.3 \\
         --sampler gan --model cup.safetensors --out plan.json --html plan.html
 
-The start (``default`` or nq numbers) is projected onto the task's manifold; the goal is a
-configuration (``--goal``, nq numbers) or IK solutions for a target of the task's condition
-(``--target X Y Z``). The JSON holds the query, the path and the planner's statistics; the HTML
-view draws the robot, the scene and the trail of the task's condition frame. ``--trajectory
+Without ``--task`` the plan is in free space (the shipped ``free`` task: the joint limits alone,
+nothing projected; the start and goal must be within the limits as they are). With a task, the
+start (``default`` or nq numbers) is projected onto its manifold. The goal is a configuration
+(``--goal``, nq numbers) or IK solutions for ``--target``: X Y Z, a target of the task's
+condition, or a pose of ``--frame`` (X Y Z QX QY QZ QW; or X Y Z, its position alone). The JSON
+holds the query, the path and the planner's statistics; the HTML view draws the robot, the scene
+and the trail of the target's frame (or the task's condition frame). ``--trajectory
 F.npz|.json|.csv`` writes the path time-parameterised at 1 kHz (``PlanResult.trajectory``), which
 the HTML view then plays in real time; a trajectory that fails its check (a sample in collision,
 off the manifold, ...) is not written, the first bad sample is named and the exit status is 1. ``--edge-check certified`` certifies every motion between
@@ -18,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 from genplan.cli import args as A
 
@@ -36,17 +43,31 @@ def _start(text: str) -> str | list[float]:
     return "default" if text == "default" else _numbers(text)
 
 
+class _Target(argparse.Action):
+    """``--target``: 3 numbers (a position) or 7 (a position and a quaternion), else a usage error."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        if len(values) not in (3, 7):
+            parser.error(f"argument --target: expected 3 numbers (X Y Z) or 7 (X Y Z QX QY QZ QW), got {len(values)}")
+        setattr(namespace, self.dest, values)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from genplan.planning import ALGORITHMS, EDGE_CHECKS, SAMPLERS
 
-    A.add_robot_and_task(p, None, task_required=True)
+    A.add_robot_and_task(p, "free (free space: the joint limits alone, nothing projected)")
     p.add_argument("--scene", default=None, help="obstacles: a shipped scene's name or a scene file (.toml)")
     p.add_argument("--start", type=_start, default="default",
                    help="'default' (the robot's default configuration) or nq numbers; projected onto the manifold")
     goal = p.add_mutually_exclusive_group(required=True)
     goal.add_argument("--goal", type=_numbers, default=None, help="a goal configuration (nq numbers)")
-    goal.add_argument("--target", type=float, nargs=3, metavar=("X", "Y", "Z"), default=None,
-                      help="a target of the task's condition term: goals by IK")
+    goal.add_argument("--target", type=float, nargs="+", metavar="X", default=None, action=_Target,
+                      help="goals by IK: X Y Z, a target of the task's condition term (or a position of --frame); "
+                           "X Y Z QX QY QZ QW, a pose of --frame")
+    p.add_argument("--frame", default=None,
+                   help="the frame --target places (a frame role such as 'hand', or a link); default: the task's "
+                        "condition frame (a task without a [condition], such as free, needs it)")
     p.add_argument("--goals", type=A.positive_int, default=10, help="IK goals for --target (default 10)")
     p.add_argument("--sampler", choices=SAMPLERS, default="uniform")
     p.add_argument("--algorithm", choices=ALGORITHMS, default="crrt",
@@ -71,8 +92,9 @@ def main(args: argparse.Namespace) -> int:
 
     if args.trajectory is not None and args.trajectory.suffix.lower() not in (".npz", ".json", ".csv"):
         raise A.UsageError(f"--trajectory {args.trajectory}: expected a .npz, .json or .csv file")
-    outcome = plan(args.robot, args.task, args.scene, start=args.start, goal=args.goal, target=args.target,
-                   sampler=args.sampler, model=args.model, k=args.goals, seed=args.seed, algorithm=args.algorithm,
+    outcome = plan(args.robot, "free" if args.task is None else args.task, args.scene, start=args.start,
+                   goal=args.goal, target=args.target, frame=args.frame, sampler=args.sampler, model=args.model,
+                   k=args.goals, seed=args.seed, algorithm=args.algorithm,
                    settings=PlannerSettings(edge_check=args.edge_check))
     r = outcome.result
     write_text(args.out, json.dumps(outcome.to_dict(), indent=1) + "\n")

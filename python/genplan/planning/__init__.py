@@ -1,5 +1,6 @@
 """Constrained motion planning: the GAN paper's constrained RRT (Algorithm 1) and a
-bidirectional constrained RRT-Connect (``algorithm="rrt_connect"``), in the Rust core.
+bidirectional constrained RRT-Connect (``algorithm="rrt_connect"``), in the Rust core; and
+free-space planning (``task="free"``: no constraint but the joint limits, nothing projected).
 
 >>> import genplan
 >>> from genplan.planning import Planner, environment
@@ -26,13 +27,25 @@ Python object, called back in batches:
   (e.g. :class:`genplan.samplers.GanSampler`, which runs torch); :data:`SAMPLERS` lists the names;
 * ``projector``: a :class:`~genplan.projection.GaussNewtonProjector` (its native solver is used) or
   any object with ``project(qs, q_noms) -> (q, success[, iterations])``;
-* ``checker``: a :class:`~genplan.collision.CollisionWorld` (native) or any object with
+* ``checker``: ``"exact"`` (the world's exact geometry, the default), ``"spheres"`` (the robot's
+  covering spheres, :func:`genplan.spheres.robot_spheres`, against the world's obstacles: faster
+  and conservative, see :data:`CHECKERS`), a :class:`~genplan.collision.CollisionWorld` (native),
+  a ``genplan._core.SphereChecker``, or any object with
   ``is_valid(qs) -> (n,) bool`` (booleans or exactly 0 / 1; anything else is a
   :class:`~genplan.errors.CallbackError`).
 
 An exception raised inside a Python part ends the plan and reaches the caller unchanged; Ctrl-C
 interrupts a long plan (KeyboardInterrupt). A start or goal off the constraint manifold is refused
 before the search (see :meth:`Planner.plan`).
+
+Free space: ``Planner(robot, world, task="free")`` (the shipped task of the joint limits alone; any
+task whose primary terms are all :class:`~genplan.projection.JointLimits` is free,
+:attr:`Task.free <genplan.projection.Task.free>`) plans with no projector in the loop: samples,
+steps and edge states are taken as they are, and the checker holds the joint limits and the
+collisions of every state (``stats.projections == 0``, ``stats.projector_s == 0``).
+
+>>> planner = Planner(robot, world=env.world(robot), task="free", algorithm="rrt_connect")
+>>> result = planner.plan(start, goal)                   # configurations, (nq,) and (k, nq)
 """
 
 from __future__ import annotations
@@ -50,13 +63,14 @@ from genplan import projection as P
 from genplan.collision import CollisionWorld
 from genplan.errors import SettingsError, ShapeError, UnknownNameError
 from genplan.planning.environments import ENVIRONMENT_NAMES, Environment, environment
-from genplan.planning.queries import TOLERANCE_FACTOR, Query, make_query
+from genplan.planning.queries import TOLERANCE_FACTOR, Query, make_query, query_manifold
 from genplan.projection import ComBox, GaussNewtonProjector, Task, paper_task
 from genplan.robots import Robot
 from genplan.samplers import SAMPLERS
 
 __all__ = [
     "ALGORITHMS",
+    "CHECKERS",
     "EDGE_CHECKS",
     "ENVIRONMENT_NAMES",
     "Environment",
@@ -71,16 +85,24 @@ __all__ = [
     "data_sampler",
     "make_query",
     "make_sampler",
+    "sphere_checker",
     "plan",
     "uniform_base_box",
 ]
 
 #: Search algorithms (``PlannerSettings.algorithm``, ``Planner(..., algorithm=)``): the paper's
-#: constrained RRT (default) and the bidirectional constrained RRT-Connect.
-ALGORITHMS = ("crrt", "rrt_connect")
+#: constrained RRT (default) and the bidirectional constrained RRT-Connect. The core's table.
+ALGORITHMS: tuple[str, ...] = _core.ALGORITHMS
 #: Edge checks (``PlannerSettings.edge_check``): states checked at ``edge_resolution`` (default),
-#: or every motion between them certified collision-free as well.
-EDGE_CHECKS = ("sampled", "certified")
+#: or every motion between them certified collision-free as well. The core's table.
+EDGE_CHECKS: tuple[str, ...] = _core.EDGE_CHECKS
+#: Validity checkers by name (``Planner(..., checker=)``, :func:`plan`): ``"exact"``, the
+#: world's exact geometry (parry); ``"spheres"``, the robot's covering spheres
+#: (:func:`genplan.spheres.robot_spheres`) against the world's obstacles in closed form, several
+#: states at once (rust/core/src/collision/spheres.rs). The spheres cover the links, so a state
+#: valid by them is valid by the exact geometry (the converse fails near contact: a path may be
+#: missed, never one in collision returned); a point cloud in the world is refused.
+CHECKERS: tuple[str, ...] = ("exact", "spheres")
 #: The adaptive sampler's half-life: the rows drawn within a plan after which the learned
 #: sampler's share has halved (about 100 extensions of 16 samples; ``half_life=`` overrides it,
 #: see :func:`make_sampler`). Long enough for the queries the learned sampler covers to be solved
@@ -231,6 +253,18 @@ def data_sampler(robot: Robot, data: ArrayLike | None = None, *, task: "str | os
     return _core.DataSampler(np.ascontiguousarray(rows.in_box(box) if in_box else rows.rows), seed)
 
 
+def sphere_checker(robot: Robot, world: CollisionWorld) -> Any:
+    """The native sphere checker of ``robot`` (its :func:`~genplan.spheres.robot_spheres`, cached
+    on disk) against ``world``'s obstacles and self pairs as they are now: ``in_collision(q)``
+    ((nq,) -> bool, (n, nq) -> (n,) bool), ``motion_free(a, b, resolution)``, and a checker the
+    planner takes. A point cloud in ``world`` is refused (GenplanError naming it)."""
+    from genplan.spheres import robot_spheres
+
+    s = robot_spheres(robot)
+    return _core.SphereChecker(world.native, list(s.links), np.ascontiguousarray(s.centers).tolist(),
+                               np.ascontiguousarray(s.radii).tolist())
+
+
 def _check_algorithm(algorithm: str) -> str:
     """``algorithm`` if it is one of :data:`ALGORITHMS`, else UnknownNameError listing them."""
     if algorithm not in ALGORITHMS:
@@ -238,11 +272,42 @@ def _check_algorithm(algorithm: str) -> str:
     return algorithm
 
 
+class _WithinLimits:
+    """A Python checker in free space, where no projector keeps the states within the joint
+    limits: a row outside the robot's limits (the native checker's slack, 1e-9) is invalid
+    whatever ``checker`` says. Its flags are returned as it gave them (the planner checks them),
+    with the rows outside the limits set to False."""
+
+    def __init__(self, robot: Robot, checker: Any) -> None:
+        self.checker = checker
+        self.lower = robot.lower - 1e-9
+        self.upper = robot.upper + 1e-9
+
+    def is_valid(self, qs: NDArray[np.float64]) -> Any:
+        flags = self.checker.is_valid(qs)
+        q = np.asarray(qs)
+        within = np.all((q >= self.lower) & (q <= self.upper), axis=1)
+        if within.all():
+            return flags
+        a = np.asarray(flags)
+        if a.shape != within.shape or a.dtype.kind not in "biuf":
+            return flags  # malformed: the planner names what is wrong with it
+        a = a.copy()
+        a[~within] = 0
+        return a
+
+
 class Planner:
     """The constrained planner for one robot, constraint and world: the paper's constrained RRT,
     or RRT-Connect with ``algorithm="rrt_connect"`` (which overrides ``settings.algorithm``).
 
-    ``task`` (default: the paper's projection task for the robot) defines the manifold; the
+    ``task`` (a Task, a shipped task's name or a task file; default: the paper's projection task
+    for the robot) defines the manifold. A free task (``"free"``: the joint limits alone,
+    :attr:`Task.free <genplan.projection.Task.free>`) plans in free space with no projector at
+    all (unless ``projector`` is given): the checker holds the limits (the native one checks
+    them; a row outside them is invalid whatever a Python ``checker`` answers for it),
+    ``stats.projections`` and ``stats.projector_s`` stay 0, the path is straight segments at
+    ``edge_resolution``, and :attr:`free` is True. Otherwise the
     native Gauss-Newton projector solves it unless ``projector`` is given, with every tolerance
     multiplied by ``tolerance_factor`` (default 0.1): states are projected ten times tighter than
     the constraint requires, and the midpoint of every straight chord between two consecutive
@@ -255,6 +320,10 @@ class Planner:
     given. ``parallel=True`` lets native projections and collision checks of one batch use all
     cores (off by default: the benchmarks compare one core against one core).
 
+    ``checker="spheres"`` checks the robot's covering spheres instead of its exact geometry
+    (:data:`CHECKERS`, :func:`sphere_checker`); the result's trajectory is still checked against
+    the exact ``world``.
+
     ``PlannerSettings(edge_check="certified")`` also certifies every motion between consecutive
     states collision-free, not only the states (conservative advancement with swept-motion bounds
     of the robot's geometry, rust/core/src/collision/motion.rs; states are added where a chord
@@ -264,7 +333,8 @@ class Planner:
     benches/results/certified_edges.json).
     """
 
-    def __init__(self, robot: Robot, world: CollisionWorld | None = None, task: Task | None = None, *,
+    def __init__(self, robot: Robot, world: CollisionWorld | None = None,
+                 task: Task | str | os.PathLike[str] | None = None, *,
                  sampler: str | Any = "uniform", projector: Any = None, checker: Any = None,
                  settings: PlannerSettings | None = None, parallel: bool = False, seed: int = 0,
                  gan_model: Any = None, hybrid_p: float = 0.8, half_life: float = ADAPTIVE_HALF_LIFE,
@@ -273,7 +343,9 @@ class Planner:
         self.settings = settings or PlannerSettings()
         if algorithm is not None:
             self.settings = self.settings.replace(algorithm=_check_algorithm(algorithm))
-        self.task = task if task is not None else paper_task(robot, "projection")
+        self.task = P.load_task(task, robot) if task is not None else paper_task(robot, "projection")
+        #: free space: no projector in the loop (the task's only constraint is the joint limits)
+        self.free = projector is None and self.task.free
         self.world = world if world is not None else robot.collision_world()
         self.parallel = bool(parallel)
         self.base_box = uniform_base_box(robot, self.task)
@@ -282,15 +354,27 @@ class Planner:
         # the chords between the states are held to the task's own tolerances: 1 / tolerance_factor
         # times the projector's (unknown for a projector given by the caller: no chord check)
         self._chord_tolerance: float | None = None
-        if projector is None:
+        if self.free:
+            self._projector_arg: Any = None
+        elif projector is None:
             projector = GaussNewtonProjector(robot, self.task.with_tolerances_scaled(tolerance_factor))
             self._chord_tolerance = 1.0 / float(tolerance_factor)
         self.projector = projector
-        self._projector_arg = projector.native if isinstance(projector, GaussNewtonProjector) and projector.native is not None else projector
+        if not self.free:
+            self._projector_arg = projector.native if isinstance(projector, GaussNewtonProjector) and projector.native is not None else projector
         if checker is None:
-            checker = self.world
+            checker = "exact"
+        if isinstance(checker, str):
+            if checker not in CHECKERS:
+                raise UnknownNameError(f"checker: unknown checker {checker!r} (known: {', '.join(CHECKERS)})")
+            if checker == "spheres" and self.settings.edge_check == "certified":
+                raise SettingsError("checker 'spheres': edge_check 'certified' needs the exact checker "
+                                    "(the spheres certify no motion); use edge_check 'sampled'")
+            checker = self.world if checker == "exact" else sphere_checker(robot, self.world)
         self.checker = checker
         self._checker_arg = checker.native if isinstance(checker, CollisionWorld) else checker
+        if self.free and not isinstance(checker, (CollisionWorld, _core.SphereChecker)):
+            self._checker_arg = _WithinLimits(robot, checker)
         self._native = _core.Planner(robot.kinematics, self.settings)
 
     def plan(self, start: ArrayLike, goals: ArrayLike, sampler: str | Any | None = None) -> PlanResult:
@@ -313,6 +397,8 @@ class Planner:
           that. One it moves by less is replaced by its projection, so that the path's first and
           last states satisfy the constraint too (a configuration already on the manifold, such
           as the queries', is used exactly as given);
+        * in free space (:attr:`free`) nothing is projected: the start and goals are used as
+          given;
         * valid (the checker): a start in collision or outside the joint limits is refused; goals
           that are not valid are dropped (IK solutions often collide), and refused only when
           none is left. ``result.goal_index`` says which goal was reached.
@@ -334,7 +420,9 @@ class Planner:
         smp = self.sampler if sampler is None else make_sampler(self.robot, sampler, base_box=self.base_box)
         native = self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel,
                                    self._chord_tolerance)
-        return PlanResult(native, self.robot, self.task, self.checker)
+        # a sphere checker's path is checked against the exact geometry (which it implies)
+        world = self.world if isinstance(self.checker, _core.SphereChecker) else self.checker
+        return PlanResult(native, self.robot, self.task, world)
 
 
 @dataclass(frozen=True)
@@ -352,11 +440,16 @@ class Outcome:
     scene: Any = None
     #: the search algorithm (genplan.planning.ALGORITHMS)
     algorithm: str = "crrt"
+    #: the frame whose pose a target gave (None: the task's condition frame, if any)
+    frame: str | None = None
 
     @property
-    def trail_frame(self) -> str:
-        """The frame the task conditions on (its trail is what a viewer draws)."""
-        return P.condition_term(self.task).frame
+    def trail_frame(self) -> str | None:
+        """The frame whose trail a viewer draws: the target's frame, else the frame the task
+        conditions on; None when there is neither (the viewer's default, the hand)."""
+        if self.frame is not None:
+            return self.frame
+        return P.condition_term(self.task).frame if self.task.condition is not None else None
 
     def to_dict(self) -> dict[str, Any]:
         """The outcome as JSON-able data (what ``genplan plan --out`` writes)."""
@@ -380,28 +473,38 @@ class Outcome:
         }
 
 
-def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike[str], scene: Any = None, *,
-         start: ArrayLike | str = "default", goal: ArrayLike | None = None, target: ArrayLike | None = None,
-         sampler: str = "uniform", model: str | os.PathLike[str] | None = None, k: int = 10, seed: int = 0,
-         settings: PlannerSettings | None = None, parallel: bool = True, algorithm: str | None = None) -> Outcome:
+def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike[str] = "free", scene: Any = None,
+         *, start: ArrayLike | str = "default", goal: ArrayLike | None = None, target: ArrayLike | None = None,
+         frame: str | None = None, sampler: str = "uniform", model: str | os.PathLike[str] | None = None, k: int = 10,
+         seed: int = 0, settings: PlannerSettings | None = None, parallel: bool = True,
+         algorithm: str | None = None, checker: str = "exact") -> Outcome:
     """Plan for ``robot`` (a Robot or what :func:`genplan.load` takes) on the manifold of ``task``
-    (a Task, shipped name or task file, with a [condition]) among ``scene`` (a Scene, a shipped
-    scene's name or a scene file; None: no obstacles, self-collision only), from ``start`` to
-    ``goal`` or to IK goals for ``target`` (:func:`make_query`). ``sampler``: "uniform", "gan",
-    "hybrid" or "adaptive" (the learned sampler of ``model``, which must be trained for this robot
-    and task), or "data" (:func:`data_sampler` of this task: no model, no training); ``algorithm``:
-    one of :data:`ALGORITHMS` (default: ``settings.algorithm``, "crrt").
+    (a Task, shipped name or task file; default ``"free"``: free space, the joint limits alone,
+    nothing projected) among ``scene`` (a Scene, a shipped scene's name or a scene file; None: no
+    obstacles, self-collision only), from ``start`` to ``goal`` (configurations) or to IK goals for
+    ``target`` (:func:`make_query`: a target of the task's [condition], or a pose of ``frame``, a
+    4x4 matrix or ``x y z qx qy qz qw``). A task with a [condition] plans on its manifold
+    (:func:`genplan.projection.manifold_task`), one without on its own terms.
+    ``sampler``: "uniform", "gan", "hybrid" or "adaptive" (the learned sampler of ``model``, which
+    must be trained for this robot and task), or "data" (:func:`data_sampler` of this task: no
+    model, no training), the last four for a task with a [condition] only; ``algorithm``: one of
+    :data:`ALGORITHMS` (default: ``settings.algorithm``, "crrt"); ``checker``: one of
+    :data:`CHECKERS` ("exact", or "spheres": the robot's covering spheres).
 
     Not finding a path within the settings' budget is ``outcome.result.success == False``."""
-    from genplan.projection import manifold_task
     from genplan.robots import load
 
     if algorithm is not None:
         _check_algorithm(algorithm)
+    if checker not in CHECKERS:
+        raise UnknownNameError(f"checker: unknown checker {checker!r} (known: {', '.join(CHECKERS)})")
     rob = robot if isinstance(robot, Robot) else load(robot)
     t = P.load_task(task, rob)
     if sampler not in SAMPLERS:
         raise UnknownNameError(f"unknown sampler '{sampler}' (known: {', '.join(SAMPLERS)})")
+    if sampler != "uniform" and t.condition is None:
+        raise SettingsError(f"sampler '{sampler}': task '{t.name}' has no [condition], which the learned samplers and "
+                            "the data sampler draw for; plan with sampler 'uniform'")
     gan_model = None
     chosen: str | Any = sampler
     if sampler == "data":
@@ -422,11 +525,11 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
 
         scene_obj = load_scene(scene)
         world.add_scene(scene_obj)
-    manifold = manifold_task(t, rob)
-    query = make_query(rob, t, world, start, goal, target, k=k, seed=seed)
+    manifold = query_manifold(t, rob)
+    query = make_query(rob, t, world, start, goal, target, frame=frame, k=k, seed=seed)
     if sampler == "data":  # this task's data, not the robot's shipped task's
         chosen = data_sampler(rob, task=t, seed=seed, progress=True)
     planner = Planner(rob, world=world, task=manifold, sampler=chosen, gan_model=gan_model, seed=seed,
-                      settings=settings, parallel=parallel, algorithm=algorithm)
+                      settings=settings, parallel=parallel, algorithm=algorithm, checker=checker)
     result = planner.plan(query.start, query.goals)
-    return Outcome(rob, t, manifold, world, query, result, sampler, scene_obj, planner.settings.algorithm)
+    return Outcome(rob, t, manifold, world, query, result, sampler, scene_obj, planner.settings.algorithm, frame)

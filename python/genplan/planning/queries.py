@@ -2,7 +2,9 @@
 
 * :func:`make_query`: the query of one problem, for any robot, task and scene: a start
   configuration projected onto the task's manifold, and goals given as configurations or reached
-  by IK for a target of the task's condition (what :func:`genplan.planning.plan` plans).
+  by IK for a target of the task's condition, or for a pose of any frame (what
+  :func:`genplan.planning.plan` plans). In free space (a free task, ``Task.free``) nothing is
+  projected: the start and goals must be within the joint limits as they are.
 * :func:`make_queries`: seeded queries of a planning environment (the GAN paper's Table II):
   targets drawn as the environment says (:class:`QuerySource`, e.g.
   :class:`genplan.planning.environments.Environment`), reached by IK from uniform guesses.
@@ -25,10 +27,10 @@ from numpy.typing import ArrayLike, NDArray
 from genplan import projection as P
 from genplan.collision import CollisionWorld
 from genplan.errors import GenplanError, InvalidGoalError, InvalidStartError, SettingsError
-from genplan.ik import valid_solutions
+from genplan.ik import _targets, frame_task, solve_ik, valid_solutions
 from genplan.robots import Robot
 
-__all__ = ["TOLERANCE_FACTOR", "Query", "QuerySource", "make_queries", "make_query"]
+__all__ = ["TOLERANCE_FACTOR", "Query", "QuerySource", "make_queries", "make_query", "query_manifold"]
 
 #: the planner projects ten times tighter than the constraint's tolerances (see Planner)
 TOLERANCE_FACTOR = 0.1
@@ -140,18 +142,27 @@ def _condition_frame(task: P.Task) -> str:
     return P.condition_term(task).frame
 
 
-def _project_free(robot: Robot, proj: P.GaussNewtonProjector, world: CollisionWorld, q: ArrayLike, what: str,
+def _project_free(robot: Robot, proj: P.GaussNewtonProjector | None, world: CollisionWorld, q: ArrayLike, what: str,
                   error: type[GenplanError]) -> NDArray[np.float64]:
-    """``q`` projected with ``proj`` (posture around itself) and checked collision-free in
-    ``world``, else ``error`` naming ``what``, why, and the pairs in contact."""
+    """``q`` projected with ``proj`` (posture around itself; None: free space, ``q`` as it is,
+    within the joint limits) and checked collision-free in ``world``, else ``error`` naming
+    ``what``, why (the joint outside its limits, the pairs in contact)."""
     q0 = robot.check_configuration(q, what)
     if q0.ndim != 1:
         raise error(f"{what}: expected one configuration of shape ({robot.nq},), got {q0.shape}")
-    res = proj.solve_batch(q0[None], q0[None], parallel=False)
-    if not bool(res.success[0]):
-        raise error(f"{what}: cannot be projected onto the manifold of task '{proj.task.name}' from there "
-                    f"(largest residual per term: {({k: round(float(v[0]), 6) for k, v in res.residuals.items()})})")
-    out = res.q[0]
+    if proj is None:
+        out = q0
+        outside = np.nonzero((out < robot.lower) | (out > robot.upper))[0]
+        if len(outside):
+            j = int(outside[0])
+            raise error(f"{what}: coordinate {j} (of joint {_joint_of(robot, j)}) at {out[j]:.6g} is outside its "
+                        f"limits [{robot.lower[j]:.6g}, {robot.upper[j]:.6g}]")
+    else:
+        res = proj.solve_batch(q0[None], q0[None], parallel=False)
+        if not bool(res.success[0]):
+            raise error(f"{what}: cannot be projected onto the manifold of task '{proj.task.name}' from there "
+                        f"(largest residual per term: {({k: round(float(v[0]), 6) for k, v in res.residuals.items()})})")
+        out = res.q[0]
     if bool(np.asarray(world.in_collision(out))):
         pairs = sorted((d, a, b) for a, b, d in world.native.close_pairs(list(map(float, out)), 0.0) if d <= 0)
         names = ", ".join(f"{a} and {b}" for _, a, b in pairs[:3])
@@ -159,43 +170,114 @@ def _project_free(robot: Robot, proj: P.GaussNewtonProjector, world: CollisionWo
     return out
 
 
+def _joint_of(robot: Robot, iq: int) -> str:
+    """The name of the joint whose configuration holds coordinate ``iq``."""
+    for jid in range(1, robot.model.njoints):
+        j = robot.model.joints[jid]
+        if j.idx_q <= iq < j.idx_q + j.nq:
+            return str(robot.model.names[jid])
+    return "?"
+
+
+def query_manifold(task: P.Task, robot: Robot) -> P.Task:
+    """The manifold a query of ``task`` is planned on: the task itself when it has no
+    [condition] (e.g. ``free``), else :func:`genplan.projection.manifold_task`."""
+    return task if task.condition is None else P.manifold_task(task, robot)
+
+
+def _pose_goals(robot: Robot, manifold: P.Task, proj: P.GaussNewtonProjector | None, world: CollisionWorld,
+                frame: str, target: NDArray[np.float64], k: int, seed: int, max_tries: int) -> NDArray[np.float64]:
+    """Up to ``k`` goals whose ``frame`` reaches ``target`` (a position (3,) or a pose (4, 4)):
+    :func:`genplan.solve_ik` of :func:`genplan.ik.frame_task` (the manifold's terms held too)
+    from batches of uniform warm starts, each solution projected onto the manifold as tightly as
+    the planner projects (free space: within the joint limits as it is) and kept when
+    collision-free; at most ``max_tries`` warm starts (rounded up to whole batches)."""
+    ik_task = frame_task(robot, frame, None if manifold.free else manifold)
+    batch = 32
+    found: list[NDArray[np.float64]] = []
+    tries = 0
+    while len(found) < k and tries < max_tries:
+        res = solve_ik(robot, ik_task, np.repeat(target[None], batch, 0), init="uniform", restarts=0,
+                       seed=seed + tries, parallel=True)
+        tries += batch
+        q = res.q[res.success]
+        if len(q) and proj is not None:
+            pr = proj.solve_batch(q, q, parallel=True)
+            q = pr.q[pr.success]
+        if len(q):
+            q = q[np.all((q >= robot.lower) & (q <= robot.upper), axis=1)]
+        if len(q):
+            q = q[~np.asarray(world.in_collision(q), dtype=bool)]
+        found.extend(q)
+    return np.array(found[:k]).reshape(-1, robot.nq)
+
+
 def make_query(robot: Robot, task: P.Task, world: CollisionWorld, start: ArrayLike | str = "default",
-               goal: ArrayLike | None = None, target: ArrayLike | None = None, *, k: int = 10, seed: int = 0,
-               max_tries: int = 2000) -> Query:
+               goal: ArrayLike | None = None, target: ArrayLike | None = None, *, frame: str | None = None,
+               k: int = 10, seed: int = 0, max_tries: int = 2000) -> Query:
     """A start (``"default"``: the robot's default configuration, or a configuration) projected
-    onto the manifold of ``task`` and checked free, and goals: ``goal`` (a configuration, or
-    several as rows) projected and checked likewise, or ``k`` IK solutions for ``target`` (the
-    condition term's target), from up to ``max_tries`` uniform guesses, collision-free.
+    onto the manifold of ``task`` (:func:`query_manifold`) and checked free, and goals: ``goal``
+    (a configuration, or several as rows) projected and checked likewise, or ``k`` IK solutions
+    for ``target``, from up to ``max_tries`` uniform guesses, collision-free. In free space (a
+    free manifold, ``Task.free``) nothing is projected: a start or goal outside the joint limits
+    is refused as it is.
+
+    ``target``: the condition term's target (3 numbers) for a task with a [condition]; or a
+    pose of ``frame`` (a 4x4 homogeneous matrix, or 7 numbers: a position and a unit
+    quaternion ``x y z qx qy qz qw``; or a position alone), solved by
+    :func:`genplan.solve_ik` with the manifold's terms held (``frame`` defaults to the
+    condition term's frame; a task without a [condition] needs it).
 
     Errors name the argument: InvalidStartError / InvalidGoalError (off the manifold and not
-    projectable, in collision, no IK solution found), SettingsError (neither or both of goal
-    and target)."""
+    projectable, outside the joint limits in free space, in collision, no IK solution found, a
+    bad target),
+    SettingsError (neither or both of goal and target, no ``frame`` for a target of a task
+    without a [condition]), UnknownNameError (an unknown frame). A target of another shape, not
+    finite or not a pose is an InvalidGoalError saying so."""
     if (goal is None) == (target is None):
-        raise SettingsError("give a goal configuration or a target of the task's condition, not both or neither")
+        raise SettingsError("give a goal configuration or a target (of the task's condition, or a pose of a frame), "
+                            "not both or neither")
     if isinstance(k, bool) or not isinstance(k, int) or k < 1:
         raise SettingsError(f"k must be a positive integer, got {k!r}")
-    manifold = P.manifold_task(task, robot)
-    proj = P.GaussNewtonProjector(robot, manifold.with_tolerances_scaled(TOLERANCE_FACTOR))
+    manifold = query_manifold(task, robot)
+    proj = None if manifold.free else P.GaussNewtonProjector(robot, manifold.with_tolerances_scaled(TOLERANCE_FACTOR))
     q_start = robot.q_default if isinstance(start, str) and start == "default" else start
     if isinstance(q_start, str):
         raise InvalidStartError(f"start: expected 'default' or a configuration, got {start!r}")
+    if frame is None and task.condition is not None:
+        frame = _condition_frame(task)
+    if frame is not None:
+        robot.frame_id(frame)  # an unknown frame: UnknownNameError naming it
     s = _project_free(robot, proj, world, q_start, "start", InvalidStartError)
-    frame = _condition_frame(task)
+    start_target = np.zeros(0) if frame is None else robot.frame_positions(s, frame)
     if goal is not None:
         g = robot.check_configuration(goal, "goal")
         rows = g.reshape(-1, robot.nq)
         goals = np.array([_project_free(robot, proj, world, row, f"goal[{i}]" if len(rows) > 1 else "goal",
                                         InvalidGoalError) for i, row in enumerate(rows)])
-        goal_target = robot.frame_positions(goals[0], frame)
-    else:
-        t = np.asarray(target, dtype=np.float64).reshape(-1)
-        if t.shape != (3,) or not np.all(np.isfinite(t)):
-            raise InvalidGoalError(f"target: expected 3 finite numbers (x, y, z), got {np.asarray(target).tolist()}")
-        ik = P.GaussNewtonProjector(robot, task)
-        goals = valid_solutions(robot, ik, P.condition_term(task).name, proj, world, t, np.random.default_rng(seed), k,
-                                max_tries)
+        goal_target = np.zeros(0) if frame is None else robot.frame_positions(goals[0], frame)
+        return Query(start=s, goals=goals, start_target=start_target, goal_target=goal_target)
+    assert target is not None  # neither or both of goal and target are refused above
+    try:
+        rows_t = _targets(target, "target")
+    except GenplanError as e:  # the goal's argument: its shape, values or pose
+        raise InvalidGoalError(str(e)) from None
+    if len(rows_t) != 1:
+        raise InvalidGoalError(f"target: expected one target, got shape {np.shape(target)}")
+    t = rows_t[0]
+    if frame is None:
+        raise SettingsError(f"frame: task '{task.name}' has no [condition]: a target is a pose of a frame; give the "
+                            f"frame (one of the robot's: e.g. {', '.join(list(robot.frames)[:3]) or 'its end link'})")
+    if task.condition is None or t.ndim == 2:
+        goals = _pose_goals(robot, manifold, proj, world, frame, t, k, seed, max_tries)
         if len(goals) == 0:
-            raise InvalidGoalError(f"target {t.tolist()}: no collision-free IK solution of task '{task.name}' in "
-                                   f"{max_tries} tries (out of reach, or blocked by the scene)")
-        goal_target = t
-    return Query(start=s, goals=goals, start_target=robot.frame_positions(s, frame), goal_target=goal_target)
+            raise InvalidGoalError(f"target: no collision-free IK solution of frame '{frame}' reaching {t.tolist()} "
+                                   f"in {max_tries} tries (out of reach, or blocked by the scene)")
+        return Query(start=s, goals=goals, start_target=start_target, goal_target=t[:3, 3] if t.ndim == 2 else t)
+    ik = P.GaussNewtonProjector(robot, task)
+    goals = valid_solutions(robot, ik, P.condition_term(task).name, proj, world, t, np.random.default_rng(seed), k,
+                            max_tries)
+    if len(goals) == 0:
+        raise InvalidGoalError(f"target {t.tolist()}: no collision-free IK solution of task '{task.name}' in "
+                               f"{max_tries} tries (out of reach, or blocked by the scene)")
+    return Query(start=s, goals=goals, start_target=start_target, goal_target=t)

@@ -1,0 +1,173 @@
+"""Free-space planning (genplan.planning with the shipped ``free`` task, or any task of joint
+limits alone): no projector in the loop, every state within the joint limits and collision-free,
+the same paths as the projector that has nothing to do; ``genplan.planning.plan`` and queries
+without a task, goals as configurations or as poses of a frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import genplan
+from genplan import _core
+from genplan import projection as P
+from genplan.errors import InvalidGoalError, InvalidStartError, SettingsError, UnknownNameError
+from genplan.planning import Planner, PlannerSettings, environment, make_query, plan
+
+
+@pytest.fixture(scope="module")
+def shelf(panda):
+    """The shelf's world and valid configurations of it (seed 3): starts and goals."""
+    world = environment("panda_shelf").world(panda)
+    qs = panda.random_configurations(600, np.random.default_rng(3))
+    return world, qs[~np.asarray(world.in_collision(qs), dtype=bool)]
+
+
+def assert_free_path(robot: genplan.Robot, world, result, start, goal) -> None:
+    """Every state within the joint limits (no tolerance) and collision-free, ``sub`` points on
+    every chord too; consecutive states at most 1.25 edge resolutions apart; from start to goal."""
+    assert result.success
+    path = result.path
+    np.testing.assert_array_equal(path[0], start)
+    np.testing.assert_array_equal(path[-1], goal)
+    assert np.all(path >= robot.lower) and np.all(path <= robot.upper)
+    chords = np.concatenate([a + np.linspace(0, 1, 5)[:, None] * (b - a) for a, b in zip(path[:-1], path[1:])])
+    assert not np.any(world.in_collision(chords))
+    assert np.linalg.norm(np.diff(path, axis=0), axis=1).max() <= 1.25 * PlannerSettings().edge_resolution + 1e-9
+
+
+def test_the_free_task_is_shipped_for_any_robot(panda, talos) -> None:
+    for robot in (panda, talos):
+        task = P.load_task("free", robot)
+        assert task.free and task.condition is None
+        assert [type(t) for t in task.primary] == [P.JointLimits]
+    assert not P.load_task("panda_projection", panda).free
+
+
+@pytest.mark.parametrize("algorithm", ["crrt", "rrt_connect"])
+def test_free_plans_project_nothing_and_are_valid(panda, shelf, algorithm) -> None:
+    world, qs = shelf
+    planner = Planner(panda, world, task="free", algorithm=algorithm, settings=PlannerSettings(simplify=True))
+    assert planner.free and planner._projector_arg is None
+    for i in range(3):
+        res = planner.plan(qs[2 * i], qs[2 * i + 1])
+        assert_free_path(panda, world, res, qs[2 * i], qs[2 * i + 1])
+        s = res.stats
+        assert (s.projections, s.projection_calls, s.edge_projections, s.chord_checks) == (0, 0, 0, 0)
+        assert s.projector_s == 0.0
+        # a trajectory of it passes every check (limits, the task's residuals, the world)
+        if i == 0:
+            traj = res.trajectory()
+            assert traj.q.shape[1] == panda.nq
+
+
+def test_free_plans_match_the_projector_that_has_nothing_to_do(panda, shelf) -> None:
+    """The same samples, the same trees: the free plan's path is the one planned with the free
+    task's projector in the loop (which leaves every state within the limits where it is), at a
+    cost the free plan does not pay."""
+    world, qs = shelf
+    free = P.load_task("free", panda)
+    for algorithm in ("crrt", "rrt_connect"):
+        a = Planner(panda, world, task="free", algorithm=algorithm, seed=5).plan(qs[0], qs[1])
+        projector = P.GaussNewtonProjector(panda, free.with_tolerances_scaled(0.1))
+        through = Planner(panda, world, task=free, projector=projector, algorithm=algorithm, seed=5)
+        assert not through.free
+        b = through.plan(qs[0], qs[1])
+        assert a.success and b.success
+        np.testing.assert_array_equal(a.path, b.path)
+        assert b.stats.projection_calls > 0 and b.stats.projector_s > 0
+        assert a.stats.projector_s == 0
+
+
+class OutOfLimits:
+    """Samples half of them beyond the upper joint limits."""
+
+    def __init__(self, robot: genplan.Robot) -> None:
+        self.robot, self.rng = robot, np.random.default_rng(0)
+
+    def sample(self, n: int) -> np.ndarray:
+        q = self.robot.random_configurations(n, self.rng)
+        q[::2] += (self.robot.upper - self.robot.lower)
+        return q
+
+
+class Everything:
+    """A Python checker that finds every configuration valid."""
+
+    def __init__(self) -> None:
+        self.rows = 0
+
+    def is_valid(self, qs: np.ndarray) -> np.ndarray:
+        self.rows += len(qs)
+        return np.ones(len(qs), dtype=bool)
+
+
+def test_a_python_checker_in_free_space_cannot_leave_the_limits(panda, shelf) -> None:
+    """No projector keeps the states within the limits: the planner does, whatever a Python
+    checker says (a sampler that draws beyond them leaves no state there)."""
+    world, qs = shelf
+    checker = Everything()
+    planner = Planner(panda, world, task="free", sampler=OutOfLimits(panda), checker=checker,
+                      settings=PlannerSettings(max_extensions=300))
+    res = planner.plan(qs[0], qs[1])
+    assert res.success and checker.rows > 0
+    assert np.all(res.path >= panda.lower) and np.all(res.path <= panda.upper)
+    assert res.stats.projector_s == 0
+    with pytest.raises(InvalidStartError, match="outside the joint limits"):
+        planner.plan(panda.upper + 0.1, qs[1])
+
+
+def test_plan_without_a_task_plans_in_free_space(panda, shelf) -> None:
+    world, qs = shelf
+    out = plan(panda, scene="panda_shelf", start=qs[4], goal=qs[5], algorithm="rrt_connect")
+    assert out.task.name == "free" and out.manifold.free and out.trail_frame is None
+    assert_free_path(panda, out.world, out.result, qs[4], qs[5])
+    assert out.result.stats.projector_s == 0
+    d = out.to_dict()
+    assert d["task"] == "free" and d["success"] and d["goal_target"] == []
+
+
+@pytest.mark.parametrize("form", ["matrix", "quaternion"])
+def test_a_pose_goal_is_reached_by_collision_free_ik(panda, shelf, form) -> None:
+    world, qs = shelf
+    goal_pose = panda.frame_placement(qs[7], "hand")
+    target = goal_pose.homogeneous if form == "matrix" else np.concatenate(
+        [goal_pose.translation, pin.Quaternion(goal_pose.rotation).coeffs()])  # x y z qx qy qz qw
+    out = plan(panda, scene="panda_shelf", start=qs[6], target=target, frame="hand", k=3, algorithm="rrt_connect")
+    assert len(out.query.goals) == 3 and out.trail_frame == "hand"
+    assert not np.any(out.world.in_collision(out.query.goals))
+    for g in out.query.goals:
+        err = pin.log6(goal_pose.inverse() * panda.frame_placement(g, "hand")).vector
+        assert np.abs(err).max() < 1e-3
+        assert np.all(g >= panda.lower) and np.all(g <= panda.upper)
+    assert_free_path(panda, out.world, out.result, qs[6], out.query.goals[out.result.goal_index])
+
+
+def test_free_queries_refuse_bad_input_naming_it(panda, shelf) -> None:
+    world, qs = shelf
+    free = P.load_task("free", panda)
+    outside = qs[0].copy()
+    outside[3] = panda.upper[3] + 0.05
+    with pytest.raises(InvalidStartError, match=r"start: coordinate 3 \(of joint panda_joint4\) at .* outside"):
+        make_query(panda, free, world, outside, goal=qs[1])
+    with pytest.raises(InvalidGoalError, match="goal: .*outside its limits"):
+        make_query(panda, free, world, qs[0], goal=outside)
+    with pytest.raises(SettingsError, match="frame: task 'free' has no \\[condition\\]"):
+        make_query(panda, free, world, qs[0], target=[0.5, 0.0, 0.5])
+    with pytest.raises(UnknownNameError, match="nowhere"):
+        make_query(panda, free, world, qs[0], target=[0.5, 0.0, 0.5], frame="nowhere")
+    with pytest.raises(InvalidGoalError, match=r"target: expected positions \(n, 3\), poses"):
+        make_query(panda, free, world, qs[0], target=[0.5, 0.0, 0.5, 1.0], frame="hand")
+    with pytest.raises(InvalidGoalError, match="target: no collision-free IK solution of frame 'hand'"):
+        make_query(panda, free, world, qs[0], target=[3.0, 0.0, 0.5], frame="hand", max_tries=64)
+    with pytest.raises(SettingsError, match="sampler 'gan': task 'free' has no \\[condition\\]"):
+        plan(panda, start=qs[0], goal=qs[1], sampler="gan")
+
+
+def test_the_native_planner_takes_no_projector_as_free_space(panda, shelf) -> None:
+    world, qs = shelf
+    native = _core.Planner(panda.kinematics, PlannerSettings())
+    res = native.plan(list(qs[0]), qs[1][None], _core.UniformSampler(panda.kinematics, None, 0, None), None,
+                      world.native)
+    assert res.success and res.stats.projections == 0 and res.stats.projector_s == 0

@@ -1,0 +1,115 @@
+"""The sphere checker (``genplan._core.SphereChecker``, ``genplan.planning.sphere_checker``,
+``Planner(..., checker="spheres")``): conservative against the exact world on the shelf scene,
+one configuration and a batch alike, motions checked state by state, plans whose paths are valid
+by the exact geometry, and the refusals (unknown checker, a point cloud, the certified edge check,
+bad spheres)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import genplan
+from genplan import _core
+from genplan.errors import GenplanError, ShapeError, SettingsError, UnknownNameError
+from genplan.planning import CHECKERS, Planner, PlannerSettings, environment, plan, sphere_checker
+from genplan.spheres import robot_spheres
+
+
+@pytest.fixture(scope="module")
+def shelf(panda: genplan.Robot):
+    world = environment("panda_shelf").world(panda)
+    return world, sphere_checker(panda, world)
+
+
+def test_free_by_spheres_is_free_by_the_exact_world(panda: genplan.Robot, shelf) -> None:
+    world, sc = shelf
+    q = panda.random_configurations(4000, np.random.default_rng(0))
+    exact = np.asarray(world.in_collision(q), dtype=bool)
+    spheres = np.asarray(sc.in_collision(q), dtype=bool)
+    assert spheres.shape == (len(q),) and spheres.dtype == bool
+    assert not np.any(exact & ~spheres), "a configuration in collision by the exact geometry is free by the spheres"
+    assert 0.1 < exact.mean() < 0.9
+    # false positives: near contact only, a small share of the free configurations
+    assert (spheres & ~exact).sum() < 0.2 * (~exact).sum()
+    # one configuration at a time answers as the batch does
+    for i in range(0, 400, 7):
+        assert sc.in_collision(q[i]) is bool(spheres[i])
+    assert sc.n_spheres == len(robot_spheres(panda))
+    assert len(sc.self_pairs) > 0
+
+
+def test_a_motion_is_free_when_its_states_are(panda: genplan.Robot, shelf) -> None:
+    _, sc = shelf
+    rng = np.random.default_rng(1)
+    seen = set()
+    for _ in range(60):
+        a, b = panda.random_configurations(2, rng)
+        b = a + 0.3 * (b - a)
+        steps = max(1, int(np.ceil(np.abs(b - a).max() / 0.05)))
+        states = a + np.linspace(0, 1, steps + 1)[:, None] * (b - a)
+        want = not np.asarray(sc.in_collision(states)).any()
+        assert sc.motion_free(a.tolist(), b.tolist(), 0.05) is want
+        seen.add(want)
+    assert seen == {True, False}
+    with pytest.raises(GenplanError, match="resolution"):
+        sc.motion_free(a.tolist(), b.tolist(), 0.0)
+    with pytest.raises(ShapeError):
+        sc.motion_free(a[:3].tolist(), b.tolist(), 0.05)
+
+
+def test_planner_with_spheres_plans_paths_valid_by_the_exact_geometry(panda: genplan.Robot, shelf) -> None:
+    world, sc = shelf
+    assert CHECKERS == ("exact", "spheres")
+    rng = np.random.default_rng(2)
+    q = panda.random_configurations(200, rng)
+    q = q[~np.asarray(sc.in_collision(q), dtype=bool)]
+    planner = Planner(panda, world=world, task="free", checker="spheres", algorithm="rrt_connect")
+    assert isinstance(planner.checker, _core.SphereChecker)
+    solved = 0
+    for start, goal in zip(q[0:8:2], q[1:8:2]):
+        res = planner.plan(start, goal)
+        if res.success:
+            solved += 1
+            assert not np.asarray(world.in_collision(res.path)).any()
+            assert not np.asarray(sc.in_collision(res.path)).any()
+            assert res.world is world  # the trajectory is checked against the exact geometry
+    assert solved >= 3
+
+
+def test_plan_takes_the_checker_by_name(panda: genplan.Robot, shelf) -> None:
+    world, sc = shelf
+    q = panda.random_configurations(100, np.random.default_rng(3))
+    q = q[~np.asarray(sc.in_collision(q), dtype=bool)]
+    out = plan(panda, scene="panda_shelf", start=q[0], goal=q[1], checker="spheres", algorithm="rrt_connect", parallel=False)
+    assert out.result.success
+    assert not np.asarray(world.in_collision(out.result.path)).any()
+    assert not np.asarray(sc.in_collision(out.result.path)).any()
+    with pytest.raises(UnknownNameError, match="checker"):
+        plan(panda, checker="voxels")
+    with pytest.raises(UnknownNameError, match="spheres"):
+        Planner(panda, task="free", checker="boxes")
+
+
+def test_certified_edges_need_the_exact_checker(panda: genplan.Robot) -> None:
+    with pytest.raises(SettingsError, match="certified"):
+        Planner(panda, task="free", checker="spheres", settings=PlannerSettings(edge_check="certified"))
+
+
+def test_a_point_cloud_is_refused_by_name(panda: genplan.Robot) -> None:
+    world = panda.collision_world()
+    world.add_points("kinect", np.array([[0.5, 0.0, 0.5], [0.6, 0.1, 0.5]]), 0.01)
+    with pytest.raises(GenplanError, match="'kinect'"):
+        sphere_checker(panda, world)
+    with pytest.raises(GenplanError, match="'kinect'"):
+        Planner(panda, world=world, task="free", checker="spheres")
+
+
+def test_bad_spheres_are_refused_naming_the_argument(panda: genplan.Robot) -> None:
+    w = panda.collision_world().native
+    with pytest.raises(ShapeError, match="centers"):
+        _core.SphereChecker(w, ["panda_link1", "panda_link2"], [[0.0, 0.0, 0.0]], [0.1, 0.1])
+    with pytest.raises(UnknownNameError, match="nowhere"):
+        _core.SphereChecker(w, ["nowhere"], [[0.0, 0.0, 0.0]], [0.1])
+    with pytest.raises(GenplanError, match="radii"):
+        _core.SphereChecker(w, ["panda_link1"], [[0.0, 0.0, 0.0]], [-0.1])
