@@ -646,7 +646,7 @@ def test_integrity_7_a_task_without_a_condition_target_trains_evaluates_and_writ
 def test_integrity_7_training_checks_every_use_of_the_task_before_any_work(panda: genplan.Robot, monkeypatch) -> None:
     from genplan.errors import TaskFileError
 
-    class Elbow(P.CustomTerm):  # a Python term: solvable, but no task file (the card) can hold it
+    class Elbow(P.CustomTerm):  # a Python term defined in a function: solvable, but no card can import it
         def dim(self) -> int:
             return 1
 
@@ -666,7 +666,7 @@ def test_integrity_7_training_checks_every_use_of_the_task_before_any_work(panda
 
     monkeypatch.setattr(gan_data, "valid_configurations", no_work)
     cfg = default_config(panda, task, iterations=3, data_size=100, n_net=2)
-    with pytest.raises(TaskFileError, match="term 'elbow'.* custom term"):
+    with pytest.raises(TaskFileError, match="term 'elbow'.*Elbow is defined inside a function"):
         train(cfg, robot=panda, task=task, progress=False)
 
 

@@ -39,6 +39,8 @@ def _terms(robot):
         P.Posture(q_nom=q_ref, joint_weights=np.linspace(0.5, 2.0, robot.nv)),
         P.JointLimits(margin=10.0),  # wide margin: every row active, so every column is checked
         P.ComBox(lower=(-0.01, -0.01, 0.3), upper=(0.01, 0.01, 0.4), margin=0.0),
+        P.PointAt(frame=hand, axis=np.array([0.3, -0.2, 0.9]) / np.linalg.norm([0.3, -0.2, 0.9]), point=(0.5, 0.3, 0.4)),
+        P.Plane(frame=hand, normal=(0.6, 0.0, 0.8), offset=0.4),
     ]
 
 
@@ -346,7 +348,7 @@ def test_task_file_errors_name_the_file_the_table_and_the_key(tmp_path, panda: g
             P.Task.from_file(f)
     with pytest.raises(FileNotFoundError, match="nope.toml does not exist"):
         P.Task.from_file(tmp_path / "nope.toml")
-    with pytest.raises(UnknownNameError, match=r"unknown task 'kitchen' \(shipped: panda_ik, panda_projection"):
+    with pytest.raises(UnknownNameError, match=r"unknown task 'kitchen' \(shipped: free, panda_ik, panda_projection"):
         P.load_task("kitchen")
     with pytest.raises(UnknownNameError, match="no shipped task 'ur5_projection'"):
         P.paper_task(genplan.load("ur5"))
@@ -425,3 +427,27 @@ def test_the_paper_constants_are_read_when_first_used() -> None:
     assert out.strip().endswith("(2, 3) (3, 3)"), out
     assert P.PANDA_IK_BOX.tolist() == [list(P.load_task("panda_ik").condition.low),
                                        list(P.load_task("panda_ik").condition.high)]
+
+
+@pytest.mark.parametrize("backend", ["native", "pinocchio"])
+def test_residual_sizes_are_the_unstepped_solves_residuals(panda: genplan.Robot, backend: str) -> None:
+    """``residual_sizes``: per primary term, the residual size ``solve_batch`` reports, without a
+    step (the check of a trajectory's samples); rows beyond the joint limits are not clipped."""
+    task = P.load_task("panda_projection", panda)
+    q = random_configurations(panda, 40, seed=5)
+    q[3, 1] = panda.upper[1] + 0.2  # beyond a limit: the limits term sees it
+    sizes = P.GaussNewtonProjector(panda, task, backend=backend).residual_sizes(q)
+    unstepped = P.GaussNewtonProjector(panda, task, P.SolverSettings(max_iterations=0, clip_to_limits=False),
+                                       backend=backend).solve_batch(q).residuals
+    assert list(sizes) == [t.label() for t in task.primary]
+    for name, expected in unstepped.items():
+        assert sizes[name].shape == (40,)
+        np.testing.assert_allclose(sizes[name], expected, rtol=1e-12, atol=1e-15)
+    assert sizes["joint_limits"][3] == pytest.approx(0.2) and sizes["hand_orientation"].max() > 1e-2
+    solver = P.GaussNewtonProjector(panda, task, backend=backend)
+    with pytest.raises(ShapeError, match=r"q: expected shape \(n, 7\)"):
+        solver.residual_sizes(q[0])
+    bad = q.copy()
+    bad[7, 2] = np.nan
+    with pytest.raises(NonFiniteError, match="q"):
+        solver.residual_sizes(bad)

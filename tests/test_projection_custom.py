@@ -289,11 +289,15 @@ def test_a_plain_object_with_the_batch_methods_is_a_native_term(panda: genplan.R
         genplan._core.Projector(panda.kinematics, [{"type": "custom", "name": "bad", "term": NoJacobian()}])
 
 
-def test_a_task_with_a_custom_term_is_not_written_to_a_file(tmp_path, panda: genplan.Robot) -> None:
+def test_a_task_with_a_custom_term_is_written_to_a_file_by_its_entry(tmp_path, panda: genplan.Robot) -> None:
+    """ToolUpright is importable (tests.test_projection_custom:ToolUpright): a file records it as a
+    python term, read back only with allow_python=True (tests/test_custom_terms.py)."""
     task = _upright_task(panda)
-    with pytest.raises(TaskFileError, match=r"term 'upright': ToolUpright is a custom term \(Python code\)"):
-        task.to_file(tmp_path / "task.toml")
-    assert not (tmp_path / "task.toml").exists()
+    path = task.to_file(tmp_path / "task.toml")
+    assert 'entry = "tests.test_projection_custom:ToolUpright"' in path.read_text()
+    with pytest.raises(TaskFileError, match="allow_python=True"):
+        P.Task.from_file(path, panda)
+    assert P.Task.from_file(path, panda, allow_python=True).primary[0] == task.primary[0]
     # copies made the way the planner makes them keep the term (a frozen dataclass)
     tighter = task.with_tolerances_scaled(0.1)
     assert isinstance(tighter.primary[0], ToolUpright) and tighter.primary[0].tolerance == pytest.approx(1e-7)
@@ -343,3 +347,12 @@ def test_a_plan_on_a_custom_term_and_its_exceptions(panda: genplan.Robot) -> Non
                                           output=lambda v: v * np.nan))
     with pytest.raises(NonFiniteError, match="term 'upright'"):
         Planner(panda, task=nan_out, seed=0).plan(start, goal[None])
+
+
+def test_an_exception_in_the_term_reaches_the_residual_check_unchanged(panda: genplan.Robot) -> None:
+    error = Boom("in the residual check")
+    term = Faulty(robot=panda, name="upright", where="residual", after=3, error=error)
+    solver = P.GaussNewtonProjector(panda, _upright_task(panda, term))
+    with pytest.raises(Boom) as info:
+        solver.residual_sizes(_starts(panda, 6, seed=34))
+    assert info.value is error

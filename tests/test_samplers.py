@@ -75,3 +75,34 @@ def test_genplan_gan_is_a_deprecated_alias_of_genplan_samplers() -> None:
         assert importlib.import_module("genplan.gan.flow") is genplan.samplers.flow
     with pytest.raises(AttributeError, match="no attribute 'UniformSampler'"):
         genplan.gan.UniformSampler  # noqa: B018
+
+
+def test_a_missing_gan_names_a_training_command_that_works(tmp_path, monkeypatch, capsys) -> None:
+    """A robot genplan ships no GAN for, asked for its GAN without --model: the error names no path
+    inside the package, and its command (with the --task given) trains one as typed."""
+    import re
+    import shlex
+    from pathlib import Path
+
+    from genplan.cli import main
+    from genplan.samplers.base import task_option
+    from genplan.samplers.gan import load_model
+
+    examples = Path(__file__).resolve().parents[1] / "examples" / "baxter"
+    robot, task = examples / "baxter.toml", examples / "tray.toml"
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "projection", "--robot", str(robot), "--task", str(task), "--init", "gan", "--tasks", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "robot 'baxter' has no shipped GAN" in err and "genplan/models" not in err and "site-packages" not in err
+    command = re.search(r"`(genplan train gan [^`]*)`", err)
+    assert command is not None and f"--task {task}" in command.group(1)
+    argv = shlex.split(command.group(1))[1:] + ["--iterations", "2", "--data-size", "40", "--n-net", "2",
+                                                "--eval-targets", "2"]
+    assert main(argv) == 0  # the hint's command, shrunk: it trains and writes the model it names
+    assert (tmp_path / "baxter_gan.safetensors").is_file()
+    # without a task to name, the command says which file to write instead of failing for want of one
+    baxter = genplan.load(str(robot))
+    with pytest.raises(FileNotFoundError, match=r"--task TASK.toml .*\(TASK.toml: a task file with a \[condition\]"):
+        load_model(baxter)
+    assert task_option(genplan.load("panda"), None) is None and task_option(genplan.load("panda"), "panda_ik") is None
+    assert task_option(genplan.load("panda"), "talos_ik") == "talos_ik"

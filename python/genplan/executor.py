@@ -217,7 +217,7 @@ class LocalExecutor(Executor):
             raise GenplanError(f"workers: expected a positive integer, got {workers}")
         self.workers = workers or os.cpu_count() or 1
         self.kind = kind
-        self.name = f"local-{kind}s"
+        self.name = {"thread": "local-threads", "process": "local-processes"}[kind]
         self._pool: cf.Executor | None = None
 
     def _make(self) -> cf.Executor:

@@ -266,3 +266,12 @@ def add_robot_and_task(p: argparse.ArgumentParser, task_default: str | None, *, 
     p.add_argument("--task", required=task_required, default=None,
                    help="a task with a [condition]: a shipped task's name or a task file (.toml)"
                         + ("" if task_default is None else f"; default: {task_default}"))
+
+
+def add_allow_python(p: argparse.ArgumentParser) -> None:
+    """``--allow-python``: a ``--task`` file's python terms (``kind = "python"``, ``entry =
+    "module:Class"``) are imported only with it, since importing runs that module's code
+    (:meth:`genplan.projection.Task.from_file`, ``allow_python``)."""
+    p.add_argument("--allow-python", action="store_true",
+                   help="read the --task file's python terms (kind = \"python\", entry = \"module:Class\"): this "
+                        "imports and runs that module's code (without it, such a file is refused)")

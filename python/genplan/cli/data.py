@@ -5,6 +5,11 @@ training set (configurations on a task's manifold) as a folder of shards and a m
     genplan data configurations --robot panda --data-size 200000 --out data/panda   # every local core
     genplan data --robot talos --data-size 10000000 --out data/talos --ray ray://head:10001
     genplan train gan --robot panda --data data/panda --out models/p.safetensors
+    genplan data --robot panda --task t.toml --allow-python --data-size 50000 --out data/t   # python terms
+
+A task whose terms are Python (``kind = "python"``, imported only with --allow-python) runs its
+shards in worker processes rather than threads (a Python term holds the GIL), each importing the
+terms by their entry.
 
 (``genplan data trajectories`` writes a trajectory family instead: see its --help.)
 
@@ -32,6 +37,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     from genplan.samplers.data import MAX_SHARDS, SHARD_SIZE
 
     A.add_robot_and_task(p, "the robot's shipped <robot>_ik (the data lie on the task's manifold)")
+    A.add_allow_python(p)
     p.add_argument("--data-size", type=A.positive_int, required=True,
                    help="configurations in the data set: at most what the free space of --out holds (nq x 8 bytes "
                         "each), checked before any work")
@@ -45,22 +51,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="replace the data set --out holds when it is another one (its manifest and shards only)")
     p.add_argument("--force", action="store_true",
                    help="take the folder's lock from another run (one on another host that is gone)")
-    A.add_executor_arguments(p, "local workers (threads, one core each; default: every core), or Ray CPUs "
-                                "with --ray auto")
+    A.add_executor_arguments(p, "local workers (threads, one core each, or processes for a task with python "
+                                "terms; default: every core), or Ray CPUs with --ray auto")
 
 
 def main(args: argparse.Namespace) -> int:
     from genplan import projection as P
     from genplan.executor import executor
     from genplan.robots import load
-    from genplan.samplers.data import check_data_size, write_dataset
+    from genplan.samplers.data import check_data_size, executor_kind, write_dataset
 
     robot = load(args.robot)
-    task = None if args.task is None else P.load_task(args.task, robot)
+    task = None if args.task is None else P.load_task(args.task, robot, allow_python=args.allow_python)
     local = 1 if args.ray is not None else (args.workers or os.cpu_count() or 1)  # shards held here at once
     check_data_size(args.data_size, robot.nq, args.shard_size, out=args.out, workers=local,
                     names=("--data-size", "--shard-size"))
-    with executor(args.workers, args.ray) as ex:
+    with executor(args.workers, args.ray, kind=executor_kind(task)) as ex:
         m = write_dataset(args.out, robot, args.data_size, args.seed, task, shard_size=args.shard_size, executor=ex,
                           overwrite=args.overwrite, force=args.force)
     run = m["last_run"]

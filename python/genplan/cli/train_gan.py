@@ -5,6 +5,7 @@ held-out targets (:mod:`genplan.samplers.evaluate`) and write the model and its 
     genplan train gan --robot my_robot.toml --task my_task.toml --out my_gan.safetensors
     genplan train gan --robot panda --data data/panda --out m.safetensors   # a `genplan data` set
     genplan train gan --robot panda --seeds 0..3 --out m.safetensors        # m_seed0 ... m_seed3
+    genplan train gan --robot panda --task t.toml --allow-python --out m.safetensors  # t.toml's python terms
 
 With ``--seeds`` one model is trained per seed (the same data set), written with the seed in its
 name. They run one after the other unless ``--workers K`` asks for K processes (or ``--ray``):
@@ -24,6 +25,7 @@ from genplan.cli import args as A
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     A.add_robot_and_task(p, "the robot's shipped <robot>_ik")
+    A.add_allow_python(p)
     p.add_argument("--seed", type=A.seed, default=0, help="training seed (torch and numpy)")
     p.add_argument("--seeds", type=A.seed_range, default=None, metavar="A..B",
                    help="train one model per seed A..B (both included); outputs named <out>_seed<S>")
@@ -65,7 +67,8 @@ def train_one(job: dict[str, Any]) -> str:
     from genplan.samplers.gan import default_config, train
 
     robot = load(job["robot"])
-    task = P.load_task(job["task"] if job["task"] is not None else default_task_name(robot), robot)
+    task = P.load_task(job["task"] if job["task"] is not None else default_task_name(robot), robot,
+                       allow_python=job["allow_python"])
     cfg = default_config(robot, task, **job["overrides"])
     t0 = time.perf_counter()
     model = train(cfg, job["data"], progress=job["progress"], robot=robot, task=task, threads=job["threads"])
@@ -88,7 +91,8 @@ def main(args: argparse.Namespace) -> int:
     from genplan.samplers.gan import default_config
 
     robot = load(args.robot)
-    task = P.load_task(args.task if args.task is not None else default_task_name(robot), robot)
+    task = P.load_task(args.task if args.task is not None else default_task_name(robot), robot,
+                       allow_python=args.allow_python)
     shipped = args.task is None or args.task in P.task_names()
     if args.out is None and not shipped:
         raise A.UsageError("--out: give the model's path (a task file's GAN has no shipped place)")
@@ -122,10 +126,12 @@ def main(args: argparse.Namespace) -> int:
     extra = "".join(f" --{k} {getattr(args, k.replace('-', '_'))}" for k in ("iterations", "n-net", "data-size", "data", "loss",
                                                                          "w-diversity", "member-init")
                     if getattr(args, k.replace("-", "_")) is not None) + (" --no-discriminator" if args.no_discriminator else "")
+    extra += " --allow-python" if task.python_terms else ""
     parallel = args.seeds is not None and (args.ray is not None or (args.workers or 1) > 1)
     outs = [out if args.seeds is None else seed_path(out, s) for s in seeds]
     A.announce_replacement(outs)
-    jobs = [{"robot": args.robot, "task": args.task, "overrides": {**overrides, "seed": s}, "data": data,
+    jobs = [{"robot": args.robot, "task": args.task, "allow_python": args.allow_python,
+             "overrides": {**overrides, "seed": s}, "data": data,
              "data_set": data_set, "eval_targets": args.eval_targets, "threads": args.threads,
              "progress": not parallel, "out": o, "command": train_command(args.robot, args.task, s, options=extra, out=o)}
             for s, o in zip(seeds, outs)]

@@ -18,7 +18,9 @@ One concept per module, every name exported here:
 
 * :mod:`~genplan.projection.base` -- :class:`Term`, what every term shares;
 * the built-in terms by family: :mod:`~genplan.projection.frame` (:class:`FramePose`,
-  :class:`FramePosition`, :class:`FrameOrientation`), :mod:`~genplan.projection.joints`
+  :class:`FramePosition`, :class:`FrameOrientation`, :class:`PointAt`, :class:`Plane`),
+  :mod:`~genplan.projection.relative` (:class:`RelativePose`, :class:`RelativePosition`: one
+  frame in another's), :mod:`~genplan.projection.joints`
   (:class:`Posture`, :class:`JointLimits`), :mod:`~genplan.projection.com` (:class:`ComBox`);
   and :mod:`~genplan.projection.custom` (:class:`CustomTerm`, a term of your own in Python);
 * :mod:`~genplan.projection.task` -- :class:`Task`, :class:`Condition`, task files;
@@ -35,23 +37,24 @@ from genplan.projection import paper as _paper
 from genplan.projection.base import Array, Term, _BoundTerm, _State  # noqa: F401
 from genplan.projection.com import ComBox
 from genplan.projection.custom import CustomTerm
-from genplan.projection.frame import FrameOrientation, FramePose, FramePosition
+from genplan.projection.frame import FrameOrientation, FramePose, FramePosition, Plane, PointAt
 from genplan.projection.joints import JointLimits, Posture
 from genplan.projection.paper import TASK_KINDS, paper_task, panda_task, talos_task
+from genplan.projection.relative import RelativePose, RelativePosition
 from genplan.projection.solver import (
     AT_LIMIT, BACKENDS, BatchResult, GaussNewtonProjector, ProjectionResult, SolverSettings, check_task_use,
 )
 from genplan.projection.task import (
-    TASKS_DIR, TERM_KINDS, Condition, Task, condition_term, default_task_name, load_task, manifold_task, task_names,
-    unset_condition_term,
+    TASKS_DIR, TERM_KINDS, Condition, Task, condition_term, default_task_name, load_task, manifold_task,
+    python_term_entry, task_names, unset_condition_term,
 )
 
 __all__ = [
     "AT_LIMIT", "Array", "BACKENDS", "BatchResult", "ComBox", "Condition", "CustomTerm", "FrameOrientation", "FramePose",
-    "FramePosition", "GaussNewtonProjector", "JointLimits", "PANDA_HAND_OFFSET", "PANDA_IK_BOX", "Posture",
-    "ProjectionResult", "SolverSettings", "TALOS_COM_BOX", "TALOS_IK_BOX", "TASKS_DIR", "TASK_KINDS", "TERM_KINDS",
+    "FramePosition", "GaussNewtonProjector", "JointLimits", "PANDA_HAND_OFFSET", "PANDA_IK_BOX", "Plane", "PointAt",
+    "Posture", "ProjectionResult", "RelativePose", "RelativePosition", "SolverSettings", "TALOS_COM_BOX", "TALOS_IK_BOX", "TASKS_DIR", "TASK_KINDS", "TERM_KINDS",
     "Task", "Term", "check_task_use", "condition_term", "default_task_name", "load_task", "manifold_task",
-    "panda_task", "paper_task", "talos_task", "task_names", "unset_condition_term",
+    "panda_task", "paper_task", "python_term_entry", "talos_task", "task_names", "unset_condition_term",
 ]
 
 

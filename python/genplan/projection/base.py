@@ -115,11 +115,23 @@ class _BoundTerm:
         raise NotImplementedError
 
 
+#: A target given as ``"current"``: the placement the term's frame has at a configuration the
+#: caller names later (``Task.at_configuration(robot, q)``).
+CURRENT = "current"
+
+
+def _is_current(target: Any) -> bool:
+    return isinstance(target, str) and target == CURRENT
+
+
 def _target(target: Any, what: str) -> Any:
-    """``target``, or SettingsError naming ``what`` when it is not set."""
+    """``target``, or SettingsError naming ``what`` when it is not set or still ``"current"``."""
     if target is None:
         raise SettingsError(f"{what}: not set (only a task's [condition] term may leave its target out: each query "
                             "sets it)")
+    if _is_current(target):
+        raise SettingsError(f"{what}: \"current\" is resolved at a configuration first: "
+                            "task.at_configuration(robot, q)")
     return target
 
 
@@ -146,3 +158,13 @@ def _rotation(m: Any, what: str) -> Array:
     if r.shape != (3, 3) or not np.all(np.isfinite(r)) or np.abs(r.T @ r - np.eye(3)).max() > 1e-6:
         raise error_class(r, r.shape == (3, 3))(f"{what}: expected a 3x3 rotation matrix")
     return r
+
+
+def _unit_vector(v: Any, what: str) -> Array:
+    """3 finite numbers of norm 1 (within the native solver's 1e-6), else SettingsError: a
+    direction given with another length is ambiguous (a plane's offset is measured along it)."""
+    a = _vector(v, 3, what)
+    norm = float(np.linalg.norm(a))
+    if abs(norm - 1.0) > 1e-6:
+        raise SettingsError(f"{what}: expected a unit vector, got {a.tolist()} (norm {norm:.6g})")
+    return a

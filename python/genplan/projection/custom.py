@@ -34,8 +34,16 @@ class CustomTerm(Term):
     the rows of a batch one after the other (faster than threads contending for the GIL); outputs of
     another shape raise :class:`~genplan.errors.ShapeError`, non-finite ones
     :class:`~genplan.errors.NonFiniteError` (both naming the term), and an exception the methods
-    raise reaches the caller of ``solve`` / ``solve_batch`` unchanged. A task holding such a term
-    cannot be written to a task file (it is Python code): build it in Python. See docs/TASKS.md.
+    raise reaches the caller of ``solve`` / ``solve_batch`` unchanged.
+
+    A task file, a model card and a data-generation worker process hold such a term as its
+    class's importable name and its fields (``kind = "python"``, ``entry = "module:Class"``,
+    ``params = {...}``; a field named ``robot`` is the task's robot, filled when the task is read),
+    and import it again only when told to (``allow_python=True``, ``--allow-python``). So the
+    class must be defined in an importable module (not in ``__main__`` nor inside a function) and
+    its fields be plain data (numbers, strings, booleans, lists and tables of them; lists come
+    back as tuples); a term that is not can still be used in this process, and writing it raises
+    :class:`~genplan.errors.TaskFileError` saying why. See docs/TASKS.md, "Python terms".
     """
 
     @property

@@ -1,7 +1,8 @@
 """Terms on a frame's placement in the world: its full pose (:class:`FramePose`), its position
 (:class:`FramePosition`, the terms a learned sampler is conditioned on) and its orientation
-(:class:`FrameOrientation`), each on chosen components or axes. Residuals and Jacobians in the
-tangent space, as the native solver's (rust/core/src/projection.rs)."""
+(:class:`FrameOrientation`), each on chosen components or axes; an axis of the frame through a
+point (:class:`PointAt`) and its origin on a plane (:class:`Plane`). Residuals and Jacobians in
+the tangent space, as the native solver's (rust/core/src/projection.rs)."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from genplan.errors import SettingsError
 from genplan.projection.base import (
-    Array, Term, _BoundTerm, _native_link, _rotation, _se3, _State, _target, _vector,
+    Array, Term, _BoundTerm, _native_link, _rotation, _se3, _State, _target, _unit_vector, _vector,
 )
 from genplan.robots import Robot
 
@@ -111,7 +113,8 @@ class _FrameOrientationBound(_BoundTerm):
     def __init__(self, term: FrameOrientation, robot: Robot) -> None:
         self.term = term
         self.fid = robot.frame_id(term.frame)
-        self.target_t = (np.eye(3) if term.target is None else _rotation(term.target, "FrameOrientation.target")).T
+        self.target_t = (np.eye(3) if term.target is None
+                         else _rotation(_target(term.target, "FrameOrientation.target"), "FrameOrientation.target")).T
         self.offset = np.eye(3) if term.offset is None else _rotation(term.offset, "FrameOrientation.offset")
         self.mask = _vector(term.axes, 3, "FrameOrientation.axes")
 
@@ -125,3 +128,96 @@ class _FrameOrientationBound(_BoundTerm):
         # angular velocity of the offset frame, in its own axes: offset^T * omega_local
         jw = self.offset.T @ s.frame_jacobian_local(self.fid)[3:]
         return self.mask[:, None] * (pin.Jlog3(self._rel(s)) @ jw)
+
+
+def axis_complement(axis: Array) -> Array:
+    """The rows (2 x 3) of a :class:`PointAt` residual: an orthonormal basis of the plane
+    orthogonal to the unit vector ``axis``, ``e1 = axis x e_k`` normalised (``e_k`` the coordinate
+    axis least aligned with ``axis``, the first of equals) and ``e2 = axis x e1``; the native
+    solver's rule (``projection::axis_complement``)."""
+    k = int(np.argmin(np.abs(axis)))
+    e1 = np.cross(axis, np.eye(3)[k])
+    e1 /= np.linalg.norm(e1)
+    return np.array([e1, np.cross(axis, e1)])
+
+
+@dataclass(frozen=True)
+class PointAt(Term):
+    """An axis of a frame through a point (a camera looking at it, a tool aimed at it):
+    r = E^T R(q)^T (c - p(q)), the part of the point's offset from the frame's origin, in the
+    frame's axes, orthogonal to ``axis`` (E: :func:`axis_complement`). Two components, in metres:
+    their norm is the point's distance from the axis's line. The point may lie behind the origin
+    along the axis: start from a configuration that faces it.
+
+    ``axis``: a unit vector in the frame; ``point``: in the world.
+    """
+
+    frame: str = ""
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    point: Any = None  # 3 numbers
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _PointAtBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        b = _PointAtBound(self, robot)
+        return self._native("point_at", link=_native_link(robot, self.frame), axis=b.axis.tolist(), point=b.point.tolist())
+
+
+class _PointAtBound(_BoundTerm):
+    def __init__(self, term: PointAt, robot: Robot) -> None:
+        self.term = term
+        self.fid = robot.frame_id(term.frame)
+        self.axis = _unit_vector(term.axis, f"PointAt({term.frame}).axis")
+        what = f"PointAt({term.frame}).point"
+        if term.point is None:
+            raise SettingsError(f"{what}: not set (the point the axis passes through, in the world)")
+        self.point = _vector(term.point, 3, what)
+        self.rows = axis_complement(self.axis)
+
+    def _offset(self, s: _State) -> Array:
+        m = s.placement(self.fid)
+        return m.rotation.T @ (self.point - m.translation)
+
+    def residual(self, s: _State) -> Array:
+        return self.rows @ self._offset(s)
+
+    def jacobian(self, s: _State) -> Array:
+        # the offset d = R^T (c - p) moves as [d]x w - v (the frame's body velocity)
+        j = s.frame_jacobian_local(self.fid)
+        return self.rows @ (pin.skew(self._offset(s)) @ j[3:] - j[:3])
+
+
+@dataclass(frozen=True)
+class Plane(Term):
+    """A frame's origin on a plane: r = n . p(q) - d (one component: the signed distance).
+
+    ``normal``: the plane's unit normal n, in the world; ``offset``: d, the plane's distance from
+    the world's origin along n.
+    """
+
+    frame: str = ""
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    offset: float = 0.0
+
+    def bind(self, robot: Robot) -> _BoundTerm:
+        return _PlaneBound(self, robot)
+
+    def to_native(self, robot: Robot) -> dict[str, Any]:
+        b = _PlaneBound(self, robot)
+        return self._native("plane", link=_native_link(robot, self.frame), normal=b.normal.tolist(), offset=b.offset)
+
+
+class _PlaneBound(_BoundTerm):
+    def __init__(self, term: Plane, robot: Robot) -> None:
+        self.term = term
+        self.fid = robot.frame_id(term.frame)
+        self.normal = _unit_vector(term.normal, f"Plane({term.frame}).normal")
+        self.offset = float(_vector([term.offset], 1, f"Plane({term.frame}).offset")[0])
+
+    def residual(self, s: _State) -> Array:
+        return np.array([self.normal @ s.placement(self.fid).translation - self.offset])
+
+    def jacobian(self, s: _State) -> Array:
+        m = s.placement(self.fid)
+        return (self.normal @ m.rotation @ s.frame_jacobian_local(self.fid)[:3])[None, :]

@@ -22,7 +22,8 @@ from genplan.errors import GenplanError, SettingsError, ShapeError, TaskFileErro
 from genplan.projection.base import Array, _State
 from genplan.projection.frame import FrameOrientation, FramePose, FramePosition
 from genplan.projection.joints import _PostureBound
-from genplan.projection.task import Task, condition_term, manifold_task, unset_condition_term
+from genplan.projection.relative import RelativePose, RelativePosition
+from genplan.projection.task import ROBOT_FIELD, Task, condition_term, manifold_task, unset_condition_term
 from genplan.robots import Robot
 
 
@@ -183,6 +184,28 @@ class GaussNewtonProjector:
     def _step(self, q: Array, dq: Array, alpha: float) -> Array:
         return self._clip(pin.integrate(self.robot.model, q, -alpha * dq))
 
+    def residual_sizes(self, q: ArrayLike) -> dict[str, Array]:
+        """Per primary term (by label), its residual size at each row of ``q`` ((n, nq)): the
+        largest absolute component of its unweighted residual (+inf for a NaN), what
+        :meth:`solve_batch` reports as ``residuals`` and the terms' tolerances bound, here with no
+        solver step, no clipping and no Jacobian: the check of many configurations (a timed
+        trajectory's samples) against the task. Native: one forward kinematics a row, the rows in
+        parallel with the GIL released (``_core.residual_sizes``)."""
+        self._need_target(None)
+        qs = self.robot.check_configuration(q, "q")
+        if qs.ndim != 2:
+            raise ShapeError(f"q: expected shape (n, {self.robot.nq}), got {qs.shape}")
+        if self._native is not None:
+            sizes = _core.residual_sizes(self._native, np.ascontiguousarray(qs, dtype=np.float64))
+            return {lab: sizes[:, i] for i, lab in enumerate(self._labels)}
+
+        def size(r: Array) -> float:
+            return 0.0 if r.size == 0 else float("inf") if np.isnan(r).any() else float(np.abs(r).max())
+
+        rows = [[size(r) for r in self._primary_residuals(row, False)[1]] for row in qs]
+        table = np.array(rows, dtype=np.float64).reshape(len(qs), len(self._labels))
+        return {lab: table[:, i] for i, lab in enumerate(self._labels)}
+
     # -- solving -----------------------------------------------------------------------------
 
     def solve(self, q0: ArrayLike, q_nom: ArrayLike | None = None) -> ProjectionResult:
@@ -280,7 +303,8 @@ class GaussNewtonProjector:
                 raise error_class(target_rows, target_rows.shape[0] == len(qs))(
                     f"targets['{term_name}']: expected {len(qs)} finite rows, got shape {target_rows.shape}")
             term = next((t for t in self.task.primary if t.name == term_name), None)
-            row_shape = {FramePosition: (3,), FrameOrientation: (3, 3), FramePose: (4, 4)}.get(type(term))
+            row_shape = {FramePosition: (3,), FrameOrientation: (3, 3), FramePose: (4, 4), RelativePosition: (3,),
+                         RelativePose: (4, 4)}.get(type(term))
             if row_shape is not None and target_rows.shape[1:] != row_shape:
                 raise ShapeError(f"targets['{term_name}']: expected shape ({len(qs)}, "
                                  f"{', '.join(map(str, row_shape))}), got {target_rows.shape}")
@@ -330,13 +354,23 @@ def check_task_use(task: Task, robot: Robot) -> None:
     work, with the error the late use would raise: its plain form (the card's ``task``: JSON,
     read back equal), its condition term and box (:func:`condition_term`), the projector of its
     manifold (the training data, :func:`manifold_task`), and the projector of the whole task
-    with the condition's target given per row (the card's IK evaluation)."""
+    with the condition's target given per row (the card's IK evaluation). A python term
+    (:class:`CustomTerm`) must be importable by its entry (:func:`python_term_entry`) with plain
+    parameters, and its ``robot`` field, when it has one, must be ``robot``: a card and a
+    data-generation worker rebuild it from that."""
     data = task.to_dict()
     try:
         text = json.dumps(data, sort_keys=True)
     except (TypeError, ValueError) as exc:
         raise TaskFileError(f"task '{task.name}': its plain form is not JSON ({exc})") from None
-    again = Task.from_dict(json.loads(text), robot, origin=f"task '{task.name}' (read back)")
+    for t in task.python_terms:
+        held = getattr(t, ROBOT_FIELD, None)
+        if isinstance(held, Robot) and held is not robot and held.kinematic_hash != robot.kinematic_hash:
+            raise TaskFileError(f"task '{task.name}': python term '{t.label()}' holds robot '{held.name}', not the "
+                                f"robot '{robot.name}' it is used with (a card records the task without its robot, "
+                                "and reading it back gives the term this one)")
+    # allow_python: the entries read back are those of the terms this process already holds
+    again = Task.from_dict(json.loads(text), robot, origin=f"task '{task.name}' (read back)", allow_python=True)
     if json.dumps(again.to_dict(), sort_keys=True) != text:
         raise TaskFileError(f"task '{task.name}': its plain form does not read back the same (a term whose fields a "
                             "task file cannot hold)")

@@ -1,8 +1,10 @@
 """Tasks as data: a :class:`Task` is a primary list of terms (all must hold) and a secondary
 list solved in the primary's null space, with an optional :class:`Condition` (the term a learned
 sampler is conditioned on and the box its targets are drawn from). A task reads from and writes
-to its plain form and a task file (TOML, docs/TASKS.md) of built-in terms (:data:`TERM_KINDS`);
-shipped task files are in ``genplan/presets/tasks`` (:func:`task_names`, :func:`load_task`).
+to its plain form and a task file (TOML, docs/TASKS.md) of built-in terms (:data:`TERM_KINDS`)
+and Python terms (``kind = "python"``: a :class:`CustomTerm` subclass by its importable name and
+parameters, imported only with ``allow_python=True``); shipped task files are in
+``genplan/presets/tasks`` (:func:`task_names`, :func:`load_task`).
 What a learned sampler does with a task: :func:`condition_term`, :func:`manifold_task`."""
 
 from __future__ import annotations
@@ -21,11 +23,12 @@ import pinocchio as pin
 
 from genplan._arrays import as_float_array
 from genplan.errors import GenplanError, SettingsError, TaskFileError, UnknownNameError
-from genplan.projection.base import Term
+from genplan.projection.base import CURRENT, Term, _is_current
 from genplan.projection.com import ComBox
 from genplan.projection.custom import CustomTerm
-from genplan.projection.frame import FrameOrientation, FramePose, FramePosition
+from genplan.projection.frame import FrameOrientation, FramePose, FramePosition, Plane, PointAt
 from genplan.projection.joints import JointLimits, Posture
+from genplan.projection.relative import RelativePose, RelativePosition
 from genplan.robots import Robot
 
 
@@ -40,6 +43,20 @@ class Task:
     #: The term whose target a sampler is conditioned on, and the box its targets are drawn from
     #: (training data is projected without that term; IK sets its target per query).
     condition: "Condition | None" = None
+
+    @property
+    def python_terms(self) -> tuple[CustomTerm, ...]:
+        """Its terms written in Python (:class:`CustomTerm`, primary and secondary): they hold the
+        GIL while they run, so data generation runs them in processes, each importing them by
+        their entry (see :func:`python_term_entry`)."""
+        return tuple(t for t in [*self.primary, *self.secondary] if isinstance(t, CustomTerm))
+
+    @property
+    def free(self) -> bool:
+        """Its only constraint is the joint limits (every primary term a :class:`JointLimits`):
+        free space, which needs no projection (the shipped ``free`` task is one). A planner
+        projects nothing for it; its checker holds the limits."""
+        return all(isinstance(t, JointLimits) for t in self.primary)
 
     def to_dict(self) -> dict[str, Any]:
         """The task as plain data (the task file's tables; see docs/TASKS.md)."""
@@ -58,11 +75,14 @@ class Task:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], robot: Robot | None = None, origin: str = "task") -> "Task":
+    def from_dict(cls, data: Mapping[str, Any], robot: Robot | None = None, origin: str = "task", *,
+                  allow_python: bool = False) -> "Task":
         """A task from plain data (:meth:`to_dict`'s form); ``robot`` resolves values given as
         ``"default"`` (a frame's placement or the posture at the robot's default configuration)
-        and joint-name patterns (``joint_weights = {"arm_left_*" = 1.0}``)."""
-        return _task_from_dict(data, robot, origin)
+        and joint-name patterns (``joint_weights = {"arm_left_*" = 1.0}``), and is a python term's
+        ``robot`` field. A python term (``kind = "python"``) is imported only with
+        ``allow_python=True``; without it, TaskFileError naming the table and the entry."""
+        return _task_from_dict(data, robot, origin, allow_python)
 
     def to_file(self, path: str | os.PathLike[str]) -> Path:
         """Write the task as a task file (TOML), atomically; :meth:`from_file` reads it back."""
@@ -71,13 +91,17 @@ class Task:
         return write_text(path, _toml(self.to_dict()))
 
     @classmethod
-    def from_file(cls, path: str | os.PathLike[str], robot: Robot | None = None) -> "Task":
-        """Read a task file (TOML); errors name the file, the table and the key."""
+    def from_file(cls, path: str | os.PathLike[str], robot: Robot | None = None, *,
+                  allow_python: bool = False) -> "Task":
+        """Read a task file (TOML); errors name the file, the table and the key. A file's python
+        term (``kind = "python"``, ``entry = "module:Class"``) imports and runs that module's code:
+        it is read only with ``allow_python=True`` (the commands' ``--allow-python``), else
+        TaskFileError naming the file, the table and the entry."""
         from genplan._files import read_toml
 
         path = Path(path)
         data = read_toml(path, "task", TaskFileError)
-        task = _task_from_dict(data, robot, f"task file {path}")
+        task = _task_from_dict(data, robot, f"task file {path}", allow_python)
         c = task.condition
         if c is not None and c.manifold is not None and c.manifold not in task_names() and not Path(c.manifold).is_absolute():
             # a manifold task given as a file: relative to this task file
@@ -95,6 +119,19 @@ class Task:
             return tuple(dataclasses.replace(t, target=targets[t.name]) if t.name in targets else t for t in terms)
 
         return dataclasses.replace(self, primary=swap(self.primary), secondary=swap(self.secondary))
+
+    def at_configuration(self, robot: Robot, q: Any) -> "Task":
+        """A copy whose terms with ``target = "current"`` (FramePose, FramePosition,
+        FrameOrientation, RelativePose, RelativePosition) get the target their frame meets at
+        ``q``: e.g. a two-arm grip held as it is at the start of a plan. Such a term is refused by
+        the solvers until then (SettingsError)."""
+        q = robot.check_configuration(q, "q")
+
+        def resolve(terms: Sequence[Term]) -> tuple[Term, ...]:
+            return tuple(dataclasses.replace(t, target=_placement_target(type(t), robot, q, t.frame, getattr(t, "relative_to", "")))
+                         if isinstance(t, _PLACED) and _is_current(t.target) else t for t in terms)
+
+        return dataclasses.replace(self, primary=resolve(self.primary), secondary=resolve(self.secondary))
 
     def with_tolerances_scaled(self, factor: float) -> "Task":
         """A copy whose primary terms' tolerances are multiplied by ``factor`` (e.g. 0.1: project
@@ -129,8 +166,9 @@ class Condition:
 
 
 #: The built-in term kinds, by the name a task file's ``kind`` gives.
-TERM_KINDS: dict[str, type[Term]] = {c.__name__: c for c in (FramePose, FramePosition, FrameOrientation, Posture,
-                                                            JointLimits, ComBox)}
+TERM_KINDS: dict[str, type[Term]] = {c.__name__: c for c in (FramePose, FramePosition, FrameOrientation, RelativePose,
+                                                            RelativePosition, PointAt, Plane, Posture, JointLimits,
+                                                            ComBox)}
 #: Presets: the task files shipped with genplan (their stem is the name).
 TASKS_DIR = Path(__file__).parent.parent / "presets" / "tasks"
 
@@ -140,8 +178,9 @@ def task_names() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in TASKS_DIR.glob("*.toml")))
 
 
-def load_task(task: "str | os.PathLike[str] | Task", robot: Robot | None = None) -> Task:
-    """A task: a :class:`Task` as is, a shipped task's name (:func:`task_names`) or a task file."""
+def load_task(task: "str | os.PathLike[str] | Task", robot: Robot | None = None, *, allow_python: bool = False) -> Task:
+    """A task: a :class:`Task` as is, a shipped task's name (:func:`task_names`) or a task file
+    (its python terms read only with ``allow_python=True``: :meth:`Task.from_file`)."""
     if isinstance(task, Task):
         return task
     if isinstance(task, str) and task in task_names():
@@ -149,7 +188,7 @@ def load_task(task: "str | os.PathLike[str] | Task", robot: Robot | None = None)
     path = Path(task)
     if path.suffix != ".toml" and not path.exists():
         raise UnknownNameError(f"unknown task '{task}' (shipped: {', '.join(task_names())}; or a task file .toml)")
-    return Task.from_file(path, robot)
+    return Task.from_file(path, robot, allow_python=allow_python)
 
 
 def default_task_name(robot: Robot) -> str:
@@ -223,9 +262,7 @@ def _plain(v: Any) -> Any:
 def _term_to_dict(t: Term) -> dict[str, Any]:
     kind = type(t).__name__
     if isinstance(t, CustomTerm):
-        raise TaskFileError(f"term '{t.label()}': {kind} is a custom term (Python code), which a task file cannot hold; "
-                            "build this task in Python (a task file holds built-in terms only: "
-                            f"{', '.join(TERM_KINDS)})")
+        return _python_term_to_dict(t)
     if TERM_KINDS.get(kind) is not type(t):
         raise TaskFileError(f"term '{t.label()}': {kind} is not a built-in term kind (known: {', '.join(TERM_KINDS)})")
     out: dict[str, Any] = {"kind": kind}
@@ -237,6 +274,19 @@ def _term_to_dict(t: Term) -> dict[str, Any]:
     return out
 
 
+#: The terms whose target is a frame's placement (in the world, or in another frame's).
+_PLACED = (FramePose, FramePosition, FrameOrientation, RelativePose, RelativePosition)
+
+
+def _placement_target(cls: type[Term], robot: Robot, q: Any, frame: str, relative_to: str) -> Any:
+    """The target of a ``cls`` term that its frame meets at ``q``: the frame's placement (an SE3,
+    its position or its rotation), in ``relative_to``'s frame for a relative term."""
+    m = robot.frame_placement(q, frame)
+    if cls in (RelativePose, RelativePosition):
+        m = robot.frame_placement(q, relative_to).actInv(m)
+    return m.translation.copy() if cls in (FramePosition, RelativePosition) else m.rotation.copy() if cls is FrameOrientation else m
+
+
 def _need_robot(robot: Robot | None, where: str, what: str) -> Robot:
     """``robot``, or TaskFileError: ``what`` (a robot-relative value) cannot be read without it."""
     if robot is None:
@@ -244,13 +294,16 @@ def _need_robot(robot: Robot | None, where: str, what: str) -> Robot:
     return robot
 
 
-def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str) -> Term:
+def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str, allow_python: bool = False) -> Term:
     if not isinstance(d, Mapping):
         raise TaskFileError(f"{where}: expected a table, got {type(d).__name__}")
     kind = d.get("kind")
+    if kind == PYTHON_KIND:
+        return _python_term_from_dict(d, robot, where, allow_python)
     cls = TERM_KINDS.get(kind) if isinstance(kind, str) else None
     if cls is None:
-        raise TaskFileError(f"{where}: unknown term kind {kind!r} (known: {', '.join(TERM_KINDS)})")
+        raise TaskFileError(f"{where}: unknown term kind {kind!r} (known: {', '.join(TERM_KINDS)}, or "
+                            f"{PYTHON_KIND!r}: a CustomTerm by its entry)")
     names = [f.name for f in dataclasses.fields(cls)]
     fields: dict[str, Any] = {}
     for key, v in d.items():
@@ -263,8 +316,9 @@ def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str) -> Te
             if key == "q_nom":
                 v = r.q_default.copy()
             else:
-                m = r.frame_placement(r.q_default, str(d.get("frame", "")))
-                v = m.translation.copy() if cls is FramePosition else m.rotation.copy() if cls is FrameOrientation else m
+                v = _placement_target(cls, r, r.q_default, str(d.get("frame", "")), str(d.get("relative_to", "")))
+        elif v == CURRENT and key == "target" and cls in _PLACED:
+            pass  # resolved by Task.at_configuration
         elif key == "joint_weights" and isinstance(v, Mapping):  # joint-name patterns -> nv weights
             robot = _need_robot(robot, where, "joint_weights by joint name")
             w = np.zeros(robot.nv)
@@ -275,7 +329,7 @@ def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str) -> Te
                 for j in hit:
                     w[robot.model.joints[robot.model.getJointId(j)].idx_v] = float(weight)
             v = w
-        elif key in ("axes", "components") and isinstance(v, list):
+        elif key in ("axes", "components", "axis", "normal") and isinstance(v, list):
             v = tuple(float(x) for x in v)
         elif isinstance(v, list):
             v = as_float_array(v, f"{where} {key}")
@@ -286,7 +340,7 @@ def _term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str) -> Te
         raise TaskFileError(f"{where}: {exc}") from None
 
 
-def _task_from_dict(data: Mapping[str, Any], robot: Robot | None, origin: str) -> Task:
+def _task_from_dict(data: Mapping[str, Any], robot: Robot | None, origin: str, allow_python: bool = False) -> Task:
     known = ("name", "primary", "secondary", "condition")
     for key in data:
         if key not in known:
@@ -297,7 +351,7 @@ def _task_from_dict(data: Mapping[str, Any], robot: Robot | None, origin: str) -
     secondary = data.get("secondary", [])
     if not isinstance(secondary, list):
         raise TaskFileError(f"{origin}: 'secondary' must be a list of [[secondary]] tables")
-    terms = [tuple(_term_from_dict(t, robot, f"{origin}: [[{group}]] {i + 1}") for i, t in enumerate(items))
+    terms = [tuple(_term_from_dict(t, robot, f"{origin}: [[{group}]] {i + 1}", allow_python) for i, t in enumerate(items))
              for group, items in (("primary", primary), ("secondary", secondary))]
     condition = None
     if "condition" in data:
@@ -332,12 +386,115 @@ def _task_from_dict(data: Mapping[str, Any], robot: Robot | None, origin: str) -
         condition = Condition(str(c["term"]), low, high, sample_low, sample_high, manifold)
     for group, items in (("primary", terms[0]), ("secondary", terms[1])):
         for i, t in enumerate(items):
-            if (isinstance(t, (FramePosition, FramePose)) and t.target is None
+            if (isinstance(t, (FramePosition, FramePose, RelativePosition, RelativePose)) and t.target is None
                     and not (group == "primary" and condition is not None and t.name == condition.term)):
                 which = f"the [condition] term '{condition.term}'" if condition is not None else "a [condition] term"
                 raise TaskFileError(f"{origin}: [[{group}]] {i + 1} ('{t.label()}'): {type(t).__name__} needs a target "
                                     f"(only {which} may leave it out: each query sets it)")
     return Task(primary=terms[0], secondary=terms[1], name=str(data.get("name", "task")), condition=condition)
+
+
+#: The ``kind`` of a task file's python term: a :class:`CustomTerm` subclass by its ``entry``.
+PYTHON_KIND = "python"
+#: A python term's field that is the task's robot: left out of its ``params``, given the robot the
+#: task is read with.
+ROBOT_FIELD = "robot"
+#: The fields every term has, written beside ``entry`` rather than in ``params``.
+_TERM_FIELDS = tuple(f.name for f in dataclasses.fields(Term))
+
+
+def python_term_entry(term: CustomTerm) -> str:
+    """The importable name (``"module:Class"``) a task file, a model card and a data worker give
+    ``term``'s class; TaskFileError saying why when it has none (a class defined in ``__main__``
+    or inside a function can be used in this process, not rebuilt in another)."""
+    from genplan._entries import entry_of
+
+    entry, why = entry_of(type(term))
+    if entry is None:
+        raise TaskFileError(f"term '{term.label()}': {why}; a task file, a model card and a data-generation worker "
+                            f"rebuild a python term by importing its class: define {type(term).__name__} in an "
+                            "importable module (a .py file on the Python path)")
+    return entry
+
+
+def _python_term_to_dict(t: CustomTerm) -> dict[str, Any]:
+    """A python term's plain form: ``kind = "python"``, its ``entry``, the subclass's own fields
+    as ``params`` (plain data; a None field left out, its default applies), and ``weight``,
+    ``tolerance``, ``name`` as every term has them. Its ``robot`` field is not written: the
+    task's robot fills it when the task is read."""
+    entry = python_term_entry(t)
+    out: dict[str, Any] = {"kind": PYTHON_KIND, "entry": entry}
+    params: dict[str, Any] = {}
+    fields = dataclasses.fields(t) if dataclasses.is_dataclass(t) else ()
+    for f in fields:
+        if f.name in _TERM_FIELDS or f.name == ROBOT_FIELD:
+            continue
+        v = _plain(getattr(t, f.name))
+        if v is None:
+            continue
+        if not _is_plain(v):
+            raise TaskFileError(f"term '{t.label()}' ({entry}): field '{f.name}' holds a {type(getattr(t, f.name)).__name__}, "
+                                "which a task file cannot hold (numbers, strings, booleans, lists and tables of them): a "
+                                "python term is rebuilt from its entry and params")
+        params[f.name] = v
+    out["params"] = params
+    for name in _TERM_FIELDS:
+        v = _plain(getattr(t, name))
+        if not (name == "name" and v == ""):
+            out[name] = v
+    return out
+
+
+def _is_plain(v: Any) -> bool:
+    if isinstance(v, (bool, int, float, str)):
+        return True
+    if isinstance(v, list):
+        return all(_is_plain(x) for x in v)
+    if isinstance(v, Mapping):
+        return all(isinstance(k, str) and _is_plain(x) for k, x in v.items())
+    return False
+
+
+def _frozen(v: Any) -> Any:
+    """A param as the term's field gets it: lists as tuples (a frozen dataclass stays hashable)."""
+    if isinstance(v, list):
+        return tuple(_frozen(x) for x in v)
+    if isinstance(v, Mapping):
+        return {k: _frozen(x) for k, x in v.items()}
+    return v
+
+
+def _python_term_from_dict(d: Mapping[str, Any], robot: Robot | None, where: str, allow_python: bool) -> CustomTerm:
+    """A python term read back: its entry imported (only with ``allow_python``), checked to be
+    a CustomTerm subclass, made with its params (and the task's robot for its ``robot`` field)."""
+    entry = d.get("entry")
+    if not allow_python:
+        raise TaskFileError(f"{where}: a python term (entry {entry!r}) imports and runs that module's code; read the "
+                            "task with allow_python=True (on the command line: --allow-python) to use it")
+    extra = sorted(set(d) - {"kind", "entry", "params", *_TERM_FIELDS})
+    if extra:
+        raise TaskFileError(f"{where}: unknown key(s) {extra} (a python term holds entry, params, "
+                            f"{', '.join(_TERM_FIELDS)})")
+    from genplan._entries import import_entry
+
+    cls = import_entry(entry, f"{where} entry", TaskFileError, "module:Class")
+    if not (isinstance(cls, type) and issubclass(cls, CustomTerm)):
+        raise TaskFileError(f"{where}: entry {entry!r} is {cls!r}, not a genplan.projection.CustomTerm subclass")
+    params = d.get("params", {})
+    if not isinstance(params, Mapping):
+        raise TaskFileError(f"{where}: params must be a table, got {type(params).__name__}")
+    kwargs: dict[str, Any] = {k: _frozen(v) for k, v in params.items()}
+    if any(k in _TERM_FIELDS or k == ROBOT_FIELD for k in kwargs):
+        raise TaskFileError(f"{where}: params may not hold {', '.join(_TERM_FIELDS)} (keys of the term's table) nor "
+                            f"'{ROBOT_FIELD}' (the task's robot)")
+    names = {f.name for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) else set()
+    if ROBOT_FIELD in names:
+        kwargs[ROBOT_FIELD] = _need_robot(robot, where, f"{entry}'s '{ROBOT_FIELD}' field")
+    kwargs.update({k: d[k] for k in _TERM_FIELDS if k in d})
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise TaskFileError(f"{where}: {entry}({', '.join(sorted(kwargs))}): {exc}") from None
 
 
 def _toml_value(v: Any) -> str:

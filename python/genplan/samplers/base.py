@@ -27,7 +27,8 @@ from genplan.robots import PRESETS_DIR, Robot, load
 
 __all__ = ["NATIVE_NOISE_MAX", "ROBOT_HASH_KEY", "STD_FLOOR", "TARGET_MARGIN", "Codec", "SamplerConfig", "SamplerModel",
            "TrainingData",
-           "check_model_fits", "check_model_robot", "feature_dim", "models_dir", "prepare_training", "retrain_hint",
+           "check_model_fits", "check_model_robot", "feature_dim", "missing_model", "models_dir", "prepare_training",
+           "retrain_hint", "task_option",
            "robot_origin", "train_command"]
 
 #: the card key holding the kinematic hash of the robot a model was trained for
@@ -270,11 +271,42 @@ def train_command(robot: "Robot | str", task: str | None = None, seed: int = 0, 
             + options + out_option(Path(out) if out is not None else Path(f"{name}_{model}.safetensors")))
 
 
-def retrain_hint(robot: Robot, path: Path, model: str = "gan") -> str:
+def retrain_hint(robot: Robot, path: Path, model: str = "gan",
+                 task: "str | os.PathLike[str] | P.Task | None" = None) -> str:
     """The command a missing model file's error names: one writing ``path``, or, for a path
     inside the installed package (a shipped model missing: reinstall genplan), one writing
-    ``<robot>_<model>.safetensors`` in the current folder."""
-    return train_command(robot, seed=0, model=model, out=None if inside_package(path) else path)
+    ``<robot>_<model>.safetensors`` in the current folder; for ``task`` (the task the model was
+    asked for, as the caller gave it: :func:`task_option`)."""
+    return train_command(robot, task_option(robot, task), seed=0, model=model,
+                         out=None if inside_package(path) else path)
+
+
+def task_option(robot: Robot, task: "str | os.PathLike[str] | P.Task | None") -> str | None:
+    """The ``--task`` of a command training a model of ``robot`` for ``task``: None for the
+    robot's shipped ``<robot>_ik`` (the default); a shipped task's name or a task file as given; a
+    Task by its shipped name. A task known by no name or file here (a Task built in Python, none
+    for a robot without a shipped task) is ``TASK.toml``, a file the user writes (docs/TASKS.md):
+    without it, the command would fail for want of a task."""
+    default = f"{robot.name}_ik"
+    if isinstance(task, P.Task):
+        task = task.name if task.name in P.task_names() else None
+        if task is None:
+            return "TASK.toml"
+    if task is None:
+        return None if default in P.task_names() else "TASK.toml"
+    return None if str(task) == default else str(task)
+
+
+def missing_model(robot: Robot, kind: str, model: str, shipped: tuple[str, ...],
+                  task: "str | os.PathLike[str] | P.Task | None") -> FileNotFoundError:
+    """The error of a model asked for without a file (the shipped one) for a robot genplan ships
+    none for: what to give instead, and the command training one (not the package's path, which
+    is no place for the user's models)."""
+    cmd = train_command(robot, task_option(robot, task), seed=0, model=model)
+    where = " (TASK.toml: a task file with a [condition], docs/TASKS.md)" if "TASK.toml" in cmd else ""
+    return FileNotFoundError(f"robot '{robot.name}' has no shipped {kind} (genplan ships {kind}s for "
+                             f"{', '.join(shipped) or 'no robot'}): give a {kind} file (--model M.safetensors, "
+                             f"path=M.safetensors), or train one with `{cmd}`{where}")
 
 
 @dataclass

@@ -10,7 +10,11 @@ rest): shard ``i`` draws its uniform samples from :func:`genplan.executor.shard_
 and ``i`` only) in chunks of :data:`CHUNK`, projects them one after the other on one core
 (:func:`project_shard`, the one definition of the loop), and keeps its first ``count``
 successes. The shards run on an executor (:mod:`genplan.executor`: threads on every core by
-default, or Ray), so a data set is the same bit for bit whatever runs it.
+default, or Ray), so a data set is the same bit for bit whatever runs it. A task holding Python
+terms (:attr:`~genplan.projection.Task.python_terms`) runs its shards in processes instead
+(:func:`executor_kind`: a Python term holds the GIL, so threads would take turns); each worker
+rebuilds the terms by importing their entries (``module:Class`` and parameters, the task's plain
+form), never by unpickling objects.
 
 * :func:`valid_configurations`: the data set as an array, cached on disk (``$GENPLAN_CACHE`` or
   ``~/.cache/genplan``); :class:`TaskData`: its rows with the positions of the task's condition
@@ -88,9 +92,12 @@ def _plain(value: Any) -> Any:
 
 
 def _key(robot: Robot, n: int, seed: int, manifold: P.Task, shard_size: int) -> str:
-    desc = json.dumps({"robot": robot.name, "n": n, "seed": seed, "version": _core.__version__, "shards": shard_size,
-                       "chunk": CHUNK, "terms": [t.to_native(robot) for t in manifold.primary]},
-                      sort_keys=True, default=str)
+    fields: dict[str, Any] = {"robot": robot.name, "n": n, "seed": seed, "version": _core.__version__,
+                              "shards": shard_size, "chunk": CHUNK,
+                              "terms": [t.to_native(robot) for t in manifold.primary if not isinstance(t, P.CustomTerm)]}
+    if manifold.python_terms:  # by their entries and parameters (their native form holds the object)
+        fields["python_terms"] = [d for d in manifold.to_dict()["primary"] if d["kind"] == "python"]
+    desc = json.dumps(fields, sort_keys=True, default=str)
     return hashlib.sha256(desc.encode()).hexdigest()[:16]
 
 
@@ -219,6 +226,12 @@ _ROBOTS: dict[str, Robot] = {}
 _LOCK = threading.Lock()
 
 
+def executor_kind(task: P.Task | None) -> str:
+    """The local workers a data set of ``task`` runs on: ``"thread"`` (the native projector
+    releases the GIL), or ``"process"`` when the task holds Python terms, which hold it."""
+    return "process" if task is not None and task.python_terms else "thread"
+
+
 def _robot_key(description: Mapping[str, Any]) -> str:
     return json.dumps(_plain(description), sort_keys=True)
 
@@ -230,7 +243,9 @@ def _solver(shard: Shard) -> tuple[Robot, P.GaussNewtonProjector]:
             rkey = _robot_key(shard.robot)
             robot = _ROBOTS.get(rkey) or Robot(shard.robot)
             _ROBOTS[rkey] = robot
-            manifold = P.Task.from_dict(shard.manifold, robot)
+            # allow_python: a shard's python terms are those of the task the run was given, already
+            # imported by the process that made the shards; a worker process imports them again
+            manifold = P.Task.from_dict(shard.manifold, robot, allow_python=True)
             _SOLVERS[key] = (robot, P.GaussNewtonProjector(robot, manifold))
         return _SOLVERS[key]
 
@@ -283,9 +298,9 @@ def project_shard(shard: Shard) -> NDArray[np.float64]:
 def generate(robot: Robot, n: int, seed: int = 0, task: P.Task | None = None, *, shard_size: int = SHARD_SIZE,
              executor: Executor | None = None, progress: bool = True) -> NDArray[np.float64]:
     """The data set of ``n`` configurations (not cached), its shards on ``executor`` (default:
-    threads, one per core)."""
+    one worker per core, threads or, for Python terms, processes: :func:`executor_kind`)."""
     parts = shards(robot, n, seed, task, shard_size)
-    ex = executor or LocalExecutor()
+    ex = executor or LocalExecutor(kind=executor_kind(_task(robot, task)))
     try:
         out = ex.map(project_shard, parts, desc=f"{robot.name} data (projecting)", progress=progress,
                      weights=[s.count for s in parts], unit="q")
@@ -501,10 +516,17 @@ def write_dataset(out: Path, robot: Robot, n: int, seed: int = 0, task: P.Task |
     def digest(folder: Path, records: list[dict[str, Any]]) -> str:
         return dataset_sha256(read_npy(folder / r["file"]) for r in records)
 
-    # project_shard is looked up here, at the call, so that a replaced one (tests) is the one run
-    return write_shards(out, header, parts, project_shard, store=store, verify=verify, digest=digest, keys=keys,
-                        suffix=".npy", desc=f"{robot.name} data", unit="q", executor=executor, progress=progress,
-                        log=log, overwrite=overwrite, force=force)
+    kind = executor_kind(_task(robot, run_task))
+    own = executor is None and kind != "thread"
+    ex = LocalExecutor(kind=kind) if own else executor
+    try:
+        # project_shard is looked up here, at the call, so that a replaced one (tests) is the one run
+        return write_shards(out, header, parts, project_shard, store=store, verify=verify, digest=digest, keys=keys,
+                            suffix=".npy", desc=f"{robot.name} data", unit="q", executor=ex, progress=progress,
+                            log=log, overwrite=overwrite, force=force)
+    finally:
+        if own and ex is not None:
+            ex.close()
 
 
 def read_dataset(folder: Path, robot: Robot | None = None, task: P.Task | None = None) -> tuple[NDArray[np.float64], dict[str, Any]]:

@@ -258,7 +258,7 @@ def load_flow(robot: str | Robot, path: str | Path, task: "str | os.PathLike[str
 
     rob = robot if isinstance(robot, Robot) else load(robot)
     path = Path(path)
-    card, tensors = read_model(path, FORMAT, "flow", retrain_hint(rob, path, "flow"), CARD_KEYS)
+    card, tensors = read_model(path, FORMAT, "flow", retrain_hint(rob, path, "flow", task), CARD_KEYS)
     cfg = read_config(card, path, "flow", FlowConfig)
     check_model_fits(path, "flow", cfg, card, rob, task)
     check_tensors(tensors, tensor_shapes(cfg, rob), path, "flow")

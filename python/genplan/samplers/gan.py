@@ -41,7 +41,7 @@ from genplan.errors import ModelFileError, NonFiniteError
 from genplan.robots import Robot, load
 from genplan.samplers.base import (
     NATIVE_NOISE_MAX, ROBOT_HASH_KEY, STD_FLOOR, Codec, SamplerConfig, SamplerModel, check_model_fits, feature_dim,
-    models_dir, prepare_training, retrain_hint, train_command,
+    missing_model, models_dir, prepare_training, retrain_hint, train_command,
 )
 from genplan.samplers.costs import Constraints
 
@@ -362,8 +362,13 @@ def load_model(robot: str | Robot, path: str | Path | None = None,
     from genplan.model_files import check_tensors, read_config, read_model
 
     rob = robot if isinstance(robot, Robot) else load(robot)
-    path = models_dir() / f"{rob.name}_gan.safetensors" if path is None else Path(path)
-    card, tensors = read_model(path, FORMAT, "GAN", retrain_hint(rob, path), CARD_KEYS)
+    if path is None:
+        path = models_dir() / f"{rob.name}_gan.safetensors"
+        if not path.is_file():  # no shipped GAN for this robot: say what to give, not the package's path
+            shipped = tuple(sorted(p.name.removesuffix("_gan.safetensors") for p in models_dir().glob("*_gan.safetensors")))
+            raise missing_model(rob, "GAN", "gan", shipped, task)
+    path = Path(path)
+    card, tensors = read_model(path, FORMAT, "GAN", retrain_hint(rob, path, task=task), CARD_KEYS)
     cfg = read_config(card, path, "GAN", GanConfig)
     check_model_fits(path, "GAN", cfg, card, rob, task)
     check_tensors(tensors, tensor_shapes(cfg, rob), path, "GAN")

@@ -63,7 +63,6 @@ Files (TOML)::
 
 from __future__ import annotations
 
-import importlib
 import math
 import os
 import tomllib
@@ -894,13 +893,9 @@ def _checked(term: Term, value: Any, b: int) -> Tensor:
 
 
 def _import_entry(entry: str, where: str) -> Any:
-    module, sep, attr = str(entry).partition(":")
-    if not sep or not module or not attr:
-        raise ObjectiveFileError(f"{where}: entry must be 'module:function', got {entry!r}")
-    try:
-        return getattr(importlib.import_module(module), attr)
-    except (ImportError, AttributeError) as exc:
-        raise ObjectiveFileError(f"{where}: cannot import {entry!r} ({exc})") from None
+    from genplan._entries import import_entry
+
+    return import_entry(entry, where, ObjectiveFileError, "module:function")
 
 
 def objective_from_dict(data: Mapping[str, Any], origin: str = "objective", *, allow_python: bool = False) -> Objective:

@@ -67,13 +67,15 @@ def ik_box(tasks: dict[str, P.Task]) -> NDArray[np.float64]:
 
 
 def make_problems(robot: genplan.Robot, n: int, seed: int, init: str = "uniform",
-                  model_path: Path | None = None, tasks: dict[str, P.Task] | None = None) -> dict[str, Any]:
+                  model_path: Path | None = None, tasks: dict[str, P.Task] | None = None,
+                  task: str | Path | None = None) -> dict[str, Any]:
     """Seeded tasks: initial configurations for projection and for IK, and the IK targets.
 
     ``init="gan"``: the initial configurations come from the shipped GAN (or ``model_path``; a
     GAN for another robot or task is refused), conditioned on a random target in the GAN's box
     for projection and on the IK target for IK; the time to sample them is reported separately
-    (``gan_sample_ms_per_task``).
+    (``gan_sample_ms_per_task``). ``task``: the task as the command was given it (a shipped
+    name or a task file), which the GAN is matched to and a missing GAN's hint names.
     """
     tasks = tasks_for(robot) if tasks is None else tasks
     rng = np.random.default_rng(seed)
@@ -85,7 +87,7 @@ def make_problems(robot: genplan.Robot, n: int, seed: int, init: str = "uniform"
     if init == "gan":
         from genplan.samplers.loading import load_sampler_model
 
-        model = load_sampler_model(robot, model_path, task=tasks["ik"])
+        model = load_sampler_model(robot, model_path, task=tasks["ik"] if task is None else task)
         gbox = np.asarray(model.config.target_box)
         t0 = time.perf_counter()
         problems["projection"]["q0"] = model.sample(rng.uniform(gbox[0], gbox[1], size=(n, 3)), rng)
@@ -167,7 +169,7 @@ def run(robot_name: str, init: str, tasks: int, seed: int, solver: str, backend:
         model_path: Path | None = None, task: str | Path | None = None, progress: bool = True) -> dict[str, Any]:
     robot = genplan.load(robot_name)
     kinds = tasks_for(robot, task)
-    problems = make_problems(robot, tasks, seed, init, model_path, kinds)
+    problems = make_problems(robot, tasks, seed, init, model_path, kinds, task)
     if solver == "gauss-newton":
         results = run_gauss_newton(robot, problems, backend, kinds, progress)
     else:
