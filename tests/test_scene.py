@@ -129,7 +129,7 @@ def _scene_file(tmp_path: Path, body: str) -> Path:
 
 @pytest.mark.parametrize(("body", "match"), [
     ('name = "x"\ncolour = "red"\n', r"bad.toml: unknown key 'colour' \(known: name, description, box, sphere"),
-    ('name = "x"\n[[cone]]\nname = "c"\n', r"bad.toml: unknown shape table \[\[cone\]\] \(known shapes: box, sphere, cylinder, capsule, mesh, halfspace\)"),
+    ('name = "x"\n[[cone]]\nname = "c"\n', r"bad.toml: unknown shape table \[\[cone\]\] \(known shapes: box, sphere, cylinder, capsule, mesh, halfspace, points\)"),
     ('[[box]]\nname = "b"\nhalf_extents = [1, 1, 1]\ncolor = 1\n', r"bad.toml: \[\[box\]\] 1: unknown key 'color' \(known: name, half_extents, size, position, rpy, quaternion, rotation\)"),
     ('[[sphere]]\nname = "s"\nposition = [0, 0, 0]\n', r"bad.toml: \[\[sphere\]\] 1: missing field 'radius'"),
     ('[[sphere]]\nradius = 1.0\n', r"bad.toml: \[\[sphere\]\] 1: missing field 'name'"),

@@ -1,9 +1,9 @@
 """Collision world: the robot's collision geometry (parry, in Rust) plus environment obstacles.
 
 Self-collision pairs are every pair of geometries on different rigid bodies, minus the SRDF's
-disabled pairs; obstacles are boxes, spheres, cylinders, capsules, meshes (their convex hulls)
-and half-spaces, added one by one or as a scene (:meth:`CollisionWorld.add_scene`, a scene file:
-docs/SCENES.md). Batched queries release the GIL and run on all cores.
+disabled pairs; obstacles are boxes, spheres, cylinders, capsules, meshes (their convex hulls),
+half-spaces and point clouds (each point a ball: :meth:`CollisionWorld.add_points`), added one by
+one or as a scene (:meth:`CollisionWorld.add_scene`, a scene file: docs/SCENES.md). Batched queries release the GIL and run on all cores.
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ from numpy.typing import ArrayLike, NDArray
 from genplan import _core
 from genplan._arrays import as_configurations, as_float_array, as_real
 from genplan.errors import GenplanError, SceneFileError, SettingsError, ShapeError
-from genplan.scene import Box, Capsule, Cylinder, HalfSpace, Mesh, Obstacle, Scene, Sphere, load_scene
+from genplan.clouds import check_points
+from genplan.scene import Box, Capsule, Cylinder, HalfSpace, Mesh, Obstacle, Points, Scene, Sphere, load_scene
 
 
 class CollisionWorld:
@@ -156,6 +157,58 @@ class CollisionWorld:
         """Add the solid half-space below the plane ``normal . x = offset``."""
         self._native.add_halfspace(name, _vec3(normal, f"plane '{name}' normal"), as_real(offset, f"plane '{name}' offset"))
 
+    def add_points(self, name: str, points: ArrayLike, radius: float, voxel: float | None = None, *,
+                   robot_q: ArrayLike | None = None, robot_margin: float = 0.02) -> int:
+        """Add a point cloud, ``points`` (n, 3) in the world frame, each point a ball of ``radius``
+        (m), down-sampled first to one point per ``voxel`` (m: the centroid of the points in
+        each cube of that edge) when given. With ``robot_q``, the points within ``robot_margin``
+        of the robot's own geometry at that configuration (a camera's view of the arm) are
+        dropped first (:meth:`robot_points`). Every query treats the cloud as one obstacle
+        (docs/SCENES.md "Point clouds and depth images"). Checked before any work: ShapeError
+        (shape, an empty cloud), NonFiniteError (naming the row), SettingsError (radius,
+        voxel). Returns the number of balls kept."""
+        pts = self._cloud(name, points, robot_q, robot_margin)
+        r = _positive(radius, f"points '{name}' radius")
+        v = None if voxel is None else _positive(voxel, f"points '{name}' voxel")
+        self._native.add_points(name, pts, r, v)
+        return int(self._native.clouds[name][2])
+
+    def replace_points(self, name: str, points: ArrayLike, *, robot_q: ArrayLike | None = None,
+                       robot_margin: float = 0.02) -> int:
+        """Replace cloud ``name``'s points with a new frame (checked as :meth:`add_points`' are),
+        keeping its radius, voxel and place; a bad frame leaves the old one. Returns the number
+        of balls kept."""
+        pts = self._cloud(name, points, robot_q, robot_margin)
+        self._native.replace_points(name, pts)
+        return int(self._native.clouds[name][2])
+
+    def robot_points(self, points: ArrayLike, q: ArrayLike, margin: float = 0.02) -> NDArray[np.bool_]:
+        """True for each point of ``points`` (n, 3) within ``margin`` (m) of the robot's collision
+        geometry at configuration ``q``: the robot as its own camera sees it."""
+        pts = np.ascontiguousarray(as_float_array(points, "points"), dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ShapeError(f"points: expected an array of shape (n, 3), got shape {pts.shape}")
+        qa = as_configurations(q, self._nq)
+        if qa.ndim != 1:
+            raise ShapeError(f"q: expected one configuration of shape ({self._nq},), got {qa.shape}")
+        m = as_real(margin, "margin")
+        if not (np.isfinite(m) and m >= 0):
+            raise SettingsError(f"margin must be a finite distance >= 0 (m), got {margin!r}")
+        return self._native.robot_points(list(qa), pts, m)
+
+    @property
+    def clouds(self) -> dict[str, tuple[float, float | None, int]]:
+        """The point clouds: {name: (radius, voxel or None, number of balls)}."""
+        return dict(self._native.clouds)
+
+    def _cloud(self, name: str, points: ArrayLike, robot_q: ArrayLike | None, margin: float) -> NDArray[np.float64]:
+        pts = check_points(points, f"points '{name}' points")
+        if robot_q is not None:
+            pts = np.ascontiguousarray(pts[~self.robot_points(pts, robot_q, margin)])
+            if len(pts) == 0:
+                raise ShapeError(f"points '{name}' points: every point lies on the robot (robot_margin {margin})")
+        return pts
+
     def remove_obstacle(self, name: str) -> None:
         self._native.remove_obstacle(name)
 
@@ -219,8 +272,17 @@ def _add(world: CollisionWorld, o: Obstacle) -> None:
         world.add_capsule(o.name, o.radius, o.length / 2, pose.position, rot)
     elif isinstance(o, Mesh):
         world.add_mesh(o.name, o.path, o.scale, pose.position, rot)
+    elif isinstance(o, Points):
+        world.add_points(o.name, o.world_points(), o.radius, o.voxel)
     else:  # Scene refuses anything else
         raise SceneFileError(f"{o!r} is not an obstacle")
+
+
+def _positive(v: Any, what: str) -> float:
+    x = as_real(v, what, error=SettingsError)
+    if not (np.isfinite(x) and 0 < x <= 1e6):
+        raise SettingsError(f"{what} must be positive and at most 1e6 m, got {v!r}")
+    return x
 
 
 def _vec3(v: ArrayLike, what: str) -> tuple[float, float, float]:

@@ -6,7 +6,9 @@ A scene is a name, a description and obstacles, each with a unique name:
   :class:`Cylinder` and :class:`Capsule` (``radius`` and the full ``length`` along the local z
   axis, as in URDF), :class:`Mesh` (an STL, OBJ or Collada file, used as the **convex hull** of
   its vertices, like the robot's meshes), each placed by a :class:`Pose`;
-* :class:`HalfSpace` (everything below the plane ``normal . x = offset``, e.g. a floor).
+* :class:`HalfSpace` (everything below the plane ``normal . x = offset``, e.g. a floor);
+* :class:`Points` (a point cloud, each point a ball of ``radius``: a ``.npz``, ``.ply`` or
+  ``.pcd`` file, or inline ``points``; :func:`points_from_depth` makes one from a depth image).
 
 A file lists them as arrays of tables::
 
@@ -56,6 +58,7 @@ from typing import Any, ClassVar, Union
 import numpy as np
 from numpy.typing import NDArray
 
+from genplan.clouds import POINT_EXTENSIONS, camera_pose, points_from_depth, read_points
 from genplan.errors import SceneFileError, UnknownNameError
 
 __all__ = [
@@ -69,10 +72,13 @@ __all__ = [
     "HalfSpace",
     "Mesh",
     "Obstacle",
+    "Points",
     "Pose",
     "Scene",
     "Sphere",
+    "camera_pose",
     "load_scene",
+    "points_from_depth",
     "scene_names",
 ]
 
@@ -371,9 +377,68 @@ class HalfSpace(_Shape):
         self._check({"normal": normal, "offset": offset})
 
 
-Obstacle = Union[Box, Sphere, Cylinder, Capsule, Mesh, HalfSpace]
+def _points_path(v: Any, what: str) -> Path | None:
+    if v is None:
+        return None
+    if not isinstance(v, (str, os.PathLike)) or not str(v):
+        raise SceneFileError(f"{what}: expected a file path, got {v!r}")
+    p = Path(os.path.normpath(os.path.abspath(v)))
+    if p.suffix.lower().lstrip(".") not in POINT_EXTENSIONS:
+        raise SceneFileError(f"{what}: {p} is not a point-cloud file ({', '.join('.' + e for e in POINT_EXTENSIONS)})")
+    return p
+
+
+def _inline_points(v: Any, what: str) -> tuple[tuple[float, float, float], ...] | None:
+    if v is None:
+        return None
+    if isinstance(v, (str, bytes)) or not isinstance(v, (Sequence, np.ndarray)):
+        raise SceneFileError(f"{what}: expected a list of [x, y, z] points, got {v!r}")
+    if len(v) == 0:
+        raise SceneFileError(f"{what}: the cloud is empty (a cloud needs at least one point)")
+    return tuple(_position(p, f"{what}[{i}]") for i, p in enumerate(v))
+
+
+@dataclass(frozen=True)
+class Points(_Shape):
+    """A point cloud, each point a ball of ``radius`` (m): the points of a file ``path``
+    (:func:`genplan.clouds.read_points`: ``.npz`` with an array ``points``, ``.ply``, ``.pcd``;
+    relative to the scene file's folder in a file) or given inline as ``points`` (a list of
+    [x, y, z]), exactly one of the two, in the frame of the pose (e.g. the camera's; default the
+    world's), down-sampled to one point per ``voxel`` (m) when given. The file is read when
+    the scene is added to a world (:meth:`world_points`)."""
+
+    kind: ClassVar[str] = "points"
+    required: ClassVar[tuple[str, ...]] = ("radius",)
+    optional: ClassVar[tuple[str, ...]] = ("path", "points", "voxel")
+    name: str
+    radius: float
+    path: Path | None = None
+    points: tuple[tuple[float, float, float], ...] | None = None
+    voxel: float | None = None
+    pose: Pose = field(default_factory=Pose)
+
+    def __post_init__(self) -> None:
+        self._check({"radius": _size, "path": _points_path, "points": _inline_points,
+                     "voxel": lambda v, k: None if v is None else _size(v, k),
+                     "pose": lambda v, k: _pose(v)})
+        if (self.path is None) == (self.points is None):
+            raise SceneFileError(f"points '{self.name}': give exactly one of path and points")
+
+    def world_points(self) -> NDArray[np.float64]:
+        """The cloud's points (n, 3) in the world frame (the file read now)."""
+        try:
+            local = read_points(self.path, f"points '{self.name}' path") if self.path is not None \
+                else np.asarray(self.points, dtype=np.float64)
+        except FileNotFoundError as exc:
+            raise SceneFileError(str(exc)) from None
+        if not self.pose.rotated and not any(self.pose.position):
+            return np.ascontiguousarray(local)
+        return np.ascontiguousarray(local @ self.pose.matrix().T + np.asarray(self.pose.position))
+
+
+Obstacle = Union[Box, Sphere, Cylinder, Capsule, Mesh, HalfSpace, Points]
 #: The obstacle classes by their table name in a file, in the order a scene keeps them.
-SHAPES: dict[str, type[_Shape]] = {c.kind: c for c in (Box, Sphere, Cylinder, Capsule, Mesh, HalfSpace)}
+SHAPES: dict[str, type[_Shape]] = {c.kind: c for c in (Box, Sphere, Cylinder, Capsule, Mesh, HalfSpace, Points)}
 _TOP_KEYS = ("name", "description", *SHAPES, "queries")
 
 
@@ -414,6 +479,8 @@ class Scene:
         for o in self.obstacles:
             if isinstance(o, Mesh) and not o.path.is_file():
                 raise SceneFileError(f"{self._origin()}: mesh '{o.name}': path: mesh file {o.path} does not exist")
+            if isinstance(o, Points) and o.path is not None and not o.path.is_file():
+                raise SceneFileError(f"{self._origin()}: points '{o.name}': path: points file {o.path} does not exist")
 
     def _origin(self) -> str:
         return f"scene file {self.source}" if self.source is not None else f"scene '{self.name}'"
@@ -470,7 +537,7 @@ class Scene:
 
         folder = Path(os.path.abspath(path)).parent
         data = self.to_dict()
-        for row in data.get("mesh", []):
+        for row in [*data.get("mesh", []), *(r for r in data.get("points", []) if "path" in r)]:
             try:
                 row["path"] = Path(os.path.relpath(row["path"], folder)).as_posix()
             except ValueError:  # another drive: keep it absolute
@@ -513,7 +580,7 @@ def _obstacle_from_dict(shape: type[_Shape], row: Mapping[str, Any], where: str,
             extra = " (or size)" if shape is Box and key == "half_extents" else ""
             raise SceneFileError(f"{where}: missing field '{key}'{extra}")
     where = f"{where} ('{fields['name']}')" if isinstance(fields["name"], str) else where
-    if shape is Mesh and base_dir is not None and isinstance(fields["path"], str):
+    if shape in (Mesh, Points) and base_dir is not None and isinstance(fields.get("path"), str):
         fields["path"] = Path(base_dir) / fields["path"]
     if shape is not HalfSpace:
         pose_fields = {k: fields.pop(k) for k in _POSE_KEYS if k in fields}
@@ -541,6 +608,14 @@ def _obstacle_dict(o: _Shape) -> dict[str, Any]:
         d["path"], d["scale"] = str(o.path), list(o.scale)
     elif isinstance(o, HalfSpace):
         d["normal"], d["offset"] = list(o.normal), o.offset
+    elif isinstance(o, Points):
+        d["radius"] = o.radius
+        if o.path is not None:
+            d["path"] = str(o.path)
+        else:
+            d["points"] = [list(p) for p in o.points or ()]
+        if o.voxel is not None:
+            d["voxel"] = o.voxel
     pose = getattr(o, "pose", None)
     if pose is not None:
         d.update(pose.to_dict())
