@@ -498,10 +498,7 @@ def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any, where: str =
                                 f"{limits[j]:.6g}"))
     stats = dict(traj.stats)
     if task is not None:
-        from genplan.projection import GaussNewtonProjector, SolverSettings
-
-        evaluator = GaussNewtonProjector(robot, task, SolverSettings(max_iterations=0, clip_to_limits=False))
-        res = evaluator.solve_batch(traj.q, parallel=True).residuals  # no step: the residuals at the samples
+        res = _evaluator(robot, task).residual_sizes(traj.q)  # no step: the residuals at the samples
         tolerances = {t.label(): float(t.tolerance) for t in task.primary}
         traj = traj.replace(residuals={k: float(np.max(v)) for k, v in res.items()}, tolerances=tolerances,
                             task=getattr(task, "name", ""))
@@ -523,6 +520,32 @@ def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any, where: str =
         raise InvalidTrajectoryError(f"trajectory: sample {i} (t = {traj.t[i]:.3f} s){where} {why}")
     stats["check_s"] = time.perf_counter() - t0
     return traj.replace(stats=stats)
+
+
+#: The residual evaluators of the last (robot, task) pairs checked, each with weak references to
+#: its robot and task (an entry serves only while both are the objects it was built for).
+_EVALUATORS: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
+_EVALUATORS_KEPT = 8
+
+
+def _evaluator(robot: Robot, task: Any) -> Any:
+    """The native projector of ``task`` on ``robot`` that evaluates the samples' residuals
+    (:meth:`~genplan.projection.GaussNewtonProjector.residual_sizes`), kept for the next
+    trajectory checked against the same task: building one binds every term (about 2 ms, as
+    much as checking a few thousand samples), and a batch of trajectories shares one task."""
+    import weakref
+
+    from genplan.projection import GaussNewtonProjector
+
+    key = (id(robot), id(task))
+    kept = _EVALUATORS.get(key)
+    if kept is not None and kept[0]() is robot and kept[1]() is task:
+        return kept[2]
+    evaluator = GaussNewtonProjector(robot, task)
+    if len(_EVALUATORS) >= _EVALUATORS_KEPT:
+        _EVALUATORS.pop(next(iter(_EVALUATORS)), None)
+    _EVALUATORS[key] = (weakref.ref(robot), weakref.ref(task), evaluator)
+    return evaluator
 
 
 def _invalid_samples(world: Any, q: Array) -> NDArray[np.bool_]:

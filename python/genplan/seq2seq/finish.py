@@ -19,7 +19,12 @@ too sparse to check the motion between them. :func:`finish` turns each into the 
    held to the task's tolerance as the planner's are (a straying chord split at its projected
    midpoint);
 3. every dense state is checked against the joint limits (no tolerance) and the collision world
-   (the robot, the scene and any per-problem obstacle);
+   (the robot, the scene and any per-problem obstacle); a path with a state in collision (the
+   projection onto the manifold can undo part of a detour the adjustment made around an
+   obstacle) is repaired first: its states near a collision are moved along the clearance's
+   gradient and projected back onto the manifold, alternately (:func:`push_clear`), the path
+   densified again (the end state keeps its target: it is pushed with the end projector), and
+   then checked as any other;
 4. the dense path is timed by TOPP-RA (:func:`genplan.trajectory.parameterize`), whose samples
    are checked again on the limits and the task's residuals.
 
@@ -39,7 +44,7 @@ from numpy.typing import NDArray
 
 from genplan.errors import GenplanError, SettingsError
 
-__all__ = ["finish", "densify", "FinishResult", "DEFAULT_RESOLUTION"]
+__all__ = ["finish", "densify", "push_clear", "FinishResult", "DEFAULT_RESOLUTION"]
 
 #: the largest joint step (rad) between dense states: the planner's edge resolution
 DEFAULT_RESOLUTION = 0.025
@@ -52,6 +57,16 @@ MAX_ROUNDS = 8
 #: last sample moved by a normal step of END_SPREAD rad (doubled every three attempts)
 END_RETRIES = 12
 END_SPREAD = 0.05
+#: a path with a dense state in collision is repaired: the states closer than CLEAR_MARGIN (m) to
+#: a collision are stepped along the gradient of the robot's minimum signed distance (finite
+#: differences, FD_STEP rad) to CLEAR_MARGIN, at most CLEAR_MAX_STEP rad a joint, then projected
+#: back onto the manifold (posture at the stepped state), CLEAR_STEPS times; then densified and
+#: checked again, CLEAR_ROUNDS times
+CLEAR_MARGIN = 0.01
+CLEAR_MAX_STEP = 0.05
+CLEAR_STEPS = 8
+CLEAR_ROUNDS = 3
+FD_STEP = 1e-5
 
 
 @dataclass
@@ -154,6 +169,13 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
         res = proj_end.solve_batch(last, last, targets={label: targets})
         q[:, -1] = res.q
         ok = res.success & ~_hits(worlds, res.q)
+        # a solution in collision: first pushed out along the clearance's gradient, on the target
+        for i in np.nonzero(res.success & ~ok)[0]:
+            pushed = push_clear(res.q[i:i + 1], worlds[i],
+                                lambda x, i=i: proj_end.solve_batch(x, x, targets={label: np.repeat(targets[i:i + 1], len(x), 0)}))
+            if pushed is not None and not _hits([worlds[i]], pushed)[0]:
+                q[i, -1] = pushed[0]
+                ok[i] = True
         # a solution in collision (a redundant arm has many): again from the sample moved a little
         rng = np.random.default_rng(0)
         lo, hi = np.asarray(robot.lower, dtype=float), np.asarray(robot.upper, dtype=float)
@@ -203,6 +225,16 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
                           f"outside its limits [{lo[j]:.6g}, {hi[j]:.6g}]")
             continue
         hit = np.asarray(worlds[i].in_collision(path), dtype=bool)
+        if hit.any() and proj_dense is not None and chords is not None:
+            path, why = _repair(path, worlds[i], proj_dense, chords, resolution)
+            paths[i] = path
+            if why is not None:
+                reasons[i] = why
+                continue
+            if ((path < lo) | (path > hi)).any():
+                reasons[i] = "the path repaired out of collision leaves the joint limits"
+                continue
+            hit = np.asarray(worlds[i].in_collision(path), dtype=bool)
         if hit.any():
             s = int(np.argmax(hit))
             reasons[i] = f"dense state {s} of {len(path)} is in collision"
@@ -244,6 +276,65 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
                         end_error_m=end_err, max_residual_ratio=ratio, seconds=seconds)
 
 
+def push_clear(q: NDArray[np.float64], world: Any, project: Any, margin: float = CLEAR_MARGIN,
+               steps: int = CLEAR_STEPS) -> NDArray[np.float64] | None:
+    """The states ``q`` (m, nq) moved at least ``margin`` (m) away from any collision in
+    ``world``, alternating a step along the gradient of the minimum signed distance
+    (``world.min_distance``, by finite differences; the step that would bring it to ``margin``,
+    at most :data:`CLEAR_MAX_STEP` rad a joint) with ``project(states)`` (a projector's
+    ``solve_batch`` onto the task's manifold: a result with ``q`` and ``success``), up to ``steps``
+    times; the states already that clear are left as they are. Returns the states (each one
+    projected, possibly still nearer than ``margin`` when the steps ran out: the caller checks
+    them), or None when a projection failed."""
+    q = np.array(q, dtype=np.float64)
+    n = q.shape[1]
+    eye = FD_STEP * np.eye(n)
+    for _ in range(steps):
+        d = np.asarray(world.min_distance(q), dtype=np.float64).reshape(len(q))
+        todo = np.nonzero(d < margin)[0]
+        if len(todo) == 0:
+            break
+        probes = (q[todo][:, None, :] + eye[None]).reshape(-1, n)
+        grad = (np.asarray(world.min_distance(probes), dtype=np.float64).reshape(len(todo), n) - d[todo, None]) / FD_STEP
+        norm2 = np.maximum(np.einsum("ij,ij->i", grad, grad), 1e-12)
+        step = grad * ((margin - d[todo]) / norm2)[:, None]
+        step *= np.minimum(1.0, CLEAR_MAX_STEP / np.maximum(np.abs(step).max(axis=1), 1e-12))[:, None]
+        res = project(q[todo] + step)
+        if not np.all(res.success):
+            return None
+        q[todo] = res.q
+    return q
+
+
+def _repair(path: NDArray[np.float64], world: Any, proj: Any, chords: Any,
+            resolution: float) -> tuple[NDArray[np.float64], str | None]:
+    """``path`` (a dense path with states in collision in ``world``) with its states nearer than
+    :data:`CLEAR_MARGIN` to a collision (but its ends, fixed: the start is the input's, the end
+    solved on its target) pushed clear (:func:`push_clear` with ``proj``), densified and its
+    chords held again, up to :data:`CLEAR_ROUNDS` times while a state collides. Returns the path
+    and None, or the path so far and why it could not be repaired."""
+    for _ in range(CLEAR_ROUNDS):
+        hit = np.asarray(world.in_collision(path), dtype=bool)
+        if not hit.any():
+            return path, None
+        near = np.asarray(world.min_distance(path), dtype=np.float64) < CLEAR_MARGIN
+        near[0] = near[-1] = False
+        rows = np.nonzero(near)[0]
+        if len(rows) == 0:
+            return path, None  # only an end collides: the check names it
+        pushed = push_clear(path[rows], world, lambda x: proj.solve_batch(x, x))
+        if pushed is None:
+            return path, "a state pushed out of collision could not be projected back onto the task's manifold"
+        path = path.copy()
+        path[rows] = pushed
+        path, why = densify(path, resolution, proj)
+        if why is None:
+            path, why = chords.hold(path, proj, resolution)
+        if why is not None:
+            return path, f"the path repaired out of collision: {why}"
+    return path, None
+
+
 def _hits(worlds: list[Any], q: NDArray[np.float64]) -> NDArray[np.bool_]:
     """Per row of ``q``, whether it is in collision in its problem's world."""
     if len(q) and all(w is worlds[0] for w in worlds):
@@ -276,13 +367,13 @@ class _ChordCheck:
     ROUNDS = 3
 
     def __init__(self, robot: Any, task: Any) -> None:
-        from genplan.projection import GaussNewtonProjector, SolverSettings
+        from genplan.projection import GaussNewtonProjector
 
-        self.check = GaussNewtonProjector(robot, task, SolverSettings(max_iterations=0, clip_to_limits=False))
+        self.check = GaussNewtonProjector(robot, task)
         self.tolerance = {t.label(): float(t.tolerance) for t in task.primary}
 
     def _stray(self, q: NDArray[np.float64]) -> NDArray[np.bool_]:
-        res = self.check.solve_batch(q).residuals
+        res = self.check.residual_sizes(q)
         bad = np.zeros(len(q), dtype=bool)
         for name, v in res.items():
             bad |= np.asarray(v) > 0.75 * self.tolerance[name]
@@ -323,13 +414,15 @@ def densify(q: NDArray[np.float64], resolution: float, proj: Any = None) -> tupl
             return path, None
         new_rows: list[NDArray[np.float64]] = []
         spans: list[tuple[int, int]] = []
+        offset = 0  # rows in new_rows so far
         for s in range(len(path) - 1):
             m = int(np.ceil(steps[s] / resolution))
             if m > 1:
                 f = np.arange(1, m)[:, None] / m
                 inter = path[s] + f * (path[s + 1] - path[s])
-                spans.append((sum(len(x) for x in new_rows), len(inter)))
+                spans.append((offset, len(inter)))
                 new_rows.append(inter)
+                offset += len(inter)
         if new_rows:
             rows = np.concatenate(new_rows)
             if proj is not None:
