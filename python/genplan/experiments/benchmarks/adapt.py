@@ -26,7 +26,9 @@ where that trajectory starts. Rows:
   to the finish's resolution and checked as genplan's are (residual, collisions, end).
 * **obstacle**: a sphere of ``--obstacle-radius`` placed on each input's path at mid-time (the
   frame's position there), the target the input's own end; the objective adds the clearance from
-  that sphere; success: finished (as above) against the scene plus the sphere.
+  that sphere; success: finished (as above) against the scene plus the sphere. The row records how
+  many inputs cross the sphere and how many start inside it (another link than the frame there at
+  the start: no motion from that start is clear of it; they count as failures).
 """
 
 from __future__ import annotations
@@ -173,8 +175,11 @@ def main(args: argparse.Namespace) -> int:
     fin_obs = obs.finish(world=worlds)
     t_obs = time.perf_counter() - t0
     inputs_hit = sum(bool(np.any(worlds[i].in_collision(x_in[i]))) for i in range(args.problems))
+    # a start in the sphere (another link than the frame passing through it) leaves no motion clear of it
+    starts_hit = sum(bool(worlds[i].in_collision(x_in[i, 0])) for i in range(args.problems))
     rows["obstacle"] = _finish_row(fin_obs, t_obs / args.problems, args.obstacle_updates)
     rows["obstacle"].update(radius_m=args.obstacle_radius, inputs_in_collision_percent=100.0 * inputs_hit / args.problems,
+                            starts_in_collision_percent=100.0 * starts_hit / args.problems,
                             failure_reasons=_reasons(fin_obs.reasons))
     _say("obstacle", rows["obstacle"])
 
