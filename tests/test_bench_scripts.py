@@ -154,3 +154,53 @@ def test_execute_prints_the_tick_table_and_the_dob_table(tmp_path, monkeypatch, 
         assert data["plans"]["summary"][space]["planned"] == 1
     assert data["plans"]["deviations"]["payload"]["mass"] == 0.6
     assert "error ratio without / with the observer" in capsys.readouterr().out
+
+
+def test_free_space_plan_compares_the_same_queries_with_and_without_the_projector(tmp_path, monkeypatch) -> None:
+    out = tmp_path / "free.json"
+    _run("free_space_plan.py", ["--queries", "3", "--rounds", "2", "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    from genplan.planning import ALGORITHMS
+
+    assert [r["algorithm"] for r in data["rows"]] == list(ALGORITHMS)
+    for r in data["rows"]:
+        # the same samples, the same trees: the projector had nothing to project
+        assert r["success_free"] == r["success_projected"] == r["same_path"] == 3
+        assert r["free_median_ms"] > 0 and r["projected_median_ms"] > 0 and r["projector_share_median"] > 0
+
+
+def test_sphere_checker_counts_the_cover_and_times_both_checkers(tmp_path, monkeypatch) -> None:
+    out = tmp_path / "spheres.json"
+    monkeypatch.setenv("RAYON_NUM_THREADS", "1")  # what the script sets before genplan is imported
+    _run("sphere_checker.py", ["--configs", "2000", "--rounds", "2", "--single", "200", "--queries", "2",
+                               "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    assert data["cover"]["configs"] == 2000 and data["cover"]["missed"] == 0
+    assert data["cover"]["exact_in_collision"] > 0
+    assert all(len(v) == 2 and min(v) > 0 for v in data["checks"]["per_second"].values())
+    assert data["plans"]["success"] == {"exact": 2, "spheres": 2}
+    assert data["plans"]["median_ms"]["spheres"] > 0
+
+
+def test_relative_terms_times_both_pose_terms_and_writes_the_ratio(tmp_path, monkeypatch, capsys) -> None:
+    out = tmp_path / "relative_terms.json"
+    _run("relative_terms.py", ["--n", "4", "--iterations", "2", "--rounds", "2", "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    medians = data["us_per_iteration_median"]
+    assert set(medians) == {"frame_pose", "relative_pose", "python_custom"} and all(v > 0 for v in medians.values())
+    assert all(len(v) == 2 for v in data["us_per_iteration_rounds"].values())
+    assert data["ratio_relative_over_frame_pose"] == pytest.approx(medians["relative_pose"] / medians["frame_pose"])
+    assert data["command"].startswith("python benches/relative_terms.py --n 4")
+    assert "relative_pose / frame_pose" in capsys.readouterr().out
+
+
+def test_custom_term_data_times_1_and_2_processes_on_the_same_rows(tmp_path, monkeypatch) -> None:
+    out = tmp_path / "custom_term_data.json"
+    _run("custom_term_data.py", ["--n", "8", "--shard-size", "4", "--rounds", "1", "--control-seconds", "0",
+                                 "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    assert set(data["median_seconds"]) == {"process_1", "process_2", "thread_2"}
+    assert data["speedup_2_processes_over_1"] == pytest.approx(data["median_seconds"]["process_1"]
+                                                               / data["median_seconds"]["process_2"])
+    assert data["task"]["primary"][1]["entry"] == "tests.custom_terms_example:OnCircle"
+    assert data["command"].startswith("python benches/custom_term_data.py --n 8") and data["control_speedup"] is None
