@@ -316,13 +316,18 @@ class Capsule(_Rod):
     kind: ClassVar[str] = "capsule"
 
 
-def _mesh_path(v: Any, what: str) -> Path:
+def _file_path(v: Any, what: str, extensions: Any, kind: str) -> Path:
+    """``v`` as an absolute path whose suffix is one of ``extensions``, else SceneFileError."""
     if not isinstance(v, (str, os.PathLike)) or not str(v):
         raise SceneFileError(f"{what}: expected a file path, got {v!r}")
     p = Path(os.path.normpath(os.path.abspath(v)))
-    if p.suffix.lower().lstrip(".") not in MESH_EXTENSIONS:
-        raise SceneFileError(f"{what}: {p} is not a mesh file ({', '.join('.' + e for e in MESH_EXTENSIONS)})")
+    if p.suffix.lower().lstrip(".") not in extensions:
+        raise SceneFileError(f"{what}: {p} is not a {kind} file ({', '.join('.' + e for e in extensions)})")
     return p
+
+
+def _mesh_path(v: Any, what: str) -> Path:
+    return _file_path(v, what, MESH_EXTENSIONS, "mesh")
 
 
 def _scale(v: Any, what: str) -> tuple[float, float, float]:
@@ -378,14 +383,7 @@ class HalfSpace(_Shape):
 
 
 def _points_path(v: Any, what: str) -> Path | None:
-    if v is None:
-        return None
-    if not isinstance(v, (str, os.PathLike)) or not str(v):
-        raise SceneFileError(f"{what}: expected a file path, got {v!r}")
-    p = Path(os.path.normpath(os.path.abspath(v)))
-    if p.suffix.lower().lstrip(".") not in POINT_EXTENSIONS:
-        raise SceneFileError(f"{what}: {p} is not a point-cloud file ({', '.join('.' + e for e in POINT_EXTENSIONS)})")
-    return p
+    return None if v is None else _file_path(v, what, POINT_EXTENSIONS, "point-cloud")
 
 
 def _inline_points(v: Any, what: str) -> tuple[tuple[float, float, float], ...] | None:

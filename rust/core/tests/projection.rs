@@ -3,7 +3,7 @@
 
 use genplan_core::kinematics::KinematicModel;
 use genplan_core::projection::{Projector, Settings, Term, TermKind};
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 #[path = "common/arm.rs"]
 mod arm;
@@ -25,24 +25,25 @@ fn configurations(m: &KinematicModel) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Finite-difference derivative of f(q (+) e) along each tangent direction.
-fn fd<const N: usize>(m: &KinematicModel, q: &[f64], f: impl Fn(&[f64]) -> [f64; N]) -> DMatrix<f64> {
+/// Central finite differences of f(q (+) e) (`rows` values) along each tangent direction.
+fn fd_rows(m: &KinematicModel, q: &[f64], rows: usize, f: impl Fn(&[f64]) -> DVector<f64>) -> DMatrix<f64> {
     let h = 1e-6;
-    let mut out = DMatrix::zeros(N, m.nv);
-    let mut qp = vec![0.0; m.nq];
-    let mut qm = vec![0.0; m.nq];
+    let mut out = DMatrix::zeros(rows, m.nv);
+    let (mut qp, mut qm) = (vec![0.0; m.nq], vec![0.0; m.nq]);
     for k in 0..m.nv {
         let mut e = vec![0.0; m.nv];
         e[k] = h;
         m.integrate(q, &e, &mut qp);
         e[k] = -h;
         m.integrate(q, &e, &mut qm);
-        let (a, b) = (f(&qp), f(&qm));
-        for i in 0..N {
-            out[(i, k)] = (a[i] - b[i]) / (2.0 * h);
-        }
+        out.column_mut(k).copy_from(&((f(&qp) - f(&qm)) / (2.0 * h)));
     }
     out
+}
+
+/// Finite-difference derivative of f(q (+) e) along each tangent direction.
+fn fd<const N: usize>(m: &KinematicModel, q: &[f64], f: impl Fn(&[f64]) -> [f64; N]) -> DMatrix<f64> {
+    fd_rows(m, q, N, |q| DVector::from_row_slice(&f(q)))
 }
 
 #[test]
@@ -160,21 +161,7 @@ fn frame_orientation_with_a_free_axis() {
 /// Central finite differences of the projector's (single, weight 1) term's residual along each
 /// tangent direction.
 fn fd_residual(p: &Projector, q: &[f64]) -> DMatrix<f64> {
-    let m = &p.model;
-    let h = 1e-6;
-    let rows = p.primary_dim();
-    let mut out = DMatrix::zeros(rows, m.nv);
-    let (mut qp, mut qm) = (vec![0.0; m.nq], vec![0.0; m.nq]);
-    for k in 0..m.nv {
-        let mut e = vec![0.0; m.nv];
-        e[k] = h;
-        m.integrate(q, &e, &mut qp);
-        e[k] = -h;
-        m.integrate(q, &e, &mut qm);
-        let (a, b) = (p.primary_residuals(&qp, false).unwrap().0, p.primary_residuals(&qm, false).unwrap().0);
-        out.column_mut(k).copy_from(&((a - b) / (2.0 * h)));
-    }
-    out
+    fd_rows(&p.model, q, p.primary_dim(), |q| p.primary_residuals(q, false).unwrap().0)
 }
 
 /// The relative, point-at and plane terms with non-trivial targets, masks, axes and normals.
