@@ -58,7 +58,9 @@ class Sizes:
     adjust_problems: int | None
 
 
-QUICK = Sizes(table1_tasks=100, table1_scipy_tasks=50, plan_queries=10, ompl_queries=3, ompl_time_limit=10.0,
+#: ``--quick`` plans one OMPL query per environment: OMPL times out on every Talos query at 10 s, so
+#: each query it plans costs about 30 s of the quick run
+QUICK = Sizes(table1_tasks=100, table1_scipy_tasks=50, plan_queries=10, ompl_queries=1, ompl_time_limit=10.0,
               coverage_quick=True, coverage_shipped_models=True, adjust_j1_updates=30, adjust_problems=None)
 FULL = Sizes(table1_tasks=500, table1_scipy_tasks=500, plan_queries=100, ompl_queries=20, ompl_time_limit=30.0,
              coverage_quick=False, coverage_shipped_models=False, adjust_j1_updates=100, adjust_problems=None)
