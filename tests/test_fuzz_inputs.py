@@ -446,7 +446,7 @@ def test_min_distance_is_the_deepest_penetration(panda_world: genplan.CollisionW
 
 
 #: numbers at the documented bound 1e6 of obstacle sizes and positions (rust/core/src/collision/world.rs)
-#: and of projection targets (rust/core/src/projection.rs), and just beyond
+#: and of projection targets (rust/core/src/projection/validate.rs), and just beyond
 AT_1E6 = st.sampled_from([1e6, -1e6, float(np.nextafter(1e6, 2e6)), -float(np.nextafter(1e6, 2e6)), 1e-12, 2e-12])
 
 
@@ -594,7 +594,7 @@ def test_strings_where_numbers_are_expected_raise_a_genplan_error(panda: genplan
 # Projection: solve, solve_batch (with targets)
 # --------------------------------------------------------------------------------------------
 
-#: The largest absolute value of a term's numbers and of the damping settings (rust/core/src/projection.rs)
+#: The largest absolute value of a term's numbers and of the damping settings (rust/core/src/projection/validate.rs)
 P_MAX_MAGNITUDE = 1e6
 
 
@@ -644,7 +644,7 @@ def test_solve_batch_with_targets(panda: genplan.Robot, ik: Any, data: Any) -> N
         return expect_refused(q0s, exc, "solve_batch")
     if targets is not None:
         t = reals(targets)
-        # a term's numbers finite and at most 1e6 in absolute value (rust/core/src/projection.rs,
+        # a term's numbers finite and at most 1e6 in absolute value (rust/core/src/projection/validate.rs,
         # MAX_MAGNITUDE): finding PROJ-1 (fixed)
         if t is None or t.shape != (len(qs), 3) or not finite(t) or np.any(np.abs(t) > P_MAX_MAGNITUDE):
             assert isinstance(exc, GenplanError), f"targets {targets!r} accepted: {exc}"
@@ -666,7 +666,7 @@ def test_mis_shaped_targets_are_refused(ik: Any, n: int, shape: tuple[int, ...])
 
 # finding PROJ-1 (fixed; Rust fuzz_projection): targets were only checked to be finite; a huge one
 # (1.8e308) made the solver's arithmetic overflow and solve_batch returned an all-NaN q (success
-# False) without an error. Now every number of a term is bounded by 1e6 (rust/core/src/projection.rs,
+# False) without an error. Now every number of a term is bounded by 1e6 (rust/core/src/projection/validate.rs,
 # MAX_MAGNITUDE), per-row targets checked before any work, the error naming the row.
 @pytest.mark.parametrize("row", [0, 1])
 def test_a_huge_target_gives_a_finite_answer_or_an_error(ik: Any, row: int) -> None:
@@ -691,7 +691,7 @@ PLANNER_COUNTS = {"max_increments": (1, 2**64 - 1), "max_extensions": (1, 2**64 
                   "sample_batch": (1, PLAN_MAX_SAMPLE_BATCH), "max_empty_batches": (1, 2**64 - 1)}
 PLANNER_FLAGS = ["project_samples", "lazy_edges", "simplify"]
 PLANNER_DEFAULTS = {"step": 0.3, "max_jump": 3.0, "edge_resolution": 0.025}
-#: (rust/core/src/projection.rs, Settings::validate; finding PROJ-1, fixed): the damping in [0, 1e6]
+#: (rust/core/src/projection/solver.rs, Settings::validate; finding PROJ-1, fixed): the damping in [0, 1e6]
 SOLVER_FLOATS = {"mu": "damping", "mu_bar": "damping", "secondary_slack": "damping", "armijo_c1": "unit", "backtrack": "unit"}
 SOLVER_COUNTS = {"max_iterations": (0, 2**64 - 1), "max_backtracks": (0, 2**64 - 1), "secondary_backtracks": (0, 2**64 - 1)}
 SOLVER_FLAGS = ["clip_to_limits", "active_set"]

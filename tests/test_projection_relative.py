@@ -47,7 +47,7 @@ def test_pinocchio_jacobians_match_finite_differences(name: str) -> None:
 
 @pytest.mark.parametrize("name", ["panda", "talos"])
 def test_native_residuals_and_jacobians_match_pinocchio(name: str) -> None:
-    """The Rust terms (rust/core/src/projection.rs) against their Pinocchio twins, at 1e-9, on a
+    """The Rust terms (rust/core/src/projection/terms.rs) against their Pinocchio twins, at 1e-9, on a
     fixed base (Panda) and a free-flyer (Talos)."""
     robot = genplan.load(name)
     qs = random_configurations(robot, 6, seed=12)

@@ -2,7 +2,7 @@
 (:class:`FramePosition`, the terms a learned sampler is conditioned on) and its orientation
 (:class:`FrameOrientation`), each on chosen components or axes; an axis of the frame through a
 point (:class:`PointAt`) and its origin on a plane (:class:`Plane`). Residuals and Jacobians in
-the tangent space, as the native solver's (rust/core/src/projection.rs)."""
+the tangent space, as the native solver's (rust/core/src/projection/terms.rs)."""
 
 from __future__ import annotations
 

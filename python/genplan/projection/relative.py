@@ -3,7 +3,7 @@ chosen components: with the linear ones dropped, an orientation with free axes) 
 (:class:`RelativePosition`) of frame A in frame B. The constraint of a two-arm task (the grippers
 holding one object: their relative pose fixed), of a tool held against a fixture on the robot.
 Residuals and Jacobians in the tangent space, as the native solver's
-(rust/core/src/projection.rs); both frames move with q."""
+(rust/core/src/projection/terms.rs); both frames move with q."""
 
 from __future__ import annotations
 

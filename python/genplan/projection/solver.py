@@ -1,6 +1,6 @@
 """The projector: damped Gauss-Newton with a task hierarchy (the GAN paper's Section III-B), the
 planner's Projector and the IK solver. :class:`GaussNewtonProjector` runs the native solver
-(rust/core/src/projection.rs) or, with ``backend="pinocchio"``, the same algorithm here in Python
+(rust/core/src/projection/) or, with ``backend="pinocchio"``, the same algorithm here in Python
 on Pinocchio's analytic derivatives (the test oracle of the native one, and the solver of terms
 that only define ``bind()``). :func:`check_task_use` tries, before any training, every use a
 learned sampler makes of a task."""
@@ -32,7 +32,7 @@ from genplan.robots import Robot
 #: Defaults: the GAN paper and its public code (``mu``: damping lambda = mu r^T r + mu_bar).
 SolverSettings = _core.SolverSettings
 #: ``SolverSettings.active_set``: a bounded joint within this of a limit is at it (as
-#: rust/core/src/projection.rs ``AT_LIMIT``; the clipping puts it exactly there).
+#: rust/core/src/projection/solver.rs ``AT_LIMIT``; the clipping puts it exactly there).
 AT_LIMIT = 1e-9
 
 
@@ -165,7 +165,7 @@ class GaussNewtonProjector:
                         dq1: Array) -> tuple[list[int], Array, Array, Array]:
         """``SolverSettings.active_set``: while the step ``-dq1`` moves a bounded joint that sits
         at a limit out of its range, hold it (zero its Jacobian column) and solve the step again;
-        as rust/core/src/projection.rs ``Projector::hold_at_limits``."""
+        as rust/core/src/projection/solver.rs ``Projector::hold_at_limits``."""
         held: list[int] = []
         lower, upper = self.robot.lower, self.robot.upper
         while True:

@@ -7,7 +7,8 @@
 //!   answering "in collision?" and signed minimum distance; one file each for the geometry,
 //!   the broad phase and the world.
 //! * [`robot`]: robot descriptions as data (robot files: URDF + SRDF + options), loaded into both.
-//! * [`projection`]: damped Gauss-Newton projection / IK with a null-space posture task.
+//! * [`projection`]: damped Gauss-Newton projection / IK with a null-space posture task, one file
+//!   per concept (the terms, their checks, custom terms, the solver, residuals, errors).
 //! * [`gan`]: native inference of a trained GAN generator, as a planner sampler.
 //! * [`planning`]: the constrained RRT, one file per concept (errors, space, samplers,
 //!   projectors, validity checkers, nearest neighbours, the RRT itself).
