@@ -1,4 +1,4 @@
-"""What free space saves ([motion] item 1): the same free-space queries planned with no projector
+"""What free space saves: the same free-space queries planned with no projector
 in the loop (``Planner(robot, world, task="free")``) and with the projector of the same
 JointLimits-only task in it (what such a task cost before free space was first-class: the native
 projector of the task at a tenth of its tolerances, the chords held to the task's own), in

@@ -1,4 +1,4 @@
-"""The sphere checker against the exact one ([motion] item 2): the Panda in the shelf scene, one
+"""The sphere checker against the exact one: the Panda in the shelf scene, one
 core (``RAYON_NUM_THREADS=1``, set before genplan is imported), every measurement in alternating
 rounds so that both arms see the same load.
 
