@@ -1,6 +1,6 @@
 """``genplan reproduce``: rerun both papers' experiments with the shipped models, write a report.
 
-    genplan reproduce --quick --out out/quick      # about 5 minutes on a quiet 2-core machine
+    genplan reproduce --quick --out out/quick      # about 4 minutes on a quiet 2-core machine
     genplan reproduce --out out/full               # the papers' N (about an hour or more)
 
 Steps (each is a ``genplan bench ...`` command, run in-process through the benchmark module's own
@@ -170,7 +170,7 @@ def run(out: Path, quick: bool, only: list[str] | None = None) -> dict[str, Any]
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true",
-                   help="smaller N and the shipped ablation GANs: about 5 minutes on 2 quiet cores")
+                   help="smaller N and the shipped ablation GANs: about 4 minutes on 2 quiet cores")
     p.add_argument("--out", type=A.output_folder, default="out/reproduce",
                    help="output folder (report.md, results.json, figures; created if missing)")
     p.add_argument("--only", nargs="*", default=None, help="run only the steps whose title contains one of these words")
