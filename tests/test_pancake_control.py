@@ -10,13 +10,22 @@ deceleration tail and the run's bounds.
 tests/data/control_reference.npz holds the runs of the code at 03c44ab (the Fig. 12 experiment as
 ``genplan bench control`` runs it, the controller's unit-test runs; written by
 tests/data/make_control_reference.py): each is replayed here with today's classes and compared,
-every summary number to 1e-9 (relative) and every tick of the Fig. 12 run with the DOB to 1e-9;
-``bit_identical`` counts the runs whose every log array is the same to the bit.
+every summary number to 1e-9 (relative, or 1e-15 absolute for the numbers that are zero up to
+rounding), every tick of the Fig. 12 run with the DOB to 1e-9 (relative; 1e-12 absolute), and
+every discrete outcome (the pancake's slip and its tick, when it leaves the blade, damped,
+saturated and limit ticks, the first limit event) exactly. Not to the bit: the plant computes
+the same dynamics in another order (the articulated-body algorithm instead of CRBA + Cholesky,
+the RK stages' joint angles by angle addition, the friction's tanh in one exp), which moves each
+evaluation by rounding (1e-16 relative). The loop is stable, so those differences do not grow:
+measured over every run, the summary numbers agree to 1e-13 relative except where the task
+inverse is damped near a singularity (``singular``: 4.3e-10, the most sensitive run) or a
+reference jump saturates the motion (``jump``: 3.2e-11), and the Fig. 12 run's joint positions
+to 2.2e-16 rad, its torques to 3.1e-13 N m (7e-12 relative). A change of the method (a gain, a
+model term, the integrator) moves them by 1e-6 or more.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import warnings
@@ -121,17 +130,26 @@ def test_the_fig12_run_is_the_same_every_tick(replayed):
         assert np.allclose(got, ref, rtol=1e-9, atol=1e-12), (key, float(np.max(np.abs(got - ref))))
 
 
-def test_the_runs_are_bit_identical(replayed):
-    """Same operations in the same order: the same bits, every log array of every run (as
-    tests/test_seq2seq_pancake.py holds the seq2seq method to its reference; a machine whose libm
-    rounds sin, exp or atan2 otherwise fails here while the summaries above still agree)."""
+def test_the_pancake_outcomes_are_identical(replayed):
+    """The discrete outcome of every run is the reference's exactly, not within a tolerance: the
+    pancake's slip verdict, the time of its first slip and of leaving the blade, the damped,
+    saturated and limit ticks, where the motion starts and ends, and the first limit event."""
     meta, _, runs = replayed
-    differing = []
+    discrete = ("ticks", "slipped", "first_slip_time", "left_time", "damped_ticks", "first_damped_time",
+                "saturated_ticks", "limit_ticks", "stopped_at_limit")
+    slipped = 0
     for name, run in meta["runs"].items():
         log = runs[name]
-        differing += [f"{name}.{k}" for k, h in run["sha256"].items()
-                      if hashlib.sha256(np.ascontiguousarray(getattr(log, k)).tobytes()).hexdigest() != h]
-    assert not differing, f"{len(differing)} arrays differ from the reference, first: {differing[:5]}"
+        got = {k: log.summary[k] for k in discrete}
+        assert got == {k: run["summary"][k] for k in discrete}, name
+        assert [log.motion_start, log.motion_end] == run["motion"], name
+        v, w = log.limit_violation, run["limit_violation"]
+        assert (v is None) == (w is None), name
+        if w is not None:
+            assert (v["tick"], v["joint"], v["quantity"]) == (w["tick"], w["joint"], w["quantity"]), name
+        slipped += bool(got["slipped"])
+    # the comparison covers both outcomes of the flip
+    assert 0 < slipped < len(meta["runs"])
 
 
 def test_strict_refuses_the_jump_with_the_reference_message(replayed):

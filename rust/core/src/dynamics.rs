@@ -9,8 +9,8 @@
 //!   same result as Pinocchio's `aba`);
 //! * [`Dynamics::aba_from_kinematics`]: the same `qdd` by the articulated-body algorithm
 //!   (Featherstone's ABA, as Pinocchio's `aba`): O(n) and without the n x n mass matrix,
-//!   cross-checked against CRBA + Cholesky (at 6-7 joints it costs about as much; the 1 kHz
-//!   loop's plant keeps CRBA, whose bits the pancake reference runs hold);
+//!   cross-checked against CRBA + Cholesky (at 6-7 joints it costs about as much); the 1 kHz
+//!   loop's plant uses it, on [`Dynamics::update_kinematics_moved_unchecked`]'s kinematics;
 //! * [`Dynamics::frame_jacobian`] / [`Dynamics::frame_jacobian_time_variation`]: Jacobian of a
 //!   frame and its time derivative, in Pinocchio's `LOCAL_WORLD_ALIGNED` convention: rows
 //!   `[v; w]` are the linear velocity of the frame origin and the angular velocity, both in world
@@ -229,6 +229,9 @@ pub struct DynWorkspace {
     ic: Vec<SpatialInertia>,
     /// Joint velocities (nv) seen by the last kinematics update.
     pub qd: Vec<f64>,
+    /// Per body, the cosine and sine of its joint's angle in the last kinematics update
+    /// (revolute and continuous joints; `[1, 0]` for a prismatic one).
+    pub angles: Vec<[f64; 2]>,
     /// Mass matrix and its Cholesky factor (nv x nv).
     pub mass: DMatrix<f64>,
     chol: DMatrix<f64>,
@@ -245,6 +248,30 @@ pub struct DynWorkspace {
     u_n: Vec<Vector3<f64>>,
     d: Vec<f64>,
     u: Vec<f64>,
+}
+
+/// What a kinematics pass writes: the body-relative placements and the body-frame velocities
+/// (`Local`), plus the world placements and velocities (`Full`), or the placements and the world
+/// velocities without the body-frame ones (`World`).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Pass {
+    Local,
+    Full,
+    World,
+}
+
+/// `(sin x, cos x)` for the small angle of one integration step: their Taylor series (to
+/// `x^11`, `x^12`) for `|x| <= 1/16`, whose first omitted terms are below 1e-22 there; the
+/// library's `sin_cos` beyond.
+#[inline]
+fn small_sin_cos(x: f64) -> (f64, f64) {
+    if x.abs() > 0.0625 {
+        return x.sin_cos();
+    }
+    let x2 = x * x;
+    let s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))));
+    let c = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0 * (1.0 - x2 / 90.0 * (1.0 - x2 / 132.0)))));
+    (s, c)
 }
 
 /// Rotation about the unit `axis` with cosine `c` and sine `s` (Rodrigues).
@@ -436,6 +463,7 @@ impl Dynamics {
             n: z.clone(),
             ic: vec![SpatialInertia::zero(); n],
             qd: vec![0.0; self.nv],
+            angles: vec![[1.0, 0.0]; n],
             mass: DMatrix::zeros(self.nv, self.nv),
             chol: DMatrix::zeros(self.nv, self.nv),
             tmp: vec![0.0; self.nv],
@@ -492,7 +520,21 @@ impl Dynamics {
 
     /// Placements and velocities of every body for (q, v) (v = None: at rest).
     pub fn update_kinematics_unchecked(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace) {
-        self.kinematics_pass(q, v, ws, true);
+        self.kinematics_pass(q, None, v, ws, Pass::Full);
+    }
+
+    /// The kinematics at `q (+) factor dq` (see [`integrate_scaled`](Self::integrate_scaled))
+    /// with velocity `v`, where `angles` holds each body's `[cos, sin]` at `q` (a workspace's
+    /// [`angles`](DynWorkspace::angles) after an update at `q`): each joint's rotation by angle
+    /// addition with the small step's cosine and sine, without the `sin_cos` of the whole angle,
+    /// and the world velocities from the parent's. Writes the placements (`r`, `p`, `rw`,
+    /// `pw`), the world velocities (`vw`, `ww`), `qd` and `angles`, equal to
+    /// [`update_kinematics_unchecked`](Self::update_kinematics_unchecked)'s at the integrated q
+    /// up to rounding: enough for [`aba_from_kinematics`](Self::aba_from_kinematics), frames and
+    /// Jacobians; the body-frame velocities (`v`, `w`) are left stale (not for RNEA). The RK
+    /// stages of the 1 kHz plant take their kinematics this way from the period's start.
+    pub fn update_kinematics_moved_unchecked(&self, angles: &[[f64; 2]], q: &[f64], dq: &[f64], factor: f64, v: &[f64], ws: &mut DynWorkspace) {
+        self.kinematics_pass(q, Some((angles, dq, factor)), Some(v), ws, Pass::World);
     }
 
     /// As [`update_kinematics_unchecked`](Self::update_kinematics_unchecked) but without the
@@ -502,27 +544,68 @@ impl Dynamics {
     /// [`forward_dynamics_from_kinematics`](Self::forward_dynamics_from_kinematics), not for
     /// frames and Jacobians.
     pub fn update_local_kinematics_unchecked(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace) {
-        self.kinematics_pass(q, v, ws, false);
+        self.kinematics_pass(q, None, v, ws, Pass::Local);
     }
 
+    /// The kinematics at q, or with `moved` = (angles at q, dq, factor) at `q (+) factor dq`.
     #[inline]
-    fn kinematics_pass(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace, world: bool) {
+    fn kinematics_pass(&self, q: &[f64], moved: Option<(&[[f64; 2]], &[f64], f64)>, v: Option<&[f64]>, ws: &mut DynWorkspace, pass: Pass) {
         for (i, b) in self.bodies.iter().enumerate() {
             let qd = v.map_or(0.0, |v| v[b.v_index]);
             ws.qd[b.v_index] = qd;
             let (r, p) = match b.kind {
-                JointKind::Revolute => {
-                    let (s, c) = q[b.q_index].sin_cos();
+                JointKind::Revolute | JointKind::Continuous => {
+                    let [c, s] = match moved {
+                        Some((angles, dq, factor)) => {
+                            let [c0, s0] = angles[i];
+                            let (sd, cd) = small_sin_cos(factor * dq[b.v_index]);
+                            [c0 * cd - s0 * sd, s0 * cd + c0 * sd]
+                        }
+                        None if b.kind == JointKind::Revolute => {
+                            let (s, c) = q[b.q_index].sin_cos();
+                            [c, s]
+                        }
+                        None => {
+                            let (c, s) = (q[b.q_index], q[b.q_index + 1]);
+                            let n = c.hypot(s);
+                            if n > 0.0 {
+                                [c / n, s / n]
+                            } else {
+                                [1.0, 0.0]
+                            }
+                        }
+                    };
+                    ws.angles[i] = [c, s];
                     (b.r_parent * axis_rotation(&b.axis, c, s), b.p_parent)
                 }
-                JointKind::Continuous => {
-                    let (c, s) = (q[b.q_index], q[b.q_index + 1]);
-                    let n = c.hypot(s);
-                    let (c, s) = if n > 0.0 { (c / n, s / n) } else { (1.0, 0.0) };
-                    (b.r_parent * axis_rotation(&b.axis, c, s), b.p_parent)
+                JointKind::Prismatic => {
+                    let x = q[b.q_index] + moved.map_or(0.0, |(_, dq, factor)| factor * dq[b.v_index]);
+                    (b.r_parent, b.p_parent + b.r_parent * b.axis * x)
                 }
-                JointKind::Prismatic => (b.r_parent, b.p_parent + b.r_parent * b.axis * q[b.q_index]),
             };
+            ws.r[i] = r;
+            ws.p[i] = p;
+            if pass == Pass::World {
+                // world velocities straight from the parent's: the body-frame ones are not needed
+                let (rw, pw) = match b.parent {
+                    Some(pi) => (ws.rw[pi] * r, ws.pw[pi] + ws.rw[pi] * p),
+                    None => (r, p),
+                };
+                let (mut vw, mut ww) = match b.parent {
+                    Some(pi) => (ws.vw[pi] + ws.ww[pi].cross(&(pw - ws.pw[pi])), ws.ww[pi]),
+                    None => (Vector3::zeros(), Vector3::zeros()),
+                };
+                let axis = rw * b.axis;
+                match b.kind {
+                    JointKind::Revolute | JointKind::Continuous => ww += axis * qd,
+                    JointKind::Prismatic => vw += axis * qd,
+                }
+                ws.rw[i] = rw;
+                ws.pw[i] = pw;
+                ws.vw[i] = vw;
+                ws.ww[i] = ww;
+                continue;
+            }
             let rt = r.transpose();
             let (mut vi, mut wi) = match b.parent {
                 Some(pi) => (rt * (ws.v[pi] + ws.w[pi].cross(&p)), rt * ws.w[pi]),
@@ -532,11 +615,9 @@ impl Dynamics {
                 JointKind::Revolute | JointKind::Continuous => wi += b.axis * qd,
                 JointKind::Prismatic => vi += b.axis * qd,
             }
-            ws.r[i] = r;
-            ws.p[i] = p;
             ws.v[i] = vi;
             ws.w[i] = wi;
-            if world {
+            if pass == Pass::Full {
                 let (rw, pw) = match b.parent {
                     Some(pi) => (ws.rw[pi] * r, ws.pw[pi] + ws.rw[pi] * p),
                     None => (r, p),
@@ -564,6 +645,7 @@ impl Dynamics {
         to.vw.copy_from_slice(&from.vw);
         to.ww.copy_from_slice(&from.ww);
         to.qd.copy_from_slice(&from.qd);
+        to.angles.copy_from_slice(&from.angles);
     }
 
     /// Whether `other` has this model's joints and placements (the same kinematics; the

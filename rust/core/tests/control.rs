@@ -691,6 +691,66 @@ fn a_joint_reference_is_checked_before_the_run() {
 
 #[test]
 #[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn the_plant_is_rk4_on_crba_and_cholesky_to_rounding() {
+    // the plant's stages (the articulated-body algorithm on kinematics rotated by angle
+    // addition, the friction's tanh in one exp) against a textbook RK4 step of
+    // `Dynamics::forward_dynamics` (CRBA + RNEA + Cholesky) at the integrated configurations,
+    // with the library's tanh: the same step up to rounding
+    let arm = panda();
+    let coulomb = [1.5, 1.5, 1.5, 1.5, 0.3, 0.3, 0.3];
+    let (viscous, offset, fv) = ([1.0; 7], [0.8, -0.8, 0.6, -0.6, 0.15, -0.15, 0.1], 0.02);
+    let disturbances = Disturbances {
+        payload: Some(Payload::point(0.6, [0.0, 0.0, 0.1])),
+        coulomb: coulomb.to_vec(),
+        viscous: viscous.to_vec(),
+        offset: offset.to_vec(),
+        friction_velocity: fv,
+    };
+    let controller = hand(ControlSpace::Task);
+    let mut sim = Simulation::new(&arm, SimConfig { controller, disturbances, ..Default::default() }).unwrap();
+    let model = sim.plant.model().clone();
+    let mut ws = model.workspace();
+    let accel = |q: &[f64], v: &[f64], tau: &[f64], ws: &mut genplan_core::dynamics::DynWorkspace| {
+        let t: Vec<f64> = (0..7).map(|i| tau[i] + offset[i] - coulomb[i] * (v[i] / fv).tanh() - viscous[i] * v[i]).collect();
+        let mut a = vec![0.0; 7];
+        model.forward_dynamics(q, v, &t, ws, &mut a).unwrap();
+        a
+    };
+    let mut rng = StdRng::seed_from_u64(9);
+    let mut worst = 0.0_f64;
+    for k in 0..50 {
+        let q: Vec<f64> = [0.0, -0.3, 0.0, -2.0, 0.0, 1.9, 0.8].iter().map(|c| c + rng.random_range(-0.5..0.5)).collect();
+        // speeds from near rest (the friction's steep part) to fast
+        let scale = [1e-4, 0.05, 1.5][k % 3];
+        let v: Vec<f64> = (0..7).map(|_| scale * rng.random_range(-1.0..1.0)).collect();
+        let tau: Vec<f64> = (0..7).map(|_| rng.random_range(-10.0..10.0)).collect();
+        let h = 1e-3;
+        let add = |a: &[f64], b: &[f64], f: f64| a.iter().zip(b).map(|(x, y)| x + f * y).collect::<Vec<f64>>();
+        let k1 = accel(&q, &v, &tau, &mut ws);
+        let v2 = add(&v, &k1, h / 2.0);
+        let k2 = accel(&add(&q, &v, h / 2.0), &v2, &tau, &mut ws);
+        let v3 = add(&v, &k2, h / 2.0);
+        let k3 = accel(&add(&q, &v2, h / 2.0), &v3, &tau, &mut ws);
+        let v4 = add(&v, &k3, h);
+        let k4 = accel(&add(&q, &v3, h), &v4, &tau, &mut ws);
+        let q_want: Vec<f64> = (0..7).map(|i| q[i] + h / 6.0 * (v[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i])).collect();
+        let v_want: Vec<f64> = (0..7).map(|i| v[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])).collect();
+        sim.plant.reset(&q).unwrap();
+        sim.plant.v.copy_from_slice(&v);
+        let mut qdd = vec![0.0; 7];
+        sim.plant.step(&tau, h, k as u64, None, &mut qdd).unwrap();
+        let kscale = 1.0 + k1.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        for i in 0..7 {
+            worst = worst.max((sim.plant.q[i] - q_want[i]).abs());
+            worst = worst.max((sim.plant.v[i] - v_want[i]).abs() / (1.0 + v_want[i].abs()));
+            worst = worst.max((qdd[i] - k1[i]).abs() / kscale);
+        }
+    }
+    assert!(worst < 1e-12, "the plant's step differs from RK4 on CRBA + Cholesky by {worst:e}");
+}
+
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
 fn the_plant_steps_the_same_from_the_controllers_kinematics() {
     // the controller's nominal model lacks the plant's payload, not its joints: the plant's
     // first RK4 stage may take the kinematics the controller measured, and steps bit for bit
