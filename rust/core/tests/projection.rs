@@ -334,3 +334,60 @@ fn residual_sizes_are_the_unstepped_solves_residuals() {
     assert!(p.try_residual_sizes(&[0.0, f64::NAN, 0.0, 0.0], false).is_err());
     assert!(p.try_residual_sizes(&[0.0; 6], true).is_err());
 }
+
+/// The residual-only check evaluates only the joints its terms read, into buffers kept across
+/// rows: its sizes are those of an unstepped solve bit for bit, for every built-in term kind
+/// (alone, so that a task reading only the first links computes only their joints, and all
+/// together), on a fixed and a free-flyer base, a posture with overrides and one with a nominal
+/// of its own, in parallel or not.
+#[test]
+fn residual_sizes_of_every_term_kind_are_the_solves_bit_for_bit() {
+    for floating in [false, true] {
+        let m = model(floating);
+        let [base, l1, l2, tool] = ["base", "l1", "l2", "tool"].map(|n| m.link_index(n).unwrap());
+        let term = |name: &str, kind| Term { name: name.into(), kind, weight: 2.0, tolerance: 1e-6 };
+        let target = nalgebra::Isometry3::new(Vector3::new(0.1, -0.3, 0.2), Vector3::new(0.4, -0.2, 0.9));
+        let rot = *target.rotation.to_rotation_matrix().matrix();
+        let offset = *nalgebra::Rotation3::from_euler_angles(0.1, 0.2, -0.3).matrix();
+        let (nq, nv) = (m.nq, m.nv);
+        let mut kinds = vec![
+            term("pose_l1", TermKind::FramePose { link: l1, target, mask: [1.0, 0.5, 2.0, 1.0, 0.0, 3.0] }),
+            term("position_l2", TermKind::FramePosition { link: l2, target: target.translation.vector, mask: [1.0, 2.0, 0.5] }),
+            term("orientation_base", TermKind::FrameOrientation { link: base, target: rot, offset, mask: [1.0; 3] }),
+            term("orientation_tool", TermKind::FrameOrientation { link: tool, target: rot, offset, mask: [0.0, 1.0, 1.0] }),
+            term("limits", TermKind::JointLimits { margin: 1e-3 }),
+            term("com", TermKind::ComBox { lower: Vector3::new(-0.1, -0.1, 0.0), upper: Vector3::new(0.1, 0.05, 0.3), margin: 0.01 }),
+            term("posture_overrides", TermKind::Posture { q_nom: None, weights: (0..nv).map(|i| 0.5 + i as f64).collect(), overrides: vec![(nq - 2, 0.7)] }),
+            term("posture_own", TermKind::Posture { q_nom: Some(configurations(&m)[1].clone()), weights: vec![1.5; nv], overrides: vec![] }),
+        ];
+        kinds.extend(multi_frame_terms(&m));
+        let mut rows = configurations(&m);
+        // beyond the limits of the second and last joints
+        let mut beyond = rows[0].clone();
+        beyond[nq - 3] = 2.6;
+        beyond[nq - 1] = -0.3;
+        rows.push(beyond);
+        let flat: Vec<f64> = rows.concat();
+        let unstepped = Settings { max_iterations: 0, clip_to_limits: false, ..Settings::default() };
+        let tasks = kinds.iter().map(|t| vec![t.clone()]).chain([kinds.clone()]);
+        for terms in tasks {
+            let n = terms.len();
+            let names: Vec<String> = terms.iter().map(|t| t.name.clone()).collect();
+            let p = Projector::new(m.clone(), terms, vec![], unstepped.clone()).unwrap();
+            for parallel in [false, true] {
+                let sizes = p.try_residual_sizes(&flat, parallel).unwrap();
+                assert_eq!(sizes.len(), rows.len() * n);
+                for (q, row) in rows.iter().zip(sizes.chunks(n)) {
+                    let want = p.solve(q, None).unwrap().residuals;
+                    let (got, want): (Vec<u64>, Vec<u64>) = (row.iter().map(|x| x.to_bits()).collect(), want.iter().map(|x| x.to_bits()).collect());
+                    assert_eq!(got, want, "floating {floating}, terms {names:?}, q {q:?}");
+                }
+            }
+            // every term measures something at some row (no size is trivially zero everywhere)
+            let sizes = p.try_residual_sizes(&flat, false).unwrap();
+            for (i, name) in names.iter().enumerate() {
+                assert!(sizes.iter().skip(i).step_by(n).any(|&x| x > 0.0), "{name}: {sizes:?}");
+            }
+        }
+    }
+}

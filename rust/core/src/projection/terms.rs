@@ -179,46 +179,56 @@ impl Projector {
 
     /// Unweighted residual of a built-in term (a custom one goes through [`eval`](Self::eval)).
     fn residual(&self, t: &Term, s: &State, q_nom: &[f64]) -> DVector<f64> {
+        let mut r = DVector::zeros(self.dim(t));
+        self.residual_into(t, s, q_nom, r.as_mut_slice());
+        r
+    }
+
+    /// [`residual`](Self::residual) written into `out` (length [`dim`](Self::dim)), allocating
+    /// nothing: the one definition of the built-in residuals, which the residual-only check of
+    /// many configurations evaluates into a buffer kept across rows.
+    pub(super) fn residual_into(&self, t: &Term, s: &State, q_nom: &[f64], out: &mut [f64]) {
+        // out[k] = mask[k] * r[k] over the mask's components
+        fn masked(out: &mut [f64], mask: &[f64], r: &[f64]) {
+            out.iter_mut().zip(mask.iter().zip(r)).for_each(|(o, (m, x))| *o = m * x);
+        }
         match &t.kind {
-            TermKind::FramePose { link, target, mask } => {
-                let r = log6(&(target.inverse() * s.poses[*link]));
-                DVector::from_iterator(6, (0..6).map(|k| mask[k] * r[k]))
-            }
-            TermKind::FramePosition { link, target, mask } => {
-                let d = s.poses[*link].translation.vector - target;
-                DVector::from_iterator(3, (0..3).map(|k| mask[k] * d[k]))
-            }
+            TermKind::FramePose { link, target, mask } => masked(out, mask, log6(&(target.inverse() * s.poses[*link])).as_slice()),
+            TermKind::FramePosition { link, target, mask } => masked(out, mask, (s.poses[*link].translation.vector - target).as_slice()),
             TermKind::FrameOrientation { link, target, offset, mask } => {
                 let rel = target.transpose() * s.poses[*link].rotation.to_rotation_matrix().into_inner() * offset;
                 let (w, _) = log3(&rel);
-                DVector::from_iterator(3, (0..3).map(|k| mask[k] * w[k]))
+                masked(out, mask, w.as_slice())
             }
             TermKind::RelativePose { link, relative_to, target, mask } => {
-                let r = log6(&(target.inverse() * s.poses[*relative_to].inverse() * s.poses[*link]));
-                DVector::from_iterator(6, (0..6).map(|k| mask[k] * r[k]))
+                masked(out, mask, log6(&(target.inverse() * s.poses[*relative_to].inverse() * s.poses[*link])).as_slice())
             }
             TermKind::RelativePosition { link, relative_to, target, mask } => {
-                let d = relative_position(&s.poses[*link], &s.poses[*relative_to]) - target;
-                DVector::from_iterator(3, (0..3).map(|k| mask[k] * d[k]))
+                masked(out, mask, (relative_position(&s.poses[*link], &s.poses[*relative_to]) - target).as_slice())
             }
             TermKind::PointAt { link, axis, point } => {
                 let d = s.poses[*link].rotation.inverse_transform_vector(&(point - s.poses[*link].translation.vector));
                 let (e1, e2) = axis_complement(axis);
-                DVector::from_vec(vec![e1.dot(&d), e2.dot(&d)])
+                out[0] = e1.dot(&d);
+                out[1] = e2.dot(&d);
             }
-            TermKind::Plane { link, normal, offset } => DVector::from_element(1, normal.dot(&s.poses[*link].translation.vector) - offset),
-            TermKind::JointLimits { .. } => DVector::from_iterator(
-                self.bounded.len(),
-                self.bounded.iter().map(|&(iq, _, lo, hi)| (s.q[iq] - lo).min(0.0) + (s.q[iq] - hi).max(0.0)),
-            ),
+            TermKind::Plane { link, normal, offset } => out[0] = normal.dot(&s.poses[*link].translation.vector) - offset,
+            TermKind::JointLimits { .. } => {
+                for (o, &(iq, _, lo, hi)) in out.iter_mut().zip(&self.bounded) {
+                    *o = (s.q[iq] - lo).min(0.0) + (s.q[iq] - hi).max(0.0);
+                }
+            }
             TermKind::ComBox { lower, upper, .. } => {
                 let c = self.model.center_of_mass(&s.poses, None);
-                DVector::from_iterator(3, (0..3).map(|k| (c[k] - lower[k]).min(0.0) + (c[k] - upper[k]).max(0.0)))
+                for (k, o) in out.iter_mut().enumerate() {
+                    *o = (c[k] - lower[k]).min(0.0) + (c[k] - upper[k]).max(0.0);
+                }
             }
             TermKind::Posture { weights, .. } => {
-                let mut d = vec![0.0; self.model.nv];
-                self.model.difference(q_nom, &s.q, &mut d);
-                DVector::from_iterator(self.model.nv, d.iter().zip(weights).map(|(a, w)| a * w))
+                // `difference` writes every tangent component but those of no joint (zero)
+                out.fill(0.0);
+                self.model.difference(q_nom, &s.q, out);
+                out.iter_mut().zip(weights).for_each(|(o, w)| *o *= w);
             }
             TermKind::Custom(_) => unreachable!("custom terms are evaluated by Projector::custom"),
         }
@@ -336,30 +346,40 @@ impl Projector {
 /// A term's residual size: the largest absolute component of its unweighted residual `r` (0
 /// for a term of no rows, +inf when a component is NaN), the measure its tolerance bounds.
 pub fn residual_size(r: &DVector<f64>) -> f64 {
-    match r.len() {
-        0 => 0.0,
-        _ if r.iter().any(|x| x.is_nan()) => f64::INFINITY,
-        _ => r.amax(),
+    largest_abs(r.as_slice())
+}
+
+/// [`residual_size`] of a residual held in a slice (0 when empty, +inf with a NaN, else the
+/// largest absolute component: a maximum, exact in any order).
+pub(super) fn largest_abs(r: &[f64]) -> f64 {
+    if r.iter().any(|x| x.is_nan()) {
+        return f64::INFINITY;
     }
+    r.iter().fold(0.0, |m: f64, x| m.max(x.abs()))
 }
 
 /// The nominal posture of each term: a Posture's own `q_nom`, else the solve's nominal with
 /// the term's overrides applied.
 pub(super) fn nominals(terms: &[Term], nominal: &[f64]) -> Vec<Vec<f64>> {
-    terms
-        .iter()
-        .map(|t| match &t.kind {
-            TermKind::Posture { q_nom: Some(n), .. } => n.clone(),
-            TermKind::Posture { q_nom: None, overrides, .. } => {
-                let mut n = nominal.to_vec();
-                for &(iq, v) in overrides {
-                    n[iq] = v;
-                }
-                n
+    let mut buf = Vec::new();
+    terms.iter().map(|t| nominal_of(t, nominal, &mut buf).to_vec()).collect()
+}
+
+/// The nominal posture of one term ([`nominals`]), without a copy when it is `nominal` or the
+/// term's own; with overrides, written into `buf` (kept by the caller across calls).
+pub(super) fn nominal_of<'a>(t: &'a Term, nominal: &'a [f64], buf: &'a mut Vec<f64>) -> &'a [f64] {
+    match &t.kind {
+        TermKind::Posture { q_nom: Some(n), .. } => n,
+        TermKind::Posture { q_nom: None, overrides, .. } if !overrides.is_empty() => {
+            buf.clear();
+            buf.extend_from_slice(nominal);
+            for &(iq, v) in overrides {
+                buf[iq] = v;
             }
-            _ => nominal.to_vec(),
-        })
-        .collect()
+            buf
+        }
+        _ => nominal,
+    }
 }
 
 /// A joint at `q` is within `margin` of a limit of `[lo, hi]`: its `JointLimits` row is active
