@@ -165,22 +165,80 @@ def test_plan_cli_writes_the_trajectory(panda, tmp_path, capsys) -> None:
     assert "expected a .npz, .json or .csv file" in capsys.readouterr().err
 
 
+def _path_parameters(states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The states without consecutive duplicates and their cumulative joint-space distance, as
+    parameterize takes them."""
+    steps = np.linalg.norm(np.diff(states, axis=0), axis=1)
+    states = states[np.concatenate([[True], steps > 1e-12])]
+    return states, np.concatenate([[0.0], np.cumsum(steps[steps > 1e-12])])
+
+
+def _timed(states: np.ndarray, ss: np.ndarray, vlim: np.ndarray, alim: np.ndarray) -> "_core.TimedPath":
+    from genplan import trajectory as T
+
+    return _core.TimedPath(ss.tolist(), np.ascontiguousarray(states), vlim.tolist(), alim.tolist(), T.GRID_BASE,
+                           T.GRID_CRITICAL)
+
+
+def _grid_oracle(spline, ss: np.ndarray, vlim: np.ndarray, alim: np.ndarray) -> np.ndarray:
+    """The grid rule of genplan.trajectory (GRID_BASE, GRID_CRITICAL) read with numpy on a scipy
+    spline: an independent reading of rust/core/src/timing.rs's gridpoints."""
+    from genplan.trajectory import GRID_BASE, GRID_CRITICAL
+
+    d1, d2 = np.abs(spline(ss, 1)), np.abs(spline(ss, 2))
+    s_max2 = np.min(vlim / np.maximum(d1, 1e-12), axis=1) ** 2
+    need = np.max(d2 * s_max2[:, None] / alim, axis=1)
+    base = np.linspace(0, len(ss) - 1, min(GRID_BASE, len(ss))).round().astype(int)
+    idx = np.union1d(base, np.nonzero(need > GRID_CRITICAL)[0])
+    hot = np.nonzero(np.maximum(need[:-1], need[1:]) > 4.0 * GRID_CRITICAL)[0]
+    extra = (ss[hot, None] + (ss[hot + 1] - ss[hot])[:, None] * np.array([0.25, 0.5, 0.75])[None, :]).ravel()
+    even = np.linspace(0.0, ss[-1], GRID_BASE) if len(ss) < GRID_BASE else ss[:0]
+    return np.unique(np.concatenate([ss[idx], extra, even]))
+
+
+@pytest.mark.parametrize("states", [2, 3, 5, 41, 300])
+def test_the_native_spline_and_grid_are_scipys(panda, states) -> None:
+    """_core.TimedPath's not-a-knot spline against scipy's CubicSpline (the samples at rest at
+    its grid points: q = p(s)) and its grid against the numpy reading of the rule, on random
+    paths of 2 to 300 states (uneven steps): the same grid, the same positions to round-off."""
+    from scipy.interpolate import CubicSpline
+
+    from genplan.trajectory import joint_limits
+
+    rng = np.random.default_rng(states)
+    steps = rng.uniform(0.002, 0.05, (states - 1, 7)) * rng.choice([-1.0, 1.0], (states - 1, 7))
+    raw = panda.q_default + np.concatenate([np.zeros((1, 7)), np.cumsum(steps, axis=0)])
+    path, ss = _path_parameters(raw)
+    vlim, alim = joint_limits(panda)
+    timed = _timed(path, ss, vlim, alim)
+    spline = CubicSpline(ss, path)
+    np.testing.assert_array_equal(timed.grid, _grid_oracle(spline, ss, vlim, alim))
+    t, q, qd, _ = timed.sample(1000.0, 1.0)
+    assert t[-1] == pytest.approx(timed.duration) and not qd[0].any()
+    # every 50th sample on scipy's spline: its s found by Newton's method from the nearest state
+    for k in range(0, len(t), max(1, len(t) // 50)):
+        s = ss[np.argmin(np.linalg.norm(path - q[k], axis=1))]
+        for _ in range(20):
+            d = spline(s, 1)
+            s = float(np.clip(s - (spline(s) - q[k]) @ d / (d @ d), 0.0, ss[-1]))
+        assert np.abs(spline(s) - q[k]).max() < 1e-12, (k, np.abs(spline(s) - q[k]).max())
+
+
 def test_the_native_topp_ra_matches_toppra(panda, result) -> None:
-    """rust/core/src/timing.rs against the ``toppra`` package on the same spline, grid and limits
-    (TOPPRA, joint velocity and acceleration constraints, interpolation discretisation): the same
-    speed profile within toppra's solver tolerance, hence the same duration."""
+    """rust/core/src/timing.rs against the ``toppra`` package on the same path, grid and limits
+    (TOPPRA, joint velocity and acceleration constraints, interpolation discretisation, its
+    SplineInterpolator: scipy's not-a-knot spline): the same speed profile within toppra's
+    solver tolerance, hence the same duration."""
     import toppra  # the test extra's
     import toppra.algorithm as algo
     import toppra.constraint as constraint
     from genplan import trajectory as T
 
-    states = result.path
-    steps = np.linalg.norm(np.diff(states, axis=0), axis=1)
-    states = states[np.concatenate([[True], steps > 1e-12])]
-    ss = np.concatenate([[0.0], np.cumsum(steps[steps > 1e-12])])
+    states, ss = _path_parameters(result.path)
     vlim, alim = T.joint_limits(panda)
     spline = toppra.SplineInterpolator(ss, states)
-    grid = T._gridpoints(spline, ss, vlim, alim)
+    timed = _timed(states, ss, vlim, alim)
+    grid = timed.grid
     instance = algo.TOPPRA(
         [constraint.JointVelocityConstraint(np.stack([-vlim, vlim], axis=1)),
          constraint.JointAccelerationConstraint(np.stack([-alim, alim], axis=1),
@@ -188,15 +246,19 @@ def test_the_native_topp_ra_matches_toppra(panda, result) -> None:
         spline, gridpoints=grid, solver_wrapper="seidel")
     _, sd, _, _ = instance.compute_parameterization(0.0, 0.0, return_data=True)
     theirs = np.maximum(np.asarray(sd), 0.0)
-    mine = np.sqrt(_core.time_optimal(grid.tolist(), np.ascontiguousarray(spline(grid, 1)),
-                                      np.ascontiguousarray(spline(grid, 2)), vlim.tolist(), alim.tolist()))
+    mine = timed.sdot
     assert len(grid) > 50 and mine.max() > 0.1
     assert np.max(np.abs(mine - theirs)) <= 1e-3 * theirs.max(), np.max(np.abs(mine - theirs))
+    # the native profile on the spline's derivatives through the bare function: the same
+    bare = np.sqrt(np.maximum(_core.time_optimal(grid.tolist(), np.ascontiguousarray(spline(grid, 1)),
+                                                 np.ascontiguousarray(spline(grid, 2)), vlim.tolist(), alim.tolist()), 0))
+    assert np.max(np.abs(mine - bare)) <= 1e-6 * theirs.max()
 
     def duration(sdot: np.ndarray) -> float:
         return float(np.sum(2.0 * np.diff(grid) / (sdot[:-1] + sdot[1:])))
 
     assert abs(duration(mine) - duration(theirs)) <= 1e-3 * duration(theirs)
+    assert timed.duration == pytest.approx(duration(mine), rel=1e-12)
 
 
 def test_the_native_topp_ra_refuses_bad_input() -> None:
@@ -208,6 +270,12 @@ def test_the_native_topp_ra_refuses_bad_input() -> None:
         _core.time_optimal([0.0, 0.5, 0.5], d, d, [1.0, 1.0], [1.0, 1.0])
     with pytest.raises(ValueError, match="d1 and d2"):
         _core.time_optimal(grid, d[:2], d, [1.0, 1.0], [1.0, 1.0])
+    with pytest.raises(ShapeError, match=r"states: expected shape \(3, 2\)"):
+        _core.TimedPath(grid, d[:2], [1.0, 1.0], [1.0, 1.0], 40, 1.0)
+    with pytest.raises(ValueError, match="x: must increase"):
+        _core.TimedPath([0.0, 0.5, 0.5], d, [1.0, 1.0], [1.0, 1.0], 40, 1.0)
+    with pytest.raises(ValueError, match="one limit per joint"):
+        _core.TimedPath(grid, d, [1.0, 1.0], [1.0], 40, 1.0)
 
 
 # -- a trajectory is a success only when every sample passes its checks ------------------------
@@ -456,3 +524,36 @@ def test_integrity_rerun_a_corrupt_npz_is_a_data_file_error_naming_it(traj, tmp_
     with pytest.raises(DataFileError, match=r"plain\.npz: not a trajectory written by Trajectory\.save \(KeyError"):
         Trajectory.load(tmp_path / "plain.npz")
     assert np.array_equal(Trajectory.load(good).q, traj.q)
+
+
+def test_continuous_joints_are_timed_as_angles_and_a_free_flyer_is_refused() -> None:
+    """Kinova's continuous joints: a plan on the committed upright-tool task is time-parameterised
+    (q keeps Pinocchio's unit [cos, sin] pairs, qd/qdd one per joint, every sample on the
+    manifold); a move across the +-pi seam of a continuous joint takes the short way round;
+    Talos (a free-flying base) is refused by name."""
+    from pathlib import Path
+
+    from genplan import projection as P
+    from genplan.planning import plan
+
+    kinova = genplan.load("kinova")
+    task = P.load_task(str(Path(__file__).parents[1] / "examples" / "kinova" / "upright_tool.toml"), kinova)
+    outcome = plan(kinova, task, None, start="default", target=[0.45, 0.2, 0.3], seed=0)
+    assert outcome.result.success
+    traj = outcome.result.trajectory()
+    assert traj.q.shape[1] == kinova.nq and traj.qd.shape[1] == traj.qdd.shape[1] == kinova.nv
+    assert traj.within_tolerance and traj.max_residual_ratio <= 1.0
+    for i in kinova.continuous:
+        np.testing.assert_allclose(np.linalg.norm(traj.q[:, i:i + 2], axis=1), 1.0, atol=1e-12)
+    x = kinova.joint_values(traj.q)
+    assert np.abs(np.diff(x, axis=0)).max() <= np.max(traj.velocity_limits) * 1e-3 + 1e-12  # no 2 pi jump
+    np.testing.assert_allclose(kinova.from_joint_values(x), traj.q, atol=1e-12)
+    # across the seam: -3.0 rad is 2 pi - 3.0 = 3.28 rad, 0.28 rad from 3.0 the short way
+    a = kinova.from_joint_values(np.array([[3.0, 3.5, 2.0, 0.0, 3.0, 0.0]]))[0]
+    b = kinova.from_joint_values(np.array([[-3.0, 3.5, 2.0, 0.5, 3.0, 0.5]]))[0]
+    seam = kinova.joint_values(parameterize(kinova, np.array([a, b])).q)
+    assert seam[0, 0] == pytest.approx(3.0) and seam[-1, 0] == pytest.approx(2 * np.pi - 3.0)
+    assert np.all(np.diff(seam[:, 0]) >= -1e-12)
+    talos = genplan.load("talos")
+    with pytest.raises(GenplanError, match="free-flying base"):
+        parameterize(talos, np.array([talos.q_default, talos.q_default]))

@@ -36,8 +36,12 @@ the joint, term or pair), never a trajectory:
 Grid points: every ``GRID_BASE``-th part of the path's states, plus every state where the
 spline's curvature could call for more than ``GRID_CRITICAL`` of an acceleration limit at the
 largest speed the velocity limits allow there (the path's corners, at its waypoints), those
-corners' intervals subdivided (the grid ``toppra``'s Python loop needed to stay fast; the native
-pass takes well under a millisecond on it; benchmark: ``genplan bench ik``, its trajectory part).
+corners' intervals subdivided (the grid ``toppra``'s Python loop needed to stay fast).
+
+The spline, the grid, TOPP-RA, the stretch and the samples are one native object
+(``_core.TimedPath``, rust/core/src/timing.rs): the stretch evaluates the samples without storing
+them and only the final ones are allocated; what remains in Python is the checks' bookkeeping and
+the residual check (``_core.residual_sizes``, the most of the time on a task's path).
 
 Files: :meth:`Trajectory.save` writes ``.npz``, ``.json`` or ``.csv`` (by suffix, atomically);
 :meth:`Trajectory.load` reads them back (a CSV holds the arrays and joint names only).
@@ -288,8 +292,8 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     ``result.path``), at rest at both ends, sampled at ``rate_hz``; see the module's text.
 
     Args:
-        robot: the robot (its URDF's velocity limits are used). Robots whose configuration has
-            more numbers than velocities (a free-flyer's quaternion, continuous joints) are not
+        robot: the robot (its URDF's velocity limits are used). A continuous joint is timed as
+            its angle (q's [cos, sin] unwrapped along the path); a free-flying base is not
             supported yet.
         path: the states, finite, within the joint limits; consecutive duplicates are dropped.
             Any path of two or more distinct states is timed; one distinct state is a trajectory
@@ -317,90 +321,73 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
             parameterisation within the limits, or a sample that fails a check (naming the first
             bad state or sample).
     """
-    if robot.nq != robot.nv:
-        raise GenplanError(f"robot '{robot.name}': trajectories need as many configuration numbers as velocities "
-                           f"(nq {robot.nq} != nv {robot.nv}: a free flyer or continuous joints); not supported yet")
+    if robot.floating_base:
+        raise GenplanError(f"robot '{robot.name}': trajectories of a free-flying base (nq {robot.nq} != nv {robot.nv}) "
+                           "are not supported yet")
     rate = _positive(rate_hz, "rate_hz")
     vlim, alim = joint_limits(robot, velocity_scale, acceleration_scale, acceleration_limits)
-    states = robot.check_configuration(path, "path")
-    if states.ndim != 2 or len(states) == 0:
-        raise ShapeError(f"path: expected shape (m, {robot.nq}) with m >= 1, got {states.shape}")
-    names = tuple(str(n) for n in list(robot.model.names)[1:])
-    _check_states(robot, states, names)
+    configurations = robot.check_configuration(path, "path")
+    if configurations.ndim != 2 or len(configurations) == 0:
+        raise ShapeError(f"path: expected shape (m, {robot.nq}) with m >= 1, got {configurations.shape}")
+    names = tuple(robot.joint_names)  # one per joint value (nv)
+    # the path is timed in joint values: a continuous joint's [cos, sin] as its angle, unwrapped
+    # along the path (Robot.joint_values); the samples' q are configurations again
+    states = robot.joint_values(robot.normalize(configurations) if robot.continuous else configurations)
+    lower, upper = _value_limits(robot)
+    _check_states(states, names, lower, upper)
     t0 = time.perf_counter()
     steps = np.linalg.norm(np.diff(states, axis=0), axis=1)
     keep = np.concatenate([[True], steps > 1e-12])
     states, steps = states[keep], steps[keep[1:]]
     if len(states) == 1:  # nothing to move: one sample at rest
         zero = np.zeros((1, robot.nv))
-        traj = Trajectory(t=np.zeros(1), q=states.copy(), qd=zero, qdd=zero.copy(), joint_names=names, rate_hz=rate,
+        traj = Trajectory(t=np.zeros(1), q=robot.from_joint_values(states), qd=zero, qdd=zero.copy(), joint_names=names,
+                          rate_hz=rate,
                           velocity_limits=vlim, acceleration_limits=alim, robot=robot.name,
                           stats={"parameterisation_s": time.perf_counter() - t0, "gridpoints": 1, "time_scaling": 1.0,
                                  "path_states": 1})
         return _checked(traj, robot, task, world)
 
-    from scipy.interpolate import CubicSpline
-
     ss = np.concatenate([[0.0], np.cumsum(steps)])
-    spline = CubicSpline(ss, states)  # not-a-knot, as toppra's SplineInterpolator; spline(s, order)
-    grid = _gridpoints(spline, ss, vlim, alim)
-    try:
-        x = _core.time_optimal(grid.tolist(), spline(grid, 1), spline(grid, 2), vlim.tolist(), alim.tolist())
+    try:  # native: the not-a-knot spline through the states, the grid, TOPP-RA's speed profile
+        timed = _core.TimedPath(ss.tolist(), np.ascontiguousarray(states), vlim.tolist(), alim.tolist(), GRID_BASE,
+                                GRID_CRITICAL)
     except ValueError as e:
         raise InvalidTrajectoryError(f"trajectory: TOPP-RA found no parameterisation of the path ({len(states)} states) "
                                      f"within the limits ({e})") from e
-    x = np.maximum(x, 0.0)
-    x[0] = x[-1] = 0.0
-    ds = np.diff(grid)
-    sdd = (x[1:] - x[:-1]) / (2.0 * ds)  # constant s'' per interval, consistent with x = s'^2
-    sdot = np.sqrt(x)
-    if np.any(sdot[:-1] + sdot[1:] <= 0.0):
-        stop = int(np.nonzero(sdot[:-1] + sdot[1:] <= 0.0)[0][0])
-        raise InvalidTrajectoryError(f"trajectory: TOPP-RA's speed profile stops inside the path (grid interval {stop} "
-                                     f"of {len(ds)}, s = {grid[stop]:.4g}); no parameterisation")
-    seg_t = 2.0 * ds / (sdot[:-1] + sdot[1:])
-    knots_t = np.concatenate([[0.0], np.cumsum(seg_t)])
-
-    # the spline's coefficients as (intervals, 4, nq) for the native sampler (scipy's: (4, intervals, nq))
-    coefficients = np.ascontiguousarray(np.moveaxis(spline.c, 0, 1), dtype=np.float64)
-    timed = (spline.x.tolist(), coefficients, grid.tolist(), knots_t.tolist(), sdot.tolist(), sdd.tolist())
 
     # the samples are checked at check_rate (every = 1: the asked rate itself), the trajectory is
     # every `every`-th of them and the end
     every = max(1, math.ceil(CHECK_RATE_HZ / rate - 1e-9))
     check_rate = rate * every
 
-    def sample(scale: float) -> tuple[Array, Array, Array, Array]:
-        # native: q = p(s(t)), qd = p'(s) s', qdd = p'(s) s'' + p''(s) s'^2 at each tick; the
-        # memory the samples take bounded before anything is allocated
-        duration = float(knots_t[-1]) * scale
+    def bounded(scale: float) -> str:
+        # the memory the samples take at this stretch, bounded before anything is allocated
+        duration = timed.duration * scale
         size = _core.sample_bytes(duration, check_rate, robot.nq)
         at = f"{rate:g} Hz" if every == 1 else f"{rate:g} Hz (checked at {check_rate:g} Hz)"
         what = f"rate_hz: a {duration:.4g} s trajectory of {robot.nq} joints at {at} needs {size / 2**30:.2f} GiB"
         if not size <= _core.MAX_TRAJECTORY_BYTES:
             raise SettingsError(f"{what}, more than the {_core.MAX_TRAJECTORY_BYTES / 2**30:.2f} GiB a trajectory may take "
                                 "(lower rate_hz, or raise velocity_scale / acceleration_scale)")
-        try:
-            return _core.sample_timed_spline(*timed, check_rate, scale)
-        except SettingsError as e:  # the allocation failed (the core's own bound is the one above)
-            raise SettingsError(f"{what}, which could not be allocated ({e})") from None
+        return what
 
-    scale = 1.0
-    t, q, qd, qdd = sample(scale)
-    for attempt in range(10):  # certify the limits on the samples themselves, with no tolerance
-        if (np.abs(qd) <= vlim).all() and (np.abs(qdd) <= alim).all():
-            break
-        # a ratio may round to 1 for a sample a hair beyond its limit, and a stretch moves the
-        # ticks along the profile (towards a peak between two ticks): a margin of 1e-6 of the
-        # duration, ten times more at each further attempt
-        over = max(float(np.max(np.abs(qd) / vlim)), math.sqrt(float(np.max(np.abs(qdd) / alim))), 1.0)
-        scale *= over * (1.0 + 1e-6 * 10.0**attempt)
-        t, q, qd, qdd = sample(scale)
+    bounded(1.0)
+    # the limits certified on the samples themselves, with no tolerance: the least uniform
+    # stretch t -> k t that keeps every sample within them (native, samples evaluated but not
+    # stored), then the samples at it: q = p(s(t)), qd = p'(s) s', qdd = p'(s) s'' + p''(s) s'^2
+    scale = timed.stretch(check_rate)
+    what = bounded(scale)
+    try:
+        t, q, qd, qdd = timed.sample(check_rate, scale)
+    except SettingsError as e:  # the allocation failed (the core's own bound is the one above)
+        raise SettingsError(f"{what}, which could not be allocated ({e})") from None
     q[0], q[-1] = states[0], states[-1]
     qd[0] = qd[-1] = 0.0
-    q, qd, qdd, moved = _into_limits(robot, task, q, qd, qdd)
-    stats = {"parameterisation_s": time.perf_counter() - t0, "gridpoints": int(len(grid)), "time_scaling": scale,
-             "optimal_duration_s": float(knots_t[-1]), "path_states": int(len(states)), "samples_into_limits": moved,
+    q, qd, qdd, moved = _into_limits(robot, task, q, qd, qdd, lower, upper)
+    q = robot.from_joint_values(q)
+    stats = {"parameterisation_s": time.perf_counter() - t0, "gridpoints": int(len(timed.grid)), "time_scaling": scale,
+             "optimal_duration_s": float(timed.duration), "path_states": int(len(states)), "samples_into_limits": moved,
              "check_rate_hz": check_rate}
     checked = _checked(Trajectory(t=t, q=q, qd=qd, qdd=qdd, joint_names=names, rate_hz=check_rate,
                                   velocity_limits=vlim, acceleration_limits=alim, robot=robot.name, stats=stats),
@@ -414,17 +401,26 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     return checked.replace(t=t[keep], q=q[keep], qd=qd[keep], qdd=qdd[keep], rate_hz=rate)
 
 
-def _check_states(robot: Robot, states: Array, names: tuple[str, ...]) -> None:
-    """InvalidTrajectoryError naming the first state of ``states`` outside the joint limits and
-    its joint (no tolerance)."""
-    out = (states < robot.lower) | (states > robot.upper)
+def _value_limits(robot: Robot) -> tuple[Array, Array]:
+    """The joint limits per joint value (nv): a continuous joint has none."""
+    if robot.nq == robot.nv:
+        return robot.lower, robot.upper
+    keep = [i for i in range(robot.nq) if i - 1 not in robot.continuous]  # a continuous joint's cos column
+    return robot.lower[keep], robot.upper[keep]
+
+
+def _check_states(states: Array, names: tuple[str, ...], lower: Array, upper: Array) -> None:
+    """InvalidTrajectoryError naming the first state of ``states`` (joint values) outside the
+    joint limits ``lower``, ``upper`` and its joint (no tolerance)."""
+    out = (states < lower) | (states > upper)
     if out.any():
         i, j = (int(k) for k in np.argwhere(out)[0])
         raise InvalidTrajectoryError(f"path[{i}]: joint {j} ({names[j]}) at {states[i, j]:.6g} is outside its limits "
-                                     f"[{robot.lower[j]:.6g}, {robot.upper[j]:.6g}]")
+                                     f"[{lower[j]:.6g}, {upper[j]:.6g}]")
 
 
-def _into_limits(robot: Robot, task: Any, q: Array, qd: Array, qdd: Array) -> tuple[Array, Array, Array, int]:
+def _into_limits(robot: Robot, task: Any, q: Array, qd: Array, qdd: Array, lower: Array,
+                 upper: Array) -> tuple[Array, Array, Array, int]:
     """The samples put within the joint limits, exactly: a joint beyond a limit is put on it, at
     rest there (its ``qd`` and ``qdd`` 0 at that sample), and with a ``task`` the sample is
     projected back onto the task's manifold within the limits (its other joints move to keep the
@@ -435,42 +431,24 @@ def _into_limits(robot: Robot, task: Any, q: Array, qd: Array, qdd: Array) -> tu
     paths and more on sparse ones. Clamping that joint alone would leave the manifold, well
     beyond the task's tolerances: the other joints compensate for it along the spline, hence the
     projection, which moves them by as little."""
-    out = (q < robot.lower) | (q > robot.upper)
+    out = (q < lower) | (q > upper)
     rows = np.nonzero(out.any(axis=1))[0]
     if len(rows) == 0:
         return q, qd, qdd, 0
     q, qd, qdd = q.copy(), qd.copy(), qdd.copy()
-    q[rows] = np.clip(q[rows], robot.lower, robot.upper)
+    q[rows] = np.clip(q[rows], lower, upper)
     qd[out] = 0.0
     qdd[out] = 0.0
     if task is not None:
-        from genplan.planning.queries import TOLERANCE_FACTOR
-        from genplan.projection import GaussNewtonProjector
-
         # as tight as the planner projects its states; clip_to_limits (the solver's default)
         # keeps every joint within its limits
-        tight = task.with_tolerances_scaled(TOLERANCE_FACTOR)
-        res = GaussNewtonProjector(robot, tight).solve_batch(q[rows], q[rows], parallel=True)
-        q[rows] = np.where(res.success[:, None], res.q, q[rows])
+        start = robot.from_joint_values(q[rows])
+        res = _evaluator(robot, task, tight=True).solve_batch(start, start, parallel=True)
+        moved = robot.joint_values(res.q)
+        # a continuous joint's angle back on the branch of the sample it was projected from
+        moved = q[rows] + np.remainder(moved - q[rows] + np.pi, 2 * np.pi) - np.pi if robot.continuous else moved
+        q[rows] = np.where(res.success[:, None], moved, q[rows])
     return q, qd, qdd, int(len(rows))
-
-
-def _gridpoints(spline: Any, ss: Array, vlim: Array, alim: Array) -> Array:
-    """TOPP-RA's grid: an even base over the states (a path of fewer than :data:`GRID_BASE`
-    states: all of them and :data:`GRID_BASE` points evenly spread in s, so that even two states
-    leave TOPP-RA room to speed up and slow down) plus the states (and, where it is larger
-    still, a subdivision of the intervals) whose curvature could call for a sizeable part of an
-    acceleration limit at the fastest speed the velocity limits allow there."""
-    d1 = np.abs(spline(ss, 1))
-    d2 = np.abs(spline(ss, 2))
-    s_max2 = np.min(vlim / np.maximum(d1, 1e-12), axis=1) ** 2
-    need = np.max(d2 * s_max2[:, None] / alim, axis=1)
-    base = np.linspace(0, len(ss) - 1, min(GRID_BASE, len(ss))).round().astype(int)
-    idx = np.union1d(base, np.nonzero(need > GRID_CRITICAL)[0])
-    hot = np.nonzero(np.maximum(need[:-1], need[1:]) > 4.0 * GRID_CRITICAL)[0]
-    extra = (ss[hot, None] + (ss[hot + 1] - ss[hot])[:, None] * np.array([0.25, 0.5, 0.75])[None, :]).ravel()
-    even = np.linspace(0.0, ss[-1], GRID_BASE) if len(ss) < GRID_BASE else ss[:0]
-    return np.unique(np.concatenate([ss[idx], extra, even]))
 
 
 def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any, where: str = "") -> Trajectory:
@@ -482,11 +460,13 @@ def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any, where: str =
     t0 = time.perf_counter()
     failures: list[tuple[int, str]] = []  # per check that fails: its first sample, and why
 
-    out = (traj.q < robot.lower) | (traj.q > robot.upper)
+    values = robot.joint_values(traj.q)
+    lower, upper = _value_limits(robot)
+    out = (values < lower) | (values > upper)
     if out.any():
         i, j = (int(k) for k in np.argwhere(out)[0])
-        failures.append((i, f"is outside the limits of joint {j} ({traj.joint_names[j]}): {float(traj.q[i, j])!r} not "
-                            f"in [{float(robot.lower[j])!r}, {float(robot.upper[j])!r}]"))
+        failures.append((i, f"is outside the limits of joint {j} ({traj.joint_names[j]}): {float(values[i, j])!r} not "
+                            f"in [{float(lower[j])!r}, {float(upper[j])!r}]"))
     for what, values, limits in (("velocity", traj.qd, traj.velocity_limits),
                                  ("acceleration", traj.qdd, traj.acceleration_limits)):
         if limits is None:
@@ -522,26 +502,33 @@ def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any, where: str =
     return traj.replace(stats=stats)
 
 
-#: The residual evaluators of the last (robot, task) pairs checked, each with weak references to
-#: its robot and task (an entry serves only while both are the objects it was built for).
-_EVALUATORS: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
+#: The projectors of the last (robot, task, tight) triples used, each with weak references to its
+#: robot and task (an entry serves only while both are the objects it was built for).
+_EVALUATORS: dict[tuple[int, int, bool], tuple[Any, Any, Any]] = {}
 _EVALUATORS_KEPT = 8
 
 
-def _evaluator(robot: Robot, task: Any) -> Any:
+def _evaluator(robot: Robot, task: Any, tight: bool = False) -> Any:
     """The native projector of ``task`` on ``robot`` that evaluates the samples' residuals
-    (:meth:`~genplan.projection.GaussNewtonProjector.residual_sizes`), kept for the next
-    trajectory checked against the same task: building one binds every term (about 2 ms, as
-    much as checking a few thousand samples), and a batch of trajectories shares one task."""
+    (:meth:`~genplan.projection.GaussNewtonProjector.residual_sizes`), or with ``tight`` the one
+    that projects samples back onto the manifold (the task's tolerances scaled by the planner's
+    ``TOLERANCE_FACTOR``, as tight as it projects its states), kept for the next trajectory of
+    the same task: building one binds every term (about 2 ms, as much as checking a few thousand
+    samples), and a batch of trajectories shares one task."""
     import weakref
 
     from genplan.projection import GaussNewtonProjector
 
-    key = (id(robot), id(task))
+    key = (id(robot), id(task), tight)
     kept = _EVALUATORS.get(key)
     if kept is not None and kept[0]() is robot and kept[1]() is task:
         return kept[2]
-    evaluator = GaussNewtonProjector(robot, task)
+    if tight:
+        from genplan.planning.queries import TOLERANCE_FACTOR
+
+        evaluator = GaussNewtonProjector(robot, task.with_tolerances_scaled(TOLERANCE_FACTOR))
+    else:
+        evaluator = GaussNewtonProjector(robot, task)
     if len(_EVALUATORS) >= _EVALUATORS_KEPT:
         _EVALUATORS.pop(next(iter(_EVALUATORS)), None)
     _EVALUATORS[key] = (weakref.ref(robot), weakref.ref(task), evaluator)

@@ -19,6 +19,12 @@
 //! forward pass then takes, from `x_0 = 0`, the largest `u_i` that keeps `x_{i+1}` controllable.
 //!
 //! [`sample`] evaluates the timed spline at a fixed rate (positions, velocities, accelerations).
+//!
+//! [`TimedPath`] does all of it for a path given by its states: the not-a-knot cubic spline
+//! through them ([`Spline`], scipy's `CubicSpline`), TOPP-RA's grid on it ([`gridpoints`]), the
+//! speed profile, the uniform stretch that keeps every sample within the limits
+//! ([`TimedPath::stretch`]) and the samples: what `python/genplan/trajectory.py` times a path
+//! with, in one call instead of a scipy spline, numpy passes and a resampling per stretch.
 
 use crate::error::{check_finite, Error, Result};
 
@@ -89,9 +95,10 @@ pub fn time_optimal(grid: &[f64], d1: &[f64], d2: &[f64], vlim: &[f64], alim: &[
     };
     // backward pass: the controllable sets
     let mut sets = vec![(0.0, 0.0); points];
+    let (mut ups, mut downs) = (Vec::with_capacity(2 * n + 1), Vec::with_capacity(2 * n + 1));
     for i in (0..points - 1).rev() {
         stage(i, sets[i + 1], &mut rows);
-        let (lo, hi) = x_range(&rows, xv[i]);
+        let (lo, hi) = x_range(&rows, xv[i], &mut ups, &mut downs);
         if !(lo <= hi + 1e-9 * hi.abs().max(1.0)) {
             return Err(Error::Invalid(format!(
                 "no parameterisation within the limits: stage {i} (s = {}) cannot be followed to rest at the end",
@@ -126,8 +133,8 @@ pub fn time_optimal(grid: &[f64], d1: &[f64], d2: &[f64], vlim: &[f64], alim: &[
 }
 
 /// The range of `x` in [0, `x_max`] for which some `u` satisfies every row (Fourier-Motzkin
-/// elimination of `u`); (lo, hi) with lo > hi when there is none.
-fn x_range(rows: &[Row], x_max: f64) -> (f64, f64) {
+/// elimination of `u`); (lo, hi) with lo > hi when there is none. `ups`, `downs`: scratch.
+fn x_range(rows: &[Row], x_max: f64, ups: &mut Vec<(f64, f64)>, downs: &mut Vec<(f64, f64)>) -> (f64, f64) {
     let (mut lo, mut hi) = (0.0f64, x_max);
     let bound = |alpha: f64, beta: f64, lo: &mut f64, hi: &mut f64| {
         // alpha x >= beta
@@ -143,12 +150,20 @@ fn x_range(rows: &[Row], x_max: f64) -> (f64, f64) {
         // b x <= c
         bound(-r.b, -r.c, &mut lo, &mut hi);
     }
-    for up in rows.iter().filter(|r| r.a > ZERO) {
-        for down in rows.iter().filter(|r| r.a < -ZERO) {
-            // u <= (c_up - b_up x) / a_up and u >= (c_down - b_down x) / a_down
-            let alpha = down.b / down.a - up.b / up.a;
-            let beta = down.c / down.a - up.c / up.a;
-            bound(alpha, beta, &mut lo, &mut hi);
+    // u <= (c_up - b_up x) / a_up and u >= (c_down - b_down x) / a_down: each row's b / a and
+    // c / a divided once, not once per pair
+    ups.clear();
+    downs.clear();
+    for r in rows {
+        if r.a > ZERO {
+            ups.push((r.b / r.a, r.c / r.a));
+        } else if r.a < -ZERO {
+            downs.push((r.b / r.a, r.c / r.a));
+        }
+    }
+    for &(bu, cu) in ups.iter() {
+        for &(bd, cd) in downs.iter() {
+            bound(bd - bu, cd - cu, &mut lo, &mut hi);
         }
     }
     (lo, hi)
@@ -205,26 +220,11 @@ fn zeros(len: usize, what: &dyn Fn() -> String) -> Result<Vec<f64>> {
 /// allocated, and an allocation that fails is an error ([`Error::Settings`] naming `rate`
 /// either way), never an abort.
 pub fn sample(p: &TimedSpline<'_>, n: usize, rate: f64, scale: f64) -> Result<Samples> {
-    let (m, points) = (p.x.len().saturating_sub(1), p.grid.len());
-    if m == 0 || n == 0 || p.c.len() != m * 4 * n {
-        return Err(Error::Invalid(format!("spline: {} breakpoints need {} x 4 x {n} coefficients, got {}", p.x.len(), m, p.c.len())));
-    }
-    if points < 2 || p.knots.len() != points || p.sdot.len() != points || p.sdd.len() != points - 1 {
-        return Err(Error::Invalid(format!(
-            "timing: {points} grid points need as many knots and speeds and one s'' fewer, got {}, {} and {}",
-            p.knots.len(),
-            p.sdot.len(),
-            p.sdd.len()
-        )));
-    }
-    for (what, v) in [("x", p.x), ("c", p.c), ("grid", p.grid), ("knots", p.knots), ("sdot", p.sdot), ("sdd", p.sdd)] {
-        check_finite(what, v)?;
-    }
+    check_timed(p, n)?;
     if !(rate.is_finite() && rate > 0.0 && scale.is_finite() && scale > 0.0) {
         return Err(Error::Invalid(format!("rate and scale must be positive and finite, got {rate} and {scale}")));
     }
-    let end = p.knots[points - 1];
-    let total = end * scale;
+    let total = p.knots[p.knots.len() - 1] * scale;
     let bytes = sample_bytes(total, rate, n);
     let ticks = (total * rate + 1e-9).floor();
     let gib = |b: f64| b / (1u64 << 30) as f64;
@@ -245,36 +245,397 @@ pub fn sample(p: &TimedSpline<'_>, n: usize, rate: f64, scale: f64) -> Result<Sa
     if total - t[ticks] > 1e-9 {
         t.push(total);
     }
-    let s_end = p.x[m];
     let (mut q, mut qd, mut qdd) = (zeros(t.len() * n, &what)?, zeros(t.len() * n, &what)?, zeros(t.len() * n, &what)?);
-    let (mut i, mut j) = (0usize, 0usize);
+    let mut walk = Walk::new(p, n, scale);
     for (k, &tk) in t.iter().enumerate() {
+        let rows = k * n..(k + 1) * n;
+        walk.at(tk, &mut q[rows.clone()], &mut qd[rows.clone()], &mut qdd[rows]);
+    }
+    Ok((t, q, qd, qdd))
+}
+
+/// A [`TimedSpline`]'s shapes and values checked (what [`sample`] refuses before any work).
+fn check_timed(p: &TimedSpline<'_>, n: usize) -> Result<()> {
+    let (m, points) = (p.x.len().saturating_sub(1), p.grid.len());
+    if m == 0 || n == 0 || p.c.len() != m * 4 * n {
+        return Err(Error::Invalid(format!("spline: {} breakpoints need {} x 4 x {n} coefficients, got {}", p.x.len(), m, p.c.len())));
+    }
+    if points < 2 || p.knots.len() != points || p.sdot.len() != points || p.sdd.len() != points - 1 {
+        return Err(Error::Invalid(format!(
+            "timing: {points} grid points need as many knots and speeds and one s'' fewer, got {}, {} and {}",
+            p.knots.len(),
+            p.sdot.len(),
+            p.sdd.len()
+        )));
+    }
+    for (what, v) in [("x", p.x), ("c", p.c), ("grid", p.grid), ("knots", p.knots), ("sdot", p.sdot), ("sdd", p.sdd)] {
+        check_finite(what, v)?;
+    }
+    Ok(())
+}
+
+/// The evaluation of a (checked) timed spline at increasing times: the grid interval and the
+/// spline interval of the last time, walked forward (times and s only grow). One definition of
+/// a sample for [`sample`] and for [`TimedPath::stretch`]'s passes, so both see the same values.
+struct Walk<'p, 'a> {
+    p: &'p TimedSpline<'a>,
+    n: usize,
+    scale: f64,
+    /// The grid interval and the spline interval of the last time.
+    i: usize,
+    j: usize,
+}
+
+impl<'p, 'a> Walk<'p, 'a> {
+    fn new(p: &'p TimedSpline<'a>, n: usize, scale: f64) -> Self {
+        Walk { p, n, scale, i: 0, j: 0 }
+    }
+
+    /// `q`, `qd`, `qdd` (n each) at time `tk` of the stretched timing: q = p(s(t)),
+    /// qd = p'(s) s', qdd = p'(s) s'' + p''(s) s'^2, the timing's derivatives divided by the
+    /// scale (once and twice).
+    #[inline]
+    fn at(&mut self, tk: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        let (p, n, scale) = (self.p, self.n, self.scale);
+        let (m, points) = (p.x.len() - 1, p.grid.len());
+        let end = p.knots[points - 1];
         let tu = (tk / scale).min(end);
-        // times and s only grow: walk the intervals forward
-        while i + 1 < points - 1 && p.knots[i + 1] <= tu {
-            i += 1;
+        while self.i + 1 < points - 1 && p.knots[self.i + 1] <= tu {
+            self.i += 1;
         }
+        let i = self.i;
         let tau = tu - p.knots[i];
-        let s = (p.grid[i] + p.sdot[i] * tau + 0.5 * p.sdd[i] * tau * tau).clamp(0.0, s_end);
+        let s = (p.grid[i] + p.sdot[i] * tau + 0.5 * p.sdd[i] * tau * tau).clamp(0.0, p.x[m]);
         let sv = (p.sdot[i] + p.sdd[i] * tau).max(0.0);
-        while j + 1 < m && p.x[j + 1] <= s {
-            j += 1;
+        while self.j + 1 < m && p.x[self.j + 1] <= s {
+            self.j += 1;
         }
-        while j > 0 && p.x[j] > s {
-            j -= 1;
+        while self.j > 0 && p.x[self.j] > s {
+            self.j -= 1;
         }
-        let dx = s - p.x[j];
-        let c = &p.c[j * 4 * n..(j + 1) * 4 * n];
+        let dx = s - p.x[self.j];
+        let c = &p.c[self.j * 4 * n..(self.j + 1) * 4 * n];
         for a in 0..n {
             let (c0, c1, c2, c3) = (c[a], c[n + a], c[2 * n + a], c[3 * n + a]);
             let d1 = (3.0 * c0 * dx + 2.0 * c1) * dx + c2;
             let d2 = 6.0 * c0 * dx + 2.0 * c1;
-            q[k * n + a] = ((c0 * dx + c1) * dx + c2) * dx + c3;
-            qd[k * n + a] = d1 * sv / scale;
-            qdd[k * n + a] = (d1 * p.sdd[i] + d2 * sv * sv) / (scale * scale);
+            q[a] = ((c0 * dx + c1) * dx + c2) * dx + c3;
+            qd[a] = d1 * sv / scale;
+            qdd[a] = (d1 * p.sdd[i] + d2 * sv * sv) / (scale * scale);
         }
     }
-    Ok((t, q, qd, qdd))
+}
+
+/// How [`gridpoints`] picks TOPP-RA's grid along a path (`python/genplan/trajectory.py`'s
+/// `GRID_BASE` and `GRID_CRITICAL`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridRule {
+    /// At most this many grid points spread evenly over the path's states (at least 2).
+    pub base: usize,
+    /// A state whose curvature could demand this fraction of an acceleration limit is a grid
+    /// point; four times as much and its intervals are split in four.
+    pub critical: f64,
+}
+
+/// A piecewise cubic through `n`-dimensional states: breakpoints `x` (m + 1, increasing) and
+/// coefficients `c` (m x 4 x n, `c[i][k]` multiplying `(s - x_i)^(3 - k)`): the layout of
+/// [`TimedSpline`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spline {
+    /// The breakpoints (m + 1, increasing).
+    pub x: Vec<f64>,
+    /// The coefficients (m x 4 x n).
+    pub c: Vec<f64>,
+    /// The dimension of a state.
+    pub n: usize,
+}
+
+impl Spline {
+    /// The not-a-knot cubic spline through the states `y` (rows of `n`) at the increasing
+    /// parameters `x`: scipy's `CubicSpline(x, y)` (its default boundary condition, which
+    /// `toppra`'s `SplineInterpolator` uses too), the same cases: two states a straight line,
+    /// three the parabola through them, more the tridiagonal system of the breakpoints'
+    /// derivatives (solved by elimination without pivoting: after its first row, which the
+    /// second makes diagonally dominant, every row is). Errors: bad shapes, non-finite values,
+    /// parameters that do not increase.
+    pub fn not_a_knot(x: &[f64], y: &[f64], n: usize) -> Result<Spline> {
+        let points = x.len();
+        if points < 2 || n == 0 || y.len() != points * n {
+            return Err(Error::Invalid(format!(
+                "spline: at least 2 parameters and as many rows of n >= 1 states, got {points} parameters, {} values and n = {n}",
+                y.len()
+            )));
+        }
+        check_finite("x", x)?;
+        check_finite("y", y)?;
+        if let Some(i) = (1..points).find(|&i| x[i] <= x[i - 1]) {
+            return Err(Error::Invalid(format!("x: must increase, but x[{i}] = {} <= x[{}] = {}", x[i], i - 1, x[i - 1])));
+        }
+        let m = points - 1;
+        let dx: Vec<f64> = (0..m).map(|i| x[i + 1] - x[i]).collect();
+        let slope: Vec<f64> = (0..m * n).map(|k| (y[k + n] - y[k]) / dx[k / n]).collect();
+        // the derivatives at the breakpoints (points x n)
+        let mut d = vec![0.0; points * n];
+        if points == 2 {
+            d[..n].copy_from_slice(&slope);
+            d[n..].copy_from_slice(&slope);
+        } else if points == 3 {
+            // the parabola through the three states (scipy's 3 x 3 system, solved in closed form)
+            for a in 0..n {
+                let (s0, s1) = (slope[a], slope[n + a]);
+                let mid = (dx[0] * s1 + dx[1] * s0) / (dx[0] + dx[1]);
+                d[a] = 2.0 * s0 - mid;
+                d[n + a] = mid;
+                d[2 * n + a] = 2.0 * s1 - mid;
+            }
+        } else {
+            // rows: lower * d[i-1] + diag * d[i] + upper * d[i+1] = rhs (scipy's banded matrix)
+            let row = |i: usize| -> (f64, f64, f64) {
+                if i == 0 {
+                    (0.0, dx[1], x[2] - x[0])
+                } else if i == m {
+                    (x[m] - x[m - 2], dx[m - 2], 0.0)
+                } else {
+                    (dx[i], 2.0 * (dx[i - 1] + dx[i]), dx[i - 1])
+                }
+            };
+            let rhs = |i: usize, a: usize| -> f64 {
+                if i == 0 {
+                    let w = x[2] - x[0];
+                    ((dx[0] + 2.0 * w) * dx[1] * slope[a] + dx[0] * dx[0] * slope[n + a]) / w
+                } else if i == m {
+                    let w = x[m] - x[m - 2];
+                    (dx[m - 1] * dx[m - 1] * slope[(m - 2) * n + a] + (2.0 * w + dx[m - 1]) * dx[m - 2] * slope[(m - 1) * n + a]) / w
+                } else {
+                    3.0 * (dx[i] * slope[(i - 1) * n + a] + dx[i - 1] * slope[i * n + a])
+                }
+            };
+            // forward elimination (the matrix is the same for every joint), then back substitution
+            let mut upper = vec![0.0; points];
+            for i in 0..points {
+                let (lo, diag, up) = row(i);
+                let pivot = if i == 0 { diag } else { diag - lo * upper[i - 1] };
+                upper[i] = up / pivot;
+                for a in 0..n {
+                    let before = if i == 0 { 0.0 } else { lo * d[(i - 1) * n + a] };
+                    d[i * n + a] = (rhs(i, a) - before) / pivot;
+                }
+            }
+            for i in (0..m).rev() {
+                for a in 0..n {
+                    d[i * n + a] -= upper[i] * d[(i + 1) * n + a];
+                }
+            }
+        }
+        // scipy's CubicHermiteSpline coefficients from the values and derivatives
+        let mut c = vec![0.0; m * 4 * n];
+        for i in 0..m {
+            for a in 0..n {
+                let (s, d0, d1) = (slope[i * n + a], d[i * n + a], d[(i + 1) * n + a]);
+                let t = (d0 + d1 - 2.0 * s) / dx[i];
+                let row = &mut c[i * 4 * n..(i + 1) * 4 * n];
+                row[a] = t / dx[i];
+                row[n + a] = (s - d0) / dx[i] - t;
+                row[2 * n + a] = d0;
+                row[3 * n + a] = y[i * n + a];
+            }
+        }
+        Ok(Spline { x: x.to_vec(), c, n })
+    }
+
+    /// The first and second derivatives (n each) at `s`, in the interval `x_i <= s < x_{i+1}`
+    /// (the last one from its start on, the first one before it), as scipy's `PPoly` evaluates.
+    pub fn derivatives(&self, s: f64, d1: &mut [f64], d2: &mut [f64]) {
+        let (n, m) = (self.n, self.x.len() - 1);
+        let i = self.x.partition_point(|&b| b <= s).saturating_sub(1).min(m - 1);
+        let dx = s - self.x[i];
+        let c = &self.c[i * 4 * n..(i + 1) * 4 * n];
+        for a in 0..n {
+            let (c0, c1, c2) = (c[a], c[n + a], c[2 * n + a]);
+            d1[a] = (3.0 * c0 * dx + 2.0 * c1) * dx + c2;
+            d2[a] = 6.0 * c0 * dx + 2.0 * c1;
+        }
+    }
+}
+
+/// `num` numbers evenly spaced from `start` to `stop` (both included), computed as numpy's
+/// `linspace` does (`start + k * step`, the last `stop` itself).
+fn linspace(start: f64, stop: f64, num: usize) -> impl Iterator<Item = f64> {
+    let step = if num > 1 { (stop - start) / (num - 1) as f64 } else { 0.0 };
+    (0..num).map(move |k| if k + 1 == num && num > 1 { stop } else { k as f64 * step + start })
+}
+
+/// TOPP-RA's grid on `spline` (through a path's states at its breakpoints), increasing: an even
+/// base of the breakpoints (`rule.base` of them; a path of fewer breakpoints: all of them and
+/// `rule.base` points evenly spread in s, so that even two states leave TOPP-RA room to speed up
+/// and slow down) plus the breakpoints (and, where it is four times larger still, their
+/// intervals' quarters) whose curvature could call for more than `rule.critical` of an
+/// acceleration limit at the fastest speed the velocity limits allow there.
+pub fn gridpoints(spline: &Spline, vlim: &[f64], alim: &[f64], rule: GridRule) -> Vec<f64> {
+    let (ss, n) = (&spline.x, spline.n);
+    let points = ss.len();
+    let (mut d1, mut d2) = (vec![0.0; n], vec![0.0; n]);
+    let need: Vec<f64> = ss
+        .iter()
+        .map(|&s| {
+            spline.derivatives(s, &mut d1, &mut d2);
+            let speed = (0..n).map(|a| vlim[a] / d1[a].abs().max(1e-12)).fold(f64::INFINITY, f64::min);
+            let s_max2 = speed * speed;
+            (0..n).map(|a| d2[a].abs() * s_max2 / alim[a]).fold(f64::NEG_INFINITY, f64::max)
+        })
+        .collect();
+    let mut grid: Vec<f64> = linspace(0.0, (points - 1) as f64, rule.base.min(points)).map(|k| ss[k.round_ties_even() as usize]).collect();
+    grid.extend((0..points).filter(|&i| need[i] > rule.critical).map(|i| ss[i]));
+    for i in (0..points - 1).filter(|&i| need[i].max(need[i + 1]) > 4.0 * rule.critical) {
+        grid.extend([0.25, 0.5, 0.75].map(|f| ss[i] + (ss[i + 1] - ss[i]) * f));
+    }
+    if points < rule.base {
+        grid.extend(linspace(0.0, ss[points - 1], rule.base));
+    }
+    grid.sort_by(f64::total_cmp);
+    grid.dedup();
+    grid
+}
+
+/// A path timed by TOPP-RA from rest to rest: the not-a-knot spline through its states, the
+/// grid, and the speed profile (`x = s'^2` at the grid points from [`time_optimal`], `s''`
+/// constant on each interval, the times of the grid points): a [`TimedSpline`] that owns its
+/// arrays, with the limits it was timed for.
+#[derive(Debug, Clone)]
+pub struct TimedPath {
+    /// The spline through the states.
+    pub spline: Spline,
+    /// TOPP-RA's grid ([`gridpoints`]).
+    pub grid: Vec<f64>,
+    /// The times of the grid points (from 0, increasing).
+    pub knots: Vec<f64>,
+    /// s' at each grid point.
+    pub sdot: Vec<f64>,
+    /// s'' on each grid interval.
+    pub sdd: Vec<f64>,
+    /// The joint velocity limits.
+    pub vlim: Vec<f64>,
+    /// The joint acceleration limits.
+    pub alim: Vec<f64>,
+}
+
+/// The largest number of uniform stretches [`TimedPath::stretch`] tries.
+pub const STRETCH_ATTEMPTS: i32 = 10;
+
+impl TimedPath {
+    /// The path through `states` (rows of n, distinct consecutive states) at the path
+    /// parameters `s` (increasing, usually the cumulative joint-space distance) timed under
+    /// the velocity and acceleration limits `vlim`, `alim` (n each, positive) on the grid of
+    /// `rule`. Errors: bad shapes or values; no parameterisation within the limits (including
+    /// a speed profile that stops inside the path).
+    pub fn new(s: &[f64], states: &[f64], vlim: &[f64], alim: &[f64], rule: GridRule) -> Result<TimedPath> {
+        let n = vlim.len();
+        if n == 0 || alim.len() != n {
+            return Err(Error::Invalid(format!("vlim and alim: one limit per joint (got {} and {})", n, alim.len())));
+        }
+        check_finite("vlim", vlim)?;
+        check_finite("alim", alim)?;
+        if let Some(j) = (0..n).find(|&j| vlim[j] <= 0.0 || alim[j] <= 0.0) {
+            return Err(Error::Invalid(format!("limits: must be positive, joint {j} has vlim {} and alim {}", vlim[j], alim[j])));
+        }
+        if rule.base < 2 || !(rule.critical.is_finite() && rule.critical > 0.0) {
+            return Err(Error::Invalid(format!("grid rule: base must be at least 2 and critical positive, got {rule:?}")));
+        }
+        let spline = Spline::not_a_knot(s, states, n)?;
+        let grid = gridpoints(&spline, vlim, alim, rule);
+        let points = grid.len();
+        let (mut d1, mut d2) = (vec![0.0; points * n], vec![0.0; points * n]);
+        for (k, &g) in grid.iter().enumerate() {
+            spline.derivatives(g, &mut d1[k * n..(k + 1) * n], &mut d2[k * n..(k + 1) * n]);
+        }
+        let mut x = time_optimal(&grid, &d1, &d2, vlim, alim)?;
+        for v in x.iter_mut() {
+            *v = v.max(0.0);
+        }
+        x[0] = 0.0;
+        x[points - 1] = 0.0;
+        let sdot: Vec<f64> = x.iter().map(|v| v.sqrt()).collect();
+        let mut sdd = Vec::with_capacity(points - 1);
+        let mut knots = Vec::with_capacity(points);
+        knots.push(0.0);
+        for i in 0..points - 1 {
+            let ds = grid[i + 1] - grid[i];
+            // constant s'' per interval, consistent with x = s'^2
+            sdd.push((x[i + 1] - x[i]) / (2.0 * ds));
+            let speed = sdot[i] + sdot[i + 1];
+            if !(speed > 0.0) {
+                return Err(Error::Invalid(format!(
+                    "the speed profile stops inside the path (grid interval {i} of {}, s = {:.4})",
+                    points - 1,
+                    grid[i]
+                )));
+            }
+            knots.push(knots[i] + 2.0 * ds / speed);
+        }
+        Ok(TimedPath { spline, grid, knots, sdot, sdd, vlim: vlim.to_vec(), alim: alim.to_vec() })
+    }
+
+    /// Its duration at the time-optimal speed (no stretch), seconds.
+    pub fn duration(&self) -> f64 {
+        self.knots[self.knots.len() - 1]
+    }
+
+    /// The timed spline, borrowed ([`sample`]'s input).
+    pub fn timed(&self) -> TimedSpline<'_> {
+        TimedSpline { x: &self.spline.x, c: &self.spline.c, grid: &self.grid, knots: &self.knots, sdot: &self.sdot, sdd: &self.sdd }
+    }
+
+    /// The samples at `rate` Hz with the timing stretched by `scale` ([`sample`]).
+    pub fn sample(&self, rate: f64, scale: f64) -> Result<Samples> {
+        sample(&self.timed(), self.spline.n, rate, scale)
+    }
+
+    /// The least uniform stretch `scale` (`t -> scale t`) found that keeps every sample at
+    /// `rate` Hz within the velocity and acceleration limits, with no tolerance: TOPP-RA holds
+    /// them at its grid points only, and between them (and within its numerical tolerance) a
+    /// sample may exceed them a little. From 1, while a sample exceeds a limit (at most
+    /// [`STRETCH_ATTEMPTS`] times), the scale is multiplied by the largest excess (velocity
+    /// ratio, or the square root of the acceleration ratio) times `1 + 1e-6 x 10^attempt` (a
+    /// ratio may round to 1 a hair beyond its limit, and a stretch moves the ticks along the
+    /// profile), and the samples are evaluated again, without being stored. The caller checks
+    /// the samples it then takes (the scale after the last attempt is not certified). A scale
+    /// whose samples would take more than [`MAX_SAMPLE_BYTES`] ends the search unevaluated
+    /// ([`sample`] refuses it).
+    pub fn stretch(&self, rate: f64) -> Result<f64> {
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(Error::Invalid(format!("rate must be positive and finite, got {rate}")));
+        }
+        let (p, n) = (self.timed(), self.spline.n);
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let mut scale = 1.0;
+        for attempt in 0..STRETCH_ATTEMPTS {
+            let total = self.duration() * scale;
+            if !(sample_bytes(total, rate, n) <= MAX_SAMPLE_BYTES as f64) {
+                break;
+            }
+            // every tick from 0 and the end when it falls between two, as `sample` takes them
+            let ticks = (total * rate + 1e-9).floor() as usize;
+            let last = ticks as f64 / rate;
+            let times = (0..=ticks).map(|k| k as f64 / rate).chain((total - last > 1e-9).then_some(total));
+            let mut walk = Walk::new(&p, n, scale);
+            let (mut within, mut over_v, mut over_a) = (true, f64::NEG_INFINITY, f64::NEG_INFINITY);
+            for tk in times {
+                walk.at(tk, &mut q, &mut qd, &mut qdd);
+                for a in 0..n {
+                    let (v, acc) = (qd[a].abs(), qdd[a].abs());
+                    within &= v <= self.vlim[a] && acc <= self.alim[a];
+                    over_v = over_v.max(v / self.vlim[a]);
+                    over_a = over_a.max(acc / self.alim[a]);
+                }
+            }
+            if within {
+                break;
+            }
+            let over = over_v.max(over_a.sqrt()).max(1.0);
+            scale *= over * (1.0 + 1e-6 * 10f64.powi(attempt));
+        }
+        Ok(scale)
+    }
 }
 
 #[cfg(test)]
@@ -383,5 +744,112 @@ mod tests {
         let mut bad = d1.clone();
         bad[7] = f64::NAN;
         assert!(err(time_optimal(&grid, &bad, &d2, &vlim, &alim)).contains("d1"));
+    }
+
+    /// The not-a-knot spline is exact on a cubic (its third derivative is continuous at the
+    /// first and last inner breakpoints, and a cubic satisfies every condition), on a parabola
+    /// through three states and on a line through two, at uneven breakpoints (its derivatives
+    /// those of the polynomial everywhere), and passes through its states.
+    #[test]
+    fn the_not_a_knot_spline_is_exact_on_polynomials_of_its_degree() {
+        // per case: values, first and second derivatives of the two coordinates at s
+        type Poly = fn(f64) -> [[f64; 2]; 3];
+        let line: Poly = |s| [[1.0 + 2.0 * s, -s], [2.0, -1.0], [0.0, 0.0]];
+        let parabola: Poly = |s| [[s * s - s, 2.0 - 0.5 * s * s], [2.0 * s - 1.0, -s], [2.0, -1.0]];
+        let cubic: Poly = |s| {
+            [[0.5 * s * s * s - s * s + 2.0 * s - 1.0, -0.25 * s * s * s + 3.0 * s], [1.5 * s * s - 2.0 * s + 2.0, -0.75 * s * s + 3.0], [3.0 * s - 2.0, -1.5 * s]]
+        };
+        for (points, f) in [(2usize, line), (3, parabola), (4, cubic), (7, cubic), (30, cubic)] {
+            let x: Vec<f64> = (0..points).map(|i| (i as f64).powf(1.3) * 0.7 + 0.1 * (i % 3) as f64).collect();
+            let y: Vec<f64> = x.iter().flat_map(|&s| f(s)[0]).collect();
+            let sp = Spline::not_a_knot(&x, &y, 2).unwrap();
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-10 * b.abs().max(1.0);
+            let (mut d1, mut d2) = ([0.0; 2], [0.0; 2]);
+            for k in 0..=20 * (points - 1) {
+                let s = x[0] + (x[points - 1] - x[0]) * k as f64 / (20 * (points - 1)) as f64;
+                sp.derivatives(s, &mut d1, &mut d2);
+                let want = f(s);
+                for a in 0..2 {
+                    assert!(close(d1[a], want[1][a]) && close(d2[a], want[2][a]), "{points} points, s = {s}: {d1:?} {d2:?} != {want:?}");
+                }
+            }
+            // through the states
+            for i in 0..points - 1 {
+                for a in 0..2 {
+                    assert_eq!(sp.c[i * 8 + 6 + a], y[i * 2 + a]);
+                }
+            }
+        }
+        let err = |r: Result<Spline>| r.unwrap_err().to_string();
+        assert!(err(Spline::not_a_knot(&[0.0], &[1.0], 1)).contains("at least 2"));
+        assert!(err(Spline::not_a_knot(&[0.0, 1.0], &[1.0, 2.0, 3.0], 1)).contains("at least 2"));
+        assert!(err(Spline::not_a_knot(&[0.0, 0.0], &[1.0, 2.0], 1)).contains("must increase"));
+        assert!(err(Spline::not_a_knot(&[0.0, 1.0], &[1.0, f64::NAN], 1)).contains("y"));
+    }
+
+    /// The grid: increasing, distinct, the ends and the even base among its points; a sharp
+    /// corner (a state where the path turns) adds its state and its intervals' quarters; a
+    /// short path gets the even points in s.
+    #[test]
+    fn the_grid_holds_the_base_and_the_corners() {
+        let rule = GridRule { base: 5, critical: 1.0 };
+        // 21 states along joint 0, then a corner at state 10 into joint 1
+        let x: Vec<f64> = (0..21).map(|i| 0.05 * i as f64).collect();
+        let y: Vec<f64> = (0..21).flat_map(|i| if i <= 10 { [0.05 * i as f64, 0.0] } else { [0.5, 0.05 * (i - 10) as f64] }).collect();
+        let sp = Spline::not_a_knot(&x, &y, 2).unwrap();
+        let grid = gridpoints(&sp, &[1.0, 1.0], &[1.0, 1.0], rule);
+        assert!(grid.windows(2).all(|w| w[0] < w[1]));
+        for i in [0, 5, 10, 15, 20] {
+            assert!(grid.contains(&x[i]), "x[{i}] in {grid:?}");
+        }
+        let quarter = |i: usize| x[i] + (x[i + 1] - x[i]) * 0.25;
+        assert!((8..12).any(|i| grid.contains(&quarter(i))) && grid.len() >= 9, "the corner subdivided: {grid:?}");
+        // a straight, slow path: the base alone
+        let flat: Vec<f64> = (0..21).flat_map(|i| [0.001 * i as f64, 0.0]).collect();
+        let sp = Spline::not_a_knot(&x, &flat, 2).unwrap();
+        assert_eq!(gridpoints(&sp, &[1.0, 1.0], &[1.0, 1.0], rule).len(), 5);
+        // two states: both and the even points between them
+        let sp = Spline::not_a_knot(&[0.0, 2.0], &[0.0, 1.0], 1).unwrap();
+        assert_eq!(gridpoints(&sp, &[1.0], &[1.0], rule), vec![0.0, 0.5, 1.0, 1.5, 2.0]);
+    }
+
+    /// A timed path: at rest at both ends, its duration the last knot; the stretch it finds
+    /// keeps every sample within the limits, exactly, and is 1.0 when nothing exceeds them
+    /// (else some sample at 1.0 does); bad input is refused, naming it.
+    #[test]
+    fn a_timed_path_is_stretched_until_every_sample_is_within_the_limits() {
+        let rule = GridRule { base: 40, critical: 1.0 };
+        let n = 3;
+        let states = 60;
+        let s: Vec<f64> = (0..states).map(|i| 0.05 * i as f64).collect();
+        let y: Vec<f64> = s.iter().flat_map(|&u| (0..n).map(move |j| (u * (1.0 + j as f64)).sin() / (1.0 + j as f64))).collect();
+        let (vlim, alim) = ([1.0, 0.8, 1.5], [2.0, 3.0, 1.0]);
+        let path = TimedPath::new(&s, &y, &vlim, &alim, rule).unwrap();
+        assert!(path.duration() > 0.0 && path.sdot[0] == 0.0 && path.sdot[path.sdot.len() - 1] == 0.0);
+        let within = |scale: f64| {
+            let (_, _, qd, qdd) = path.sample(1000.0, scale).unwrap();
+            qd.iter().zip(qdd.iter()).enumerate().all(|(k, (v, a))| v.abs() <= vlim[k % n] && a.abs() <= alim[k % n])
+        };
+        let scale = path.stretch(1000.0).unwrap();
+        assert!(scale >= 1.0 && within(scale), "scale {scale}");
+        if scale > 1.0 {
+            assert!(!within(1.0), "a stretch only where a sample exceeds a limit");
+        }
+        let (t, q, _, _) = path.sample(1000.0, scale).unwrap();
+        assert!((t[t.len() - 1] - path.duration() * scale).abs() < 1e-12);
+        for a in 0..n {
+            assert!((q[a] - y[a]).abs() < 1e-15 && (q[q.len() - n + a] - y[y.len() - n + a]).abs() < 1e-12);
+        }
+        // a straight line (bang-coast-bang, on the limits only at the grid's points): at most a
+        // hair of stretch
+        let line: Vec<f64> = s.iter().flat_map(|&u| [0.5 * u, 0.0, 0.0]).collect();
+        let k = TimedPath::new(&s, &line, &vlim, &alim, rule).unwrap().stretch(1000.0).unwrap();
+        assert!((1.0..1.0 + 1e-4).contains(&k), "{k}");
+        let err = |r: Result<TimedPath>| r.unwrap_err().to_string();
+        assert!(err(TimedPath::new(&s, &y, &vlim, &alim[..2], rule)).contains("one limit per joint"));
+        assert!(err(TimedPath::new(&s, &y, &[1.0, 0.0, 1.0], &alim, rule)).contains("must be positive"));
+        assert!(err(TimedPath::new(&s, &y, &vlim, &alim, GridRule { base: 1, critical: 1.0 })).contains("grid rule"));
+        assert!(err(TimedPath::new(&s[1..], &y, &vlim, &alim, rule)).contains("spline"));
+        assert!(path.stretch(0.0).unwrap_err().to_string().contains("rate"));
     }
 }
