@@ -240,3 +240,46 @@ def test_clearance_terms_match_their_formulas_and_gradients(panda) -> None:
     np.testing.assert_allclose(v_folded, _self_clearance_np(self_clear, folded[:20]), rtol=2e-3, atol=1e-7)
     fd = _fd(lambda x: _self_clearance_np(self_clear, x), folded[:20])
     np.testing.assert_allclose(g_folded, fd, rtol=0.02, atol=2e-3 * np.abs(fd).max())
+
+
+def test_clearance_terms_of_one_objective_share_the_spheres(panda) -> None:
+    """clearance, avoid_spheres and self_clearance in one objective: the same values and gradients
+    as each term alone, the differentiable kinematics run once per configuration that any of them
+    needs (not once per term), and nothing shared outside the evaluation."""
+    from genplan.scene import load_scene
+
+    scene = load_scene("panda_shelf")
+    rng = np.random.default_rng(5)
+    q = panda.random_configurations(300, rng=rng)
+    b = len(q)
+    obstacles = np.concatenate([panda.frame_positions(q, "hand"), np.full((b, 1), 0.05)], 1)[:, None, :]
+    ctx = _ctx(b, axes=panda.joint_names, robot=panda, scene=scene, targets={"avoid_spheres": obstacles})
+    terms = [O.Clearance(margin=0.03), O.AvoidSpheres(margin=0.04), O.SelfClearance(margin=0.01)]
+    obj = O.Objective(terms)
+    obj.bind(ctx)
+    qt = torch.tensor(q[:, None, :], dtype=torch.float32, requires_grad=True)
+    r = Rollout(p=qt, v=torch.zeros_like(qt), u=torch.zeros_like(qt))
+    rows: list[int] = []
+    original = O.Clearance.sphere_centers
+
+    def counting(self, x):
+        rows.append(len(x))
+        return original(self, x)
+
+    O.Clearance.sphere_centers = counting  # type: ignore[method-assign]
+    try:
+        values = obj.values(r)
+        shared_rows = sum(rows)
+        rows.clear()
+        alone = {t.name: t(r) for t in terms}
+        alone_rows = sum(rows)
+    finally:
+        O.Clearance.sphere_centers = original  # type: ignore[method-assign]
+    assert ctx._scope is None
+    for t in terms:
+        assert float(alone[t.name].detach().sum()) > 0, t.name
+        np.testing.assert_allclose(values[t.name].detach().numpy(), alone[t.name].detach().numpy(), rtol=1e-6)
+        (g1,) = torch.autograd.grad(values[t.name].sum(), qt, retain_graph=True)
+        (g2,) = torch.autograd.grad(alone[t.name].sum(), qt, retain_graph=True)
+        np.testing.assert_allclose(g1.numpy(), g2.numpy(), rtol=1e-5, atol=1e-6)
+    assert 0 < shared_rows <= b and shared_rows < alone_rows

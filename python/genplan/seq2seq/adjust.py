@@ -23,7 +23,9 @@ Step rules:
   default :data:`ADAPTIVE_RADIUS`); a step that raises that problem's J is undone and retried with
   half its length, after a step that lowers J the radius grows by half. Still one forward and
   one backward pass per update, the objective never rises, and eta matters much less;
-* ``"adam"`` (elementwise Adam, so per problem).
+* ``"adam"`` (elementwise Adam, so per problem; torch's rule and defaults, betas (0.9, 0.999),
+  eps 1e-8, written out in :class:`_Adam`: ``torch.optim`` imports torch's compiler on first use,
+  seconds more than a whole adjustment).
 
 Objectives: an :class:`~genplan.seq2seq.objectives.Objective` (terms as data, or a file), or any
 callable taking a :class:`~genplan.seq2seq.plants.Rollout` and returning one differentiable
@@ -138,6 +140,30 @@ class AdjustResult:
         from genplan.seq2seq.finish import finish
 
         return finish(self, **kwargs)
+
+
+class _Adam:
+    """Adam (Kingma and Ba) on one tensor, with torch.optim.Adam's defaults (betas (0.9, 0.999),
+    eps 1e-8, no weight decay) and its arithmetic, step for step."""
+
+    BETAS = (0.9, 0.999)
+    EPS = 1e-8
+
+    def __init__(self, var: Tensor, lr: float) -> None:
+        self.lr = lr
+        self.steps = 0
+        self.m = torch.zeros_like(var, memory_format=torch.preserve_format)
+        self.v = torch.zeros_like(var, memory_format=torch.preserve_format)
+
+    def step(self, var: Tensor, grad: Tensor) -> None:
+        """Update ``var`` in place (under no_grad) with its gradient ``grad``."""
+        b1, b2 = self.BETAS
+        self.steps += 1
+        self.m.lerp_(grad, 1 - b1)
+        self.v.mul_(b2).addcmul_(grad, grad, value=1 - b2)
+        step_size = self.lr / (1 - b1 ** self.steps)
+        denom = (self.v.sqrt() / math.sqrt(1 - b2 ** self.steps)).add_(self.EPS)
+        var.addcdiv_(self.m, denom, value=-step_size)
 
 
 def _check_value(j: Any, b: int) -> Tensor:
@@ -340,7 +366,7 @@ def _run(model: Seq2SeqModel, xt: Tensor, obj: Callable[[Rollout], Tensor], meth
             return model.decode(v, x0, sign)
         return model.plant.rollout(outputs(v) + offset, None, x0)
 
-    opt = torch.optim.Adam([var], lr=lr) if step == "adam" else None
+    opt = _Adam(var, lr) if step == "adam" else None
     adaptive = step == "adaptive"
     shape1 = (b,) + (1,) * (var.ndim - 1)
     n_el = var[0].numel()
@@ -415,8 +441,7 @@ def _run(model: Seq2SeqModel, xt: Tensor, obj: Callable[[Rollout], Tensor], meth
             elif opt is None:
                 var -= lr * grad
             else:
-                var.grad = grad
-                opt.step()
+                opt.step(var, grad)
         times[i] = time.perf_counter() - t0
         if bar is not None:
             bar.update(1)

@@ -11,7 +11,8 @@ too sparse to check the motion between them. :func:`finish` turns each into the 
    projected onto the manifold *and* the objective's end target (an ``end_position`` or
    ``end_pose`` term's target for that problem), which makes the end exact; a solution in
    collision (a redundant arm reaches a target many ways) is solved again from the sample moved
-   a little, up to ``END_RETRIES`` times;
+   a little, its posture pulled towards the moved sample (towards the original one the solver
+   returns to the solution in collision), up to ``END_RETRIES`` times;
 2. the path is densified: wherever two consecutive states are more than ``resolution`` apart (max
    over the joints), states are interpolated and projected in turn, until every step is at most
    ``resolution`` (a projected state that jumps more than ``MAX_JUMP`` steps away from its
@@ -185,7 +186,7 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
                 break
             sigma = END_SPREAD * 2 ** (attempt // 3)
             seeds = np.clip(last[todo] + sigma * rng.standard_normal((len(todo), n)), lo, hi)
-            again = proj_end.solve_batch(seeds, last[todo], targets={label: targets[todo]})
+            again = proj_end.solve_batch(seeds, seeds, targets={label: targets[todo]})
             good = again.success & ~_hits([worlds[i] for i in todo], again.q)
             q[todo[good], -1] = again.q[good]
             ok[todo[good]] = True

@@ -101,6 +101,9 @@ class Context:
     scene: Any = None
     device: torch.device = field(default_factory=lambda: torch.device("cpu"))
     _kinematics: Any = None
+    #: during one :meth:`Objective.values` call: (the rollout's positions, their spheres or None),
+    #: what the clearance terms of that evaluation share
+    _scope: Any = None
 
     @property
     def dim(self) -> int:
@@ -596,20 +599,46 @@ class _WorldDistance(torch.autograd.Function):
         return grad[..., None] * g, None, None
 
 
+class _Spheres:
+    """The robot's collision spheres at a batch of configurations ``q`` (N, nq): their world
+    centres natively for every configuration (float64, no gradient: for screening) and through
+    the torch kinematics (differentiable) for the configurations a term asks for, each
+    configuration's once. The clearance terms of one objective evaluation share one
+    (:meth:`Objective.values`): the screening's kinematics and the differentiable kinematics of a
+    configuration that several terms need run once."""
+
+    def __init__(self, term: Clearance, q: Tensor) -> None:
+        self.q = q
+        self.np = term.centers_np(q.detach().double().cpu().numpy())  # (N, S, 3)
+        self._term = term
+        self._slot = torch.full((len(q),), -1, dtype=torch.long, device=q.device)
+        self._done: Tensor | None = None
+
+    def centers(self, rows: Tensor) -> Tensor:
+        """World centres (R, S, 3) of every sphere at the configurations ``rows`` (R,), differentiable."""
+        new = torch.unique(rows[self._slot[rows] < 0])
+        if len(new):
+            c = self._term.sphere_centers(self.q[new])
+            base = 0 if self._done is None else len(self._done)
+            self._slot[new] = torch.arange(base, base + len(new), device=rows.device)
+            self._done = c if self._done is None else torch.cat([self._done, c])
+        assert self._done is not None
+        return self._done[self._slot[rows]]
+
+
 class Clearance(Term):
     """``mean_k sum_s max(margin - d_s(q[k]), 0)^2``: each collision sphere of the robot
     (:mod:`genplan.spheres`) at least ``margin`` from the scene's obstacles, ``d_s`` its signed
     distance to the nearest one (the scene's native collision world: meshes as their convex
     hulls, as every collision query sees them).
 
-    The spheres nearer than ``margin + SLACK`` are found first without gradients (native forward
-    kinematics and distances for every sample); only their configurations go through the
-    differentiable kinematics: most of a trajectory is far from every obstacle."""
+    The spheres nearer than ``margin`` (those whose term is not zero) are found first without
+    gradients (native forward kinematics and distances for every sample, in float64); only their
+    configurations go through the differentiable kinematics: most of a trajectory is clear of
+    every obstacle, and a sphere at least ``margin`` away adds nothing to the value or the
+    gradient. The terms of one objective share the kinematics of a sample (:class:`_Spheres`)."""
 
     kind = "clearance"
-    #: spheres within margin + SLACK (m) of an obstacle are differentiated (an update moves a
-    #: sphere less than this)
-    SLACK = 0.05
 
     def __init__(self, weight: float = 1.0, name: str | None = None, *, margin: float = 0.02) -> None:
         super().__init__(weight, name)
@@ -620,6 +649,7 @@ class Clearance(Term):
         from genplan.spheres import robot_spheres
 
         self._robot = robot
+        self._ctx = ctx
         self._kin = ctx.kinematics()
         self._spheres = robot_spheres(robot)
         self._links = sorted(set(self._spheres.links))
@@ -638,7 +668,9 @@ class Clearance(Term):
         world = robot.collision_world()
         world.add_scene(ctx.scene)
         self._world = world
-        self._cutoff = self.margin + self.SLACK + float(self._radii_np.max(initial=0.0))
+        # a sphere with no obstacle within the cutoff gets the cutoff as its distance: 1 mm more
+        # than margin + the largest radius screens it out whatever the rounding
+        self._cutoff = self.margin + float(self._radii_np.max(initial=0.0)) + 1e-3
 
     def centers_np(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
         """World centres (N, S, 3) of the spheres at configurations ``q`` (N, nq), natively."""
@@ -657,10 +689,21 @@ class Clearance(Term):
         pos = torch.stack(poss, 1)[:, self._link_of]
         return pos + (rot @ self._centers[None, :, :, None]).squeeze(-1)
 
-    def _near(self, qn: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """(N, S): the spheres within margin + SLACK of an obstacle."""
-        d, _ = self._world.point_distances(self.centers_np(qn), self._cutoff)
-        return (d - self._radii_np) < self.margin + self.SLACK
+    def spheres_at(self, r: Rollout) -> _Spheres:
+        """The spheres at the rollout's samples (B * K configurations): those of the objective
+        evaluation in progress when it is one of ``r`` (shared by its terms), else new ones."""
+        b, k, n = r.p.shape
+        scope = self._ctx._scope
+        if scope is not None and scope[0] is r.p:
+            if scope[1] is None:
+                self._ctx._scope = (r.p, _Spheres(self, r.p.reshape(b * k, n)))
+            return self._ctx._scope[1]
+        return _Spheres(self, r.p.reshape(b * k, n))
+
+    def _near(self, c: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """(N, S): the spheres at centres ``c`` (N, S, 3) nearer than margin to an obstacle."""
+        d, _ = self._world.point_distances(c, self._cutoff)
+        return (d - self._radii_np) < self.margin
 
     def _gaps(self, centers: Tensor, rows: Tensor, spheres: Tensor) -> Tensor:
         """Clearance (M,) of the spheres ``spheres`` whose centres are ``centers`` (M, 3), of the
@@ -668,15 +711,17 @@ class Clearance(Term):
         return _WorldDistance.apply(centers, self._world, self._cutoff) - self._radii[spheres]
 
     def __call__(self, r: Rollout) -> Tensor:
-        b, k, n = r.p.shape
-        q = r.p.reshape(b * k, n)
-        near = torch.from_numpy(self._near(q.detach().double().cpu().numpy())).to(q.device)
-        out = q.new_zeros(b * k)
-        rows = near.any(-1).nonzero()[:, 0]
-        if len(rows):
-            sub = near[rows]  # (R, S)
-            r_idx, s_idx = sub.nonzero(as_tuple=True)
-            centers = self.sphere_centers(q[rows])[r_idx, s_idx]  # (M, 3)
+        b, k, _ = r.p.shape
+        spheres = self.spheres_at(r)
+        near = self._near(spheres.np)
+        out = r.p.new_zeros(b * k)
+        rows_np = np.flatnonzero(near.any(-1))
+        if len(rows_np):
+            r_np, s_np = np.nonzero(near[rows_np])  # (M,) each
+            rows = torch.as_tensor(rows_np, device=r.p.device)
+            r_idx = torch.as_tensor(r_np, device=r.p.device)
+            s_idx = torch.as_tensor(s_np, device=r.p.device)
+            centers = spheres.centers(rows)[r_idx, s_idx]  # (M, 3)
             gap = self._gaps(centers, rows[r_idx], s_idx)
             out = out.index_add(0, rows[r_idx], torch.relu(self.margin - gap) ** 2)
         return out.reshape(b, k).mean(-1)
@@ -705,11 +750,10 @@ class AvoidSpheres(Clearance):
             raise SettingsError(f"targets[{self.name!r}]: a sphere's radius (the 4th value) must be >= 0")
         self._target_np = self.target.double().cpu().numpy()
 
-    def _near(self, qn: NDArray[np.float64]) -> NDArray[np.bool_]:
-        c = self.centers_np(qn)  # (N, S, 3)
-        obs = self._target_np[np.arange(len(qn)) // self._k]  # (N, m, 4)
+    def _near(self, c: NDArray[np.float64]) -> NDArray[np.bool_]:
+        obs = self._target_np[np.arange(len(c)) // self._k]  # (N, m, 4)
         gap = np.linalg.norm(c[:, :, None, :] - obs[:, None, :, :3], axis=-1) - self._radii_np[None, :, None] - obs[:, None, :, 3]
-        return gap.min(-1) < self.margin + self.SLACK
+        return gap.min(-1) < self.margin
 
     def _gaps(self, centers: Tensor, rows: Tensor, spheres: Tensor) -> Tensor:
         obs = self.target[rows // self._k]  # (M, m, 4)
@@ -727,7 +771,12 @@ class SelfClearance(Clearance):
     the robot's SRDF or computed pairs) at least ``margin`` apart. A pair of spheres closer than
     ``margin`` at the robot's default configuration is left out (its spheres' padding overlaps
     where the links' solids do not; :attr:`dropped` counts them): the term keeps an arm from
-    folding onto itself when other terms push it, no scene needed."""
+    folding onto itself when other terms push it, no scene needed.
+
+    Screened by link pair first: each link's spheres lie inside one bounding sphere (centred at
+    the centre of its first sphere, which moves with the link), and a link pair whose bounding
+    spheres are ``margin`` apart has no sphere pair nearer; only the other link pairs' sphere
+    pairs are measured."""
 
     kind = "self_clearance"
 
@@ -745,27 +794,54 @@ class SelfClearance(Clearance):
         self._s_np, self._t_np = s[ok], t[ok]
         self._s = torch.as_tensor(self._s_np, device=ctx.device)
         self._t = torch.as_tensor(self._t_np, device=ctx.device)
+        # each link's bounding sphere (centred at its first sphere's centre) and the sphere
+        # pairs of each link pair
+        link_of = self._link_of.cpu().numpy()
+        n_links = len(self._links)
+        self._link_first = np.array([np.flatnonzero(link_of == i)[0] for i in range(n_links)])
+        local = np.asarray(self._spheres.centers, dtype=np.float64)
+        reach = np.linalg.norm(local - local[self._link_first][link_of], axis=-1) + self._radii_np
+        self._link_radius = np.array([reach[link_of == i].max() for i in range(n_links)])
+        pair_links = link_of[self._s_np] * n_links + link_of[self._t_np]
+        self._groups = [(int(key) // n_links, int(key) % n_links, np.flatnonzero(pair_links == key))
+                        for key in np.unique(pair_links)]
 
     def _pair_gaps_np(self, c: NDArray[np.float64], s: NDArray[np.int64], t: NDArray[np.int64]) -> NDArray[np.float64]:
         return np.linalg.norm(c[:, s] - c[:, t], axis=-1) - self._radii_np[s] - self._radii_np[t]
 
+    def _near_pairs(self, c: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(rows, pairs): the sphere pairs (indices into the kept pairs) nearer than margin at
+        the configurations whose sphere centres are ``c`` (N, S, 3)."""
+        link_c = c[:, self._link_first]  # (N, L, 3) the links' bounding spheres' centres
+        rows: list[NDArray[np.int64]] = []
+        pairs: list[NDArray[np.int64]] = []
+        for a, b, group in self._groups:
+            gap = np.linalg.norm(link_c[:, a] - link_c[:, b], axis=-1) - self._link_radius[a] - self._link_radius[b]
+            cand = np.flatnonzero(gap < self.margin)
+            if len(cand):
+                near = self._pair_gaps_np(c[cand], self._s_np[group], self._t_np[group]) < self.margin
+                r_idx, p_idx = np.nonzero(near)
+                rows.append(cand[r_idx])
+                pairs.append(group[p_idx])
+        if not rows:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        return np.concatenate(rows), np.concatenate(pairs)
+
     def __call__(self, r: Rollout) -> Tensor:
-        b, k, n = r.p.shape
-        q = r.p.reshape(b * k, n)
-        out = q.new_zeros(b * k)
+        b, k, _ = r.p.shape
+        out = r.p.new_zeros(b * k)
         if not len(self._s_np):
             return out.reshape(b, k).mean(-1)
-        near = self._pair_gaps_np(self.centers_np(q.detach().double().cpu().numpy()), self._s_np, self._t_np) \
-            < self.margin + self.SLACK  # (N, P)
-        rows = np.flatnonzero(near.any(-1))
-        if len(rows):
-            r_idx, p_idx = np.nonzero(near[rows])
-            rows_t = torch.as_tensor(rows, device=q.device)
-            c = self.sphere_centers(q[rows_t])  # (R, S, 3)
-            ri, pi = torch.as_tensor(r_idx, device=q.device), torch.as_tensor(p_idx, device=q.device)
+        spheres = self.spheres_at(r)
+        rows_np, pairs_np = self._near_pairs(spheres.np)
+        if len(rows_np):
+            uniq, r_np = np.unique(rows_np, return_inverse=True)
+            dev = r.p.device
+            c = spheres.centers(torch.as_tensor(uniq, device=dev))  # (R, S, 3)
+            ri, pi = torch.as_tensor(r_np.reshape(-1), device=dev), torch.as_tensor(pairs_np, device=dev)
             s, t = self._s[pi], self._t[pi]
             gap = torch.linalg.norm(c[ri, s] - c[ri, t], dim=-1) - self._radii[s] - self._radii[t]
-            out = out.index_add(0, rows_t[ri], torch.relu(self.margin - gap) ** 2)
+            out = out.index_add(0, torch.as_tensor(rows_np, device=dev), torch.relu(self.margin - gap) ** 2)
         return out.reshape(b, k).mean(-1)
 
 
@@ -834,6 +910,7 @@ class Objective:
             raise SettingsError(f"objective {name!r} has no term")
         self.terms = made
         self.name = name
+        self._ctx: Context | None = None  # what bind() was given
 
     @property
     def target_names(self) -> list[str]:
@@ -848,10 +925,19 @@ class Objective:
                                    f"{[t.name for t in self.terms]}")
         for t in self.terms:
             t.bind(ctx)
+        self._ctx = ctx
 
     def values(self, r: Rollout) -> dict[str, Tensor]:
-        """Each term's unweighted value per problem."""
-        return {t.name: _checked(t, t(r), r.batch) for t in self.terms}
+        """Each term's unweighted value per problem (the clearance terms share the robot's
+        spheres at the rollout's samples during the call)."""
+        ctx = self._ctx
+        if ctx is None:
+            return {t.name: _checked(t, t(r), r.batch) for t in self.terms}
+        ctx._scope = (r.p, None)
+        try:
+            return {t.name: _checked(t, t(r), r.batch) for t in self.terms}
+        finally:
+            ctx._scope = None
 
     def combine(self, values: Mapping[str, Tensor]) -> Tensor:
         """The weighted sum of :meth:`values`, in the terms' order."""

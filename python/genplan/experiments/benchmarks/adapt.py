@@ -27,8 +27,12 @@ where that trajectory starts. Rows:
 * **obstacle**: a sphere of ``--obstacle-radius`` placed on each input's path at mid-time (the
   frame's position there), the target the input's own end; the objective adds the clearance from
   that sphere; success: finished (as above) against the scene plus the sphere. The row records how
-  many inputs cross the sphere and how many start inside it (another link than the frame there at
-  the start: no motion from that start is clear of it; they count as failures).
+  many inputs cross the sphere, how many start inside it (another link than the frame there at
+  the start: no motion from that start is clear of it) and how many end inside it (the input's
+  last configuration: the frame's target is outside the sphere, but the arm must reach it another
+  way). ``success_percent`` counts every problem (those starting inside the sphere as failures);
+  ``free_success_percent`` counts only the problems whose input starts and ends clear of it
+  (``free_problems`` of them).
 """
 
 from __future__ import annotations
@@ -165,6 +169,7 @@ def main(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     obs = adjust(model, x_in, objective(frame, obstacle=True), targets={"end_position": own_end, "avoid_spheres": spheres},
                  updates=args.obstacle_updates, step="adam", lr=OBSTACLE_LR, scene=scene)
+    t_obs_adjust = time.perf_counter() - t0
     worlds = []
     for i in range(args.problems):
         w = robot.collision_world()
@@ -176,10 +181,16 @@ def main(args: argparse.Namespace) -> int:
     t_obs = time.perf_counter() - t0
     inputs_hit = sum(bool(np.any(worlds[i].in_collision(x_in[i]))) for i in range(args.problems))
     # a start in the sphere (another link than the frame passing through it) leaves no motion clear of it
-    starts_hit = sum(bool(worlds[i].in_collision(x_in[i, 0])) for i in range(args.problems))
+    starts_hit = np.array([bool(worlds[i].in_collision(x_in[i, 0])) for i in range(args.problems)])
+    ends_hit = np.array([bool(worlds[i].in_collision(x_in[i, -1])) for i in range(args.problems)])
+    free = ~starts_hit & ~ends_hit
     rows["obstacle"] = _finish_row(fin_obs, t_obs / args.problems, args.obstacle_updates)
     rows["obstacle"].update(radius_m=args.obstacle_radius, inputs_in_collision_percent=100.0 * inputs_hit / args.problems,
-                            starts_in_collision_percent=100.0 * starts_hit / args.problems,
+                            starts_in_collision_percent=100.0 * float(starts_hit.mean()),
+                            ends_in_collision_percent=100.0 * float(ends_hit.mean()),
+                            free_problems=int(free.sum()),
+                            free_success_percent=100.0 * float(fin_obs.success[free].mean()) if free.any() else float("nan"),
+                            adjust_ms_per_problem=1e3 * t_obs_adjust / args.problems, finish_stages_s=fin_obs.seconds,
                             failure_reasons=_reasons(fin_obs.reasons))
     _say("obstacle", rows["obstacle"])
 
@@ -187,6 +198,9 @@ def main(args: argparse.Namespace) -> int:
                 [[k, f"{r.get('success_percent', float('nan')):.1f}", f"{r.get('max_end_error_mm', float('nan')):.3f}",
                   f"{r.get('max_residual_ratio', float('nan')):.3g}", f"{r.get('ms_per_problem', float('nan')):.1f}"]
                  for k, r in rows.items() if "success_percent" in r]))
+    o = rows["obstacle"]
+    print(f"obstacle: {o['success_percent']:.1f} % of all {args.problems} problems, {o['free_success_percent']:.1f} % of the "
+          f"{o['free_problems']} whose input starts and ends clear of the sphere")
     d = rows["direct"]
     print(f"direct: {d['reached_latent_level_percent']:.0f} % reach the latent's objective level, median "
           f"{d['median_updates_to_latent_level']} updates ({d['update_ratio_to_latent']}x the latent's {args.updates})")
