@@ -119,6 +119,7 @@ OUTPUTS = [
     ("bench scaling", "", "--out", "file"),
     ("bench peers", "", "--out", "file"),
     ("bench peers", "", "--markdown", "file"),
+    ("bench motion", "", "--out", "file"),
     ("data configurations", "--robot panda --data-size 10", "--out", "folder"),
     ("data trajectories", "--robot panda --task panda_projection --count 2", "--out", "folder"),
     ("adjust", f"--model {Path(__file__).resolve()} --input x.npz --objective {Path(__file__).resolve()}", "--out",

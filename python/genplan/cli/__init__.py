@@ -61,6 +61,7 @@ COMMANDS: list[tuple[str, str, str, str]] = [
     ("bench", "peers", "genplan.experiments.benchmarks.peers", "genplan beside Pinocchio + coal, pink, placo, ikpy, pytorch-kinematics: FK, collision, IK, plan time vs obstacles"),
     ("bench", "adjust", "genplan.experiments.benchmarks.adjust", "seq2seq paper Figs. 5-9, 11: latent trajectory adjustment (J1, J2) vs direct U and CasADi + IPOPT"),
     ("bench", "adapt", "genplan.experiments.benchmarks.adapt", "a learned family adapted to new goals and obstacles: latent vs direct, replanning, ProMP"),
+    ("bench", "motion", "genplan.experiments.benchmarks.motion", "free-space Panda plans on MotionBenchMaker-style families beside VAMP: success, plan and simplify ms, path length"),
     ("train", "gan", "genplan.cli.train_gan", "the conditional ensemble GAN of valid configurations"),
     ("train", "flow", "genplan.cli.train_flow", "a conditional flow-matching sampler of valid configurations (beyond the paper)"),
     ("train", "seq2seq", "genplan.cli.train_seq2seq", "a seq2seq model of a trajectory data set (--data), or the pancake's"),

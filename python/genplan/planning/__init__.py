@@ -101,7 +101,7 @@ EDGE_CHECKS: tuple[str, ...] = _core.EDGE_CHECKS
 #: (:func:`genplan.spheres.robot_spheres`) against the world's obstacles in closed form, several
 #: states at once (rust/core/src/collision/spheres.rs). The spheres cover the links, so a state
 #: valid by them is valid by the exact geometry (the converse fails near contact: a path may be
-#: missed, never one in collision returned); a point cloud in the world is refused.
+#: missed, never one in collision returned); a point cloud is met through its grid of balls.
 CHECKERS: tuple[str, ...] = ("exact", "spheres")
 #: The adaptive sampler's half-life: the rows drawn within a plan after which the learned
 #: sampler's share has halved (about 100 extensions of 16 samples; ``half_life=`` overrides it,
@@ -253,14 +253,16 @@ def data_sampler(robot: Robot, data: ArrayLike | None = None, *, task: "str | os
     return _core.DataSampler(np.ascontiguousarray(rows.in_box(box) if in_box else rows.rows), seed)
 
 
-def sphere_checker(robot: Robot, world: CollisionWorld) -> Any:
+def sphere_checker(robot: Robot, world: CollisionWorld, spheres: Any = None) -> Any:
     """The native sphere checker of ``robot`` (its :func:`~genplan.spheres.robot_spheres`, cached
-    on disk) against ``world``'s obstacles and self pairs as they are now: ``in_collision(q)``
-    ((nq,) -> bool, (n, nq) -> (n,) bool), ``motion_free(a, b, resolution)``, and a checker the
-    planner takes. A point cloud in ``world`` is refused (GenplanError naming it)."""
+    on disk, or ``spheres``: a :class:`~genplan.spheres.RobotSpheres` of the caller's, e.g. another
+    planner's spheres to compare on the same geometry) against ``world``'s obstacles and self pairs
+    as they are now: ``in_collision(q)`` ((nq,) -> bool, (n, nq) -> (n,) bool),
+    ``motion_free(a, b, resolution)``, and a checker the planner takes. A point cloud in ``world``
+    is tested as its balls (each sphere against the balls in the grid cells around it)."""
     from genplan.spheres import robot_spheres
 
-    s = robot_spheres(robot)
+    s = robot_spheres(robot) if spheres is None else spheres
     return _core.SphereChecker(world.native, list(s.links), np.ascontiguousarray(s.centers).tolist(),
                                np.ascontiguousarray(s.radii).tolist())
 

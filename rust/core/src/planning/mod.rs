@@ -37,7 +37,8 @@
 //! The files, one concept each: `error` (PlanError), `space` (configuration spaces), `sampler`,
 //! `projector`, `checker` (the components and their native implementations), `nearest` (the
 //! nearest-neighbour indices), `constrained` (the constrained space), `tree` (the search tree),
-//! `rrt` (settings, the planner and the cRRT), `rrt_connect` (RRT-Connect's attempt).
+//! `rrt` (settings, the planner and the cRRT), `rrt_connect` (RRT-Connect's attempt), `simplify`
+//! (free-space path simplification).
 //! Everything is re-exported here: the paths are `genplan_core::planning::X`.
 
 mod checker;
@@ -48,6 +49,7 @@ mod projector;
 mod rrt;
 mod rrt_connect;
 mod sampler;
+mod simplify;
 mod space;
 mod tree;
 

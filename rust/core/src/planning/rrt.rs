@@ -118,8 +118,9 @@ pub struct Settings {
     /// Validate edges lazily: only those of a path that reaches a goal (a failing edge prunes its
     /// subtree and the search goes on). Otherwise every edge is validated as it is added.
     pub lazy_edges: bool,
-    /// Shortcut the solution (greedy, each shortcut a projected, validated straight edge). Off
-    /// by default: the paper's timings have none.
+    /// Simplify the solution. On a manifold: greedy shortcuts, each a projected, validated
+    /// straight edge. In free space: reduce, partial shortcuts and smoothing, repeated while they
+    /// shorten the path (`simplify.rs`). Off by default: the paper's timings have none.
     pub simplify: bool,
     /// The nearest-neighbour index.
     pub neighbors: NeighborIndex,
@@ -287,6 +288,8 @@ pub struct Stats {
     pub projector_s: f64,
     /// Seconds spent in the validity checker.
     pub checker_s: f64,
+    /// Seconds spent simplifying the solution (included in `time_s`; its checks in `checker_s`).
+    pub simplify_s: f64,
 }
 
 /// A plan's outcome.
@@ -444,7 +447,13 @@ impl Planner {
             };
             if let Some(Found { mut waypoints, mut edges, goal }) = found {
                 if self.settings.simplify {
-                    (waypoints, edges) = run.shortcut(waypoints, edges)?;
+                    let t = Instant::now();
+                    (waypoints, edges) = if run.space.constrained() {
+                        run.shortcut(waypoints, edges)?
+                    } else {
+                        run.simplify_free(waypoints, edges)?
+                    };
+                    run.space.stats.simplify_s += t.elapsed().as_secs_f64();
                 }
                 let (w, path) = flatten(&waypoints, &edges);
                 solution = Some((w, path, goal));
