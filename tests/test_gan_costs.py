@@ -135,12 +135,3 @@ def test_a_gan_for_a_robot_and_task_of_ones_own(xarm7: genplan.Robot, cup: P.Tas
         load_model(xarm7, weights, task=other_terms)
     with pytest.raises(SettingsError, match="GanConfig.task is 'upright_cup', the task given 'panda_ik'"):
         train(cfg, robot=xarm7, task=dataclasses.replace(cup, name="panda_ik"), progress=False)
-
-
-def test_continuous_joints_are_refused_before_training() -> None:
-    kinova = genplan.load("kinova")
-    task = P.Task(primary=(P.FramePosition(name="p", frame=kinova.model.frames[-1].name, target=(0.3, 0, 0.3)),
-                           P.JointLimits(name="limits")), name="reach", condition=P.Condition("p", (0, 0, 0), (1, 1, 1)))
-    cfg = default_config(kinova, task)
-    with pytest.raises(SettingsError, match="continuous joints"):
-        train(cfg, robot=kinova, task=task, progress=False)

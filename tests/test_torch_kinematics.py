@@ -11,7 +11,7 @@ from genplan.torch_kinematics import TorchKinematics
 from tests.conftest import random_configurations
 
 
-@pytest.mark.parametrize("name", ["panda", "talos", "ur5"])
+@pytest.mark.parametrize("name", ["panda", "talos", "ur5", "kinova"])  # kinova: continuous joints ([cos, sin])
 def test_frames_and_com_match_pinocchio(name: str) -> None:
     robot = genplan.load(name)
     kin = TorchKinematics(robot, dtype=torch.float64)

@@ -96,37 +96,13 @@ def frame_link(robot: Any, frame: str | None, what: str = "controller.frame") ->
 # ---------------------------------------------------------------------------------------------
 
 def joint_values(robot: Any, q: Array) -> Array:
-    """Configurations (n, nq) as joint values (n, nv): a continuous joint's [cos, sin] as its
-    angle, unwrapped along the rows."""
-    if robot.nq == robot.nv:
-        return q
-    cols, skip = [], set()
-    for i in range(robot.nq):
-        if i in skip:
-            continue
-        if i in robot.continuous:
-            cols.append(np.unwrap(np.arctan2(q[:, i + 1], q[:, i])))
-            skip.add(i + 1)
-        else:
-            cols.append(q[:, i])
-    return np.column_stack(cols)
+    """Configurations (n, nq) as joint values (n, nv): :meth:`genplan.robots.Robot.joint_values`."""
+    return robot.joint_values(q)  # type: ignore[no-any-return]
 
 
 def from_joint_values(robot: Any, x: Array) -> Array:
-    """The inverse of :func:`joint_values`: joint values (n, nv) as configurations (n, nq)."""
-    if robot.nq == robot.nv:
-        return x
-    out, k = np.empty((len(x), robot.nq)), 0
-    i = 0
-    while i < robot.nq:
-        if i in robot.continuous:
-            out[:, i], out[:, i + 1] = np.cos(x[:, k]), np.sin(x[:, k])
-            i += 2
-        else:
-            out[:, i] = x[:, k]
-            i += 1
-        k += 1
-    return out
+    """The inverse of :func:`joint_values`: :meth:`genplan.robots.Robot.from_joint_values`."""
+    return robot.from_joint_values(x)  # type: ignore[no-any-return]
 
 
 def _times(t: Any, n: int) -> Array:

@@ -22,10 +22,15 @@ _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
 
 def _joint_kind(joint: pin.JointModel) -> tuple[str, tuple[float, float, float] | None]:
-    """("free" | "revolute" | "prismatic", axis) of a Pinocchio joint model."""
+    """("free" | "revolute" | "continuous" | "prismatic", axis) of a Pinocchio joint model."""
     name = joint.shortname()
     if name == "JointModelFreeFlyer":
         return "free", None
+    # unbounded (continuous) revolute joints take [cos, sin] in q; checked before "JointModelR"
+    if name.startswith("JointModelRUB") and name[len("JointModelRUB"):] in _AXES:
+        return "continuous", _AXES[name[len("JointModelRUB"):]]
+    if name == "JointModelRevoluteUnboundedUnaligned":
+        return "continuous", tuple(float(a) for a in np.asarray(joint.extract().axis, dtype=float))
     for prefix, kind in (("JointModelR", "revolute"), ("JointModelP", "prismatic")):
         if name.startswith(prefix):
             suffix = name[len(prefix):]
@@ -108,10 +113,14 @@ class TorchKinematics(torch.nn.Module):
                 rm = quaternion_to_matrix(q[:, iq + 3:iq + 7])
                 rots.append(r_par @ rm)
                 poss.append(p_par + (r_par @ q[:, iq:iq + 3].unsqueeze(-1)).squeeze(-1))
-            elif kind == "revolute":
-                theta = q[:, iq].reshape(batch, 1, 1)
+            elif kind in ("revolute", "continuous"):
+                if kind == "revolute":
+                    theta = q[:, iq].reshape(batch, 1, 1)
+                    sin, cos = torch.sin(theta), torch.cos(theta)
+                else:  # [cos, sin] in q, used as given (Pinocchio's convention: q is normalised)
+                    cos, sin = q[:, iq].reshape(batch, 1, 1), q[:, iq + 1].reshape(batch, 1, 1)
                 k = _skew(self._axes[j].to(q.dtype)).expand(batch, 3, 3)
-                rm = eye + torch.sin(theta) * k + (1 - torch.cos(theta)) * (k @ k)
+                rm = eye + sin * k + (1 - cos) * (k @ k)
                 rots.append(r_par @ rm)
                 poss.append(p_par)
             else:  # prismatic

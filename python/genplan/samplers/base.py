@@ -84,6 +84,8 @@ class Codec:
     """Maps configurations to the generator's feature space and back.
 
     Panda: the 7 joint angles. Talos: base position (3), base rotation vector (3), 28 joints.
+    A continuous joint (Kinova) is its [cos, sin] pair as q holds it: two features, which
+    :meth:`decode` scales back to unit norm (no angle wraps around, no limit to respect).
     Features are standardised with the data's mean and standard deviation.
     """
 
@@ -93,6 +95,8 @@ class Codec:
         self.mean = torch.tensor(mean, dtype=torch.float32)
         self.std = torch.tensor(std, dtype=torch.float32)
         self.dim = len(mean)
+        #: q indices of each continuous joint's cos (its sin follows): the pairs decode normalises
+        self.continuous = [int(i) for i in robot.continuous]
 
     @staticmethod
     def features(robot: Robot, q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -104,13 +108,24 @@ class Codec:
     def decode(self, x: torch.Tensor) -> torch.Tensor:
         """Standardised features (..., dim) to configurations (..., nq)."""
         f = x * self.std + self.mean
-        if not self.floating:
+        if self.floating:
+            rv = f[..., 3:6]
+            angle = torch.sqrt((rv * rv).sum(-1, keepdim=True) + 1e-12)
+            xyz = rv * (torch.sin(angle / 2) / angle)
+            quat = torch.cat([xyz, torch.cos(angle / 2)], -1)
+            f = torch.cat([f[..., :3], quat, f[..., 6:]], -1)
+        if not self.continuous:
             return f
-        rv = f[..., 3:6]
-        angle = torch.sqrt((rv * rv).sum(-1, keepdim=True) + 1e-12)
-        xyz = rv * (torch.sin(angle / 2) / angle)
-        quat = torch.cat([xyz, torch.cos(angle / 2)], -1)
-        return torch.cat([f[..., :3], quat, f[..., 6:]], -1)
+        parts, start = [], 0
+        for i in self.continuous:
+            pair = f[..., i:i + 2]
+            # floored as the rotation vector's angle above, and as the native codec does
+            # (rust/core/src/codec.rs): no division by zero
+            norm = torch.sqrt((pair * pair).sum(-1, keepdim=True) + 1e-12)
+            parts += [f[..., start:i], pair / norm]
+            start = i + 2
+        parts.append(f[..., start:])
+        return torch.cat(parts, -1)
 
 
 class SamplerModel:
@@ -330,7 +345,7 @@ def prepare_training(cfg: Any, data: NDArray[np.float64] | None, progress: bool,
                      task: "P.Task | None", kind: str) -> TrainingData:
     """The robot, task, data and codec of a training run of ``cfg`` (a GanConfig or FlowConfig:
     ``robot``, ``task_name``, ``data_size``, ``data_seed``, ``target_frame``), checked: a robot or
-    task other than the config's, continuous joints, misshapen data, a target frame the robot
+    task other than the config's, misshapen data, a target frame the robot
     lacks, or a task that the card or its evaluation could not use
     (:func:`genplan.projection.check_task_use`) raise before any work. ``kind`` names the model
     in messages."""
@@ -342,10 +357,6 @@ def prepare_training(cfg: Any, data: NDArray[np.float64] | None, progress: bool,
     task = P.load_task(cfg.task_name, robot) if task is None else task
     if task.name != cfg.task_name:
         raise SettingsError(f"{type(cfg).__name__}.task is '{cfg.task_name}', the task given '{task.name}'")
-    if robot.continuous:
-        names = [n for n in robot.joint_names if robot.model.joints[robot.model.getJointId(n)].nq == 2]
-        raise SettingsError(f"robot '{robot.name}': the {kind}'s codec does not handle continuous joints yet "
-                            f"({', '.join(names)}); lock them or give them limits in the URDF")
     P.check_task_use(task, robot)  # what the card and its evaluation do with the task, tried before training
     if getattr(cfg, "target_frame", None) is not None:
         robot.frame_positions(robot.q_default, cfg.target_frame)

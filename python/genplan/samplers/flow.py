@@ -205,6 +205,7 @@ class FlowModel(SamplerModel):
             b[0].tolist(),
             b[1].tolist(),
             int(seed),
+            continuous=self.codec.continuous,
         )
 
     def draw_native(self, native: Any, targets: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.float64]:

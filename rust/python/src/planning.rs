@@ -289,7 +289,7 @@ pub(crate) struct PyGanSampler {
 impl PyGanSampler {
     /// `weights[i]`: (n_net, inputs, outputs), `biases[i]`: (n_net, 1, outputs), float64.
     #[new]
-    #[pyo3(signature = (noise_dim, weights, biases, mean, std, floating_base, lower, upper, seed=0))]
+    #[pyo3(signature = (noise_dim, weights, biases, mean, std, floating_base, lower, upper, seed=0, continuous=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         noise_dim: usize,
@@ -301,6 +301,7 @@ impl PyGanSampler {
         lower: [f64; 3],
         upper: [f64; 3],
         seed: u64,
+        continuous: Option<Vec<usize>>,
     ) -> PyResult<Self> {
         if weights.len() != biases.len() || weights.is_empty() {
             return Err(err(Kind::Shape, "GAN sampler: one bias per weight matrix, at least one layer"));
@@ -321,7 +322,9 @@ impl PyGanSampler {
                 biases: b.as_array().iter().copied().collect(),
             });
         }
-        let generator = Arc::new(gan::Generator::new(n_net, noise_dim, layers, mean, std, floating_base).map_err(to_py)?);
+        let mut generator = gan::Generator::new(n_net, noise_dim, layers, mean, std, floating_base).map_err(to_py)?;
+        generator.codec = generator.codec.clone().with_continuous(continuous.unwrap_or_default(), "GAN sampler").map_err(to_py)?;
+        let generator = Arc::new(generator);
         let sampler = gan::GanSampler::new(generator.clone(), lower, upper, seed).map_err(to_py)?;
         Ok(Self { inner: Arc::new(Mutex::new(sampler)), generator })
     }
@@ -387,7 +390,7 @@ pub(crate) struct PyFlowSampler {
 impl PyFlowSampler {
     /// `weights[i]`: (outputs, inputs), `biases[i]`: (outputs,), float32 (torch's Linear layout).
     #[new]
-    #[pyo3(signature = (weights, biases, steps, target_mean, target_std, mean, std, floating_base, lower, upper, seed=0))]
+    #[pyo3(signature = (weights, biases, steps, target_mean, target_std, mean, std, floating_base, lower, upper, seed=0, continuous=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         weights: Vec<PyReadonlyArray2<'_, f32>>,
@@ -401,6 +404,7 @@ impl PyFlowSampler {
         lower: [f64; 3],
         upper: [f64; 3],
         seed: u64,
+        continuous: Option<Vec<usize>>,
     ) -> PyResult<Self> {
         if weights.len() != biases.len() || weights.is_empty() {
             return Err(err(Kind::Shape, "flow sampler: one bias per weight matrix, at least one layer"));
@@ -414,7 +418,9 @@ impl PyFlowSampler {
                 bias: b.as_array().iter().copied().collect(),
             });
         }
-        let codec = codec::Codec::new(mean, std, floating_base, "flow sampler").map_err(to_py)?;
+        let codec = codec::Codec::new(mean, std, floating_base, "flow sampler")
+            .and_then(|c| c.with_continuous(continuous.unwrap_or_default(), "flow sampler"))
+            .map_err(to_py)?;
         let flow = Arc::new(flow::Flow::new(layers, steps, target_mean, target_std, codec).map_err(to_py)?);
         let sampler = flow::FlowSampler::new(flow.clone(), lower, upper, seed).map_err(to_py)?;
         Ok(Self { inner: Arc::new(Mutex::new(sampler)), flow })
@@ -602,7 +608,7 @@ record_class!(
     Stats,
     [success, retries, extensions, projections, projection_calls, edge_projections, samples, samples_rejected,
      validity_checks, motion_certificates, chord_checks, nodes, pruned, shortcuts, time_s, sampler_s, projector_s,
-     checker_s]
+     checker_s, simplify_s]
 );
 
 /// A plan's outcome. `path` is dense: from the start to the goal reached (the start alone when
@@ -785,7 +791,7 @@ fn projector_from(projector: &Bound<'_, PyAny>, nq: usize, parallel: bool, chord
 }
 
 /// The bytes the samples of a timed path `total` seconds long take at `rate` Hz with `n` joints,
-/// at most (genplan_core::timing::sample_bytes: what `sample_timed_spline` checks against
+/// at most (genplan_core::timing::sample_bytes: what `TimedPath.sample` checks against
 /// `MAX_TRAJECTORY_BYTES` before it allocates).
 #[pyfunction]
 fn sample_bytes(total: f64, rate: f64, n: usize) -> f64 {
