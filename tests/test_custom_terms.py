@@ -180,3 +180,29 @@ def test_train_gan_and_data_take_a_python_task_file_only_with_allow_python(tmp_p
     assert card["task"]["primary"][1]["entry"] == ENTRY
     assert card["command"].startswith(f"genplan train gan --robot panda --task {path} --seed 0")
     assert "--allow-python" in card["command"]
+
+
+def test_plan_and_train_flow_take_a_python_task_file_only_with_allow_python(tmp_path, capsys) -> None:
+    panda = genplan.load("panda")
+    path = _task(panda).to_file(tmp_path / "wrist.toml")
+    flow = tmp_path / "f.safetensors"
+    train = ["train", "flow", "--robot", "panda", "--task", str(path), "--iterations", "2", "--data-size", "40",
+             "--eval-targets", "2", "--out", str(flow)]
+    out = tmp_path / "plan.json"
+    plan = ["plan", "--robot", "panda", "--task", str(path), "--start", "default", "--target", "0.45", "0.1", "0.5",
+            "--seed", "0", "--out", str(out)]
+    for argv in (train, plan):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "--allow-python" in err and ENTRY in err
+    assert not flow.exists() and not out.exists()
+    assert main([*train, "--allow-python"]) == 0
+    assert json.loads(flow.with_suffix(".json").read_text())["task"]["primary"][1]["entry"] == ENTRY
+    # with the opt-in the plan is made on the python term's manifold (start and goal projected)
+    assert main(["plan", "--robot", "panda", "--task", str(path), "--start", "default", "--goal", "0.3 -0.3 0 -2.2 0 2 0.8",
+                 "--seed", "0", "--out", str(out), "--allow-python"]) == 0
+    report = json.loads(out.read_text())
+    assert report["success"] and report["task"] == "panda_wrist_on_circle"
+    wrist = P.GaussNewtonProjector(panda, P.manifold_task(P.load_task(str(path), panda, allow_python=True), panda))
+    sizes = wrist.residual_sizes(np.array(report["path"]))
+    assert np.all(sizes["wrist"] <= 1e-3)  # every state of the path on the python term's circle

@@ -74,8 +74,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "of the finished trajectories' collision checks (default: the --input data set's scene; "
                         "none for a .npz input)")
     p.add_argument("--seed", type=A.seed, default=0, help="the seed of random-latent's starting z (default 0)")
-    p.add_argument("--allow-python", action="store_true",
-                   help="run the objective file's python terms (kind = \"python\": code it names)")
+    A.add_allow_python(p, "--objective")
     p.add_argument("--threads", type=A.positive_int, default=None,
                    help="torch threads (default: genplan's choice, one; $GENPLAN_TORCH_THREADS overrides it too)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -268,10 +268,11 @@ def add_robot_and_task(p: argparse.ArgumentParser, task_default: str | None, *, 
                         + ("" if task_default is None else f"; default: {task_default}"))
 
 
-def add_allow_python(p: argparse.ArgumentParser) -> None:
-    """``--allow-python``: a ``--task`` file's python terms (``kind = "python"``, ``entry =
-    "module:Class"``) are imported only with it, since importing runs that module's code
-    (:meth:`genplan.projection.Task.from_file`, ``allow_python``)."""
+def add_allow_python(p: argparse.ArgumentParser, option: str = "--task") -> None:
+    """``--allow-python``: the ``option`` file's python terms (``kind = "python"``, ``entry =
+    "module:Class"``: a task's, :meth:`genplan.projection.Task.from_file`, or an objective's,
+    :func:`genplan.seq2seq.load_objective`) are imported only with it, since importing runs that
+    module's code (their ``allow_python``)."""
     p.add_argument("--allow-python", action="store_true",
-                   help="read the --task file's python terms (kind = \"python\", entry = \"module:Class\"): this "
+                   help=f"read the {option} file's python terms (kind = \"python\", entry = \"module:Class\"): this "
                         "imports and runs that module's code (without it, such a file is refused)")

@@ -57,6 +57,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     from genplan.planning import ALGORITHMS, EDGE_CHECKS, SAMPLERS
 
     A.add_robot_and_task(p, "free (free space: the joint limits alone, nothing projected)")
+    A.add_allow_python(p)
     p.add_argument("--scene", default=None, help="obstacles: a shipped scene's name or a scene file (.toml)")
     p.add_argument("--start", type=_start, default="default",
                    help="'default' (the robot's default configuration) or nq numbers; projected onto the manifold")
@@ -92,7 +93,14 @@ def main(args: argparse.Namespace) -> int:
 
     if args.trajectory is not None and args.trajectory.suffix.lower() not in (".npz", ".json", ".csv"):
         raise A.UsageError(f"--trajectory {args.trajectory}: expected a .npz, .json or .csv file")
-    outcome = plan(args.robot, "free" if args.task is None else args.task, args.scene, start=args.start,
+    robot, task = args.robot, "free" if args.task is None else args.task
+    if args.allow_python and args.task is not None:  # the file's python terms imported only on request
+        from genplan import projection as P
+        from genplan.robots import load
+
+        robot = load(args.robot)
+        task = P.load_task(args.task, robot, allow_python=True)
+    outcome = plan(robot, task, args.scene, start=args.start,
                    goal=args.goal, target=args.target, frame=args.frame, sampler=args.sampler, model=args.model,
                    k=args.goals, seed=args.seed, algorithm=args.algorithm,
                    settings=PlannerSettings(edge_check=args.edge_check))

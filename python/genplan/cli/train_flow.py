@@ -33,6 +33,7 @@ def hidden_list(text: str) -> tuple[int, ...]:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     A.add_robot_and_task(p, "the robot's shipped <robot>_ik")
+    A.add_allow_python(p)
     p.add_argument("--seed", type=A.seed, default=0, help="training seed (torch and numpy)")
     p.add_argument("--iterations", type=A.positive_int, default=None, help="training steps (default 4,000)")
     p.add_argument("--hidden", type=hidden_list, default=None, help="hidden layer widths (default 256,256,256)")
@@ -64,7 +65,8 @@ def main(args: argparse.Namespace) -> int:
     from genplan.samplers.flow import default_config, shipped_path, train, train_command
 
     robot = load(args.robot)
-    task = P.load_task(args.task if args.task is not None else default_task_name(robot), robot)
+    task = P.load_task(args.task if args.task is not None else default_task_name(robot), robot,
+                       allow_python=args.allow_python)
     if args.out is None and not (args.task is None or args.task in P.task_names()):
         raise A.UsageError("--out: give the model's path (a task file's flow has no shipped place)")
     out = A.model_output(args.out, shipped_path(robot))  # never inside the package
