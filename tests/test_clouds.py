@@ -239,3 +239,26 @@ def test_a_bad_points_file_fails_add_scene_all_or_nothing(tmp_path, panda) -> No
     with pytest.raises(SceneFileError, match="points 'cam'.*bad.ply.*'y'"):
         w.add_scene(s)
     assert w.obstacle_names == []
+
+
+def test_the_sphere_checker_meets_a_cloud_as_its_balls(panda) -> None:
+    from genplan.planning import Planner, sphere_checker
+
+    rng = np.random.default_rng(4)
+    # a wall in front of the arm and a few points in the air
+    pts = np.column_stack([np.full(300, 0.6), rng.uniform(-0.4, 0.4, 300), rng.uniform(0.1, 0.9, 300)])
+    pts[::30] = rng.uniform([-0.8, -0.8, 0.0], [0.8, 0.8, 1.0], (10, 3))
+    cloud = panda.collision_world()
+    cloud.add_points("cam", pts, 0.02)
+    balls = panda.collision_world()
+    for k, p in enumerate(pts):
+        balls.add_sphere(f"p{k}", 0.02, p)
+    qs = panda.random_configurations(400, 6)
+    by_cloud = np.asarray(sphere_checker(panda, cloud).in_collision(qs))
+    np.testing.assert_array_equal(by_cloud, sphere_checker(panda, balls).in_collision(qs))
+    assert 0 < by_cloud.sum() < len(qs)
+    # the spheres cover the links: free by them is free by the exact geometry
+    exact = np.asarray(cloud.in_collision(qs))
+    assert not (exact & ~by_cloud).any()
+    # a planner takes the cloud world with the sphere checker
+    Planner(panda, world=cloud, task="free", checker="spheres")

@@ -130,7 +130,7 @@ def _scene_file(tmp_path: Path, body: str) -> Path:
 @pytest.mark.parametrize(("body", "match"), [
     ('name = "x"\ncolour = "red"\n', r"bad.toml: unknown key 'colour' \(known: name, description, box, sphere"),
     ('name = "x"\n[[cone]]\nname = "c"\n', r"bad.toml: unknown shape table \[\[cone\]\] \(known shapes: box, sphere, cylinder, capsule, mesh, halfspace, points\)"),
-    ('[[box]]\nname = "b"\nhalf_extents = [1, 1, 1]\ncolor = 1\n', r"bad.toml: \[\[box\]\] 1: unknown key 'color' \(known: name, half_extents, size, position, rpy, quaternion, rotation\)"),
+    ('[[box]]\nname = "b"\nhalf_extents = [1, 1, 1]\ncolor = 1\n', r"bad.toml: \[\[box\]\] 1: unknown key 'color' \(known: name, half_extents, size, padding, position, rpy, quaternion, rotation\)"),
     ('[[sphere]]\nname = "s"\nposition = [0, 0, 0]\n', r"bad.toml: \[\[sphere\]\] 1: missing field 'radius'"),
     ('[[sphere]]\nradius = 1.0\n', r"bad.toml: \[\[sphere\]\] 1: missing field 'name'"),
     ('[[box]]\nname = "b"\nposition = [0, 0, 0]\n', r"missing field 'half_extents' \(or size\)"),
@@ -151,7 +151,7 @@ def _scene_file(tmp_path: Path, body: str) -> Path:
     ('[[box]]\nname = "b"\nhalf_extents = [1, 1, 1]\nquaternion = [0, 0, 0, 2]\n', "quaternion: must be a unit quaternion"),
     ('[[box]]\nname = "b"\nhalf_extents = [1, 1, 1]\nrotation = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\n', "rotation: not a proper rotation matrix"),
     ('[[halfspace]]\nname = "h"\nnormal = [0, 0, 0]\noffset = 0\n', r"\[\[halfspace\]\] 1 \('h'\): normal: must not be zero"),
-    ('[[halfspace]]\nname = "h"\nnormal = [0, 0, 1]\noffset = 0\nposition = [0, 0, 0]\n', r"unknown key 'position' \(known: name, normal, offset\)"),
+    ('[[halfspace]]\nname = "h"\nnormal = [0, 0, 1]\noffset = 0\nposition = [0, 0, 0]\n', r"unknown key 'position' \(known: name, normal, offset, padding\)"),
     ('box = 3\n', r"'box' must be a list of \[\[box\]\] tables"),
     ('name = \n', r"bad.toml: Invalid value"),
 ])

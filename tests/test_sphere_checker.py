@@ -1,8 +1,7 @@
 """The sphere checker (``genplan._core.SphereChecker``, ``genplan.planning.sphere_checker``,
 ``Planner(..., checker="spheres")``): conservative against the exact world on the shelf scene,
 one configuration and a batch alike, motions checked state by state, plans whose paths are valid
-by the exact geometry, and the refusals (unknown checker, a point cloud, the certified edge check,
-bad spheres)."""
+by the exact geometry, and the refusals (unknown checker, the certified edge check, bad spheres)."""
 
 from __future__ import annotations
 
@@ -94,15 +93,6 @@ def test_plan_takes_the_checker_by_name(panda: genplan.Robot, shelf) -> None:
 def test_certified_edges_need_the_exact_checker(panda: genplan.Robot) -> None:
     with pytest.raises(SettingsError, match="certified"):
         Planner(panda, task="free", checker="spheres", settings=PlannerSettings(edge_check="certified"))
-
-
-def test_a_point_cloud_is_refused_by_name(panda: genplan.Robot) -> None:
-    world = panda.collision_world()
-    world.add_points("kinect", np.array([[0.5, 0.0, 0.5], [0.6, 0.1, 0.5]]), 0.01)
-    with pytest.raises(GenplanError, match="'kinect'"):
-        sphere_checker(panda, world)
-    with pytest.raises(GenplanError, match="'kinect'"):
-        Planner(panda, world=world, task="free", checker="spheres")
 
 
 def test_bad_spheres_are_refused_naming_the_argument(panda: genplan.Robot) -> None:

@@ -365,3 +365,22 @@ def test_bad_executed_motions(panda, ur5, run, tmp_path):
     with pytest.raises(SettingsError, match="log: expected an ExecutionLog"):
         viewer.export_execution_html(panda, motion, tmp_path / "a.html")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_attached_objects_are_drawn_on_their_links(panda):
+    """A rod held by the hand is a part on the hand's joint whose vertices, placed by Pinocchio,
+    are the rod's corners where the Rust kinematics put the hand."""
+    from genplan.scene import Box, Pose
+
+    held = panda.with_attached("rod", Box("rod", (0.015, 0.015, 0.1)), "panda_hand", Pose(position=(0, 0, 0.25)))
+    (part,) = viewer._attached_parts(held)
+    assert part.name == "rod"
+    q = panda.random_configurations(1, rng=3)[0]
+    data = panda.model.createData()
+    pin.forwardKinematics(panda.model, data, q)
+    m = data.oMi[part.joint] * part.placement
+    world = part.vertices.astype(np.float64) @ m.rotation.T + m.translation
+    hand = held.link_poses(q, ["panda_hand"])[0]
+    local = (world - hand[:3, 3]) @ hand[:3, :3]  # in the hand's frame
+    assert np.allclose(local.min(axis=0), [-0.015, -0.015, 0.15], atol=1e-6)
+    assert np.allclose(local.max(axis=0), [0.015, 0.015, 0.35], atol=1e-6)

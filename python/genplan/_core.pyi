@@ -13,8 +13,9 @@ from genplan import protocols
 
 __all__ = [
     "__version__", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "SphereChecker", "Projector",
+    "MESH_SHAPES", "set_decomposition_cache",
     "SolverSettings", "read_robot_file", "robot_description", "read_robot", "load_robot", "srdf_disabled_pairs",
-    "disabled_pairs_srdf", "time_optimal", "sample_timed_spline", "MAX_TRAJECTORY_BYTES", "sample_bytes",
+    "disabled_pairs_srdf", "time_optimal", "TimedPath", "MAX_TRAJECTORY_BYTES", "sample_bytes",
     "Planner", "PlannerSettings", "PlanStats",
     "PlanResult", "UniformSampler", "DataSampler", "MixtureSampler", "GanSampler", "FlowSampler", "Dynamics", "ControllerSettings",
     "Disturbances", "Payload", "JointLimits", "SpatulaSetup", "PancakeSettings", "RunSummary", "PancakeSummary",
@@ -94,6 +95,9 @@ class KinematicModel:
         out: NDArray[Any] | None = None,
     ) -> NDArray[Any]: ...
 
+MESH_SHAPES: tuple[str, ...]
+
+def set_decomposition_cache(dir: _Path | None) -> None: ...
 @final
 class CollisionWorld:
     def __new__(
@@ -103,6 +107,7 @@ class CollisionWorld:
         package_dirs: list[_Path] = ...,
         srdf_path: _Path | None = None,
         disabled_pairs: list[tuple[str, str]] | None = None,
+        mesh_shape: str = "hull",
     ) -> Self: ...
     def compute_disabled_pairs(
         self, q_default: list[float] | NDArray[np.float64], samples: int = 10000, always_fraction: float = 0.95, seed: int = 0
@@ -121,6 +126,13 @@ class CollisionWorld:
     @property
     def obstacle_names(self) -> list[str]: ...
     check_self: bool
+    padding: float
+    def set_obstacle_padding(self, name: str, padding: float | None = None) -> None: ...
+    @property
+    def obstacle_paddings(self) -> dict[str, float | None]: ...
+    def attach(self, name: str, link: str, touch_links: list[str] = ..., q: list[float] | None = None) -> list[str]: ...
+    @property
+    def attached(self) -> list[tuple[str, str, list[str]]]: ...
     def add_box(
         self,
         name: str,
@@ -152,6 +164,7 @@ class CollisionWorld:
         scale: tuple[float, float, float],
         center: tuple[float, float, float],
         rotation: list[list[float]] | None = None,
+        shape: str = "hull",
     ) -> None: ...
     def add_halfspace(self, name: str, normal: tuple[float, float, float], offset: float) -> None: ...
     def remove_obstacle(self, name: str) -> None: ...
@@ -277,16 +290,31 @@ def time_optimal(
 MAX_TRAJECTORY_BYTES: int
 
 def sample_bytes(total: float, rate: float, n: int) -> float: ...
-def sample_timed_spline(
-    x: Sequence[float],
-    c: NDArray[np.float64],
-    grid: Sequence[float],
-    knots: Sequence[float],
-    sdot: Sequence[float],
-    sdd: Sequence[float],
-    rate: float,
-    scale: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
+@final
+class TimedPath:
+    """A path timed by TOPP-RA from rest to rest: the not-a-knot spline through ``states`` at the
+    path parameters ``s``, TOPP-RA's grid on it, the time-optimal speed profile under ``vlim``
+    and ``alim`` (genplan_core::timing::TimedPath)."""
+
+    def __new__(
+        cls,
+        s: Sequence[float],
+        states: NDArray[np.float64],
+        vlim: Sequence[float],
+        alim: Sequence[float],
+        grid_base: int,
+        grid_critical: float,
+    ) -> Self: ...
+    @property
+    def duration(self) -> float: ...
+    @property
+    def grid(self) -> NDArray[np.float64]: ...
+    @property
+    def sdot(self) -> NDArray[np.float64]: ...
+    def stretch(self, rate: float) -> float: ...
+    def sample(
+        self, rate: float, scale: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
 
 # --- constrained planning (genplan_core::planning / gan; genplan.planning) ---
 
@@ -322,6 +350,7 @@ class GanSampler:
         lower: list[float],
         upper: list[float],
         seed: int = 0,
+        continuous: list[int] | None = None,
     ) -> Self: ...
     @property
     def nq(self) -> int: ...
@@ -347,6 +376,7 @@ class FlowSampler:
         lower: list[float],
         upper: list[float],
         seed: int = 0,
+        continuous: list[int] | None = None,
     ) -> Self: ...
     @property
     def nq(self) -> int: ...
@@ -472,6 +502,8 @@ class PlanStats:
     def projector_s(self) -> float: ...
     @property
     def checker_s(self) -> float: ...
+    @property
+    def simplify_s(self) -> float: ...
     def to_dict(self) -> dict[str, Any]: ...
     def __getitem__(self, key: str, /) -> Any: ...
 

@@ -1,7 +1,7 @@
 """Collision world: the robot's collision geometry (parry, in Rust) plus environment obstacles.
 
 Self-collision pairs are every pair of geometries on different rigid bodies, minus the SRDF's
-disabled pairs; obstacles are boxes, spheres, cylinders, capsules, meshes (their convex hulls),
+disabled pairs; obstacles are boxes, spheres, cylinders, capsules, meshes (hulls, triangles or convex parts),
 half-spaces and point clouds (each point a ball: :meth:`CollisionWorld.add_points`), added one by
 one or as a scene (:meth:`CollisionWorld.add_scene`, a scene file: docs/SCENES.md). Batched queries release the GIL and run on all cores.
 """
@@ -58,6 +58,36 @@ class CollisionWorld:
     @property
     def check_self(self) -> bool:
         return self._native.check_self
+
+    @property
+    def padding(self) -> float:
+        """The clearance (m) the robot (its links and attached objects) keeps from every obstacle
+        without a padding of its own (default 0): a pair closer than that is a collision for
+        :meth:`in_collision`, plans, certified motions and trajectories (self pairs are not
+        padded; :meth:`min_distance` stays the geometric distance). Set it to a finite distance
+        in [0, 10] m (a GenplanError naming ``padding`` otherwise)."""
+        return float(self._native.padding)
+
+    @padding.setter
+    def padding(self, value: float) -> None:
+        self._native.padding = as_real(value, "padding")
+
+    def set_obstacle_padding(self, name: str, padding: float | None) -> None:
+        """Give obstacle ``name`` its own padding (m, in [0, 10]), which replaces the world's
+        :attr:`padding` for it; None: the world's again. A scene file's obstacle takes it as
+        ``padding = 0.02``."""
+        self._native.set_obstacle_padding(name, None if padding is None else as_real(padding, f"obstacle '{name}' padding"))
+
+    @property
+    def obstacle_paddings(self) -> dict[str, float | None]:
+        """Each obstacle's own padding (None: the world's)."""
+        return dict(self._native.obstacle_paddings)
+
+    @property
+    def attached(self) -> list[tuple[str, str, list[str]]]:
+        """The robot's attached objects (:meth:`genplan.robots.Robot.with_attached`) in this
+        world: (name, holding link, touch links: the links never checked against it)."""
+        return list(self._native.attached)
 
     @check_self.setter
     def check_self(self, value: bool) -> None:
@@ -116,17 +146,20 @@ class CollisionWorld:
         scale: ArrayLike | float = 1.0,
         center: ArrayLike = (0.0, 0.0, 0.0),
         rotation: ArrayLike | None = None,
+        shape: str = "hull",
     ) -> None:
-        """Add the **convex hull** of a mesh file's vertices (STL, OBJ or Collada, as the robot's
-        meshes), scaled per axis by ``scale`` (one number or three) in the file's frame, then placed
-        at ``center`` with optional 3x3 ``rotation``. A missing file raises FileNotFoundError, a
-        malformed one RobotFileError; both name the file."""
+        """Add a mesh file (STL, OBJ or Collada, as the robot's meshes), scaled per axis by
+        ``scale`` (one number or three) in the file's frame, then placed at ``center`` with
+        optional 3x3 ``rotation``, as ``shape`` says (:data:`genplan.scene.MESH_SHAPES`: its convex
+        hull, its triangles (a closed mesh a solid, an open one a surface) or convex parts). A
+        missing file raises FileNotFoundError, a malformed one (or one that cannot be made into
+        the shape) RobotFileError, both naming the file; an unknown shape UnknownNameError."""
         rot = None if rotation is None else _matrix3(rotation, f"mesh '{name}' rotation")
         sc = as_float_array(scale, f"mesh '{name}' scale")
         if sc.ndim == 0:
             sc = np.full(3, float(sc))
         self._native.add_mesh(name, os.fspath(path), _vec3(sc, f"mesh '{name}' scale"),
-                              _vec3(center, f"mesh '{name}' center"), rot)
+                              _vec3(center, f"mesh '{name}' center"), rot, shape=shape)
 
     def add_scene(self, scene: Scene | str | os.PathLike[str]) -> list[str]:
         """Add every obstacle of a scene: a :class:`~genplan.scene.Scene`, a shipped scene's name
@@ -147,6 +180,8 @@ class CollisionWorld:
             for o in s.obstacles:
                 _add(self, o)
                 added.append(o.name)
+                if o.padding is not None:
+                    self.set_obstacle_padding(o.name, o.padding)
         except (GenplanError, OSError) as exc:
             for name in reversed(added):
                 self._native.remove_obstacle(name)
@@ -241,7 +276,7 @@ class CollisionWorld:
         and their gradients ``(..., 3)`` (unit vectors away from the nearest obstacle): the
         clearance of spheres covering a robot, natively (GIL released). Obstacles ``cutoff`` (m)
         or more away are skipped: a point with none nearer gets ``cutoff`` and a zero gradient.
-        Mesh obstacles are their convex hulls, as in every query of the world."""
+        Mesh obstacles are the shapes every query of the world sees (:data:`genplan.scene.MESH_SHAPES`)."""
         pts = np.ascontiguousarray(as_float_array(points, "points"), dtype=np.float64)
         if pts.ndim < 1 or pts.shape[-1] != 3:
             raise ShapeError(f"points: expected a last axis of 3 (x, y, z), got shape {pts.shape}")
@@ -271,7 +306,7 @@ def _add(world: CollisionWorld, o: Obstacle) -> None:
     elif isinstance(o, Capsule):
         world.add_capsule(o.name, o.radius, o.length / 2, pose.position, rot)
     elif isinstance(o, Mesh):
-        world.add_mesh(o.name, o.path, o.scale, pose.position, rot)
+        world.add_mesh(o.name, o.path, o.scale, pose.position, rot, shape=o.shape)
     elif isinstance(o, Points):
         world.add_points(o.name, o.world_points(), o.radius, o.voxel)
     else:  # Scene refuses anything else

@@ -20,9 +20,12 @@ The presets are robot files in ``genplan/presets/robots/`` (:data:`ROBOT_NAMES`)
 from __future__ import annotations
 
 import contextlib
+import copy
+import dataclasses
 import functools
 import hashlib
 import json
+import math
 import os
 import site
 import sys
@@ -38,11 +41,13 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, DTypeLike, NDArray
 
 from genplan import _core
-from genplan._arrays import as_configurations
+from genplan._arrays import as_configurations, as_real
 from genplan._files import write_text
 from genplan.cache import cache_dir, load_text, save_text
 from genplan.collision import CollisionWorld
-from genplan.errors import RobotFileError, RobotWarning, SettingsError, ShapeError, UnknownNameError
+from genplan.errors import (GenplanError, RobotFileError, RobotWarning, SceneFileError, SettingsError, ShapeError,
+                            UnknownNameError)
+from genplan.scene import Box, Capsule, Cylinder, Mesh, Pose, Sphere
 
 #: The folder of the preset robot files.
 PRESETS_DIR: Path = Path(__file__).parent / "presets" / "robots"
@@ -102,6 +107,8 @@ class Robot:
         self.package_dirs: list[Path] = [Path(p) for p in d["package_dirs"]]
         self.floating_base: bool = bool(d["floating_base"])
         self.merge_computed_pairs: bool = bool(d.get("merge_computed_pairs"))
+        #: what the collision meshes become (a robot file's ``mesh_shape``: genplan.scene.MESH_SHAPES)
+        self.mesh_shape: str = str(d.get("mesh_shape", "hull"))
         origin = f"robot file {self.source}" if self.source else f"robot '{self.name}'"
 
         # The core reads and checks the files first: its errors name the file and the name or
@@ -166,6 +173,16 @@ class Robot:
             self.default_contacts = default_contacts(self)
             if self.default_contacts:
                 warnings.warn(_contacts_message(self, origin), RobotWarning, stacklevel=4)
+        #: The objects the robot's links hold, by name (:meth:`with_attached`; a robot file's
+        #: ``[[attached]]`` tables).
+        self.attached: dict[str, Attached] = {}
+        for i, row in enumerate(d.get("attached") or ()):
+            where = f"{origin}: [[attached]] {i + 1} ('{row.get('name')}')"
+            try:
+                a = Attached.from_dict(row)
+                self.attached[a.name] = _checked_attached(self, a)
+            except GenplanError as exc:
+                raise RobotFileError(f"{where}: {exc}") from None
 
     @property
     def nq(self) -> int:
@@ -254,6 +271,38 @@ class Robot:
         NonFiniteError on NaN or inf (:mod:`genplan.errors`)."""
         return as_configurations(q, self.nq, what)
 
+    def joint_values(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Configurations (n, nq) of a fixed-base robot as joint values (n, nv): a continuous
+        joint's [cos, sin] as its angle, unwrapped along the rows (a path's angle does not jump
+        by 2 pi); the same array when nq == nv."""
+        if self.nq == self.nv:
+            return q
+        cols, skip = [], set()
+        for i in range(self.nq):
+            if i in skip:
+                continue
+            if i in self.continuous:
+                cols.append(np.unwrap(np.arctan2(q[:, i + 1], q[:, i])))
+                skip.add(i + 1)
+            else:
+                cols.append(q[:, i])
+        return np.column_stack(cols)
+
+    def from_joint_values(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The inverse of :meth:`joint_values`: joint values (n, nv) as configurations (n, nq)."""
+        if self.nq == self.nv:
+            return x
+        out, k, i = np.empty((len(x), self.nq)), 0, 0
+        while i < self.nq:
+            if i in self.continuous:
+                out[:, i], out[:, i + 1] = np.cos(x[:, k]), np.sin(x[:, k])
+                i += 2
+            else:
+                out[:, i] = x[:, k]
+                i += 1
+            k += 1
+        return out
+
     def normalize(self, q: Any) -> NDArray[np.float64]:
         """q (one or a batch) with every free-flyer quaternion and every continuous joint's
         (cos, sin) scaled to unit norm, as Pinocchio expects."""
@@ -324,13 +373,63 @@ class Robot:
         return q
 
     def collision_world(self, self_collision: bool = True) -> CollisionWorld:
-        """A new collision world (no obstacles) for this robot."""
+        """A new collision world (no obstacles) for this robot, with its attached objects."""
         native = _core.CollisionWorld(  # the SRDF's pairs, or the computed ones without an SRDF (or merged)
             self.kinematics, self.collision_urdf_path, self.package_dirs, self.srdf_path,
             self.disabled_pairs if self.srdf_path is None or self.merge_computed_pairs else None,
+            mesh_shape=self.mesh_shape,
         )
         native.check_self = self_collision
-        return CollisionWorld(native)
+        world = CollisionWorld(native)
+        for a in self.attached.values():
+            # added as an obstacle at its pose in the link's frame, then moved onto the link
+            _add_obstacle(world, dataclasses.replace(a.shape, name=a.name, pose=_compose(a.pose, a.shape.pose)))
+            native.attach(a.name, a.link, list(a.touch_links), self.q_default.tolist())
+        return world
+
+    def with_attached(
+        self,
+        name: str,
+        shape: Box | Sphere | Cylinder | Capsule | Mesh,
+        link: str,
+        pose: Pose | ArrayLike | None = None,
+        mass: float | None = None,
+        com: ArrayLike | None = None,
+        inertia: ArrayLike | None = None,
+        touch_links: Iterable[str] = (),
+    ) -> Robot:
+        """A new robot: this one with ``shape`` (a scene shape of :mod:`genplan.scene`: Box,
+        Sphere, Cylinder, Capsule, Mesh; its own pose, usually the identity, within the object's
+        frame) held by ``link`` (a link name or a frame role) at ``pose`` (the object's frame in the
+        link's: a :class:`~genplan.scene.Pose`, a 4x4 matrix, or None for the link's frame).
+        This robot is left as it is (robots are cached and shared).
+
+        The object moves with the link and is checked wherever the robot's geometry is (its
+        collision worlds: in_collision, min_distance, plans, certified motions, trajectories)
+        against the obstacles (with their padding) and the robot's links but its touch links:
+        the holding link's rigid body, ``touch_links`` and the links it touches at the default
+        configuration (:attr:`CollisionWorld.attached` lists them). ``checker="spheres"``
+        refuses a robot with an attached object (its spheres do not cover it).
+
+        ``mass`` (kg), ``com`` (m, in the object's frame; default its shape's centre) and
+        ``inertia`` (3x3 about the centre of mass in the object's axes, kg m^2; default the solid
+        of uniform density for a box, sphere, cylinder or capsule) make
+        :attr:`Attached.payload`, what :func:`genplan.execute` takes as ``payload=``. Errors
+        before any work: UnknownNameError (link, touch links: the known ones listed),
+        GenplanError naming the field (name taken, NaN pose, a shape that is not one of those).
+        """
+        a = Attached(name=name, shape=shape, link=link, pose=_as_pose(pose), mass=mass,
+                     com=None if com is None else _triple(com, f"attached '{name}' com"),
+                     inertia=None if inertia is None else _matrix(inertia, f"attached '{name}' inertia"),
+                     touch_links=tuple(touch_links))
+        a = _checked_attached(self, a)
+        if a.name in self.attached:
+            raise SettingsError(f"attached '{a.name}': name: the robot holds an object of that name already")
+        new = copy.copy(self)
+        new.attached = {**self.attached, a.name: a}
+        new.description = {**self.description, "attached": [*(self.description.get("attached") or []), a.to_dict()]}
+        new.collision_world()  # the native checks (a name taken by a geometry, a malformed mesh) before returning
+        return new
 
     def write_srdf(self, path: str | os.PathLike[str]) -> Path:
         """Write the robot's disabled self-collision pairs (and its default configuration as the
@@ -339,6 +438,189 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot('{self.name}', nq={self.nq}, nv={self.nv}, frames={self.frames})"
+
+
+# --- attached objects --------------------------------------------------------------------------
+
+#: The shapes an attached object may take (the scene file's, less the half-space and the cloud).
+ATTACHED_SHAPES: dict[str, type[Any]] = {c.kind: c for c in (Box, Sphere, Cylinder, Capsule, Mesh)}
+
+
+@dataclass(frozen=True)
+class Attached:
+    """An object a link holds (:meth:`Robot.with_attached`; a robot file's ``[[attached]]``):
+    ``shape`` (a scene shape, its own pose within the object's frame) at ``pose`` in ``link``'s
+    frame, with optional ``mass``, ``com`` (object frame) and ``inertia`` (about the centre of
+    mass, object axes), and the links it may touch beyond its own."""
+
+    name: str
+    shape: Box | Sphere | Cylinder | Capsule | Mesh
+    link: str
+    pose: Pose = dataclasses.field(default_factory=Pose)
+    mass: float | None = None
+    com: tuple[float, float, float] | None = None
+    inertia: tuple[tuple[float, float, float], ...] | None = None
+    touch_links: tuple[str, ...] = ()
+
+    @property
+    def payload(self) -> Any:
+        """The object as a :class:`genplan.control.Payload` on its link (mass, centre of mass
+        and inertia in the link's frame): ``genplan.execute(..., payload=robot.attached["tray"].payload)``.
+        SettingsError when it has no mass."""
+        if self.mass is None:
+            raise SettingsError(f"attached '{self.name}': mass: not given, so it is no payload (give mass=)")
+        r, p = self.pose.matrix(), np.asarray(self.pose.position)
+        com = np.asarray(self.com) if self.com is not None else np.asarray(self.shape.pose.position)
+        inertia = np.asarray(self.inertia) if self.inertia is not None else _solid_inertia(self.shape, self.mass)
+        return _core.Payload(link=self.link, mass=float(self.mass), com=(r @ com + p).tolist(),
+                             inertia=(r @ inertia @ r.T).tolist())
+
+    def to_dict(self) -> dict[str, Any]:
+        """The robot file's ``[[attached]]`` table (:meth:`from_dict` reads it back)."""
+        from genplan.scene import _obstacle_dict
+
+        shape = {k: v for k, v in _obstacle_dict(self.shape).items() if k != "name"}
+        d: dict[str, Any] = {"name": self.name, "link": self.link, self.shape.kind: shape, **self.pose.to_dict()}
+        if self.mass is not None:
+            d["mass"] = self.mass
+        if self.com is not None:
+            d["com"] = list(self.com)
+        if self.inertia is not None:
+            d["inertia"] = [list(r) for r in self.inertia]
+        if self.touch_links:
+            d["touch_links"] = list(self.touch_links)
+        return d
+
+    @classmethod
+    def from_dict(cls, row: Mapping[str, Any]) -> Attached:
+        """An ``[[attached]]`` table: ``name``, ``link``, one shape table (``box``, ``sphere``,
+        ``cylinder``, ``capsule``, ``mesh``: a scene file's keys but ``name``), the pose keys
+        (``position``, ``rpy`` | ``quaternion`` | ``rotation``), optional ``mass``, ``com``,
+        ``inertia``, ``touch_links``. Errors name the key."""
+        from genplan.scene import _POSE_KEYS, _obstacle_from_dict
+
+        known = ("name", "link", "mass", "com", "inertia", "touch_links", *_POSE_KEYS, *ATTACHED_SHAPES)
+        for key in row:
+            if key not in known:
+                raise SettingsError(f"unknown key '{key}' (known: {', '.join(known)})")
+        kinds = [k for k in ATTACHED_SHAPES if k in row]
+        if len(kinds) != 1:
+            raise SettingsError(f"give exactly one shape table of {', '.join(ATTACHED_SHAPES)}, got {kinds or 'none'}")
+        kind, name = kinds[0], str(row.get("name"))
+        table = row[kind]
+        if not isinstance(table, Mapping):
+            raise SettingsError(f"{kind}: expected a table of the shape's keys")
+        shape = _obstacle_from_dict(ATTACHED_SHAPES[kind], {"name": name, **table}, kind, None)
+        touch = row.get("touch_links", ())
+        if isinstance(touch, str) or not isinstance(touch, Sequence):
+            raise SettingsError(f"touch_links: expected a list of link names, got {touch!r}")
+        return cls(name=name, shape=shape, link=row.get("link"), pose=Pose(**{k: row[k] for k in _POSE_KEYS if k in row}),
+                   mass=row.get("mass"), com=None if row.get("com") is None else _triple(row["com"], "com"),
+                   inertia=None if row.get("inertia") is None else _matrix(row["inertia"], "inertia"),
+                   touch_links=tuple(touch))
+
+
+def _checked_attached(robot: Robot, a: Attached) -> Attached:
+    """``a`` checked against ``robot`` (its link a link name or a role, resolved to the link),
+    else a typed error naming the field."""
+    what = f"attached '{a.name}'"
+    if not isinstance(a.name, str) or not a.name:
+        raise SettingsError(f"attached object: name: expected a non-empty string, got {a.name!r}")
+    if not isinstance(a.shape, tuple(ATTACHED_SHAPES.values())):
+        raise SettingsError(f"{what}: shape: expected one of genplan.scene's {', '.join(c.__name__ for c in ATTACHED_SHAPES.values())}, "
+                            f"got {type(a.shape).__name__}")
+    if a.shape.padding is not None:
+        raise SettingsError(f"{what}: shape: an attached object takes no padding (the obstacles' padding applies to it)")
+    links = list(robot.kinematics.link_names)
+    link = robot.frames.get(a.link, a.link) if isinstance(a.link, str) else a.link
+    if link not in links:
+        raise UnknownNameError(f"{what}: link: unknown link {a.link!r} (known: {', '.join(links)})")
+    for t in a.touch_links:
+        if t not in links:
+            raise UnknownNameError(f"{what}: touch_links: unknown link {t!r} (known: {', '.join(links)})")
+    if a.mass is not None:
+        m = as_real(a.mass, f"{what}: mass", error=SettingsError)
+        if not (math.isfinite(m) and m >= 0):
+            raise SettingsError(f"{what}: mass: must be a finite mass >= 0 (kg), got {a.mass!r}")
+    a = dataclasses.replace(a, link=link, shape=dataclasses.replace(a.shape, name=a.name))  # the shape takes the object's name
+    if a.mass is not None:
+        if isinstance(a.shape, Mesh) and a.inertia is None:
+            raise SettingsError(f"{what}: inertia: a mesh's inertia is not computed: give inertia= with mass=")
+        a.payload.to_dict()  # the payload's own checks (mass, centre of mass, inertia)
+    return a
+
+
+def _add_obstacle(world: CollisionWorld, shape: Any) -> None:
+    from genplan.collision import _add
+
+    _add(world, shape)
+
+
+def _as_pose(pose: Any) -> Pose:
+    """``pose`` as a :class:`~genplan.scene.Pose`: a Pose, a 4x4 homogeneous matrix, or None
+    (the identity); SettingsError naming ``pose`` otherwise (NaN, not a rotation)."""
+    if pose is None:
+        return Pose()
+    if isinstance(pose, Pose):
+        return pose
+    m = np.asarray(pose, dtype=np.float64)
+    if m.shape != (4, 4):
+        raise ShapeError(f"pose: expected a Pose or a 4x4 matrix, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise SettingsError("pose: must be finite, got NaN or inf")
+    try:
+        return Pose(position=tuple(m[:3, 3]), rotation=tuple(tuple(r) for r in m[:3, :3]))
+    except SceneFileError as exc:
+        raise SettingsError(f"pose: {exc}") from None
+
+
+def _compose(a: Pose, b: Pose) -> Pose:
+    """The pose ``b`` given in frame ``a``, in ``a``'s parent frame."""
+    if not b.rotated and b.position == (0.0, 0.0, 0.0):
+        return a
+    ra, rb = a.matrix(), b.matrix()
+    p = ra @ np.asarray(b.position) + np.asarray(a.position)
+    return Pose(position=tuple(p.tolist()), rotation=tuple(tuple(r) for r in (ra @ rb).tolist()))
+
+
+def _triple(v: Any, what: str) -> tuple[float, float, float]:
+    a = np.asarray(v, dtype=np.float64)
+    if a.shape != (3,):
+        raise ShapeError(f"{what}: expected 3 numbers, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise SettingsError(f"{what}: must be finite, got {a.tolist()}")
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+def _matrix(v: Any, what: str) -> tuple[tuple[float, float, float], ...]:
+    a = np.asarray(v, dtype=np.float64)
+    if a.shape != (3, 3):
+        raise ShapeError(f"{what}: expected a 3x3 matrix, got shape {a.shape}")
+    return tuple(_triple(r, what) for r in a)
+
+
+def _solid_inertia(shape: Any, mass: float) -> NDArray[np.float64]:
+    """The inertia (about its centre, in the object's axes) of a solid shape of uniform density:
+    box, sphere, cylinder, capsule (cylinder and two half-balls); the shape's own rotation
+    applied."""
+    m = mass
+    if isinstance(shape, Box):
+        x, y, z = (2 * h for h in shape.half_extents)
+        i = np.diag([m * (y * y + z * z), m * (x * x + z * z), m * (x * x + y * y)]) / 12
+    elif isinstance(shape, Sphere):
+        i = np.eye(3) * 0.4 * m * shape.radius ** 2
+    elif isinstance(shape, Cylinder):
+        r, h = shape.radius, shape.length
+        a = m * (3 * r * r + h * h) / 12
+        i = np.diag([a, a, m * r * r / 2])
+    else:  # Capsule: masses split by volume
+        r, h = shape.radius, shape.length
+        vc, vs = math.pi * r * r * h, 4 / 3 * math.pi * r ** 3
+        mc, ms = m * vc / (vc + vs), m * vs / (vc + vs)
+        a = mc * (3 * r * r + h * h) / 12 + ms * (0.4 * r * r + h * h / 4 + 3 * h * r / 8)
+        i = np.diag([a, a, mc * r * r / 2 + 0.4 * ms * r * r])
+    rot = shape.pose.matrix()
+    return rot @ i @ rot.T
 
 
 # --- self-collision pairs to skip without an SRDF ---------------------------------------------

@@ -4,8 +4,8 @@ A scene is a name, a description and obstacles, each with a unique name:
 
 * :class:`Box` (half extents, or ``size`` = full edge lengths in a file), :class:`Sphere`,
   :class:`Cylinder` and :class:`Capsule` (``radius`` and the full ``length`` along the local z
-  axis, as in URDF), :class:`Mesh` (an STL, OBJ or Collada file, used as the **convex hull** of
-  its vertices, like the robot's meshes), each placed by a :class:`Pose`;
+  axis, as in URDF), :class:`Mesh` (an STL, OBJ or Collada file, used as its convex hull, its
+  triangles or convex parts: ``shape``, :data:`MESH_SHAPES`), each placed by a :class:`Pose`;
 * :class:`HalfSpace` (everything below the plane ``normal . x = offset``, e.g. a floor);
 * :class:`Points` (a point cloud, each point a ball of ``radius``: a ``.npz``, ``.ply`` or
   ``.pcd`` file, or inline ``points``; :func:`points_from_depth` makes one from a depth image).
@@ -58,12 +58,15 @@ from typing import Any, ClassVar, Union
 import numpy as np
 from numpy.typing import NDArray
 
+from genplan import _core
+from genplan.cache import cache_dir
 from genplan.clouds import POINT_EXTENSIONS, camera_pose, points_from_depth, read_points
 from genplan.errors import SceneFileError, UnknownNameError
 
 __all__ = [
     "MAX_OBSTACLE_EXTENT",
     "MESH_EXTENSIONS",
+    "MESH_SHAPES",
     "SCENES_DIR",
     "SHAPES",
     "Box",
@@ -94,6 +97,13 @@ ROTATION_TOLERANCE = 1e-6
 MIN_NORMAL_NORM = 1e-12
 #: Mesh file extensions the native reader takes (``SUPPORTED_EXTENSIONS`` in rust/core/src/mesh.rs).
 MESH_EXTENSIONS = ("stl", "obj", "dae")
+#: What a mesh becomes (``MeshShape::NAMES`` in rust/core/src/collision/geometry.rs): ``"hull"``
+#: (its convex hull, the default), ``"mesh"`` (its triangles: a closed mesh is a solid, an open one
+#: a surface), ``"decomposed"`` (V-HACD's convex parts). docs/SCENES.md says when to use which.
+MESH_SHAPES: tuple[str, ...] = tuple(_core.MESH_SHAPES)
+# V-HACD decompositions ("decomposed", scenes' and robots' meshes) take seconds per mesh: the
+# core keeps them in the cache folder, one file per mesh and parameters, written atomically
+_core.set_decomposition_cache(str(cache_dir() / "decompositions"))
 #: The shipped scenes (their stem is the name :func:`load_scene` takes).
 SCENES_DIR = Path(__file__).parent / "presets" / "scenes"
 
@@ -126,6 +136,18 @@ def _size(v: Any, what: str, limit: float = MAX_OBSTACLE_EXTENT) -> float:
     x = _real(v, what)
     if not (0.0 < x <= limit):
         raise SceneFileError(f"{what}: must be positive and at most {limit:g}, got {x}")
+    return x
+
+
+#: The largest clearance margin an obstacle may ask for (m; the core's ``MAX_PADDING``).
+MAX_PADDING = 10.0
+
+
+def _padding(v: Any, what: str) -> float:
+    """An obstacle's clearance margin (m): finite, in [0, :data:`MAX_PADDING`]."""
+    x = _real(v, what)
+    if not 0.0 <= x <= MAX_PADDING:
+        raise SceneFileError(f"{what}: must be a distance in [0, {MAX_PADDING:g}] m, got {x}")
     return x
 
 
@@ -245,12 +267,14 @@ class _Shape:
             object.__setattr__(self, "name", _name(self.name, "name"))
             for key, fn in checks.items():
                 object.__setattr__(self, key, fn(getattr(self, key), key))
+            if getattr(self, "padding", None) is not None:
+                object.__setattr__(self, "padding", _padding(self.padding, "padding"))
         except SceneFileError as exc:
             raise SceneFileError(f"{what}: {exc}") from None
 
     @classmethod
     def known_keys(cls) -> tuple[str, ...]:
-        return ("name", *cls.required, *cls.optional, *(() if cls.kind == "halfspace" else _POSE_KEYS))
+        return ("name", *cls.required, *cls.optional, "padding", *(() if cls.kind == "halfspace" else _POSE_KEYS))
 
 
 @dataclass(frozen=True)
@@ -264,6 +288,7 @@ class Box(_Shape):
     name: str
     half_extents: tuple[float, float, float]
     pose: Pose = field(default_factory=Pose)
+    padding: float | None = None
 
     def __post_init__(self) -> None:
         self._check({"half_extents": lambda v, k: tuple(_size(x, f"{k}[{i}]") for i, x in enumerate(_vector(v, 3, k))),
@@ -279,6 +304,7 @@ class Sphere(_Shape):
     name: str
     radius: float
     pose: Pose = field(default_factory=Pose)
+    padding: float | None = None
 
     def __post_init__(self) -> None:
         self._check({"radius": _size, "pose": lambda v, k: _pose(v)})
@@ -294,6 +320,7 @@ class _Rod(_Shape):
     radius: float
     length: float
     pose: Pose = field(default_factory=Pose)
+    padding: float | None = None
 
     def __post_init__(self) -> None:
         self._check({"radius": _size, "length": lambda v, k: _size(v, k, 2 * MAX_OBSTACLE_EXTENT),
@@ -336,23 +363,33 @@ def _scale(v: Any, what: str) -> tuple[float, float, float]:
     return tuple(_size(x, f"{what}[{i}]") for i, x in enumerate(_vector(v, 3, what)))  # type: ignore[return-value]
 
 
+def _mesh_shape(v: Any, what: str) -> str:
+    if v not in MESH_SHAPES:
+        raise SceneFileError(f"{what}: unknown mesh shape {v!r} (known: {', '.join(MESH_SHAPES)})")
+    return str(v)
+
+
 @dataclass(frozen=True)
 class Mesh(_Shape):
-    """The convex hull of a mesh file's vertices (STL, OBJ or Collada), scaled per axis by ``scale``
-    (one number or three) in the file's frame, then placed at the pose. ``path`` is kept absolute
-    (a relative one is taken from the current folder here, from the scene file's folder in a
-    file); the file must exist when the scene is read or added to a world."""
+    """A mesh file (STL, OBJ or Collada), scaled per axis by ``scale`` (one number or three) in
+    the file's frame, then placed at the pose, used as ``shape`` says (:data:`MESH_SHAPES`): its
+    convex hull (``"hull"``, the default), its triangles (``"mesh"``: a closed mesh is a solid, an
+    open one a surface) or convex parts (``"decomposed"``). ``path`` is kept absolute (a relative
+    one is taken from the current folder here, from the scene file's folder in a file); the file
+    must exist when the scene is read or added to a world."""
 
     kind: ClassVar[str] = "mesh"
     required: ClassVar[tuple[str, ...]] = ("path",)
-    optional: ClassVar[tuple[str, ...]] = ("scale",)
+    optional: ClassVar[tuple[str, ...]] = ("scale", "shape")
     name: str
     path: Path
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     pose: Pose = field(default_factory=Pose)
+    shape: str = "hull"
+    padding: float | None = None
 
     def __post_init__(self) -> None:
-        self._check({"path": _mesh_path, "scale": _scale, "pose": lambda v, k: _pose(v)})
+        self._check({"path": _mesh_path, "scale": _scale, "pose": lambda v, k: _pose(v), "shape": _mesh_shape})
 
 
 @dataclass(frozen=True)
@@ -365,6 +402,7 @@ class HalfSpace(_Shape):
     name: str
     normal: tuple[float, float, float]
     offset: float
+    padding: float | None = None
 
     def __post_init__(self) -> None:
         def normal(v: Any, k: str) -> tuple[float, ...]:
@@ -414,6 +452,7 @@ class Points(_Shape):
     points: tuple[tuple[float, float, float], ...] | None = None
     voxel: float | None = None
     pose: Pose = field(default_factory=Pose)
+    padding: float | None = None
 
     def __post_init__(self) -> None:
         self._check({"radius": _size, "path": _points_path, "points": _inline_points,
@@ -604,6 +643,8 @@ def _obstacle_dict(o: _Shape) -> dict[str, Any]:
         d["radius"], d["length"] = o.radius, o.length
     elif isinstance(o, Mesh):
         d["path"], d["scale"] = str(o.path), list(o.scale)
+        if o.shape != "hull":
+            d["shape"] = o.shape
     elif isinstance(o, HalfSpace):
         d["normal"], d["offset"] = list(o.normal), o.offset
     elif isinstance(o, Points):
@@ -617,6 +658,8 @@ def _obstacle_dict(o: _Shape) -> dict[str, Any]:
     pose = getattr(o, "pose", None)
     if pose is not None:
         d.update(pose.to_dict())
+    if o.padding is not None:
+        d["padding"] = o.padding
     return d
 
 

@@ -217,11 +217,30 @@ def _visual_parts(robot: Robot, geometry: str) -> tuple[_Part, ...]:
             continue
         color = _rgb(go.meshColor) if geometry == "visual" else (150, 170, 200)
         parts.append(_Part(go.name, joint, placement, *arrays, color))
+    parts.extend(_attached_parts(robot))
     if skipped:
         warnings.warn(f"viewer: {robot.name}: shapes not drawn: {', '.join(skipped)}", stacklevel=3)
     if not parts:
         raise RobotFileError(f"robot '{robot.name}' has no {geometry} geometry to draw")
     return tuple(parts)
+
+
+def _attached_parts(robot: Robot) -> list[_Part]:
+    """The robot's attached objects (:meth:`~genplan.robots.Robot.with_attached`) as parts on
+    their links' joints, drawn as the scene's shapes are (:func:`_scene_shapes`)."""
+    import dataclasses
+
+    from genplan.robots import _compose
+    from genplan.scene import Scene
+
+    parts: list[_Part] = []
+    for a in getattr(robot, "attached", {}).values():
+        shape = dataclasses.replace(a.shape, name=a.name, pose=_compose(a.pose, a.shape.pose))
+        _, meshes = _scene_shapes(Scene(name=a.name, obstacles=(shape,)))
+        frame = robot.model.frames[robot.model.getFrameId(a.link)]
+        for name, v, f in meshes:
+            parts.append(_Part(name, int(frame.parentJoint), frame.placement.copy(), v, f, (205, 133, 63)))
+    return parts
 
 
 def _world_points(parts: Sequence[_Part], joints: dict[int, pin.SE3], stride: int = 7) -> NDArray[np.float64]:

@@ -48,6 +48,64 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// Whether the triangles bound a solid: with corners merged by position and triangles with
+    /// two corners at one position left out, every edge is shared by exactly two triangles that
+    /// run through it in opposite directions (a closed, consistently oriented surface). An open
+    /// mesh (a hole, a free edge), a non-manifold edge (three or more triangles) or a flipped
+    /// triangle makes it false.
+    pub fn is_closed(&self) -> bool {
+        let ids = self.position_ids();
+        let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * self.triangles.len());
+        let mut any = false;
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| ids[i as usize]);
+            if a == b || b == c || a == c {
+                continue;
+            }
+            any = true;
+            for e in [(a, b), (b, c), (c, a)] {
+                *edges.entry(e).or_insert(0) += 1;
+            }
+        }
+        any && edges.iter().all(|(&(u, v), &n)| n == 1 && edges.get(&(v, u)) == Some(&1))
+    }
+
+    /// The volume the triangles enclose by the divergence theorem: positive when they face
+    /// outward (counter-clockwise seen from outside), negative when they all face inward;
+    /// meaningful for a closed mesh ([`is_closed`](Self::is_closed)).
+    pub fn signed_volume(&self) -> f64 {
+        let v = &self.vertices;
+        self.triangles
+            .iter()
+            .map(|t| {
+                let (a, b, c) = (v[t[0] as usize].coords, v[t[1] as usize].coords, v[t[2] as usize].coords);
+                a.dot(&b.cross(&c))
+            })
+            .sum::<f64>()
+            / 6.0
+    }
+
+    /// The mesh with every vertex scaled per axis by `scale`; a scale with an odd number of
+    /// negative components would mirror the mesh, so the triangles are then reversed to keep
+    /// their orientation.
+    pub fn scaled(&self, scale: &Vector3<f64>) -> Mesh {
+        let vertices = self.vertices.iter().map(|p| Point3::from(p.coords.component_mul(scale))).collect();
+        let mirrored = scale.iter().filter(|&&s| s < 0.0).count() % 2 == 1;
+        let triangles = if mirrored { self.triangles.iter().map(|&[a, b, c]| [a, c, b]).collect() } else { self.triangles.clone() };
+        Mesh { vertices, triangles }
+    }
+
+    /// For each vertex, the index of the first vertex at the same position (bit for bit, with
+    /// -0.0 and 0.0 one position).
+    fn position_ids(&self) -> Vec<u32> {
+        let mut first: HashMap<[u64; 3], u32> = HashMap::with_capacity(self.vertices.len());
+        self.vertices
+            .iter()
+            .enumerate()
+            .map(|(i, p)| *first.entry(p.coords.map(|x| (x + 0.0).to_bits()).into()).or_insert(i as u32))
+            .collect()
+    }
+
     /// Axis-aligned bounding box of the vertices, as (min, max); `None` for an empty mesh.
     pub fn aabb(&self) -> Option<(Point3<f64>, Point3<f64>)> {
         let first = *self.vertices.first()?;

@@ -21,8 +21,13 @@
 //! # locked_joints = { finger_1 = 0.04 }   # ... or at the given values
 //! reference_state = "default"     # optional: an SRDF group_state
 //! merge_computed_pairs = false    # optional: skip the computed self-collision pairs too
+//! mesh_shape = "hull"             # optional: the meshes as "hull" | "mesh" | "decomposed"
 //! [frames]                        # optional: roles -> link names
 //! hand = "panda_hand"
+//! [[attached]]                    # optional: objects held by links (read by genplan.robots)
+//! name = "tray"
+//! link = "panda_hand"
+//! box = { size = [0.3, 0.2, 0.02] }   # one shape table, a scene file's keys
 //! ```
 //!
 //! [`RobotDescription::read`] checks a description against its files before anything is built
@@ -36,7 +41,7 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::collision::CollisionWorld;
+use crate::collision::{CollisionWorld, MeshShape};
 use crate::collision::allowed;
 use crate::error::{unknown, Error, Result};
 use crate::kinematics::{locked_value_problem, KinematicModel, ModelOptions, Motion};
@@ -44,7 +49,7 @@ use crate::srdf::Srdf;
 use crate::urdf::{resolve_uri, JointType, Urdf};
 
 /// The keys a robot file may hold.
-pub const ROBOT_KEYS: [&str; 10] = [
+pub const ROBOT_KEYS: [&str; 12] = [
     "name",
     "urdf",
     "collision_urdf",
@@ -54,7 +59,9 @@ pub const ROBOT_KEYS: [&str; 10] = [
     "locked_joints",
     "reference_state",
     "merge_computed_pairs",
+    "mesh_shape",
     "frames",
+    "attached",
 ];
 
 /// Which joints are locked, and at what.
@@ -101,8 +108,15 @@ pub struct RobotDescription {
     /// SRDF's: the remedy for an SRDF that leaves pairs in contact at the default
     /// configuration.
     pub merge_computed_pairs: bool,
+    /// What the collision URDF's meshes become (default [`MeshShape::Hull`]).
+    pub mesh_shape: MeshShape,
     /// Named frames: (role, link name), in the file's order.
     pub frames: Vec<(String, String)>,
+    /// Objects attached to links (`[[attached]]` tables, in the file's order): each has a
+    /// string `name` (unique) and `link`; the rest (the shape's table, the pose, mass, touch
+    /// links) is read and checked by `genplan.robots`, which builds them with the scene file's
+    /// shapes. A mesh's `path` is resolved here, as the file's other paths are.
+    pub attached: Vec<toml::Table>,
     /// The robot file this came from, if any.
     pub source: Option<PathBuf>,
 }
@@ -123,6 +137,41 @@ fn strings(origin: &str, key: &str, v: &toml::Value) -> Result<Vec<String>> {
         .as_array()
         .ok_or_else(|| invalid(origin, format!("'{key}' must be a list of strings, got {}", v.type_str())))?;
     arr.iter().map(|x| string(origin, key, x)).collect()
+}
+
+/// The `[[attached]]` tables of a robot file: each with a non-empty string `name` (unique) and
+/// `link`, a mesh's `path` (in any table of the entry) resolved against `base` and
+/// `package_dirs`.
+fn attached_tables(origin: &str, v: Option<&toml::Value>, base: Option<&Path>, package_dirs: &[PathBuf]) -> Result<Vec<toml::Table>> {
+    let Some(v) = v else { return Ok(Vec::new()) };
+    let rows = v
+        .as_array()
+        .filter(|a| a.iter().all(toml::Value::is_table))
+        .ok_or_else(|| invalid(origin, format!("'attached' must be a list of [[attached]] tables, got {}", v.type_str())))?;
+    let mut out: Vec<toml::Table> = Vec::new();
+    for (i, row) in rows.iter().enumerate() {
+        let mut t = row.as_table().expect("checked").clone();
+        let at = format!("[[attached]] {}", i + 1);
+        for key in ["name", "link"] {
+            match t.get(key) {
+                Some(toml::Value::String(s)) if !s.is_empty() => {}
+                Some(x) => return Err(invalid(origin, format!("{at}: '{key}' must be a non-empty string, got {}", x.type_str()))),
+                None => return Err(invalid(origin, format!("{at}: '{key}' is missing"))),
+            }
+        }
+        let name = t["name"].as_str().expect("checked").to_string();
+        if out.iter().any(|o| o["name"].as_str() == Some(name.as_str())) {
+            return Err(invalid(origin, format!("{at}: the name '{name}' is taken by another attached object")));
+        }
+        for (key, sub) in t.iter_mut() {
+            if let Some(toml::Value::String(p)) = sub.as_table_mut().and_then(|x| x.get_mut("path")) {
+                let resolved = resolve_path(p, base, package_dirs).map_err(|e| invalid(origin, format!("{at} ('{name}'): {key}.path: {e}")))?;
+                *p = resolved.to_string_lossy().into_owned();
+            }
+        }
+        out.push(t);
+    }
+    Ok(out)
 }
 
 /// Resolve a path value: `package://PKG/rest` against `package_dirs` (the first that exists),
@@ -253,6 +302,10 @@ impl RobotDescription {
         if reference_state.is_some() && srdf.is_none() {
             return Err(invalid(origin, "'reference_state' names an SRDF group state, but there is no 'srdf'".into()));
         }
+        let mesh_shape = match get("mesh_shape") {
+            Some(v) => MeshShape::from_name(&string(origin, "mesh_shape", v)?).map_err(|e| invalid(origin, format!("'mesh_shape': {e}")))?,
+            None => MeshShape::Hull,
+        };
         let merge_computed_pairs = match get("merge_computed_pairs") {
             Some(v) => v.as_bool().ok_or_else(|| {
                 invalid(origin, format!("'merge_computed_pairs' must be true or false, got {}", v.type_str()))
@@ -271,7 +324,9 @@ impl RobotDescription {
                 frames.push((role.clone(), string(origin, &format!("frames.{role}"), link)?));
             }
         }
+        let attached = attached_tables(origin, get("attached"), base, &package_dirs)?;
         Ok(RobotDescription {
+            attached,
             name,
             urdf,
             collision_urdf,
@@ -281,6 +336,7 @@ impl RobotDescription {
             locked_joints,
             reference_state,
             merge_computed_pairs,
+            mesh_shape,
             frames,
             source: None,
         })
@@ -572,11 +628,11 @@ impl RobotDescription {
         let curdf = files.collision_urdf.as_ref().unwrap_or(&files.urdf);
         let mut srdf = files.srdf.clone();
         if self.merge_computed_pairs {
-            let all = CollisionWorld::from_urdf(files.model.clone(), curdf, &self.package_dirs, None)?;
+            let all = CollisionWorld::from_urdf_with(files.model.clone(), curdf, &self.package_dirs, None, self.mesh_shape)?;
             let computed = allowed::disabled_pairs(&all, &files.q_default, &allowed::Options::default())?;
             srdf.get_or_insert_with(Srdf::default).disabled_pairs.extend(computed.into_iter().map(|p| (p.a, p.b)));
         }
-        let world = CollisionWorld::from_urdf(files.model.clone(), curdf, &self.package_dirs, srdf.as_ref())?;
+        let world = CollisionWorld::from_urdf_with(files.model.clone(), curdf, &self.package_dirs, srdf.as_ref(), self.mesh_shape)?;
         Ok((files.model, world))
     }
 }

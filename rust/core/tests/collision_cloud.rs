@@ -1,14 +1,20 @@
-//! Point clouds as obstacles (src/collision/cloud.rs): a cloud answers every query as the same
-//! points added one by one as sphere obstacles do; a new frame replaces the old in place; the
-//! robot's own points are found; bad input is refused before any work.
+//! Point clouds as obstacles (src/collision/cloud.rs, cloud_grid.rs): a cloud answers every query
+//! as the same points added one by one as sphere obstacles do (the sphere checker's too); its
+//! grid answers as a test of every ball does, for dense, sparse, flat and one-point clouds; a new
+//! frame replaces the old in place; the robot's own points are found; bad input is refused before
+//! any work.
 
-use genplan_core::collision::{voxel_downsample, CollisionWorld};
+use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld};
+use genplan_core::collision::{voxel_downsample, CloudGrid, CollisionWorld, MAX_CELLS_PER_BALL, MIN_CELLS};
 use genplan_core::error::Error;
 use genplan_core::kinematics::KinematicModel;
 use genplan_core::robot::preset;
 use genplan_core::Scratch;
 use std::sync::Arc;
 
+use nalgebra::{Isometry3, Point3};
+use parry3d_f64::query;
+use parry3d_f64::shape::{Ball, Shape};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -171,3 +177,170 @@ fn bad_clouds_are_refused_before_any_work() {
     assert_eq!(w.obstacles.len(), 1);
 }
 
+
+/// parry's signed distance between `shape` at `pose` and a ball (`r`) at `c`, as the world
+/// computes a pair's (contact depth when they intersect).
+fn ball_pair_distance(shape: &dyn Shape, pose: &Isometry3<f64>, c: &Point3<f64>, r: f64) -> f64 {
+    let (at, ball) = (Isometry3::translation(c.x, c.y, c.z), Ball::new(r));
+    if query::intersection_test(pose, shape, &at, &ball).unwrap() {
+        query::contact(pose, shape, &at, &ball, 0.0).unwrap().map_or(0.0, |k| k.dist.min(0.0))
+    } else {
+        query::distance(pose, shape, &at, &ball).unwrap()
+    }
+}
+
+/// The grid's answers against every ball tested, for the Panda's geometries at random
+/// configurations: in reach (margins 0 and 3 cm), the least distance (exact below its bound),
+/// and the nearest ball to points in, around and far outside the cloud.
+fn check_grid_against_every_ball(pts: &[f64], r: f64, seed: u64) -> (usize, usize) {
+    let (model, w) = panda();
+    let grid = CloudGrid::new(pts, r);
+    assert_eq!(grid.len() * 3, pts.len());
+    let centers: Vec<Point3<f64>> = pts.chunks_exact(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
+    let mut rng = StdRng::seed_from_u64(seed);
+    let (mut met, mut missed) = (0, 0);
+    let mut links = Vec::new();
+    for _ in 0..40 {
+        let q = draw(&model, &mut rng);
+        w.model.forward_kinematics(&q, &mut links).unwrap();
+        for g in w.geometries() {
+            let pose = links[g.link] * g.offset;
+            let shape = &*g.shape;
+            let (local, world) = (shape.compute_local_aabb(), shape.compute_aabb(&pose));
+            let d: Vec<f64> = centers.iter().map(|c| ball_pair_distance(shape, &pose, c, r)).collect();
+            let best = d.iter().copied().fold(f64::INFINITY, f64::min);
+            for m in [0.0, 0.03] {
+                let want = d.iter().any(|&x| x <= m);
+                // a ball at the boundary within rounding may go either way
+                if d.iter().all(|&x| (x - m).abs() > 1e-9) {
+                    assert_eq!(grid.touches(shape, &pose, &local, &world, m), want, "{} margin {m} at {q:?}", g.name);
+                }
+                if m == 0.0 {
+                    (met, missed) = (met + usize::from(want), missed + usize::from(!want));
+                }
+            }
+            let got = grid.distance(shape, &pose, &world, f64::INFINITY);
+            assert!((got - best).abs() < 1e-9, "{}: distance {got} vs {best}", g.name);
+            // below a bound: exact; above it: at least the bound
+            let bound = best + 0.01;
+            assert!((grid.distance(shape, &pose, &world, bound) - best).abs() < 1e-9);
+            assert!(grid.distance(shape, &pose, &world, best - 0.01) >= best - 0.01);
+        }
+    }
+    for _ in 0..200 {
+        let p = Point3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0));
+        let want = centers.iter().map(|c| (p - c).norm() - r).fold(f64::INFINITY, f64::min);
+        let (got, g) = grid.nearest(&p, f64::INFINITY).unwrap();
+        assert!((got - want).abs() < 1e-12, "nearest to {p:?}: {got} vs {want}");
+        let c = p - g * (got + r);
+        assert!(centers.iter().any(|k| (k - c).norm() < 1e-9), "the gradient points from a centre");
+        assert!(grid.nearest(&p, want - 1e-6).is_none());
+        for sphere in [0.05, 0.3] {
+            assert_eq!(grid.any_within(&p, sphere), centers.iter().any(|k| (k - p).norm() <= sphere + r));
+        }
+    }
+    (met, missed)
+}
+
+#[test]
+fn the_grid_answers_as_every_ball_tested() {
+    let mut rng = StdRng::seed_from_u64(4);
+    // a dense wall in reach
+    let (met, missed) = check_grid_against_every_ball(&wall(&mut rng, 3000), 0.02, 5);
+    assert!(met > 20 && missed > 100, "{met} met, {missed} missed");
+    // sparse over a large box (wide cells), flat (a zero extent), one point, repeated points
+    let sparse: Vec<f64> = (0..600).flat_map(|_| [rng.random_range(-50.0..50.0), rng.random_range(-50.0..50.0), rng.random_range(-1.0..1.0)]).collect();
+    check_grid_against_every_ball(&sparse, 0.05, 6);
+    let flat: Vec<f64> = (0..800).flat_map(|_| [rng.random_range(-0.5..0.9), rng.random_range(-0.6..0.6), 0.3]).collect();
+    let (met, _) = check_grid_against_every_ball(&flat, 0.01, 7);
+    assert!(met > 5, "{met}");
+    check_grid_against_every_ball(&[0.4, 0.1, 0.5], 0.1, 8);
+    check_grid_against_every_ball(&[0.4, 0.1, 0.5, 0.4, 0.1, 0.5, 0.4, 0.1, 0.5], 0.1, 9);
+}
+
+#[test]
+fn a_sparse_cloud_gets_wide_cells() {
+    let mut rng = StdRng::seed_from_u64(10);
+    let n = 1000;
+    let pts: Vec<f64> = (0..3 * n).map(|_| rng.random_range(-500.0..500.0)).collect();
+    let grid = CloudGrid::new(&pts, 0.01);
+    let cells = (1000.0 / grid.cell()).ceil().powi(3);
+    assert!(cells <= (MAX_CELLS_PER_BALL * n + MIN_CELLS) as f64 * 1.01, "{cells} cells of {} m", grid.cell());
+    // dense: cells of four radii
+    let dense = wall(&mut rng, 5000);
+    assert_eq!(CloudGrid::new(&dense, 0.01).cell(), 0.04);
+}
+
+/// Spheres covering the Panda's geometry: each geometry's bounding sphere.
+fn bounding_spheres(w: &CollisionWorld) -> SphereModel {
+    let model = &w.model;
+    let (mut links, mut centers, mut radii) = (Vec::new(), Vec::new(), Vec::new());
+    for g in w.geometries() {
+        let b = g.shape.compute_local_bounding_sphere();
+        let c = g.offset * b.center;
+        links.push(model.link_names[g.link].as_str());
+        centers.push([c.x, c.y, c.z]);
+        radii.push(b.radius);
+    }
+    SphereModel::new(model, &links, &centers, &radii).unwrap()
+}
+
+#[test]
+fn the_sphere_checker_meets_a_cloud_as_its_balls() {
+    let (model, mut base) = panda();
+    // the obstacles alone: the bounding spheres of neighbouring links overlap
+    base.check_self = false;
+    let mut rng = StdRng::seed_from_u64(11);
+    let pts = wall(&mut rng, 400);
+    let r = 0.02;
+    let mut cloud = base.clone();
+    cloud.add_points("cloud", &pts, r, None).unwrap();
+    let mut balls = base.clone();
+    for (k, p) in pts.chunks_exact(3).enumerate() {
+        balls.add_sphere(&format!("p{k}"), r, [p[0], p[1], p[2]]).unwrap();
+    }
+    let spheres = bounding_spheres(&base);
+    let (a, b) = (SphereWorld::new(Arc::new(cloud), spheres.clone()).unwrap(), SphereWorld::new(Arc::new(balls), spheres).unwrap());
+    let qs: Vec<f64> = (0..300).flat_map(|_| draw(&model, &mut rng)).collect();
+    let (mut x, mut y) = (vec![false; 300], vec![false; 300]);
+    a.in_collision_batch(&qs, &mut x, &mut SphereScratch::default());
+    b.in_collision_batch(&qs, &mut y, &mut SphereScratch::default());
+    assert_eq!(x, y);
+    let hits = x.iter().filter(|&&h| h).count();
+    assert!(hits > 15 && hits < 285, "{hits} of 300 in collision");
+    // one configuration at a time, and a motion's states
+    let nq = model.nq;
+    for k in 0..50 {
+        let q = &qs[k * nq..(k + 1) * nq];
+        assert_eq!(a.in_collision(q).unwrap(), y[k]);
+    }
+    let mut s = SphereScratch::default();
+    for k in 0..20 {
+        let (qa, qb) = (&qs[k * nq..(k + 1) * nq], &qs[(k + 1) * nq..(k + 2) * nq]);
+        assert_eq!(a.motion_free(qa, qb, 0.05, &mut s), b.motion_free(qa, qb, 0.05, &mut SphereScratch::default()));
+    }
+}
+
+#[test]
+fn clearance_margins_on_a_cloud_match_its_balls() {
+    let (model, base) = panda();
+    let mut rng = StdRng::seed_from_u64(12);
+    let pts = wall(&mut rng, 300);
+    let mut cloud = base.clone();
+    cloud.add_points("cloud", &pts, 0.015, None).unwrap();
+    let mut balls = base.clone();
+    for (k, p) in pts.chunks_exact(3).enumerate() {
+        balls.add_sphere(&format!("p{k}"), 0.015, [p[0], p[1], p[2]]).unwrap();
+    }
+    let (mut s, mut t) = (Scratch::default(), Scratch::default());
+    let pm = vec![0.0; cloud.self_pairs().len()];
+    let mut differ = 0;
+    for k in 0..200 {
+        let q = draw(&model, &mut rng);
+        let gm = vec![[0.0, 0.01, 0.08][k % 3]; cloud.geometries().len()];
+        let c = cloud.clear_by(&q, &gm, &pm, &mut s);
+        assert_eq!(c, balls.clear_by(&q, &gm, &pm, &mut t), "clear_by at {q:?}");
+        differ += usize::from(c != cloud.clear_by(&q, &vec![0.0; gm.len()], &pm, &mut s));
+    }
+    assert!(differ > 5, "the margins must matter: {differ}");
+}

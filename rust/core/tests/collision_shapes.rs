@@ -3,7 +3,7 @@
 //! closed forms, the axis convention (local z, as in URDF), convex hulls of mesh files, and the
 //! input checks.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 
 use genplan_core::collision::{CollisionWorld, MAX_OBSTACLE_EXTENT};
@@ -18,6 +18,9 @@ const PROBE: f64 = 0.1;
 #[path = "common/probe.rs"]
 mod probe;
 use probe::XYZ;
+#[path = "common/temp_dir.rs"]
+mod temp_dir;
+use temp_dir::TempDir;
 
 fn world() -> CollisionWorld {
     let urdf = Urdf::parse(XYZ).unwrap();
@@ -148,27 +151,6 @@ fn capsule_axis_is_local_z_and_distances_match_the_closed_form() {
     check_against(&w, &at, [-0.4, 0.3, 0.5], 0.8, &|p| capsule_sd(p, r, h), 1e-6);
 }
 
-/// A temporary folder for mesh files, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> TempDir {
-        let dir = std::env::temp_dir().join(format!("genplan-{tag}-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-    fn write(&self, name: &str, text: &str) -> PathBuf {
-        let p = self.0.join(name);
-        std::fs::write(&p, text).unwrap();
-        p
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        std::fs::remove_dir_all(&self.0).ok();
-    }
-}
 
 /// An OBJ cube of side 1 centred at the origin.
 const CUBE_OBJ: &str = "v -0.5 -0.5 -0.5\nv 0.5 -0.5 -0.5\nv 0.5 0.5 -0.5\nv -0.5 0.5 -0.5\n\

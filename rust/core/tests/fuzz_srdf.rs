@@ -64,7 +64,9 @@ fn spec() -> RobotDescription {
         locked_joints: LockedJoints::FromReference(vec!["j2".into()]),
         reference_state: Some("default".into()),
         merge_computed_pairs: false,
+        mesh_shape: Default::default(),
         frames: Vec::new(),
+        attached: Vec::new(),
         source: None,
     }
 }

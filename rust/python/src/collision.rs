@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
 use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld};
-use genplan_core::collision::{allowed, CollisionWorld};
+use genplan_core::collision::{allowed, CollisionWorld, MeshShape};
 use genplan_core::srdf::Srdf;
 use genplan_core::urdf::Urdf;
 use genplan_core::Scratch;
@@ -90,9 +90,10 @@ impl PyCollisionWorld {
 impl PyCollisionWorld {
     /// Build from the model, the URDF that holds the collision geometry, the package dirs
     /// for `package://` meshes, an optional SRDF (its disabled pairs are not checked) and more
-    /// link pairs not to check (`disabled_pairs`, e.g. computed by `compute_disabled_pairs`).
+    /// link pairs not to check (`disabled_pairs`, e.g. computed by `compute_disabled_pairs`);
+    /// `mesh_shape`: what the robot's meshes become (`MESH_SHAPES`).
     #[new]
-    #[pyo3(signature = (model, collision_urdf, package_dirs=Vec::new(), srdf_path=None, disabled_pairs=None))]
+    #[pyo3(signature = (model, collision_urdf, package_dirs=Vec::new(), srdf_path=None, disabled_pairs=None, mesh_shape="hull"))]
     fn new(
         py: Python<'_>,
         model: &PyKinematicModel,
@@ -100,7 +101,9 @@ impl PyCollisionWorld {
         package_dirs: Vec<PathBuf>,
         srdf_path: Option<PathBuf>,
         disabled_pairs: Option<Vec<(String, String)>>,
+        mesh_shape: &str,
     ) -> PyResult<Self> {
+        let meshes = MeshShape::from_name(mesh_shape).map_err(|e| to_py_in("mesh_shape", e))?;
         let urdf = Urdf::from_file(&collision_urdf).map_err(to_py)?;
         let mut srdf = match srdf_path {
             Some(p) => Some(Srdf::from_file(&p).map_err(to_py)?),
@@ -116,7 +119,7 @@ impl PyCollisionWorld {
         }
         let model = model.inner.clone();
         let inner = py
-            .detach(|| CollisionWorld::from_urdf(model, &urdf, &package_dirs, srdf.as_ref()))
+            .detach(|| CollisionWorld::from_urdf_with(model, &urdf, &package_dirs, srdf.as_ref(), meshes))
             .map_err(to_py)?;
         Ok(Self { inner })
     }
@@ -204,9 +207,11 @@ impl PyCollisionWorld {
         let pose = pose_from(center, rotation, &format!("capsule '{name}'"))?;
         self.inner.add_capsule(name, radius, half_length, pose).map_err(to_py)
     }
-    /// Add the convex hull of a mesh file (STL, OBJ, DAE) scaled per axis, at centre and
-    /// optional 3x3 rotation. The file is read without the GIL.
-    #[pyo3(signature = (name, path, scale, center, rotation=None))]
+    /// Add a mesh file (STL, OBJ, DAE) scaled per axis, at centre and optional 3x3 rotation, as
+    /// `shape` says (`MESH_SHAPES`: its convex hull, the triangles, or convex parts). The file
+    /// is read (and decomposed) without the GIL.
+    #[pyo3(signature = (name, path, scale, center, rotation=None, shape="hull"))]
+    #[allow(clippy::too_many_arguments)]
     fn add_mesh(
         &mut self,
         py: Python<'_>,
@@ -215,15 +220,58 @@ impl PyCollisionWorld {
         scale: [f64; 3],
         center: [f64; 3],
         rotation: Option<[[f64; 3]; 3]>,
+        shape: &str,
     ) -> PyResult<()> {
+        let kind = MeshShape::from_name(shape).map_err(|e| to_py_in(&format!("mesh '{name}' shape"), e))?;
         let pose = pose_from(center, rotation, &format!("mesh '{name}'"))?;
         let inner = &mut self.inner;
-        py.detach(|| inner.add_mesh(name, &path, scale, pose)).map_err(to_py)
+        py.detach(|| inner.add_mesh_as(name, &path, scale, pose, kind)).map_err(to_py)
     }
     /// Add the half-space below the plane normal . x = offset.
     fn add_halfspace(&mut self, name: &str, normal: [f64; 3], offset: f64) -> PyResult<()> {
         self.inner.add_halfspace(name, normal, offset).map_err(to_py)
     }
+    /// The clearance (m) the robot keeps from every obstacle without a padding of its own.
+    #[getter]
+    fn get_padding(&self) -> f64 {
+        self.inner.padding()
+    }
+
+    #[setter]
+    fn set_padding(&mut self, value: f64) -> PyResult<()> {
+        self.inner.set_padding(value).map_err(to_py)
+    }
+
+    /// Set obstacle `name`'s own padding (m; None: the world's).
+    #[pyo3(signature = (name, padding=None))]
+    fn set_obstacle_padding(&mut self, name: &str, padding: Option<f64>) -> PyResult<()> {
+        self.inner.set_obstacle_padding(name, padding).map_err(to_py)
+    }
+
+    /// The obstacles' own paddings: {name: padding or None (the world's)}.
+    #[getter]
+    fn obstacle_paddings(&self) -> std::collections::BTreeMap<String, Option<f64>> {
+        self.inner.obstacles.iter().map(|o| (o.name.clone(), o.padding)).collect()
+    }
+
+    /// Attach obstacle `name` (its pose read in the link's frame) to `link`
+    /// (`genplan_core::collision::CollisionWorld::attach`); returns its touch links.
+    #[pyo3(signature = (name, link, touch_links=Vec::new(), q=None))]
+    fn attach(&mut self, name: &str, link: &str, touch_links: Vec<String>, q: Option<Vec<f64>>) -> PyResult<Vec<String>> {
+        self.inner.attach(name, link, &touch_links, q.as_deref()).map_err(to_py)
+    }
+
+    /// The attached objects: (name, link, touch links), in the order attached.
+    #[getter]
+    fn attached(&self) -> Vec<(String, String, Vec<String>)> {
+        let names = &self.inner.model.link_names;
+        self.inner
+            .attached()
+            .iter()
+            .map(|a| (a.name.clone(), names[a.link].clone(), a.touch_links.iter().map(|&l| names[l].clone()).collect()))
+            .collect()
+    }
+
     fn remove_obstacle(&mut self, name: &str) -> PyResult<()> {
         self.inner.remove_obstacle(name).map_err(to_py)
     }
@@ -344,6 +392,17 @@ impl PySphereChecker {
     #[new]
     fn new(world: &PyCollisionWorld, links: Vec<String>, centers: Vec<[f64; 3]>, radii: Vec<f64>) -> PyResult<Self> {
         let w = &world.inner;
+        // the spheres cover the links' own geometry, and the closed forms have no margin
+        if let Some(a) = w.attached().first() {
+            return Err(err(Kind::Generic, format!(
+                "checker=\"spheres\": the robot holds attached object '{}', which the spheres do not cover: use the exact checker", a.name
+            )));
+        }
+        if let Some(o) = w.obstacles.iter().find(|o| o.padding.unwrap_or(w.padding()) > 0.0) {
+            return Err(err(Kind::Generic, format!(
+                "checker=\"spheres\": obstacle '{}' has a padding, which the sphere checker does not keep: use the exact checker", o.name
+            )));
+        }
         let names: Vec<&str> = links.iter().map(String::as_str).collect();
         let spheres = SphereModel::new(&w.model, &names, &centers, &radii).map_err(to_py)?;
         let inner = SphereWorld::new(std::sync::Arc::new(w.clone()), spheres).map_err(to_py)?;
@@ -393,7 +452,17 @@ impl PySphereChecker {
     }
 }
 
+/// Keep V-HACD's convex decompositions of meshes in folder `dir` (None: keep none):
+/// `genplan_core::collision::set_decomposition_cache`.
+#[pyfunction]
+#[pyo3(signature = (dir))]
+fn set_decomposition_cache(dir: Option<PathBuf>) {
+    genplan_core::collision::set_decomposition_cache(dir);
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCollisionWorld>()?;
+    m.add("MESH_SHAPES", pyo3::types::PyTuple::new(m.py(), MeshShape::NAMES)?)?;
+    m.add_function(wrap_pyfunction!(set_decomposition_cache, m)?)?;
     m.add_class::<PySphereChecker>()
 }

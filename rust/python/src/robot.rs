@@ -80,13 +80,42 @@ fn description_to_py<'py>(py: Python<'py>, r: &RobotDescription) -> PyResult<Bou
         // (data sets and caches identify a robot by its description)
         d.set_item("merge_computed_pairs", true)?;
     }
+    if r.mesh_shape != genplan_core::collision::MeshShape::Hull {
+        // only when not the default, as merge_computed_pairs
+        d.set_item("mesh_shape", r.mesh_shape.name())?;
+    }
     let frames = PyDict::new(py);
     for (role, link) in &r.frames {
         frames.set_item(role, link)?;
     }
     d.set_item("frames", frames)?;
+    if !r.attached.is_empty() {
+        // only when given, as merge_computed_pairs
+        let rows: Vec<Bound<'py, PyAny>> = r.attached.iter().map(|t| toml_to_py(py, &toml::Value::Table(t.clone()))).collect::<PyResult<_>>()?;
+        d.set_item("attached", rows)?;
+    }
     d.set_item("source", &r.source)?;
     Ok(d)
+}
+
+/// A TOML value as plain Python data (dict, list, str, int, float, bool; a date as its text).
+fn toml_to_py<'py>(py: Python<'py>, v: &toml::Value) -> PyResult<Bound<'py, PyAny>> {
+    use pyo3::IntoPyObjectExt;
+    Ok(match v {
+        toml::Value::String(s) => s.into_bound_py_any(py)?,
+        toml::Value::Integer(i) => i.into_bound_py_any(py)?,
+        toml::Value::Float(f) => f.into_bound_py_any(py)?,
+        toml::Value::Boolean(b) => b.into_bound_py_any(py)?,
+        toml::Value::Datetime(d) => d.to_string().into_bound_py_any(py)?,
+        toml::Value::Array(a) => a.iter().map(|x| toml_to_py(py, x)).collect::<PyResult<Vec<_>>>()?.into_bound_py_any(py)?,
+        toml::Value::Table(t) => {
+            let d = PyDict::new(py);
+            for (k, x) in t {
+                d.set_item(k, toml_to_py(py, x)?)?;
+            }
+            d.into_any()
+        }
+    })
 }
 
 /// A description dict (as [`description_to_py`] makes it: absolute paths) back to Rust.

@@ -167,14 +167,6 @@ impl Obb {
     /// Gottschalk, Lin and Manocha (1996), with a small epsilon on the cross-product axes so
     /// that near-parallel edges never separate by round-off (the test only errs towards
     /// "overlap", which sends the pair to the exact narrow phase).
-    /// Is the point `p` farther than `r` from this box (a ball of radius `r` at `p` clear of it)?
-    #[inline]
-    pub(super) fn farther_than(&self, p: &Point3<f64>, r: f64) -> bool {
-        let local = self.axes.tr_mul(&(p.coords - self.center));
-        let out = (local.abs() - self.half).sup(&Vector3::zeros());
-        out.norm_squared() > r * r
-    }
-
     pub(super) fn separated(&self, o: &Obb) -> bool {
         self.separated_by(o, 0.0)
     }

@@ -4,19 +4,19 @@
 //! per voxel ([`voxel_downsample`]), and the robot's own points found at a configuration
 //! ([`CollisionWorld::robot_points`]) so that a camera's view of the arm can be dropped.
 //!
-//! The obstacle's shape is a parry `Compound` of balls (one shared `Ball`, the points as the
-//! parts' translations) with parry's bounding-volume hierarchy over the balls. The world's
-//! queries meet it as any other obstacle: the world's broad phase finds the cloud near a robot
-//! geometry by the cloud's box, and parry's composite-shape queries (intersection, distance,
-//! contact, closest points, point projection) walk the hierarchy to the balls near the geometry.
-//! So `in_collision`, `min_distance`, `close_pairs`, `clear_by` (certified motions) and
-//! `point_distances` all answer for clouds with no code of their own. Space the sensor did not
-//! see is free.
+//! The obstacle's shape is a [`CloudGrid`] (`cloud_grid.rs`: the balls sorted into a dense grid
+//! of cells by one counting sort). The world's broad phase finds the cloud near a robot geometry
+//! by the cloud's box, as it finds any obstacle; the pair's exact test then asks the grid:
+//! `cloud_within` (`in_collision`, and `clear_by`, the certificates of motions, with their
+//! margins) and `cloud_distance` (`min_distance`, `close_pairs`); `point_distances` asks [`CloudGrid::nearest`] and the sphere
+//! checker [`CloudGrid::any_within`]. Space the sensor did not see is free.
 
 use nalgebra::{Isometry3, Point3};
-use parry3d_f64::shape::{Compound, SharedShape};
+use parry3d_f64::shape::SharedShape;
 
+use super::broad_phase::Target;
 use super::world::{check_position, CollisionWorld, MAX_OBSTACLE_EXTENT};
+use super::{CloudGrid, Scratch};
 use crate::error::{unknown, Error, Result};
 
 /// What a point-cloud obstacle keeps besides its balls ([`super::Obstacle::cloud`]).
@@ -98,21 +98,14 @@ fn check_cloud_settings(what: &str, radius: f64, voxel: Option<f64>) -> Result<(
     Ok(())
 }
 
-/// The balls of a checked cloud (down-sampled when `voxel` is given), as one compound shape.
+/// The balls of a checked cloud (down-sampled when `voxel` is given), as one [`CloudGrid`].
 fn cloud_shape(points: &[f64], radius: f64, voxel: Option<f64>) -> (SharedShape, usize) {
-    let kept;
-    let pts = match voxel {
-        Some(v) => {
-            kept = voxel_downsample(points, v);
-            &kept[..]
-        }
-        None => points,
+    let grid = match voxel {
+        Some(v) => CloudGrid::new(&voxel_downsample(points, v), radius),
+        None => CloudGrid::new(points, radius),
     };
-    let ball = SharedShape::ball(radius);
-    let parts: Vec<(Isometry3<f64>, SharedShape)> =
-        pts.chunks_exact(3).map(|p| (Isometry3::translation(p[0], p[1], p[2]), ball.clone())).collect();
-    let n = parts.len();
-    (SharedShape::new(Compound::new(parts)), n)
+    let n = grid.len();
+    (SharedShape::new(grid), n)
 }
 
 impl CollisionWorld {
@@ -154,6 +147,33 @@ impl CollisionWorld {
         o.cloud = Some(Cloud { points: n, ..cloud });
         self.obstacles.replace(i, o);
         Ok(())
+    }
+
+    /// The cloud of target `t`, None when `t` is not a cloud obstacle.
+    #[inline]
+    fn cloud_of(&self, t: Target) -> Option<&CloudGrid> {
+        match t {
+            Target::Obstacle(k) if self.obstacles[k].cloud.is_some() => self.obstacles[k].shape.as_shape::<CloudGrid>(),
+            _ => None,
+        }
+    }
+
+    /// For a cloud target `t`: is robot geometry `i` (posed in `s`) within `margin` (>= 0) of one
+    /// of its balls ([`CloudGrid::touches`])? None when `t` is not a cloud.
+    #[inline]
+    pub(super) fn cloud_within(&self, i: usize, t: Target, margin: f64, s: &Scratch) -> Option<bool> {
+        let grid = self.cloud_of(t)?;
+        let g = &self.geometries[i];
+        Some(grid.touches(&*g.shape, &s.poses[i], &g.local_aabb, &s.aabbs[i], margin))
+    }
+
+    /// For a cloud target `t`: the signed distance of robot geometry `i` (posed in `s`) to its
+    /// nearest ball when below `bound`, else a value >= `bound` ([`CloudGrid::distance`]). None
+    /// when `t` is not a cloud.
+    #[inline]
+    pub(super) fn cloud_distance(&self, i: usize, t: Target, s: &Scratch, bound: f64) -> Option<f64> {
+        let grid = self.cloud_of(t)?;
+        Some(grid.distance(&*self.geometries[i].shape, &s.poses[i], &s.aabbs[i], bound))
     }
 
     /// Which of `points` (rows of x, y, z; finite) lie within `margin` (>= 0, finite) of the

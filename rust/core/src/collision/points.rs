@@ -7,17 +7,15 @@
 //! is minus the depth (the distance to its surface) and the gradient points out through the
 //! nearest surface point. Obstacles whose world box lies `cutoff` or more from `p` are skipped
 //! (the bounding-volume hierarchy prunes them): a point with none nearer gets `d = cutoff` and a
-//! zero gradient. Mesh obstacles are their convex hulls, as the world's other queries see them; a
-//! point cloud is the union of its balls (the least signed distance to one of them).
-
-use std::cell::Cell;
+//! zero gradient. Mesh obstacles are the shapes the world's other queries see (a hull, a closed
+//! mesh's solid or an open mesh's surface, a decomposed mesh the union of its parts: the least
+//! signed distance to one of them); a point cloud is the union of its balls (likewise).
 
 use nalgebra::{Point3, Vector3};
 use parry3d_f64::bounding_volume::Aabb;
-use parry3d_f64::query::PointQuery;
-use parry3d_f64::shape::Compound;
 
 use super::world::CollisionWorld;
+use super::CloudGrid;
 use crate::error::{Error, Result};
 
 impl CollisionWorld {
@@ -63,17 +61,18 @@ impl CollisionWorld {
             let o = &self.obstacles[k];
             let (d, g) = match (o.plane, o.cloud) {
                 (Some((normal, offset)), _) => (normal.dot(&p.coords) - offset, normal),
-                (None, Some(cloud)) => match o.shape.as_compound() {
-                    Some(c) => cloud_distance(c, cloud.radius, p, best.0),
+                (None, Some(_)) => match o.shape.as_shape::<CloudGrid>().and_then(|c| c.nearest(p, best.0)) {
+                    Some(dg) => dg,
                     None => continue,
                 },
                 (None, None) => {
-                    let proj = o.shape.project_point(&o.pose, p, false);
-                    let v = p - proj.point;
+                    // the nearest surface point, inside or out (a decomposed mesh through its
+                    // parts, a closed mesh kept as a mesh through its pseudo-normals)
+                    let (d, q) = super::geometry::signed_point_distance(&*o.shape, &o.pose, p);
+                    let v = p - q;
                     let len = v.norm();
                     if len > 0.0 {
-                        let sign = if proj.is_inside { -1.0 } else { 1.0 };
-                        (sign * len, v * (sign / len))
+                        (d, v * (d.signum() / len))
                     } else {
                         // on the surface: the gradient is the direction away from the shape's centre
                         let out = p - o.center;
@@ -88,32 +87,6 @@ impl CollisionWorld {
         }
         best
     }
-}
-
-/// The signed distance of `p` to the union of a cloud's balls (`compound`, radius `r`) and its
-/// gradient, when below `bound` (else `bound` and zero): the least `|p - c| - r` over the
-/// balls, so a point inside several balls gets the depth in the deepest one (the nearest
-/// surface point of the compound would be another ball's, outside). The balls' hierarchy is
-/// pruned by the best distance so far.
-fn cloud_distance(compound: &Compound, r: f64, p: &Point3<f64>, bound: f64) -> (f64, Vector3<f64>) {
-    let best = Cell::new(bound);
-    let mut grad = Vector3::zeros();
-    let parts = compound.shapes();
-    // outside a ball its distance is at least its box's; inside one, `p` is in every box above it
-    let keep = |n: &parry3d_f64::partitioning::BvhNode| {
-        let gap = n.aabb().distance_to_local_point(p, true);
-        gap < best.get() || gap <= 0.0
-    };
-    for l in compound.bvh().leaves(keep) {
-        let v = p - Point3::from(parts[l as usize].0.translation.vector);
-        let len = v.norm();
-        let d = len - r;
-        if d < best.get() {
-            best.set(d);
-            grad = if len > 0.0 { v / len } else { Vector3::z() };
-        }
-    }
-    (best.get(), grad)
 }
 
 #[cfg(test)]

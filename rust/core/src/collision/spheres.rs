@@ -19,11 +19,13 @@
 //!
 //! Obstacles are tested in closed form: box (the squared distance from the centre to the box
 //! in its frame), sphere, cylinder (radial and axial excess), capsule (distance to its segment),
-//! half-space (height above the plane). A mesh obstacle is the world's convex hull of it, tested
-//! with parry's ball-versus-shape intersection test per lane: the same hull the exact check
-//! uses, so no geometry differs between the two checks, and the test runs only for the spheres
-//! of a link whose bounding sphere meets the hull's box. A point cloud is refused (its obstacle
-//! is named): the spheres would need a test of their own against its points.
+//! half-space (height above the plane). A mesh obstacle is the world's shape of it (its hull,
+//! its triangles, a closed mesh as a solid, or its convex parts), tested with the exact check's
+//! ball-versus-shape intersection test per lane: the same shape the exact check uses, so no
+//! geometry differs between the two checks, and the test runs only for the spheres of a link
+//! whose bounding sphere meets the shape's box. A point cloud is its balls in their grid: per
+//! lane, a sphere meets the cloud when a ball's centre lies within the two radii of its centre
+//! ([`CloudGrid::any_within`](super::CloudGrid::any_within): the grid's cells around the sphere).
 //!
 //! The broad phase: each link's spheres have a bounding sphere; an obstacle is tested against a
 //! link's spheres only in the lanes where that bounding sphere meets the obstacle's world box (or
@@ -38,7 +40,6 @@
 use std::sync::Arc;
 
 use nalgebra::{Isometry3, Point3, Vector3};
-use parry3d_f64::query;
 use parry3d_f64::shape::Ball;
 
 use super::CollisionWorld;
@@ -137,8 +138,10 @@ enum Shape {
     Capsule { a: [f32; 3], ab: [f32; 3], r: f32 },
     /// {x : n.x <= offset}.
     Plane { n: [f32; 3], offset: f32 },
-    /// Any other parry shape (a mesh's convex hull): obstacle `index` of the world, in `f64`.
+    /// Any other parry shape (a mesh's hull, triangles or parts): obstacle `index` of the world, in `f64`.
     Other { index: usize },
+    /// A point cloud: obstacle `index` of the world, its [`CloudGrid`](super::CloudGrid).
+    Cloud { index: usize },
 }
 
 #[derive(Clone, Debug)]
@@ -221,8 +224,8 @@ fn inverse_rows(pose: &Isometry3<f64>) -> ([[f32; 3]; 3], [f32; 3]) {
 }
 
 impl SphereWorld {
-    /// The spheres against `world`'s obstacles and self pairs. A point cloud obstacle is refused
-    /// ([`Error::Invalid`] naming it); so are spheres on a link of another model.
+    /// The spheres against `world`'s obstacles and self pairs. Spheres on a link of another
+    /// model are refused ([`Error::Invalid`]).
     pub fn new(world: Arc<CollisionWorld>, spheres: SphereModel) -> Result<SphereWorld> {
         let model = &world.model;
         if let Some(&l) = spheres.link.iter().find(|&&l| l >= model.n_links()) {
@@ -270,14 +273,10 @@ impl SphereWorld {
         }
         let mut obstacles = Vec::with_capacity(world.obstacles.len());
         for (index, o) in world.obstacles.iter().enumerate() {
-            if o.cloud.is_some() {
-                return Err(Error::Invalid(format!(
-                    "obstacle '{}': a point cloud cannot be checked with spheres (use the exact checker)",
-                    o.name
-                )));
-            }
             let s = &o.shape;
-            let shape = if let Some(b) = s.as_ball() {
+            let shape = if o.cloud.is_some() {
+                Shape::Cloud { index }
+            } else if let Some(b) = s.as_ball() {
                 Shape::Sphere { c: f3(&o.pose.translation.vector), r: b.radius as f32 }
             } else if let Some(b) = s.as_cuboid() {
                 let (rt, t) = inverse_rows(&o.pose);
@@ -600,10 +599,21 @@ impl SphereWorld {
                 for l in 0..N {
                     if near[l] {
                         let at = Isometry3::translation(c[0][l] as f64, c[1][l] as f64, c[2][l] as f64);
-                        out[l] = query::intersection_test(&at, &ball, &ob.pose, &*ob.shape).unwrap_or(true);
+                        out[l] = super::geometry::intersects(&at, &ball, &ob.pose, &*ob.shape);
                     }
                 }
             }
+            Shape::Cloud { index } => match self.world.obstacles[*index].shape.as_shape::<super::CloudGrid>() {
+                Some(grid) => {
+                    for l in 0..N {
+                        if near[l] {
+                            out[l] = grid.any_within(&Point3::new(c[0][l] as f64, c[1][l] as f64, c[2][l] as f64), r as f64);
+                        }
+                    }
+                }
+                // a cloud is always a grid; anything else counts as touched (the safe side)
+                None => out = *near,
+            },
         }
         out
     }

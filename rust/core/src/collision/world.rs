@@ -15,8 +15,8 @@ use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, HalfSpace, SharedShape
 use super::broad_phase::{self_pairs, Obb, Target};
 use super::groups::{GroupPair, LinkGroups};
 use super::obstacles::Obstacles;
-use super::geometry::{bounding_sphere, load_mesh_vertices, robot_geometries};
-use super::{Cloud, Hull, RobotGeometry};
+use super::geometry::{bounding_sphere, has_mesh, inside_solid, intersects, mesh_shape, robot_geometries};
+use super::{Cloud, Hull, MeshShape, RobotGeometry};
 use crate::error::{check_finite, check_vector, unknown, Error, Result};
 use crate::lie::{stable_norm, unit_vector};
 use crate::kinematics::KinematicModel;
@@ -37,6 +37,9 @@ pub const MIN_NORMAL_NORM: f64 = 1e-12;
 
 /// How far the rotation of an obstacle's pose may be from a unit quaternion (| |q| - 1 |).
 pub const QUATERNION_TOLERANCE: f64 = 1e-6;
+
+/// The largest clearance margin a world or an obstacle may ask for (m).
+pub const MAX_PADDING: f64 = 10.0;
 
 /// An environment obstacle, fixed in the world.
 #[derive(Clone)]
@@ -61,6 +64,9 @@ pub struct Obstacle {
     /// For a point cloud ([`CollisionWorld::add_points`]): its radius, voxel and size (None for
     /// every other obstacle).
     pub cloud: Option<Cloud>,
+    /// The clearance the robot keeps from this obstacle (m); None: the world's
+    /// ([`CollisionWorld::padding`]). Set by [`CollisionWorld::set_obstacle_padding`].
+    pub padding: Option<f64>,
 }
 
 impl Obstacle {
@@ -101,6 +107,12 @@ pub struct CollisionWorld {
     pub obstacles: Obstacles,
     /// Check self-collision (default true).
     pub check_self: bool,
+    /// The clearance the robot keeps from every obstacle without a padding of its own (m, >= 0;
+    /// default 0): [`padding`](Self::padding), [`set_padding`](Self::set_padding).
+    pub(super) padding: f64,
+    /// The objects attached to the robot's links ([`attach`](Self::attach)), in the order
+    /// attached: each is one more robot geometry.
+    pub(super) attached: Vec<super::Attached>,
 }
 
 impl CollisionWorld {
@@ -112,7 +124,19 @@ impl CollisionWorld {
         package_dirs: &[PathBuf],
         srdf: Option<&Srdf>,
     ) -> Result<CollisionWorld> {
-        let geometries = robot_geometries(&model, urdf, package_dirs)?;
+        Self::from_urdf_with(model, urdf, package_dirs, srdf, MeshShape::Hull)
+    }
+
+    /// [`from_urdf`](Self::from_urdf) with the robot's meshes made into `meshes` shapes
+    /// ([`MeshShape`]: a robot file's `mesh_shape`).
+    pub fn from_urdf_with(
+        model: Arc<KinematicModel>,
+        urdf: &Urdf,
+        package_dirs: &[PathBuf],
+        srdf: Option<&Srdf>,
+        meshes: MeshShape,
+    ) -> Result<CollisionWorld> {
+        let geometries = robot_geometries(&model, urdf, package_dirs, meshes)?;
         let self_pairs = self_pairs(&model, &geometries, srdf);
         let groups = LinkGroups::new(&geometries, &self_pairs);
         Ok(CollisionWorld {
@@ -122,6 +146,8 @@ impl CollisionWorld {
             groups,
             obstacles: Obstacles::default(),
             check_self: true,
+            padding: 0.0,
+            attached: Vec::new(),
         })
     }
 
@@ -156,7 +182,7 @@ impl CollisionWorld {
             let n = pose.rotation * h.normal.into_inner();
             (n, n.dot(&pose.translation.vector))
         });
-        Obstacle { name: name.to_string(), pose, shape, center: c, radius: r, aabb, obb, plane, cloud: None }
+        Obstacle { name: name.to_string(), pose, shape, center: c, radius: r, aabb, obb, plane, cloud: None, padding: None }
     }
 
     /// Add a box with the given half extents at `pose`: the half extents positive, finite and at
@@ -218,7 +244,7 @@ impl CollisionWorld {
     }
 
     /// Add the **convex hull** of a mesh file's vertices (STL, OBJ or Collada, read by
-    /// [`crate::mesh::read_mesh`] through [`load_mesh_vertices`], as the robot's mesh geometry is:
+    /// [`crate::mesh::read_mesh`] through [`load_mesh_vertices`](crate::collision::load_mesh_vertices), as the robot's mesh geometry is:
     /// a concave mesh is filled in), each vertex scaled per axis by `scale` in the file's frame,
     /// then placed at `pose`. The scale positive, finite and at most [`MAX_OBSTACLE_EXTENT`]; the
     /// scaled vertices within [`MAX_OBSTACLE_EXTENT`] of the file's origin in each coordinate;
@@ -226,6 +252,14 @@ impl CollisionWorld {
     /// [`Error::Io`], one that is malformed or has fewer than 4 vertices
     /// [`Error::Mesh`]; both name the file. A flat mesh gives a plate of zero thickness.
     pub fn add_mesh(&mut self, name: &str, path: &Path, scale: [f64; 3], pose: Isometry3<f64>) -> Result<()> {
+        self.add_mesh_as(name, path, scale, pose, MeshShape::Hull)
+    }
+
+    /// [`add_mesh`](Self::add_mesh) with the mesh made into the shape `kind` says
+    /// ([`MeshShape`]: its convex hull, the triangles themselves (a closed mesh a solid, an open
+    /// one a surface) or V-HACD's convex parts); a mesh that cannot be made into that shape gives
+    /// [`Error::Mesh`] naming the file.
+    pub fn add_mesh_as(&mut self, name: &str, path: &Path, scale: [f64; 3], pose: Isometry3<f64>, kind: MeshShape) -> Result<()> {
         let what = format!("mesh '{name}'");
         check_finite(&format!("{what} scale"), &scale)?;
         if scale.iter().any(|&s| !(s > 0.0 && s <= MAX_OBSTACLE_EXTENT)) {
@@ -238,18 +272,18 @@ impl CollisionWorld {
             // refused before the (possibly slow) file read; add_obstacle checks again
             return Err(Error::Invalid(format!("an obstacle named '{name}' already exists")));
         }
-        let points = load_mesh_vertices(path, &Vector3::from(scale))?;
-        if let Some(p) = points.iter().find(|p| p.coords.amax() > MAX_OBSTACLE_EXTENT) {
+        let mesh = crate::mesh::read_mesh(path)?.scaled(&Vector3::from(scale));
+        if let Some(p) = mesh.vertices.iter().find(|p| p.coords.amax() > MAX_OBSTACLE_EXTENT) {
             return Err(Error::Mesh {
                 path: path.to_path_buf(),
                 msg: format!("{what}: a scaled vertex {:?} lies beyond {MAX_OBSTACLE_EXTENT:e} m", p.coords.as_slice()),
             });
         }
-        let hull = Hull::from_points(&points).map(SharedShape::new).ok_or_else(|| Error::Mesh {
-            path: path.to_path_buf(),
-            msg: format!("{what}: convex hull failed (flat or degenerate mesh?)"),
+        let shape = mesh_shape(&mesh, kind, path).map_err(|e| match e {
+            Error::Mesh { path, msg } => Error::Mesh { path, msg: format!("{what} (shape \"{}\"): {msg}", kind.name()) },
+            e => e,
         })?;
-        self.add_obstacle(name, pose, hull)
+        self.add_obstacle(name, pose, shape)
     }
 
     /// Add the half-space {x : n.x <= offset} (everything below the plane n.x = offset), `n`
@@ -287,6 +321,49 @@ impl CollisionWorld {
                 Err(unknown("obstacle", name, &known))
             }
         }
+    }
+
+    /// The clearance the robot keeps from every obstacle that has no padding of its own (m).
+    pub fn padding(&self) -> f64 {
+        self.padding
+    }
+
+    /// Set the world's padding ([`padding`](Self::padding)): finite, >= 0 and at most
+    /// [`MAX_PADDING`]. Every check of the robot's geometry (its links and attached objects)
+    /// against the obstacles then counts a pair closer than its obstacle's padding as a
+    /// collision: [`in_collision`](Self::in_collision) and
+    /// [`clear_by`](Self::clear_by) (certified motions); distances
+    /// ([`min_distance`](Self::min_distance), [`close_pairs`](Self::close_pairs)) stay the
+    /// geometric ones. Self pairs are not padded.
+    pub fn set_padding(&mut self, padding: f64) -> Result<()> {
+        self.padding = check_padding("padding", padding)?;
+        Ok(())
+    }
+
+    /// Set obstacle `name`'s own padding (checked as [`set_padding`](Self::set_padding)'s),
+    /// which replaces the world's for it; None: the world's again. An unknown name lists the
+    /// obstacles.
+    pub fn set_obstacle_padding(&mut self, name: &str, padding: Option<f64>) -> Result<()> {
+        let Some(i) = self.obstacles.iter().position(|o| o.name == name) else {
+            let known: Vec<&str> = self.obstacles.iter().map(|o| o.name.as_str()).collect();
+            return Err(unknown("obstacle", name, &known));
+        };
+        let padding = padding.map(|p| check_padding(&format!("obstacle '{name}' padding"), p)).transpose()?;
+        let mut o = self.obstacles[i].clone();
+        o.padding = padding;
+        self.obstacles.replace(i, o);
+        Ok(())
+    }
+
+    /// The clearance the robot keeps from obstacle `k`: its own padding, else the world's.
+    #[inline]
+    pub(super) fn obstacle_padding(&self, k: usize) -> f64 {
+        self.obstacles[k].padding.unwrap_or(self.padding)
+    }
+
+    /// The largest padding of any obstacle (0 without obstacles or padding).
+    fn max_padding(&self) -> f64 {
+        (0..self.obstacles.len()).map(|k| self.obstacle_padding(k)).fold(0.0, f64::max)
     }
 
     /// World poses and bounding boxes of the robot geometries for a checked q.
@@ -368,35 +445,13 @@ impl CollisionWorld {
     /// parry's intersection test of robot geometry `i` and target `t` at their poses in `s`.
     #[inline]
     fn narrow_phase(&self, i: usize, t: Target, s: &Scratch) -> bool {
-        if let Target::Obstacle(k) = t {
-            if let Some(cloud) = self.obstacles[k].cloud {
-                return self.touches_cloud(i, k, cloud.radius, s);
-            }
+        if let Some(hit) = self.cloud_within(i, t, 0.0, s) {
+            return hit;
         }
         let (pose_b, shape_b, _, _) = self.target(t, &s.poses);
-        // Unsupported shape pairs cannot occur with the shapes built here; count them as
-        // colliding to stay on the safe side.
-        query::intersection_test(&s.poses[i], &*self.geometries[i].shape, &pose_b, &**shape_b).unwrap_or(true)
-    }
-
-    /// Does robot geometry `i` touch a ball of cloud obstacle `k` (radius `r`)? The balls whose
-    /// boxes meet the geometry's world box (the cloud's hierarchy; its pose is the identity, so
-    /// the balls' centres are world points), then the geometry's oriented box, then the exact
-    /// test parry's ball-against-shape intersection makes (the centre projected on the solid
-    /// shape, within `r`): the answer of parry's composite query, with a cheap filter per ball.
-    fn touches_cloud(&self, i: usize, k: usize, r: f64, s: &Scratch) -> bool {
-        let Some(c) = self.obstacles[k].shape.as_compound() else { return true };
-        let g = &self.geometries[i];
-        let parts = c.shapes();
-        let b = &s.aabbs[i];
-        c.bvh().leaves(|n| n.aabb().intersects(b)).any(|l| {
-            let p = Point3::from(parts[l as usize].0.translation.vector);
-            if s.obbs[i].farther_than(&p, r) {
-                return false;
-            }
-            let proj = g.shape.project_point(&s.poses[i], &p, true);
-            proj.is_inside || (p - proj.point).norm_squared() <= r * r
-        })
+        // Unsupported shape pairs cannot occur with the shapes built here; `intersects` counts
+        // them as colliding to stay on the safe side (and a closed mesh as a solid).
+        intersects(&s.poses[i], &*self.geometries[i].shape, &pose_b, &**shape_b)
     }
 
     /// Does self pair `k` of the link groups' order (geometries `i` and `j`) intersect? As
@@ -479,6 +534,18 @@ impl CollisionWorld {
         let groups = &self.groups.groups;
         s.resize(self.geometries.len(), groups.len());
         self.place_group_spheres(s);
+        let pad = self.max_padding();
+        if pad > 0.0 {
+            // padded obstacles: the clearance test of certified motions, every geometry posed,
+            // each pair against its obstacle's padding
+            for i in 0..self.geometries.len() {
+                self.pose_geometry(i, s);
+            }
+            if !self.obstacles_clear_by(None, pad, s) {
+                return true;
+            }
+            return self.check_self && self.collides_with_itself(s);
+        }
         let mut robot = Aabb::new_invalid();
         for (g, c) in groups.iter().zip(&s.group_centers) {
             robot.merge(&sphere_aabb(c, g.radius));
@@ -623,7 +690,13 @@ impl CollisionWorld {
                 _ => 0.0,
             }
         } else {
-            query::distance(pa, &**a, pb, &**b).unwrap_or(0.0)
+            let d = query::distance(pa, &**a, pb, &**b).unwrap_or(0.0);
+            // wholly inside a closed mesh's solid: at least that deep
+            if has_mesh(&**a, &**b) && inside_solid(pa, &**a, pb, &**b) {
+                -d
+            } else {
+                d
+            }
         }
     }
 
@@ -702,7 +775,7 @@ impl CollisionWorld {
         if gap > 0.0 && gap >= best {
             return best;
         }
-        let d = Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b);
+        let d = self.cloud_distance(i, t, s, best).unwrap_or_else(|| Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b));
         best.min(d)
     }
 
@@ -725,66 +798,16 @@ impl CollisionWorld {
     }
 
     /// [`clear_by`](Self::clear_by) at the configuration last posed into `s` ([`pose`](Self::pose)).
+    /// An obstacle's padding ([`Obstacle::padding`], else the world's [`padding`](Self::padding))
+    /// adds to the margin of every pair with it.
     pub fn clear_by_posed(&self, geometry: &[f64], pairs: &[f64], s: &mut Scratch) -> bool {
         debug_assert_eq!(geometry.len(), self.geometries.len());
         debug_assert!(!self.check_self || pairs.len() == self.self_pairs.len());
-        let far = |i: usize, t: Target, m: f64, s: &Scratch| -> bool {
-            let g = &self.geometries[i];
-            let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
-            let ca = s.poses[i] * g.center;
-            if rb.is_finite() && (ca - cb).norm() - g.radius - rb > m {
-                return true;
-            }
-            if self.aabb_gap(i, t, s) > m {
-                return true;
-            }
-            if let Target::Obstacle(k) = t {
-                if self.above_plane(i, &ca, k, m, s) {
-                    return true;
-                }
-            }
-            if let Some(b) = self.target_obb(t, s) {
-                if s.obbs[i].separated_by(b, m) {
-                    return true;
-                }
-            }
-            matches!(
-                query::closest_points(&s.poses[i], &*g.shape, &pose_b, &**shape_b, m),
-                Ok(query::ClosestPoints::Disjoint)
-            )
-        };
-        // Link spheres first (`groups.rs`): a link whose sphere, grown by its geometries'
-        // largest margin, is clear of an obstacle's sphere or box, or a link pair whose spheres,
-        // grown by the pairs' largest margin, are apart, is far by every margin of its pairs.
-        let mut near = std::mem::take(&mut s.near);
-        let mut clear = true;
-        'outer: for (k, g) in self.groups.groups.iter().enumerate() {
-            let mk = g.geometries.iter().map(|&i| geometry[i]).fold(0.0, f64::max);
-            let c = s.group_centers[k];
-            self.obstacles.overlapping(&sphere_aabb(&c, g.radius + mk), &mut near);
-            for &o in &near {
-                let obstacle = &self.obstacles[o];
-                if obstacle.radius.is_finite() && (c - obstacle.center).norm() - g.radius - obstacle.radius > mk {
-                    continue;
-                }
-                if obstacle.plane_clearance(&c, g.radius).is_some_and(|h| h > mk) {
-                    continue;
-                }
-                for &i in &g.geometries {
-                    let m = geometry[i];
-                    if obstacle.aabb.as_ref().is_some_and(|b| !s.aabbs[i].loosened(m).intersects(b)) {
-                        continue;
-                    }
-                    if !far(i, Target::Obstacle(o), m, s) {
-                        clear = false;
-                        break 'outer;
-                    }
-                }
-            }
+        if !self.obstacles_clear_by(Some(geometry), self.max_padding(), s) {
+            return false;
         }
-        s.near = near;
-        if !clear || !self.check_self {
-            return clear;
+        if !self.check_self {
+            return true;
         }
         let lg = &self.groups;
         lg.group_pairs.iter().all(|gp| {
@@ -793,8 +816,78 @@ impl CollisionWorld {
             let (a, b) = (gp.a as usize, gp.b as usize);
             let reach = lg.groups[a].radius + lg.groups[b].radius + m;
             (s.group_centers[a] - s.group_centers[b]).norm_squared() > reach * reach
-                || lg.pairs[start..end].iter().zip(&lg.index[start..end]).all(|(&(i, j), &p)| far(i, Target::Robot(j), pairs[p], s))
+                || lg.pairs[start..end].iter().zip(&lg.index[start..end]).all(|(&(i, j), &p)| self.far(i, Target::Robot(j), pairs[p], s))
         })
+    }
+
+    /// Is robot geometry `i` farther than `m` from target `t` (both posed in `s`)? The bounding
+    /// volumes first, then parry's closest points within `m`; conservative where parry cannot
+    /// answer.
+    fn far(&self, i: usize, t: Target, m: f64, s: &Scratch) -> bool {
+        let g = &self.geometries[i];
+        let (pose_b, shape_b, cb, rb) = self.target(t, &s.poses);
+        let ca = s.poses[i] * g.center;
+        if rb.is_finite() && (ca - cb).norm() - g.radius - rb > m {
+            return true;
+        }
+        if self.aabb_gap(i, t, s) > m {
+            return true;
+        }
+        if let Target::Obstacle(k) = t {
+            if self.above_plane(i, &ca, k, m, s) {
+                return true;
+            }
+        }
+        if let Some(b) = self.target_obb(t, s) {
+            if s.obbs[i].separated_by(b, m) {
+                return true;
+            }
+        }
+        if let Some(hit) = self.cloud_within(i, t, m, s) {
+            return !hit;
+        }
+        matches!(
+            query::closest_points(&s.poses[i], &*g.shape, &pose_b, &**shape_b, m),
+            Ok(query::ClosestPoints::Disjoint)
+        ) && !(has_mesh(&*g.shape, &**shape_b) && inside_solid(&s.poses[i], &*g.shape, &pose_b, &**shape_b))
+    }
+
+    /// The obstacle part of [`clear_by_posed`](Self::clear_by_posed): every robot geometry `i`
+    /// farther from every obstacle `k` than `geometry[i]` (0 for None) plus `k`'s padding
+    /// (`pad`: the largest padding, which grows the search). Link spheres first (`groups.rs`):
+    /// a link whose sphere, grown by its geometries' largest margin and the padding, is clear
+    /// of an obstacle's sphere or box is far by every margin of its geometries.
+    fn obstacles_clear_by(&self, geometry: Option<&[f64]>, pad: f64, s: &mut Scratch) -> bool {
+        let margin = |i: usize| geometry.map_or(0.0, |g| g[i]);
+        let mut near = std::mem::take(&mut s.near);
+        let mut clear = true;
+        'outer: for (k, g) in self.groups.groups.iter().enumerate() {
+            let mg = g.geometries.iter().map(|&i| margin(i)).fold(0.0, f64::max);
+            let c = s.group_centers[k];
+            self.obstacles.overlapping(&sphere_aabb(&c, g.radius + mg + pad), &mut near);
+            for &o in &near {
+                let obstacle = &self.obstacles[o];
+                let mk = mg + self.obstacle_padding(o);
+                if obstacle.radius.is_finite() && (c - obstacle.center).norm() - g.radius - obstacle.radius > mk {
+                    continue;
+                }
+                if obstacle.plane_clearance(&c, g.radius).is_some_and(|h| h > mk) {
+                    continue;
+                }
+                for &i in &g.geometries {
+                    let m = margin(i) + self.obstacle_padding(o);
+                    if obstacle.aabb.as_ref().is_some_and(|b| !s.aabbs[i].loosened(m).intersects(b)) {
+                        continue;
+                    }
+                    if !self.far(i, Target::Obstacle(o), m, s) {
+                        clear = false;
+                        break 'outer;
+                    }
+                }
+            }
+        }
+        s.near = near;
+        clear
     }
 
     /// Every checked pair closer than `margin` (signed distance < margin), with its distance.
@@ -826,7 +919,7 @@ impl CollisionWorld {
             if rb.is_finite() && (ca - cb).norm() - g.radius - rb >= margin {
                 continue;
             }
-            let d = Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b);
+            let d = self.cloud_distance(i, t, &s, margin).unwrap_or_else(|| Self::pair_distance(&s.poses[i], &g.shape, &pose_b, shape_b));
             if d < margin {
                 out.push(PairDistance {
                     a: g.name.clone(),
@@ -958,6 +1051,14 @@ fn check_sizes(what: &str, sizes: &[(&str, f64)]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A padding (`field` names it): finite, >= 0 and at most [`MAX_PADDING`].
+fn check_padding(field: &str, p: f64) -> Result<f64> {
+    if !(p.is_finite() && (0.0..=MAX_PADDING).contains(&p)) {
+        return Err(Error::Invalid(format!("{field} must be a finite distance in [0, {MAX_PADDING}] m, got {p:?}")));
+    }
+    Ok(p)
 }
 
 /// Rx(+90 deg): maps a shape's local y axis (parry's cylinder axis) to z (URDF's and coal's).

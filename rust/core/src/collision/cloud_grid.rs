@@ -1,0 +1,544 @@
+//! A point cloud's balls in a dense grid of cells ([`CloudGrid`]): the obstacle shape of a
+//! cloud ([`CollisionWorld::add_points`](super::CollisionWorld::add_points)), built in one
+//! counting sort and queried by the cells a robot shape's box touches.
+//!
+//! The centres are sorted by cell, the cells numbered x fastest, so the cells of one row of a
+//! query box (its x range at one y and z) hold one contiguous run of centres: a query reads one
+//! pair of offsets per row, never one per cell. Blocks of 4 x 4 x 4 cells carry a flag (any
+//! centre in them?), so a query skips the empty inside of a cloud's box a block at a time, and a
+//! robot shape's rows are clipped to its oriented box. Building is two passes over the points and
+//! one over the cells (no hierarchy to build: a new frame costs the sort), the number of cells
+//! bounded by [`MAX_CELLS_PER_BALL`] per ball so that a sparse cloud spread over a room stays small.
+//!
+//! The queries answer for the union of the balls exactly as parry's ball queries do, one ball at
+//! a time, with cheap rejections first: a robot shape is tested ([`CloudGrid::touches`]) against
+//! the balls in its box, each first against the shape's own box in its frame, then against the
+//! planes that separated the shape from earlier balls of the same query (a dot product each),
+//! then by GJK on the shape's support map, stopped as soon as the ball is found within reach or
+//! a separating plane is found (which joins the planes). Distances ([`CloudGrid::distance`],
+//! [`CloudGrid::nearest`]) visit rings of cells outward from the shape's box until a ring's lower
+//! bound reaches the best distance, each ball's distance parry's ball-against-shape one.
+//!
+//! As a parry [`Shape`] (so that an obstacle holds it as it holds any shape) the grid is a
+//! custom shape: parry's own queries do not support it, so every world query that meets a cloud
+//! asks the grid (`world.rs`, `points.rs`, `spheres.rs`); one that did not would count the pair
+//! as colliding (the world's fallback for unsupported pairs), never as free.
+
+use nalgebra::{Isometry3, Point3, Unit, Vector3};
+use parry3d_f64::bounding_volume::{Aabb, BoundingSphere};
+use parry3d_f64::mass_properties::MassProperties;
+use parry3d_f64::math::Real;
+use parry3d_f64::query::gjk::{self, CSOPoint, ConstantOrigin, GJKResult, VoronoiSimplex};
+use parry3d_f64::query::{PointProjection, PointQuery, Ray, RayCast, RayIntersection};
+use parry3d_f64::shape::{FeatureId, Shape, ShapeType, TypedShape};
+
+/// The cell edge in ball radii, before [`MAX_CELLS_PER_BALL`] widens it: measured on the Panda
+/// shelf cloud (benches/point_clouds.py; docs/ARCHITECTURE.md "Point clouds").
+pub const CELL_RADII: f64 = 4.0;
+
+/// At most this many cells per ball (plus [`MIN_CELLS`]): a cloud whose box is large for its
+/// number of points gets wider cells, so that the offsets never outweigh the centres.
+pub const MAX_CELLS_PER_BALL: usize = 8;
+
+/// Cells any grid may have whatever its number of balls.
+pub const MIN_CELLS: usize = 1 << 15;
+
+/// Cells per side of a block (the grid's occupancy flags).
+const BLOCK: usize = 4;
+
+/// How many separating planes one query keeps (the most recent first).
+const PLANES: usize = 4;
+
+/// Added to a cell's bounds (m) when a query clips a row by them: a centre is sorted into its
+/// cell by a rounded product and may lie this far outside it.
+const EDGE: f64 = 1e-9;
+
+/// A cloud's balls (one radius) sorted into a dense grid of cells (see the module's text).
+#[derive(Clone, Debug)]
+pub struct CloudGrid {
+    radius: f64,
+    /// The grid's lowest corner, the cell edge and its inverse.
+    origin: Vector3<f64>,
+    cell: f64,
+    inv: f64,
+    /// Cells per axis.
+    dims: [usize; 3],
+    /// The centres of cell `c` are `centers[start[c]..start[c + 1]]`.
+    start: Vec<u32>,
+    /// Blocks of `BLOCK` cells a side (x fastest): whether any of their cells holds a centre,
+    /// so that a query skips the empty space inside a cloud's box a block at a time.
+    blocks: Vec<bool>,
+    block_dims: [usize; 3],
+    centers: Vec<Point3<f64>>,
+    /// The box of the centres.
+    lo: Point3<f64>,
+    hi: Point3<f64>,
+}
+
+/// Cell ranges (inclusive) along each axis.
+type Cells = ([usize; 3], [usize; 3]);
+
+impl CloudGrid {
+    /// The balls of radius `radius` (> 0) centred at `points` (rows of x, y, z, at least one,
+    /// finite: checked by the caller).
+    pub fn new(points: &[f64], radius: f64) -> CloudGrid {
+        let n = points.len() / 3;
+        let (mut lo, mut hi) = (Point3::from([f64::INFINITY; 3]), Point3::from([f64::NEG_INFINITY; 3]));
+        for p in points.chunks_exact(3) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let extent = hi - lo;
+        let budget = (MAX_CELLS_PER_BALL * n + MIN_CELLS) as f64;
+        let mut cell = CELL_RADII * radius;
+        // widen the cells until they fit the budget (the volume's cube root, then doublings for
+        // the rounding up of each axis)
+        let cells_at = |c: f64| (0..3).map(|k| (extent[k] / c).floor() + 1.0).product::<f64>();
+        if cells_at(cell) > budget {
+            let e = extent.map(|x| x.max(MIN_CUBE_ROOT_EDGE));
+            cell = cell.max((e.x * e.y * e.z / budget).cbrt());
+            while cells_at(cell) > budget {
+                cell *= 1.25;
+            }
+        }
+        let dims = [0, 1, 2].map(|k| (extent[k] / cell) as usize + 1);
+        let inv = 1.0 / cell;
+        let ncells = dims[0] * dims[1] * dims[2];
+        let key = |p: &[f64]| {
+            let i = |k: usize| (((p[k] - lo[k]) * inv) as usize).min(dims[k] - 1);
+            i(0) + dims[0] * (i(1) + dims[1] * i(2))
+        };
+        // counting sort of the centres by cell
+        let keys: Vec<u32> = points.chunks_exact(3).map(|p| key(p) as u32).collect();
+        let mut start = vec![0u32; ncells + 1];
+        for &k in &keys {
+            start[k as usize + 1] += 1;
+        }
+        for c in 0..ncells {
+            start[c + 1] += start[c];
+        }
+        let mut fill = start.clone();
+        let mut centers = vec![Point3::origin(); n];
+        for (p, &k) in points.chunks_exact(3).zip(&keys) {
+            let slot = &mut fill[k as usize];
+            centers[*slot as usize] = Point3::new(p[0], p[1], p[2]);
+            *slot += 1;
+        }
+        let block_dims = dims.map(|d| d.div_ceil(BLOCK));
+        let mut blocks = vec![false; block_dims[0] * block_dims[1] * block_dims[2]];
+        for &k in &keys {
+            let k = k as usize;
+            let (x, y, z) = (k % dims[0], (k / dims[0]) % dims[1], k / (dims[0] * dims[1]));
+            blocks[x / BLOCK + block_dims[0] * (y / BLOCK + block_dims[1] * (z / BLOCK))] = true;
+        }
+        CloudGrid { radius, origin: lo.coords, cell, inv, dims, start, blocks, block_dims, centers, lo, hi }
+    }
+
+    /// The balls' radius (m).
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    /// The number of balls.
+    pub fn len(&self) -> usize {
+        self.centers.len()
+    }
+
+    /// True when there is no ball (never, for a grid built from a checked cloud).
+    pub fn is_empty(&self) -> bool {
+        self.centers.is_empty()
+    }
+
+    /// The balls' centres, sorted by cell.
+    pub fn centers(&self) -> &[Point3<f64>] {
+        &self.centers
+    }
+
+    /// The cell edge (m).
+    pub fn cell(&self) -> f64 {
+        self.cell
+    }
+
+    /// The cells whose centres may lie in the world box `[lo, hi]`; None when none can.
+    #[inline]
+    fn cells(&self, lo: &Point3<f64>, hi: &Point3<f64>) -> Option<Cells> {
+        let (mut a, mut b) = ([0usize; 3], [0usize; 3]);
+        for k in 0..3 {
+            if !(hi[k] >= self.lo[k] && lo[k] <= self.hi[k]) {
+                return None;
+            }
+            a[k] = (((lo[k] - self.origin[k]) * self.inv).max(0.0) as usize).min(self.dims[k] - 1);
+            b[k] = (((hi[k] - self.origin[k]) * self.inv).max(0.0) as usize).min(self.dims[k] - 1);
+        }
+        Some((a, b))
+    }
+
+    /// The centres of cells `x0..=x1` of row (y, z).
+    #[inline]
+    fn row(&self, x0: usize, x1: usize, y: usize, z: usize) -> &[Point3<f64>] {
+        let base = self.dims[0] * (y + self.dims[1] * z);
+        &self.centers[self.start[base + x0] as usize..self.start[base + x1 + 1] as usize]
+    }
+
+    /// Calls `f` on the centres of each row of `cells` until it returns true (then true).
+    #[inline]
+    fn any_row(&self, (a, b): Cells, mut f: impl FnMut(&[Point3<f64>]) -> bool) -> bool {
+        for z in a[2]..=b[2] {
+            for y in a[1]..=b[1] {
+                let r = self.row(a[0], b[0], y, z);
+                if !r.is_empty() && f(r) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Is any ball within `margin` (>= 0) of `shape` at `pose` (the ball's centre within
+    /// `radius + margin` of the solid shape)? `local_aabb`: the shape's box in its frame;
+    /// `world_aabb`: its box in the world. See the module's text for the order of the tests;
+    /// a shape without a support map gets parry's point projection onto the solid per ball.
+    pub fn touches(&self, shape: &dyn Shape, pose: &Isometry3<f64>, local_aabb: &Aabb, world_aabb: &Aabb, margin: f64) -> bool {
+        let reach = self.radius + margin;
+        let grow = Vector3::repeat(reach);
+        let (wlo, whi) = (world_aabb.mins - grow, world_aabb.maxs + grow);
+        let Some((a, b)) = self.cells(&wlo, &whi) else { return false };
+        let (lc, lh) = (local_aabb.center().coords, local_aabb.half_extents() + grow);
+        let rot = pose.rotation.to_rotation_matrix().into_inner();
+        let t = pose.translation.vector;
+        let support = shape.as_support_map();
+        // the shape's oriented box grown by the reach: its world centre, and per axis the centre's
+        // coordinate along it
+        let center = pose * Point3::from(lc);
+        let along = [0, 1, 2].map(|i| rot.column(i).dot(&center.coords));
+        // separating planes in the shape's frame: (unit normal, the shape's support value)
+        let mut planes = [(Vector3::zeros(), f64::INFINITY); PLANES];
+        let mut simplex = VoronoiSimplex::new();
+        let span = |i: usize, k: usize| (self.origin[i] + k as f64 * self.cell - EDGE, self.origin[i] + (k + 1) as f64 * self.cell + EDGE);
+        let axes = [0, 1, 2].map(|i| rot.column(i).into_owned());
+        let inv_x = axes.map(|ax| if ax.x.abs() < 1e-12 { 0.0 } else { 1.0 / ax.x });
+        // the x range of row (y, z)'s prism that each slab of the oriented box allows
+        // (|axis . (p - center)| <= half extent), within the grown world box
+        let clip = |y: usize, z: usize| -> Option<(f64, f64)> {
+            let ((y0, y1), (z0, z1)) = (span(1, y), span(2, z));
+            let (mut x0, mut x1) = (wlo.x, whi.x);
+            for i in 0..3 {
+                let ax = &axes[i];
+                let lo = (ax.y * y0).min(ax.y * y1) + (ax.z * z0).min(ax.z * z1);
+                let hi = (ax.y * y0).max(ax.y * y1) + (ax.z * z0).max(ax.z * z1);
+                let (l, u) = (along[i] - lh[i] - hi, along[i] + lh[i] - lo);
+                if inv_x[i] == 0.0 {
+                    if l > 0.0 || u < 0.0 {
+                        return None;
+                    }
+                } else {
+                    let (p, q) = (l * inv_x[i], u * inv_x[i]);
+                    x0 = x0.max(p.min(q));
+                    x1 = x1.min(p.max(q));
+                }
+            }
+            (x0 <= x1).then_some((x0, x1))
+        };
+        let cx = |x: f64| (((x - self.origin.x) * self.inv).max(0.0) as usize).min(self.dims[0] - 1);
+        let bd = self.block_dims;
+        for bz in a[2] / BLOCK..=b[2] / BLOCK {
+            for by in a[1] / BLOCK..=b[1] / BLOCK {
+                for bx in a[0] / BLOCK..=b[0] / BLOCK {
+                    if !self.blocks[bx + bd[0] * (by + bd[1] * bz)] {
+                        continue;
+                    }
+                    let sub = |i: usize, k: usize| (a[i].max(k * BLOCK), b[i].min(k * BLOCK + BLOCK - 1));
+                    let ((xa, xb), (ya, yb), (za, zb)) = (sub(0, bx), sub(1, by), sub(2, bz));
+                    for z in za..=zb {
+                        for y in ya..=yb {
+                            let Some((x0, x1)) = clip(y, z) else { continue };
+                            let (i0, i1) = (cx(x0).max(xa), cx(x1).min(xb));
+                            if i0 > i1 {
+                                continue;
+                            }
+                            let row = self.row(i0, i1, y, z);
+                            if self.row_touches(row, shape, support, &rot, &t, &lc, &lh, reach, &mut planes, &mut simplex) {
+                                return true;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    /// [`touches`](Self::touches) for the centres of one row.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn row_touches(
+        &self,
+        row: &[Point3<f64>],
+        shape: &dyn Shape,
+        support: Option<&dyn parry3d_f64::shape::SupportMap>,
+        rot: &nalgebra::Matrix3<f64>,
+        t: &Vector3<f64>,
+        lc: &Vector3<f64>,
+        lh: &Vector3<f64>,
+        reach: f64,
+        planes: &mut [(Vector3<f64>, f64); PLANES],
+        simplex: &mut VoronoiSimplex,
+    ) -> bool {
+        {
+            for c in row {
+                let p = rot.tr_mul(&(c.coords - t));
+                if ((p - lc).abs() - lh).max() > 0.0 {
+                    continue;
+                }
+                if planes.iter().any(|(d, h)| d.dot(&p) - h > reach) {
+                    continue;
+                }
+                let Some(sm) = support else {
+                    let proj = shape.project_local_point(&Point3::from(p), true);
+                    if proj.is_inside || (proj.point.coords - p).norm_squared() <= reach * reach {
+                        return true;
+                    }
+                    continue;
+                };
+                // GJK between the shape and the point, from the last plane's normal (or from the
+                // shape's box centre towards the point)
+                let at = Isometry3::translation(p.x, p.y, p.z);
+                let dir = Unit::try_new(planes[0].0, 1e-12).or_else(|| Unit::try_new(p - lc, 1e-12)).unwrap_or(Vector3::x_axis());
+                simplex.reset(CSOPoint::from_shapes(&at, sm, &ConstantOrigin, &dir));
+                match gjk::closest_points(&at, sm, &ConstantOrigin, reach, false, simplex) {
+                    GJKResult::NoIntersection(d) => {
+                        let h = d.dot(&sm.local_support_point(&d).coords);
+                        planes.rotate_right(1);
+                        planes[0] = (d.into_inner(), h);
+                    }
+                    _ => return true,
+                }
+            }
+            false
+        }
+    }
+
+    /// Does the sphere of radius `sphere` at the world point `c` touch a ball (centres within
+    /// the sum of the radii)?
+    pub fn any_within(&self, c: &Point3<f64>, sphere: f64) -> bool {
+        let r = sphere + self.radius;
+        let grow = Vector3::repeat(r);
+        let Some(cells) = self.cells(&(c - grow), &(c + grow)) else { return false };
+        let r2 = r * r;
+        self.any_row(cells, |row| row.iter().any(|p| (p - c).norm_squared() <= r2))
+    }
+
+    /// Visits the cells around the cell box `inner` in rings of growing Chebyshev distance k
+    /// (k = 0: `inner` itself), calling `visit` on each row's centres with the ring's lower
+    /// bound on the distance from `inner`'s cells ((k - 1) cell edges, 0 for k <= 1); stops when
+    /// `stop` says the bound is reached or the rings cover the grid.
+    fn rings(&self, inner: Cells, mut visit: impl FnMut(&[Point3<f64>]), stop: impl Fn(f64) -> bool) {
+        let d = self.dims;
+        let mut k = 0usize;
+        loop {
+            let bound = k.saturating_sub(1) as f64 * self.cell;
+            if stop(bound) {
+                return;
+            }
+            let (a, b) = (inner.0.map(|x| x.saturating_sub(k)), [0, 1, 2].map(|i| (inner.1[i] + k).min(d[i] - 1)));
+            // the previous ring's box (nothing for k = 0)
+            let (pa, pb) = (inner.0.map(|x| x.saturating_sub(k.saturating_sub(1))), [0, 1, 2].map(|i| (inner.1[i] + k.saturating_sub(1)).min(d[i] - 1)));
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    let edge = k == 0 || z < pa[2] || z > pb[2] || y < pa[1] || y > pb[1];
+                    if edge {
+                        visit(self.row(a[0], b[0], y, z));
+                    } else {
+                        if a[0] < pa[0] {
+                            visit(self.row(a[0], pa[0] - 1, y, z));
+                        }
+                        if b[0] > pb[0] {
+                            visit(self.row(pb[0] + 1, b[0], y, z));
+                        }
+                    }
+                }
+            }
+            if a == [0, 0, 0] && b == [d[0] - 1, d[1] - 1, d[2] - 1] {
+                return;
+            }
+            k += 1;
+        }
+    }
+
+    /// The cell box of the world box `[lo, hi]` clamped to the grid (every cell box is inside it).
+    fn clamped_cells(&self, lo: &Point3<f64>, hi: &Point3<f64>) -> Cells {
+        let at = |p: &Point3<f64>| [0, 1, 2].map(|k| (((p[k] - self.origin[k]) * self.inv).max(0.0) as usize).min(self.dims[k] - 1));
+        (at(lo), at(hi))
+    }
+
+    /// The least signed distance from `shape` at `pose` (world box `world_aabb`) to a ball when
+    /// it is below `bound`, else a value >= `bound`: parry's ball-against-shape distance (the
+    /// centre projected on the shape, minus the radius; negative, the depth, when they overlap),
+    /// each ball visited unless its box gap from `world_aabb` already reaches the best so far.
+    pub fn distance(&self, shape: &dyn Shape, pose: &Isometry3<f64>, world_aabb: &Aabb, bound: f64) -> f64 {
+        let best = std::cell::Cell::new(bound);
+        let r = self.radius;
+        let inner = self.clamped_cells(&world_aabb.mins, &world_aabb.maxs);
+        // a ball of ring k >= 2 lies at least the ring's bound from the box, so at least the
+        // bound minus the radius from the shape; nearer balls (rings 0 and 1, whose centres may
+        // be inside the shape) bound nothing
+        self.rings(
+            inner,
+            |row| {
+                for c in row {
+                    let gap = point_box_gap(c, world_aabb);
+                    if gap - r >= best.get() && gap > 0.0 {
+                        continue;
+                    }
+                    let d = ball_distance(shape, pose, c, r);
+                    if d < best.get() {
+                        best.set(d);
+                    }
+                }
+            },
+            |ring| ring > 0.0 && ring - r >= best.get(),
+        );
+        best.get()
+    }
+
+    /// The least `|p - c| - radius` over the balls (the signed distance from the world point `p`
+    /// to the union of the balls, inside the deepest ball when in several) and its gradient
+    /// (the unit vector from that centre to `p`; +z at the centre itself) when below `bound`;
+    /// else None.
+    pub fn nearest(&self, p: &Point3<f64>, bound: f64) -> Option<(f64, Vector3<f64>)> {
+        let best = std::cell::Cell::new((bound, None::<Vector3<f64>>));
+        let r = self.radius;
+        let inner = self.clamped_cells(p, p);
+        // a centre in ring k is at least the ring's bound from `p` (farther still when `p` is
+        // outside the grid)
+        self.rings(
+            inner,
+            |row| {
+                for c in row {
+                    let v = p - c;
+                    let len2 = v.norm_squared();
+                    let b = best.get().0 + r;
+                    if b > 0.0 && len2 >= b * b {
+                        continue;
+                    }
+                    let len = len2.sqrt();
+                    if len - r < best.get().0 {
+                        best.set((len - r, Some(if len > 0.0 { v / len } else { Vector3::z() })));
+                    }
+                }
+            },
+            |ring| ring - r >= best.get().0,
+        );
+        let (d, g) = best.get();
+        g.map(|g| (d, g))
+    }
+}
+
+/// The least extent (m) counted in the volume whose cube root widens the cells, so that a flat
+/// or linear cloud (an extent of zero) still gets a finite cell.
+const MIN_CUBE_ROOT_EDGE: f64 = 1e-3;
+
+/// The distance from `p` to the box `b` (0 inside).
+#[inline]
+fn point_box_gap(p: &Point3<f64>, b: &Aabb) -> f64 {
+    let out = (b.mins - p).sup(&(p - b.maxs)).sup(&Vector3::zeros());
+    out.norm()
+}
+
+/// parry's signed distance between `shape` at `pose` and the ball of radius `r` at world `c`
+/// (the centre projected on the shape, inside by EPA; minus the radius).
+#[inline]
+fn ball_distance(shape: &dyn Shape, pose: &Isometry3<f64>, c: &Point3<f64>, r: f64) -> f64 {
+    let proj = shape.project_point(pose, c, false);
+    let len = (c - proj.point).norm();
+    if proj.is_inside {
+        -len - r
+    } else {
+        len - r
+    }
+}
+
+impl PointQuery for CloudGrid {
+    /// The projection on the ball with the least signed distance to `pt` ([`CloudGrid::nearest`]):
+    /// inside it, `pt` itself when `solid`, else that ball's surface point.
+    fn project_local_point(&self, pt: &Point3<Real>, solid: bool) -> PointProjection {
+        let (d, g) = self.nearest(pt, f64::INFINITY).unwrap_or((f64::INFINITY, Vector3::z()));
+        let surface = pt - g * d;
+        if d <= 0.0 {
+            PointProjection::new(true, if solid { *pt } else { surface })
+        } else {
+            PointProjection::new(false, surface)
+        }
+    }
+
+    fn project_local_point_and_get_feature(&self, pt: &Point3<Real>) -> (PointProjection, FeatureId) {
+        (self.project_local_point(pt, false), FeatureId::Unknown)
+    }
+}
+
+impl RayCast for CloudGrid {
+    /// The first ball the ray meets (every ball tested: no world query casts rays at obstacles).
+    fn cast_local_ray_and_get_normal(&self, ray: &Ray, max_time_of_impact: Real, solid: bool) -> Option<RayIntersection> {
+        let ball = parry3d_f64::shape::Ball::new(self.radius);
+        let mut best: Option<RayIntersection> = None;
+        for c in &self.centers {
+            let local = Ray::new(ray.origin - c.coords, ray.dir);
+            let limit = best.map_or(max_time_of_impact, |b| b.time_of_impact);
+            if let Some(hit) = ball.cast_local_ray_and_get_normal(&local, limit, solid) {
+                if best.is_none_or(|b| hit.time_of_impact < b.time_of_impact) {
+                    best = Some(hit);
+                }
+            }
+        }
+        best
+    }
+}
+
+impl Shape for CloudGrid {
+    fn compute_local_aabb(&self) -> Aabb {
+        let r = Vector3::repeat(self.radius);
+        Aabb::new(self.lo - r, self.hi + r)
+    }
+
+    fn compute_local_bounding_sphere(&self) -> BoundingSphere {
+        let c = nalgebra::center(&self.lo, &self.hi);
+        BoundingSphere::new(c, 0.5 * (self.hi - self.lo).norm() + self.radius)
+    }
+
+    fn clone_dyn(&self) -> Box<dyn Shape> {
+        Box::new(self.clone())
+    }
+
+    /// Balls scaled by a non-uniform factor are no longer balls: not supported.
+    fn scale_dyn(&self, _scale: &Vector3<Real>, _num_subdivisions: u32) -> Option<Box<dyn Shape>> {
+        None
+    }
+
+    /// The balls' masses summed (overlaps counted once per ball).
+    fn mass_properties(&self, density: Real) -> MassProperties {
+        let one = MassProperties::from_ball(density, self.radius);
+        self.centers.iter().map(|c| one.transform_by(&Isometry3::translation(c.x, c.y, c.z))).sum()
+    }
+
+    fn is_convex(&self) -> bool {
+        false
+    }
+
+    fn shape_type(&self) -> ShapeType {
+        ShapeType::Custom
+    }
+
+    fn as_typed_shape(&self) -> TypedShape<'_> {
+        TypedShape::Custom(self)
+    }
+
+    fn ccd_thickness(&self) -> Real {
+        self.radius
+    }
+
+    fn ccd_angular_thickness(&self) -> Real {
+        std::f64::consts::PI
+    }
+}
