@@ -10,6 +10,7 @@ import pinocchio as pin
 import pytest
 
 import genplan
+import genplan.planning
 from genplan.errors import GenplanError, RobotFileError, SettingsError, UnknownNameError
 from genplan.scene import Box, Capsule, HalfSpace, Pose, Sphere
 from tests.conftest import random_configurations
@@ -23,7 +24,8 @@ def _rod(panda: genplan.Robot) -> genplan.Robot:
     return panda.with_attached("rod", ROD, "panda_hand", ROD_POSE)
 
 
-def test_with_attached_returns_a_new_robot_and_leaves_the_shared_one(panda: genplan.Robot) -> None:
+def test_with_attached_returns_a_new_robot_and_leaves_the_shared_one() -> None:
+    panda = genplan.load("panda")  # the shared, cached robot (not the session fixture: a test may clear the cache)
     held = _rod(panda)
     assert held is not panda and genplan.load("panda") is panda
     assert panda.attached == {} and list(held.attached) == ["rod"]
