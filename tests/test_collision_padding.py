@@ -151,3 +151,24 @@ def test_the_sphere_checker_refuses_a_padded_world(panda: genplan.Robot) -> None
     world.set_obstacle_padding("box", 0.02)
     with pytest.raises(GenplanError, match="obstacle 'box' has a padding.*exact checker"):
         genplan.planning.sphere_checker(panda, world)
+
+
+def test_a_clouds_own_padding_survives_a_new_frame(panda: genplan.Robot) -> None:
+    """replace_points keeps the cloud's padding (as its radius and voxel): after a new frame, a
+    state 0.5-1.5 cm from the cloud is a collision with the cloud's 2 cm padding, and free without it."""
+    w = panda.collision_world(self_collision=False)
+    w.add_points("cloud", np.array([[2.0, 0.0, 0.4], [2.0, 0.1, 0.4]]), radius=0.005)
+    w.set_obstacle_padding("cloud", 0.02)
+    q = panda.q_default
+    hand = panda.frame_positions(q[None], "hand")[0]
+    for dz in np.linspace(0.0, 0.3, 601):  # a point above the hand, raised until it is 0.5-1.5 cm away
+        w.replace_points("cloud", (hand + [0.0, 0.0, dz])[None])
+        d = float(np.asarray(w.min_distance(q)).reshape(-1)[0])
+        if 0.005 < d < 0.015:
+            break
+    else:
+        pytest.fail("no point above the hand 0.5-1.5 cm from the robot")
+    assert w.obstacle_paddings["cloud"] == 0.02
+    assert bool(np.asarray(w.in_collision(q)).reshape(-1)[0])
+    w.set_obstacle_padding("cloud", 0.0)
+    assert not bool(np.asarray(w.in_collision(q)).reshape(-1)[0])

@@ -130,8 +130,8 @@ impl CollisionWorld {
     }
 
     /// Replace the points of cloud `name` with a new frame (checked as
-    /// [`add_points`](Self::add_points)' are), keeping its radius, its voxel and its place among
-    /// the obstacles. An unknown name, or an obstacle that is not a cloud, is refused before any
+    /// [`add_points`](Self::add_points)' are), keeping its radius, its voxel, its padding and its
+    /// place among the obstacles. An unknown name, or an obstacle that is not a cloud, is refused before any
     /// work; so is a bad frame, which leaves the old one in place.
     pub fn replace_points(&mut self, name: &str, points: &[f64]) -> Result<()> {
         let Some(i) = self.obstacles.iter().position(|o| o.name == name) else {
@@ -145,6 +145,7 @@ impl CollisionWorld {
         let (shape, n) = cloud_shape(points, cloud.radius, cloud.voxel);
         let mut o = Self::make_obstacle(name, Isometry3::identity(), shape);
         o.cloud = Some(Cloud { points: n, ..cloud });
+        o.padding = self.obstacles[i].padding; // the cloud's own clearance margin stays
         self.obstacles.replace(i, o);
         Ok(())
     }
