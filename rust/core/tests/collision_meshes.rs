@@ -22,9 +22,7 @@ use temp_dir::TempDir;
 
 /// The probe robot (a ball of radius 0.1 at q), without self pairs.
 fn world() -> CollisionWorld {
-    let urdf = Urdf::parse(XYZ).unwrap();
-    let model = Arc::new(KinematicModel::from_urdf(&urdf, &ModelOptions::default()).unwrap());
-    let mut w = CollisionWorld::from_urdf(model, &urdf, &[], None).unwrap();
+    let mut w = probe::world();
     w.check_self = false;
     w
 }

@@ -4,12 +4,9 @@
 //! input checks.
 
 use std::path::Path;
-use std::sync::Arc;
 
 use genplan_core::collision::{CollisionWorld, MAX_OBSTACLE_EXTENT};
 use genplan_core::error::Error;
-use genplan_core::kinematics::{KinematicModel, ModelOptions};
-use genplan_core::urdf::Urdf;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 /// Radius of the probe sphere the test robot carries.
@@ -17,15 +14,12 @@ const PROBE: f64 = 0.1;
 
 #[path = "common/probe.rs"]
 mod probe;
-use probe::XYZ;
 #[path = "common/temp_dir.rs"]
 mod temp_dir;
 use temp_dir::TempDir;
 
 fn world() -> CollisionWorld {
-    let urdf = Urdf::parse(XYZ).unwrap();
-    let model = Arc::new(KinematicModel::from_urdf(&urdf, &ModelOptions::default()).unwrap());
-    let mut w = CollisionWorld::from_urdf(model, &urdf, &[], None).unwrap();
+    let mut w = probe::world();
     w.check_self = false;
     w
 }

@@ -9,17 +9,15 @@ use std::sync::Arc;
 use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld, LANES};
 use genplan_core::collision::CollisionWorld;
 use genplan_core::error::Error;
-use genplan_core::kinematics::{KinematicModel, ModelOptions};
+use genplan_core::kinematics::KinematicModel;
 use genplan_core::planning::{CollisionChecker, SphereChecker, ValidityChecker};
 use genplan_core::robot::preset;
-use genplan_core::urdf::Urdf;
 use nalgebra::{Isometry3, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 #[path = "common/probe.rs"]
 mod probe;
-use probe::XYZ;
 
 /// The unit cube [-0.5, 0.5]^3 as an OBJ file.
 const CUBE_OBJ: &str = "v -0.5 -0.5 -0.5\nv 0.5 -0.5 -0.5\nv 0.5 0.5 -0.5\nv -0.5 0.5 -0.5\n\
@@ -27,9 +25,7 @@ v -0.5 -0.5 0.5\nv 0.5 -0.5 0.5\nv 0.5 0.5 0.5\nv -0.5 0.5 0.5\n\
 f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n";
 
 fn probe_world() -> CollisionWorld {
-    let urdf = Urdf::parse(XYZ).unwrap();
-    let model = Arc::new(KinematicModel::from_urdf(&urdf, &ModelOptions::default()).unwrap());
-    CollisionWorld::from_urdf(model, &urdf, &[], None).unwrap()
+    probe::world()
 }
 
 fn cube_file() -> PathBuf {

@@ -15,3 +15,11 @@ pub const XYZ: &str = r#"<robot name="xyz">
   <joint name="z" type="prismatic"><parent link="ly"/><child link="probe"/><axis xyz="0 0 1"/>
     <limit lower="-5" upper="5" effort="1" velocity="1"/></joint>
 </robot>"#;
+
+/// A collision world of the probe robot, no obstacles (its one collision link has no self pair).
+pub fn world() -> genplan_core::collision::CollisionWorld {
+    let urdf = genplan_core::urdf::Urdf::parse(XYZ).unwrap();
+    let options = genplan_core::kinematics::ModelOptions::default();
+    let model = std::sync::Arc::new(genplan_core::kinematics::KinematicModel::from_urdf(&urdf, &options).unwrap());
+    genplan_core::collision::CollisionWorld::from_urdf(model, &urdf, &[], None).unwrap()
+}
