@@ -138,6 +138,19 @@ def test_a_robot_file_a_urdf_path_and_keywords_load_the_same_robot(two_dir, monk
     assert bare.nq == 4 and bare.name == "two"
 
 
+def test_keywords_set_to_false_or_empty_replace_the_robot_files_values(two_dir) -> None:
+    f = two_dir / "floating_locked.toml"
+    f.write_text('urdf = "urdf/two.urdf"\nfloating_base = true\nlocked_joints = { j3 = 0.05 }\n')
+    from_file = robots.load(f)
+    assert from_file.nq == 3 + 7 and from_file.locked_joints == {"j3": 0.05}
+    fixed = robots.load(f, floating_base=False)
+    assert fixed.nq == 3 and fixed.locked_joints == {"j3": 0.05}
+    free = robots.load(f, locked_joints=[])
+    assert free.nq == 4 + 7 and free.locked_joints == {}
+    assert robots.load(f, locked_joints={}).nq == 4 + 7
+    assert robots.load(f, floating_base=None, locked_joints=None) is from_file  # None: the file's value
+
+
 def test_robot_input_errors_name_the_file_and_the_key(two_dir, monkeypatch) -> None:
     monkeypatch.chdir(two_dir)
     bad = two_dir / "bad.toml"

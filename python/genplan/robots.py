@@ -928,12 +928,12 @@ def load(
     srdf: str | os.PathLike[str] | None = None,
     collision_urdf: str | os.PathLike[str] | None = None,
     package_dirs: Iterable[str | os.PathLike[str]] = (),
-    floating_base: bool = False,
-    locked_joints: Iterable[str] | Mapping[str, float] = (),
+    floating_base: bool | None = None,
+    locked_joints: Iterable[str] | Mapping[str, float] | None = None,
     reference_state: str | None = None,
     frames: Mapping[str, str] | None = None,
     name: str | None = None,
-    merge_computed_pairs: bool = False,
+    merge_computed_pairs: bool | None = None,
 ) -> Robot:
     """Load a robot: a preset name (:data:`ROBOT_NAMES`), a robot file (``.toml``), a URDF path,
     or ``urdf=PATH`` with keywords (the keys of a robot file; see docs/ROBOTS.md).
@@ -942,7 +942,10 @@ def load(
     e.g. the Panda with its fingers open for a grasp,
     ``load("panda", locked_joints={"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04})``.
     Such a robot keeps the preset's name unless ``name`` is given, and is another robot than the
-    preset (cached apart: ``load("panda") is load("panda")``, not the one with keywords).
+    preset (cached apart: ``load("panda") is load("panda")``, not the one with keywords). A
+    keyword left out (None) keeps the file's value; one given replaces it, ``False`` and an empty
+    ``locked_joints`` included (``load("robot.toml", locked_joints=[])`` frees every joint the
+    file locks).
 
     Relative paths in a robot file are relative to the file; in keywords, to the current folder.
     ``package://PKG/...`` resolves against ``package_dirs`` then example-robot-data. Cached: the
@@ -957,10 +960,11 @@ def load(
     docs/ROBOTS.md).
     """
     keywords = dict(
-        urdf=urdf, srdf=srdf, collision_urdf=collision_urdf, floating_base=floating_base or None,
-        locked_joints=(dict(locked_joints) if isinstance(locked_joints, Mapping) else list(locked_joints)) or None,
-        reference_state=reference_state, frames=dict(frames) if frames else None, name=name,
-        package_dirs=[str(p) for p in package_dirs] or None, merge_computed_pairs=merge_computed_pairs or None,
+        urdf=urdf, srdf=srdf, collision_urdf=collision_urdf, floating_base=floating_base,
+        locked_joints=(None if locked_joints is None else
+                       dict(locked_joints) if isinstance(locked_joints, Mapping) else list(locked_joints)),
+        reference_state=reference_state, frames=None if frames is None else dict(frames), name=name,
+        package_dirs=[str(p) for p in package_dirs] or None, merge_computed_pairs=merge_computed_pairs,
     )
     given = sorted(k for k, v in keywords.items() if v is not None)
     defaults = default_package_dirs()
@@ -993,7 +997,8 @@ def load(
         own_dirs = [str(p) for p in desc.get("package_dirs") or [] if Path(p) not in defaults]
         fields["package_dirs"] = own_dirs + [str(p) for p in package_dirs]
         fields.update({k: keywords[k] for k in given if k != "package_dirs"})
-        fields = {k: v for k, v in fields.items() if v is not None and v != []}
+        # keys the file leaves out stay out; a keyword given (False, [] or {} included) replaces the file's
+        fields = {k: v for k, v in fields.items() if v is not None and (k in given or v != [])}
         origin = f"robot '{fields.get('name', desc['name'])}' ({path} with {', '.join(given)})"
         return _cached(_core.robot_description(fields, defaults, origin, str(desc["name"]), Path.cwd()))
     if keywords["urdf"] is None:
