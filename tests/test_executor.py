@@ -233,3 +233,34 @@ def test_integrity_6_ctrl_c_ends_worker_processes_without_a_traceback(after: flo
         time.sleep(0.05)
     else:
         pytest.fail("worker processes outlived the interrupted run")
+
+
+@pytest.mark.parametrize("how", ["SIGTERM", "SIGKILL"])
+def test_worker_processes_exit_when_their_parent_is_ended_without_ending_them(how: str) -> None:
+    import signal
+    import subprocess
+    import sys
+
+    code = ("import time\n"
+            "from genplan.executor import LocalExecutor\n"
+            "with LocalExecutor(2, 'process') as ex:\n"
+            "    ex.map(time.sleep, [0.0, 0.0], progress=False)\n"  # both workers started and idle
+            "    print('start', flush=True)\n"
+            "    ex.map(time.sleep, [30, 30, 30], progress=False)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    assert proc.stdout.readline().strip() == "start"
+    time.sleep(0.3)
+    os.kill(proc.pid, getattr(signal, how))  # the parent only: its pool gets no chance to end the workers
+    proc.communicate(timeout=60)
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < 30:  # the workers: the rest of the process group
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail(f"worker processes outlived their parent's {how} by 30 s")
+    assert time.perf_counter() - t0 < 5

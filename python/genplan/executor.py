@@ -22,6 +22,7 @@ Ctrl-C (KeyboardInterrupt in ``map``): no new shard starts; worker processes are
 the whole process group, prints no traceback of theirs); worker
 threads cannot be ended, so a long shard function polls :func:`stopping` between pieces of its
 work and stops early; Ray tasks are cancelled. The KeyboardInterrupt then reaches the caller.
+A worker process whose parent ended without ending it (SIGTERM, SIGKILL) exits within a second.
 
 Failures: a shard that raises, or whose worker dies, is retried up to ``retries`` times; a
 :class:`~genplan.errors.GenplanError` (the input's fault: the same on every attempt) is not
@@ -38,6 +39,7 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar
@@ -81,9 +83,19 @@ def stopping() -> bool:
     return _STOP.is_set()
 
 
-def _ignore_sigint() -> None:
-    """A worker process's initializer: Ctrl-C is the parent's to handle (it ends the workers)."""
+def _init_worker(parent: int) -> None:
+    """A worker process's initializer: Ctrl-C is the parent's to handle (it ends the workers),
+    and a worker whose parent is gone (ended by SIGTERM or SIGKILL, with no chance to end its
+    pool) exits within half a second instead of waiting for work forever: its task queue holds
+    a writing end of its own, so it never sees the parent's end close."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="genplan-parent-watch", daemon=True).start()
 
 
 def _describe(exc: BaseException) -> str:
@@ -225,7 +237,7 @@ class LocalExecutor(Executor):
             return cf.ThreadPoolExecutor(self.workers, thread_name_prefix="genplan-shard")
         # spawned, not forked: torch and Rust thread pools do not survive a fork
         return cf.ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                      initializer=_ignore_sigint)
+                                      initializer=_init_worker, initargs=(os.getpid(),))
 
     def _start(self, fn: Callable[[Any], Any], item: Any) -> cf.Future:
         if self._pool is None:
