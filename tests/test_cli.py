@@ -489,3 +489,23 @@ def test_plan_without_a_task_plans_in_free_space(tmp_path, capsys) -> None:
     d = json.loads(out.read_text())
     end = panda.frame_placement(np.array(d["path"][-1]), "hand")
     assert d["success"] and np.abs(pin.log6(pose.inverse() * end).vector).max() < 1e-3
+
+
+def test_a_plan_that_fails_exits_3_not_1_and_writes_no_trajectory(tmp_path, capsys, monkeypatch) -> None:
+    """A command whose result fails (here: no path within one extension) says so and exits with
+    FAILED (3), which a bug's traceback (1) and a user error (2) do not share."""
+    import json
+
+    import genplan.planning
+    from genplan.cli import FAILED
+
+    real = genplan.planning.PlannerSettings
+    monkeypatch.setattr(genplan.planning, "PlannerSettings", lambda **kw: real(**kw, max_extensions=1))
+    # the straight line between them crosses the shelf: no path within one extension
+    start, goal = "0 -0.5 0 -2.4 0 1.9 0.8", "1.77 1.09 0.09 -2.21 -2.58 1.43 -0.53"
+    out, traj = tmp_path / "plan.json", tmp_path / "plan.npz"
+    argv = ["plan", "--robot", "panda", "--scene", "panda_shelf", "--start", start, "--goal", goal, "--out", str(out),
+            "--trajectory", str(traj)]
+    assert main(argv) == FAILED == 3
+    assert "no path: no trajectory written" in capsys.readouterr().out
+    assert not traj.exists() and json.loads(out.read_text())["success"] is False

@@ -9,6 +9,8 @@ import importlib.metadata
 import platform
 import time
 
+from genplan.cli import FAILED
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """``genplan info`` takes no arguments."""
@@ -35,7 +37,7 @@ def main(args: argparse.Namespace) -> int:
         root = robots.robots_dir()
     except FileNotFoundError as exc:
         print(f"robots: {exc}")
-        return 1
+        return FAILED
     print(f"robots ({root}):")
     status = 0
     for name in robots.ROBOT_NAMES:
@@ -45,7 +47,7 @@ def main(args: argparse.Namespace) -> int:
             world = robot.collision_world()
         except Exception as exc:  # report every robot, then fail
             print(f"  {name:<6} FAILED: {exc}")
-            status = 1
+            status = FAILED
             continue
         ms = (time.perf_counter() - t0) * 1e3
         frames = ", ".join(f"{k}={v}" for k, v in robot.frames.items())

@@ -9,14 +9,15 @@ space by default, or on a task's constraint manifold.
 
 Without ``--task`` the plan is in free space (the shipped ``free`` task: the joint limits alone,
 nothing projected; the start and goal must be within the limits as they are). With a task, the
-start (``default`` or nq numbers) is projected onto its manifold. The goal is a configuration
+start (``default`` or nq numbers) is projected onto its manifold, or found by IK for
+``--start-target`` (as the goals for ``--target``). The goal is a configuration
 (``--goal``, nq numbers) or IK solutions for ``--target``: X Y Z, a target of the task's
 condition, or a pose of ``--frame`` (X Y Z QX QY QZ QW; or X Y Z, its position alone). The JSON
 holds the query, the path and the planner's statistics; the HTML view draws the robot, the scene
 and the trail of the target's frame (or the task's condition frame). ``--trajectory
 F.npz|.json|.csv`` writes the path time-parameterised at 1 kHz (``PlanResult.trajectory``), which
 the HTML view then plays in real time; a trajectory that fails its check (a sample in collision,
-off the manifold, ...) is not written, the first bad sample is named and the exit status is 1. ``--edge-check certified`` certifies every motion between
+off the manifold, ...) is not written, the first bad sample is named and the exit status is 3. ``--edge-check certified`` certifies every motion between
 the path's states collision-free, not only the states (PlannerSettings.edge_check).
 """
 
@@ -26,6 +27,7 @@ import argparse
 import json
 from typing import Any
 
+from genplan.cli import FAILED
 from genplan.cli import args as A
 
 
@@ -44,12 +46,14 @@ def _start(text: str) -> str | list[float]:
 
 
 class _Target(argparse.Action):
-    """``--target``: 3 numbers (a position) or 7 (a position and a quaternion), else a usage error."""
+    """``--target`` (``--start-target``): 3 numbers (a position) or 7 (a position and a
+    quaternion), else a usage error naming the option."""
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
                  option_string: str | None = None) -> None:
         if len(values) not in (3, 7):
-            parser.error(f"argument --target: expected 3 numbers (X Y Z) or 7 (X Y Z QX QY QZ QW), got {len(values)}")
+            parser.error(f"argument {option_string}: expected 3 numbers (X Y Z) or 7 (X Y Z QX QY QZ QW), "
+                         f"got {len(values)}")
         setattr(namespace, self.dest, values)
 
 
@@ -59,8 +63,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     A.add_robot_and_task(p, "free (free space: the joint limits alone, nothing projected)")
     A.add_allow_python(p)
     p.add_argument("--scene", default=None, help="obstacles: a shipped scene's name or a scene file (.toml)")
-    p.add_argument("--start", type=_start, default="default",
-                   help="'default' (the robot's default configuration) or nq numbers; projected onto the manifold")
+    start = p.add_mutually_exclusive_group()
+    start.add_argument("--start", type=_start, default="default",
+                       help="'default' (the robot's default configuration) or nq numbers; projected onto the manifold")
+    start.add_argument("--start-target", type=float, nargs="+", metavar="X", default=None, action=_Target,
+                       help="a start by IK instead, as --target finds goals: X Y Z (a target of the task's condition, "
+                            "or a position of --frame) or X Y Z QX QY QZ QW (a pose of --frame)")
     goal = p.add_mutually_exclusive_group(required=True)
     goal.add_argument("--goal", type=_numbers, default=None, help="a goal configuration (nq numbers)")
     goal.add_argument("--target", type=float, nargs="+", metavar="X", default=None, action=_Target,
@@ -103,7 +111,7 @@ def main(args: argparse.Namespace) -> int:
     outcome = plan(robot, task, args.scene, start=args.start,
                    goal=args.goal, target=args.target, frame=args.frame, sampler=args.sampler, model=args.model,
                    k=args.goals, seed=args.seed, algorithm=args.algorithm,
-                   settings=PlannerSettings(edge_check=args.edge_check))
+                   settings=PlannerSettings(edge_check=args.edge_check), start_target=args.start_target)
     r = outcome.result
     write_text(args.out, json.dumps(outcome.to_dict(), indent=1) + "\n")
     print(f"{'found' if r.success else 'no path found'}: {len(r.path)} states, {r.stats.extensions} extensions, "
@@ -112,12 +120,12 @@ def main(args: argparse.Namespace) -> int:
     if args.trajectory is not None:
         if not r.success:
             print("no path: no trajectory written")
-            return 1
+            return FAILED
         try:
             traj = r.trajectory()
         except InvalidTrajectoryError as e:  # a path found, but its timed samples fail their check
             print(f"{e}; no trajectory written")
-            return 1
+            return FAILED
         traj.save(args.trajectory)
         print(f"trajectory: {traj.duration:.3f} s at {traj.rate_hz:g} Hz, max velocity ratio {traj.max_velocity_ratio:.3f}, "
               f"max residual ratio {traj.max_residual_ratio:.3f}, parameterised in "
@@ -125,7 +133,7 @@ def main(args: argparse.Namespace) -> int:
     if args.html is not None:
         if not r.success:
             print("no path: no HTML view written")
-            return 1
+            return FAILED
         from genplan.viewer import export_html
 
         export_html(outcome.robot, r.path if traj is None else traj, args.html, scene=outcome.scene,
