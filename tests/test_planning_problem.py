@@ -89,6 +89,38 @@ def test_queries_start_on_the_manifold_and_goals_by_ik(arm: genplan.Robot, cup: 
     assert np.allclose(again.start, q.start, atol=1e-9) and np.allclose(again.goals[0], q.goals[0], atol=1e-9)
 
 
+def test_a_start_by_ik_for_a_target(arm: genplan.Robot, cup: P.Task, tmp_path, capsys) -> None:
+    """start_target (genplan plan --start-target): the start is a collision-free IK solution on the
+    manifold reaching that target, as the goals are for target; refused with a start, or when none
+    is found, naming start_target; a colliding start's error says how to give one."""
+    world = arm.collision_world()
+    world.add_scene(SCENE)
+    q = make_query(arm, cup, world, start_target=(0.3, -0.2, 0.3), target=(0.4, 0.2, 0.3), k=2, seed=3)
+    reached = arm.frame_positions(q.start, "link_eef")
+    assert np.abs(reached - [0.3, -0.2, 0.3]).max() < 1e-3 and np.allclose(q.start_target, [0.3, -0.2, 0.3])
+    assert np.abs(_upright(arm, q.start) - [0, 0, -1]).max() < 2e-3 and not bool(world.in_collision(q.start))
+    again = make_query(arm, cup, world, start_target=(0.3, -0.2, 0.3), target=(0.4, 0.2, 0.3), k=2, seed=3)
+    np.testing.assert_array_equal(again.start, q.start)
+    with pytest.raises(SettingsError, match="start_target"):
+        make_query(arm, cup, world, q.start, start_target=(0.3, -0.2, 0.3), target=(0.4, 0.2, 0.3))
+    with pytest.raises(InvalidStartError, match="start_target .*no collision-free IK solution"):
+        make_query(arm, cup, world, start_target=(3.0, 0.0, 0.3), target=(0.4, 0.2, 0.3), max_tries=64)
+    in_box = make_query(arm, cup, arm.collision_world(), "default", target=(0.38, -0.12, 0.2), k=1).goals[0]
+    with pytest.raises(InvalidStartError, match="start: in collision.*start_target="):
+        make_query(arm, cup, world, in_box, target=(0.4, 0.2, 0.3))
+    out, traj = tmp_path / "plan.json", tmp_path / "plan.npz"
+    assert main(["plan", "--robot", str(ROBOT), "--task", str(TASK), "--scene", str(SCENE), "--start-target", "0.3", "-0.2",
+                 "0.3", "--target", "0.4", "0.2", "0.3", "--seed", "3", "--out", str(out), "--trajectory", str(traj)]) == 0
+    data = json.loads(out.read_text())
+    assert data["success"] and np.allclose(data["start"], q.start) and traj.is_file()
+    assert main(["plan", "--robot", str(ROBOT), "--start", "0 0 0 0 0 0 0", "--start-target", "0.3", "0", "0.3", "--target", "0.4",
+                 "0", "0.3", "--out", str(out)]) == 2
+    assert "not allowed with argument --start" in capsys.readouterr().err
+    assert main(["plan", "--robot", str(ROBOT), "--start-target", "0.3", "0", "--target", "0.4", "0", "0.3",
+                 "--out", str(out)]) == 2
+    assert "argument --start-target: expected 3 numbers" in capsys.readouterr().err
+
+
 def test_bad_queries_are_refused_naming_the_argument(arm: genplan.Robot, cup: P.Task) -> None:
     world = arm.collision_world()
     world.add_scene(SCENE)

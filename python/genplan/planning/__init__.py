@@ -479,13 +479,14 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
          *, start: ArrayLike | str = "default", goal: ArrayLike | None = None, target: ArrayLike | None = None,
          frame: str | None = None, sampler: str = "uniform", model: str | os.PathLike[str] | None = None, k: int = 10,
          seed: int = 0, settings: PlannerSettings | None = None, parallel: bool = True,
-         algorithm: str | None = None, checker: str = "exact") -> Outcome:
+         algorithm: str | None = None, checker: str = "exact", start_target: ArrayLike | None = None) -> Outcome:
     """Plan for ``robot`` (a Robot or what :func:`genplan.load` takes) on the manifold of ``task``
     (a Task, shipped name or task file; default ``"free"``: free space, the joint limits alone,
     nothing projected) among ``scene`` (a Scene, a shipped scene's name or a scene file; None: no
     obstacles, self-collision only), from ``start`` to ``goal`` (configurations) or to IK goals for
     ``target`` (:func:`make_query`: a target of the task's [condition], or a pose of ``frame``, a
-    4x4 matrix or ``x y z qx qy qz qw``). A task with a [condition] plans on its manifold
+    4x4 matrix or ``x y z qx qy qz qw``); ``start_target`` instead of ``start``: a start by IK for
+    that target, likewise. A task with a [condition] plans on its manifold
     (:func:`genplan.projection.manifold_task`), one without on its own terms.
     ``sampler``: "uniform", "gan", "hybrid" or "adaptive" (the learned sampler of ``model``, which
     must be trained for this robot and task), or "data" (:func:`data_sampler` of this task: no
@@ -528,7 +529,7 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
         scene_obj = load_scene(scene)
         world.add_scene(scene_obj)
     manifold = query_manifold(t, rob)
-    query = make_query(rob, t, world, start, goal, target, frame=frame, k=k, seed=seed)
+    query = make_query(rob, t, world, start, goal, target, frame=frame, k=k, seed=seed, start_target=start_target)
     if sampler == "data":  # this task's data, not the robot's shipped task's
         chosen = data_sampler(rob, task=t, seed=seed, progress=True)
     planner = Planner(rob, world=world, task=manifold, sampler=chosen, gan_model=gan_model, seed=seed,

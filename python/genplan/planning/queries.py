@@ -214,13 +214,15 @@ def _pose_goals(robot: Robot, manifold: P.Task, proj: P.GaussNewtonProjector | N
 
 def make_query(robot: Robot, task: P.Task, world: CollisionWorld, start: ArrayLike | str = "default",
                goal: ArrayLike | None = None, target: ArrayLike | None = None, *, frame: str | None = None,
-               k: int = 10, seed: int = 0, max_tries: int = 2000) -> Query:
+               k: int = 10, seed: int = 0, max_tries: int = 2000, start_target: ArrayLike | None = None) -> Query:
     """A start (``"default"``: the robot's default configuration, or a configuration) projected
     onto the manifold of ``task`` (:func:`query_manifold`) and checked free, and goals: ``goal``
     (a configuration, or several as rows) projected and checked likewise, or ``k`` IK solutions
     for ``target``, from up to ``max_tries`` uniform guesses, collision-free. In free space (a
     free manifold, ``Task.free``) nothing is projected: a start or goal outside the joint limits
-    is refused as it is.
+    is refused as it is. ``start_target`` (instead of ``start``): the start is the first such IK
+    solution for that target (as ``target``, with a generator of its own), for a robot whose
+    default configuration is off the manifold's free part.
 
     ``target``: the condition term's target (3 numbers) for a task with a [condition]; or a
     pose of ``frame`` (a 4x4 homogeneous matrix, or 7 numbers: a position and a unit
@@ -231,12 +233,15 @@ def make_query(robot: Robot, task: P.Task, world: CollisionWorld, start: ArrayLi
     Errors name the argument: InvalidStartError / InvalidGoalError (off the manifold and not
     projectable, outside the joint limits in free space, in collision, no IK solution found, a
     bad target),
-    SettingsError (neither or both of goal and target, no ``frame`` for a target of a task
-    without a [condition]), UnknownNameError (an unknown frame). A target of another shape, not
-    finite or not a pose is an InvalidGoalError saying so."""
+    SettingsError (neither or both of goal and target, both start and start_target, no ``frame``
+    for a target of a task without a [condition]), UnknownNameError (an unknown frame). A target
+    of another shape, not finite or not a pose is an InvalidGoalError (InvalidStartError for
+    ``start_target``) saying so."""
     if (goal is None) == (target is None):
         raise SettingsError("give a goal configuration or a target (of the task's condition, or a pose of a frame), "
                             "not both or neither")
+    if start_target is not None and not (isinstance(start, str) and start == "default"):
+        raise SettingsError("give a start configuration or a start_target (a start by IK), not both")
     if isinstance(k, bool) or not isinstance(k, int) or k < 1:
         raise SettingsError(f"k must be a positive integer, got {k!r}")
     manifold = query_manifold(task, robot)
@@ -248,36 +253,57 @@ def make_query(robot: Robot, task: P.Task, world: CollisionWorld, start: ArrayLi
         frame = _condition_frame(task)
     if frame is not None:
         robot.frame_id(frame)  # an unknown frame: UnknownNameError naming it
-    s = _project_free(robot, proj, world, q_start, "start", InvalidStartError)
-    start_target = np.zeros(0) if frame is None else robot.frame_positions(s, frame)
+    if start_target is not None:
+        starts, start_at = _target_solutions(robot, task, manifold, proj, world, frame, start_target, 1, seed, 1,
+                                             max_tries, "start_target", InvalidStartError)
+        s = starts[0]
+    else:
+        try:
+            s = _project_free(robot, proj, world, q_start, "start", InvalidStartError)
+        except InvalidStartError as e:
+            raise InvalidStartError(f"{e}; give another start, or a start by IK for a target (start_target=, "
+                                    "genplan plan --start-target X Y Z)") from None
+        start_at = np.zeros(0) if frame is None else robot.frame_positions(s, frame)
     if goal is not None:
         g = robot.check_configuration(goal, "goal")
         rows = g.reshape(-1, robot.nq)
         goals = np.array([_project_free(robot, proj, world, row, f"goal[{i}]" if len(rows) > 1 else "goal",
                                         InvalidGoalError) for i, row in enumerate(rows)])
         goal_target = np.zeros(0) if frame is None else robot.frame_positions(goals[0], frame)
-        return Query(start=s, goals=goals, start_target=start_target, goal_target=goal_target)
+        return Query(start=s, goals=goals, start_target=start_at, goal_target=goal_target)
     assert target is not None  # neither or both of goal and target are refused above
+    goals, goal_at = _target_solutions(robot, task, manifold, proj, world, frame, target, k, seed, 0, max_tries, "target",
+                                       InvalidGoalError)
+    return Query(start=s, goals=goals, start_target=start_at, goal_target=goal_at)
+
+
+def _target_solutions(robot: Robot, task: P.Task, manifold: P.Task, proj: P.GaussNewtonProjector | None,
+                      world: CollisionWorld, frame: str | None, target: ArrayLike, k: int, seed: int, stream: int,
+                      max_tries: int, what: str, error: type[GenplanError]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Up to ``k`` collision-free IK solutions for ``target`` (the argument ``what``; see
+    :func:`make_query`), at least one, else ``error``; and the target's position. ``seed`` and
+    ``stream`` (0: the goals', 1: the start's) seed the guesses."""
+    rng = np.random.default_rng(seed if stream == 0 else [seed, stream])
     try:
-        rows_t = _targets(target, "target")
-    except GenplanError as e:  # the goal's argument: its shape, values or pose
-        raise InvalidGoalError(str(e)) from None
+        rows_t = _targets(target, what)
+    except GenplanError as e:  # the argument's shape, values or pose
+        raise error(str(e)) from None
     if len(rows_t) != 1:
-        raise InvalidGoalError(f"target: expected one target, got shape {np.shape(target)}")
+        raise error(f"{what}: expected one target, got shape {np.shape(target)}")
     t = rows_t[0]
     if frame is None:
         raise SettingsError(f"frame: task '{task.name}' has no [condition]: a target is a pose of a frame; give the "
                             f"frame (one of the robot's: e.g. {', '.join(list(robot.frames)[:3]) or 'its end link'})")
     if task.condition is None or t.ndim == 2:
-        goals = _pose_goals(robot, manifold, proj, world, frame, t, k, seed, max_tries)
-        if len(goals) == 0:
-            raise InvalidGoalError(f"target: no collision-free IK solution of frame '{frame}' reaching {t.tolist()} "
-                                   f"in {max_tries} tries (out of reach, or blocked by the scene)")
-        return Query(start=s, goals=goals, start_target=start_target, goal_target=t[:3, 3] if t.ndim == 2 else t)
-    ik = P.GaussNewtonProjector(robot, task)
-    goals = valid_solutions(robot, ik, P.condition_term(task).name, proj, world, t, np.random.default_rng(seed), k,
+        found = _pose_goals(robot, manifold, proj, world, frame, t, k, seed if stream == 0 else int(rng.integers(2**31)),
                             max_tries)
-    if len(goals) == 0:
-        raise InvalidGoalError(f"target {t.tolist()}: no collision-free IK solution of task '{task.name}' in "
-                               f"{max_tries} tries (out of reach, or blocked by the scene)")
-    return Query(start=s, goals=goals, start_target=start_target, goal_target=t)
+        if len(found) == 0:
+            raise error(f"{what}: no collision-free IK solution of frame '{frame}' reaching {t.tolist()} "
+                        f"in {max_tries} tries (out of reach, or blocked by the scene)")
+        return found, t[:3, 3] if t.ndim == 2 else t
+    ik = P.GaussNewtonProjector(robot, task)
+    found = valid_solutions(robot, ik, P.condition_term(task).name, proj, world, t, rng, k, max_tries)
+    if len(found) == 0:
+        raise error(f"{what} {t.tolist()}: no collision-free IK solution of task '{task.name}' in "
+                    f"{max_tries} tries (out of reach, or blocked by the scene)")
+    return found, t
