@@ -126,6 +126,11 @@ def non_negative_float(text: str) -> float:
     return _float(text, "a finite number >= 0", lambda x: x >= 0)
 
 
+def share(text: str) -> float:
+    """A number in [0, 1] (a share of something)."""
+    return _float(text, "a share in [0, 1]", lambda x: 0 <= x <= 1)
+
+
 def existing_file(text: str) -> Path:
     """An input file that exists."""
     path = Path(text)

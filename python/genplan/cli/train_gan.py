@@ -40,6 +40,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--member-init", choices=["uniform", "data"], default=None,
                    help="ensemble initialisation (default uniform; data: output biases at data points far apart)")
     p.add_argument("--data-size", type=A.positive_int, default=None, help="valid configurations (default 25,000)")
+    p.add_argument("--data-in-box", type=A.share, default=None, metavar="SHARE",
+                   help="share of the generated configurations drawn with the condition frame in the task's "
+                        "[condition] box, where the sampler is asked (default 0.5; 0 for a shipped task: the "
+                        "paper's data); the card reports the share in the box")
     p.add_argument("--data", type=A.existing_folder, default=None,
                    help="train on a data set written by `genplan data` (checked: robot, task, sha256)")
     p.add_argument("--eval-targets", type=A.eval_targets, default=500,
@@ -99,6 +103,8 @@ def main(args: argparse.Namespace) -> int:
     out = A.model_output(args.out, models_dir() / f"{robot.name}_gan.safetensors")  # never inside the package
     if args.data is not None and args.data_size is not None:
         raise A.UsageError("--data-size: the data set given by --data fixes the size (leave --data-size out)")
+    if args.data is not None and args.data_in_box is not None:
+        raise A.UsageError("--data-in-box: the data set given by --data fixes its rows (leave --data-in-box out)")
     if args.seeds is None and (args.workers is not None or args.ray is not None):
         raise A.UsageError("--workers/--ray: they run the trainings of --seeds A..B in parallel; give --seeds")
     seeds = list(args.seeds) if args.seeds is not None else [args.seed]
@@ -109,6 +115,8 @@ def main(args: argparse.Namespace) -> int:
         overrides["n_net"] = args.n_net
     if args.data_size is not None:
         overrides["data_size"] = args.data_size
+    if args.data_in_box is not None:
+        overrides["data_in_box"] = args.data_in_box
     if args.no_discriminator:
         overrides["use_discriminator"] = False
     for key in ("loss", "w_diversity", "member_init"):
@@ -120,11 +128,12 @@ def main(args: argparse.Namespace) -> int:
 
         data, manifest = read_dataset(args.data, robot, task)  # refuses another robot's or task's data
         overrides["data_size"] = len(data)
+        overrides["data_in_box"] = 0.0  # a `genplan data` set: uniform projections
         data_set = {"folder": str(args.data), "sha256": manifest["sha256"], "data_size": len(data),
                     "seed": manifest["seed"], "shard_size": manifest["shard_size"]}
     cfg = default_config(robot, task, **overrides, seed=seeds[0])  # errors (no [condition], ...) before any work
-    extra = "".join(f" --{k} {getattr(args, k.replace('-', '_'))}" for k in ("iterations", "n-net", "data-size", "data", "loss",
-                                                                         "w-diversity", "member-init")
+    extra = "".join(f" --{k} {getattr(args, k.replace('-', '_'))}" for k in ("iterations", "n-net", "data-size", "data-in-box",
+                                                                         "data", "loss", "w-diversity", "member-init")
                     if getattr(args, k.replace("-", "_")) is not None) + (" --no-discriminator" if args.no_discriminator else "")
     extra += " --allow-python" if task.python_terms else ""
     parallel = args.seeds is not None and (args.ray is not None or (args.workers or 1) > 1)

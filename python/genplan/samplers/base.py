@@ -367,8 +367,10 @@ def prepare_training(cfg: Any, data: NDArray[np.float64] | None, progress: bool,
     t_data = time.perf_counter()
     data_source = "given"
     if data is None:
-        data_source = "cache" if cache_path(robot, cfg.data_size, cfg.data_seed, task).is_file() else "generated"
-        data = valid_configurations(robot, cfg.data_size, cfg.data_seed, progress=progress, task=task)
+        in_box = getattr(cfg, "data_in_box", 0.0)  # a GAN's share of rows in the condition's box
+        cached = cache_path(robot, cfg.data_size, cfg.data_seed, task, in_box=in_box).is_file()
+        data_source = "cache" if cached else "generated"
+        data = valid_configurations(robot, cfg.data_size, cfg.data_seed, progress=progress, task=task, in_box=in_box)
     t_data = time.perf_counter() - t_data
     feats = Codec.features(robot, data)
     # Scales are floored: a feature the constraints pin (Talos' left arm, the Panda hand's axis)

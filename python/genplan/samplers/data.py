@@ -5,6 +5,14 @@ its condition term, or the task its [condition] names: for the paper's robots, t
 task: Panda gripper horizontal; Talos feet fixed, static stability, left arm at its default);
 successes are kept until ``n`` are collected.
 
+Where a learned sampler is asked (the [condition] box) may be a small corner of that manifold (a
+two-arm robot's hands over a tray's area: a fraction of a percent of uniform projections).
+``in_box`` (a share in [0, 1]) draws that share of the rows in the box instead: each is a
+uniform sample projected onto the manifold with the condition term added, its target drawn
+uniformly in the condition's ``low``/``high`` box (:func:`box_task`); :func:`box_share` measures
+the share of any rows in the box (a GAN card reports it). ``in_box=0`` (the default) is the data set as it always was; a
+learned sampler's training takes :func:`default_in_box`.
+
 A data set of ``n`` configurations is made of shards of ``shard_size`` (the last one takes the
 rest): shard ``i`` draws its uniform samples from :func:`genplan.executor.shard_rng` (the seed
 and ``i`` only) in chunks of :data:`CHUNK`, projects them one after the other on one core
@@ -34,6 +42,7 @@ and an in-memory data set (:func:`valid_configurations`) in the available memory
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -70,6 +79,9 @@ PIECE = 250
 FORMAT = "genplan-dataset/1"
 #: the most shards a data set may have (each is a file the manifest lists)
 MAX_SHARDS = 100_000
+#: the share of a learned sampler's training rows drawn in the condition's box, for a task of
+#: the user's (:func:`default_in_box`): half, so that the rest still spans the whole manifold
+IN_BOX = 0.5
 
 
 def _task(robot: Robot, task: P.Task | None) -> P.Task:
@@ -91,20 +103,94 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _key(robot: Robot, n: int, seed: int, manifold: P.Task, shard_size: int) -> str:
+def _key(robot: Robot, n: int, seed: int, manifold: P.Task, shard_size: int, in_box: float = 0.0,
+         box: NDArray[np.float64] | None = None) -> str:
     fields: dict[str, Any] = {"robot": robot.name, "n": n, "seed": seed, "version": _core.__version__,
                               "shards": shard_size, "chunk": CHUNK,
                               "terms": [t.to_native(robot) for t in manifold.primary if not isinstance(t, P.CustomTerm)]}
     if manifold.python_terms:  # by their entries and parameters (their native form holds the object)
         fields["python_terms"] = [d for d in manifold.to_dict()["primary"] if d["kind"] == "python"]
+    if in_box > 0:  # absent otherwise: the keys of data sets made without it are unchanged
+        assert box is not None
+        fields["in_box"] = [float(in_box), box.tolist()]
     desc = json.dumps(fields, sort_keys=True, default=str)
     return hashlib.sha256(desc.encode()).hexdigest()[:16]
 
 
-def cache_path(robot: Robot, n: int, seed: int, task: P.Task | None = None, shard_size: int = SHARD_SIZE) -> Path:
+def cache_path(robot: Robot, n: int, seed: int, task: P.Task | None = None, shard_size: int = SHARD_SIZE, *,
+               in_box: float = 0.0) -> Path:
     """Where :func:`valid_configurations` caches its result."""
-    key = _key(robot, n, seed, _task(robot, task), shard_size)
+    run_task = _run_task(robot, task)
+    box = condition_box(run_task) if _check_in_box(in_box) > 0 else None
+    key = _key(robot, n, seed, _task(robot, run_task), shard_size, in_box, box)
     return cache_dir() / "data" / f"{robot.name}_valid_{n}_{seed}_{key}.npy"
+
+
+# -- the condition's box
+
+
+def default_in_box(task: P.Task) -> float:
+    """The share of a learned sampler's training rows drawn in the condition's box by default:
+    0 for a shipped task (the papers' tasks keep the papers' data: uniform projections), else
+    :data:`IN_BOX`."""
+    return 0.0 if task.name in P.task_names() else IN_BOX
+
+
+def _check_in_box(in_box: float) -> float:
+    """``in_box`` as a float in [0, 1], else SettingsError naming it."""
+    if isinstance(in_box, bool) or not isinstance(in_box, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= float(in_box) <= 1.0:
+        raise SettingsError(f"in_box must be a share in [0, 1] (of the rows drawn in the condition's box), got {in_box!r}")
+    return float(in_box)
+
+
+def condition_box(task: P.Task) -> NDArray[np.float64]:
+    """The [condition] box of ``task``, [[low], [high]] (its targets' box: IK queries and a
+    card's held-out targets are drawn in it); GenplanError for a task without a usable condition."""
+    P.condition_term(task)
+    assert task.condition is not None
+    return np.array([task.condition.low, task.condition.high], dtype=np.float64)
+
+
+def box_task(robot: Robot, task: P.Task) -> P.Task:
+    """The task the rows drawn in the condition's box are projected onto: the manifold
+    (:func:`genplan.projection.manifold_task`) with the condition term added, its target set per
+    row (a target drawn uniformly in :func:`condition_box`)."""
+    manifold = _task(robot, task)
+    cond = P.condition_term(task)
+    assert task.condition is not None
+    return dataclasses.replace(manifold, primary=(*manifold.primary, cond),
+                               condition=dataclasses.replace(task.condition, manifold=None))
+
+
+def data_description(in_box: float | None) -> str:
+    """How training rows were made, as a card says: ``in_box`` the share drawn in the condition's
+    box (None: rows given by the caller)."""
+    if in_box is None:
+        return "given by the caller"
+    plain = "uniform samples in the joint limits projected onto the task's manifold"
+    if in_box == 0:
+        return plain
+    return (f"{plain}; {in_box:g} of them with the condition term added, its target drawn uniformly in the "
+            "condition's box")
+
+
+def in_box_mask(positions: NDArray[np.float64], box: Any) -> NDArray[np.bool_]:
+    """Which of ``positions`` (n, 3) lie in ``box`` ([[x, y, z] min, max], faces included)."""
+    lo, hi = as_box(box, "box")
+    return np.all((positions >= lo) & (positions <= hi), axis=1)  # type: ignore[no-any-return]
+
+
+def box_share(robot: Robot, task: P.Task, rows: NDArray[np.float64]) -> dict[str, Any]:
+    """Where the condition frame of ``task`` lies in ``rows`` against the condition's box
+    (:func:`condition_box`): ``{"box", "frame", "rows", "of", "share"}`` (rows inside, of all rows,
+    their share in [0, 1]; no tolerance: a row projected onto a target on the box's face within
+    the term's tolerance may lie just outside)."""
+    frame = P.condition_term(task).frame
+    box = condition_box(task)
+    inside = int(in_box_mask(robot.frame_positions(rows, frame), box).sum())
+    return {"box": box.tolist(), "frame": frame, "rows": inside, "of": int(len(rows)),
+            "share": inside / len(rows) if len(rows) else 0.0}
 
 
 # -- sizes
@@ -218,6 +304,11 @@ class Shard:
     seed: int
     index: int
     count: int
+    #: of ``count``, the rows drawn in the condition's box (projected onto ``box_task``, targets
+    #: uniform in ``box``), after the others
+    in_box: int = 0
+    box_task: dict[str, Any] | None = None
+    box: tuple[tuple[float, ...], tuple[float, ...]] | None = None
 
 
 #: this process's robots and projectors by (description, manifold): a worker builds each once
@@ -236,8 +327,10 @@ def _robot_key(description: Mapping[str, Any]) -> str:
     return json.dumps(_plain(description), sort_keys=True)
 
 
-def _solver(shard: Shard) -> tuple[Robot, P.GaussNewtonProjector]:
-    key = json.dumps([shard.robot, shard.manifold], sort_keys=True)
+def _solver(shard: Shard, task: dict[str, Any] | None = None) -> tuple[Robot, P.GaussNewtonProjector]:
+    """This process's robot and projector onto ``task`` (plain data; default the shard's manifold)."""
+    task = shard.manifold if task is None else task
+    key = json.dumps([shard.robot, task], sort_keys=True)
     with _LOCK:
         if key not in _SOLVERS:
             rkey = _robot_key(shard.robot)
@@ -245,14 +338,15 @@ def _solver(shard: Shard) -> tuple[Robot, P.GaussNewtonProjector]:
             _ROBOTS[rkey] = robot
             # allow_python: a shard's python terms are those of the task the run was given, already
             # imported by the process that made the shards; a worker process imports them again
-            manifold = P.Task.from_dict(shard.manifold, robot, allow_python=True)
-            _SOLVERS[key] = (robot, P.GaussNewtonProjector(robot, manifold))
+            _SOLVERS[key] = (robot, P.GaussNewtonProjector(robot, P.Task.from_dict(task, robot, allow_python=True)))
         return _SOLVERS[key]
 
 
 def shards(robot: Robot, n: int, seed: int = 0, task: P.Task | None = None,
-           shard_size: int = SHARD_SIZE) -> list[Shard]:
-    """The shards of the data set of ``n`` configurations (see the module's docstring)."""
+           shard_size: int = SHARD_SIZE, *, in_box: float = 0.0) -> list[Shard]:
+    """The shards of the data set of ``n`` configurations (see the module's docstring); each
+    draws ``round(in_box * count)`` of its rows in the condition's box."""
+    share = _check_in_box(in_box)
     if n < 1:
         raise SettingsError(f"n must be positive, got {n}")
     if shard_size < 1:
@@ -263,43 +357,69 @@ def shards(robot: Robot, n: int, seed: int = 0, task: P.Task | None = None,
     description = _plain(robot.description)
     with _LOCK:
         _ROBOTS.setdefault(_robot_key(description), robot)  # this process's workers reuse it
-    manifold = _task(robot, task).to_dict()
-    return [Shard(description, manifold, seed, i, c) for i, c in enumerate(chunks(n, shard_size))]
+    run_task = _run_task(robot, task)
+    manifold = _task(robot, run_task).to_dict()
+    if share == 0:
+        return [Shard(description, manifold, seed, i, c) for i, c in enumerate(chunks(n, shard_size))]
+    targeted = box_task(robot, run_task).to_dict()
+    lo, hi = condition_box(run_task).tolist()
+    return [Shard(description, manifold, seed, i, c, round(share * c), targeted, (tuple(lo), tuple(hi)))
+            for i, c in enumerate(chunks(n, shard_size))]
 
 
 def project_shard(shard: Shard) -> NDArray[np.float64]:
     """The ``shard.count`` configurations of a shard, shape (count, nq): uniform samples from
     the shard's generator projected one after the other (the native projector releases the GIL,
-    so threads run shards in parallel), the first successes kept.
+    so threads run shards in parallel), the first successes kept; the last ``shard.in_box`` of
+    them projected onto ``shard.box_task`` with targets drawn uniformly in ``shard.box`` (from the
+    same generator, after the others).
 
     Raises GenplanError when fewer than 1 % of the projections succeed (after 10 chunks): the
-    task's manifold is then out of reach of the joint limits, or nearly so."""
+    task's manifold (or the condition's box on it) is then out of reach of the joint limits, or
+    nearly so."""
     robot, solver = _solver(shard)
     rng = shard_rng(shard.seed, shard.index)
-    chunk = min(CHUNK, shard.count)
-    kept: list[NDArray[np.float64]] = []
-    count = tried = 0
-    while count < shard.count:
+    rows = [_project(shard, robot, solver, rng, shard.count - shard.in_box)]
+    if shard.in_box:
+        assert shard.box_task is not None and shard.box is not None
+        rows.append(_project(shard, robot, _solver(shard, shard.box_task)[1], rng, shard.in_box,
+                             np.array(shard.box, dtype=np.float64)))
+    return np.ascontiguousarray(np.concatenate(rows))
+
+
+def _project(shard: Shard, robot: Robot, solver: P.GaussNewtonProjector, rng: np.random.Generator, count: int,
+             box: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """``count`` successes of ``solver`` from uniform samples drawn from ``rng`` (with ``box``:
+    and the condition term's target per sample, uniform in it), (count, nq)."""
+    chunk = min(CHUNK, count)
+    kept: list[NDArray[np.float64]] = [np.empty((0, robot.nq))]
+    found = tried = 0
+    term = "" if box is None else P.condition_term(solver.task).name
+    while found < count:
         qs = robot.random_configurations(chunk, rng)
+        targets = None if box is None else rng.uniform(box[0], box[1], size=(chunk, 3))
         for a in range(0, chunk, PIECE):  # rows are projected independently: pieces change no result
             if stopping():
                 raise KeyboardInterrupt(f"shard {shard.index}: the run was interrupted")
-            res = solver.solve_batch(qs[a:a + PIECE], parallel=False)
+            res = solver.solve_batch(qs[a:a + PIECE], parallel=False,
+                                     targets=None if targets is None else {term: targets[a:a + PIECE]})
             good = res.q[res.success]
             kept.append(good)
-            count += len(good)
+            found += len(good)
         tried += chunk
-        if tried >= 10 * chunk and count < 0.01 * tried:
-            raise GenplanError(f"{robot.name}: only {count} of {tried} uniform samples project onto the manifold of "
-                               f"task '{solver.task.name}': is it reachable within the joint limits?")
-    return np.ascontiguousarray(np.concatenate(kept)[:shard.count])
+        if tried >= 10 * chunk and found < 0.01 * tried:
+            where = "" if box is None else f" with its frame at targets in the condition's box {box.tolist()}"
+            raise GenplanError(f"{robot.name}: only {found} of {tried} uniform samples project onto the manifold of "
+                               f"task '{solver.task.name}'{where}: is it reachable within the joint limits?")
+    return np.concatenate(kept)[:count]
 
 
 def generate(robot: Robot, n: int, seed: int = 0, task: P.Task | None = None, *, shard_size: int = SHARD_SIZE,
-             executor: Executor | None = None, progress: bool = True) -> NDArray[np.float64]:
+             executor: Executor | None = None, progress: bool = True, in_box: float = 0.0) -> NDArray[np.float64]:
     """The data set of ``n`` configurations (not cached), its shards on ``executor`` (default:
-    one worker per core, threads or, for Python terms, processes: :func:`executor_kind`)."""
-    parts = shards(robot, n, seed, task, shard_size)
+    one worker per core, threads or, for Python terms, processes: :func:`executor_kind`);
+    ``in_box``: the share drawn in the condition's box (see the module's docstring)."""
+    parts = shards(robot, n, seed, task, shard_size, in_box=in_box)
     ex = executor or LocalExecutor(kind=executor_kind(_task(robot, task)))
     try:
         out = ex.map(project_shard, parts, desc=f"{robot.name} data (projecting)", progress=progress,
@@ -325,18 +445,19 @@ def _outside_limits(robot: Robot, data: NDArray[np.float64]) -> str:
 
 def valid_configurations(robot: Robot, n: int = 25_000, seed: int = 0, use_cache: bool = True,
                          progress: bool = True, task: P.Task | None = None, *, shard_size: int = SHARD_SIZE,
-                         executor: Executor | None = None) -> NDArray[np.float64]:
+                         executor: Executor | None = None, in_box: float = 0.0) -> NDArray[np.float64]:
     """``n`` configurations on the manifold of ``task`` (default: the robot's shipped
     ``<robot>_ik``; see :func:`genplan.projection.manifold_task`), shape (n, nq), reproducible:
-    :func:`generate`, cached. The same array as ``genplan data`` writes for the same seed and
-    shard size (:func:`read_dataset`).
+    :func:`generate`, cached; ``in_box``: the share of them drawn with the condition frame in the
+    condition's box (see the module's docstring). With ``in_box=0``, the same array as ``genplan
+    data`` writes for the same seed and shard size (:func:`read_dataset`).
 
     Raises GenplanError when fewer than 1 % of the projections succeed (after 10 chunks): the
     task's manifold is then out of reach of the joint limits, or nearly so."""
     if n < 1:
         raise SettingsError(f"n must be positive, got {n}")
     _check_in_memory(robot, n)
-    path = cache_path(robot, n, seed, task, shard_size)
+    path = cache_path(robot, n, seed, task, shard_size, in_box=in_box)
     cached = load_array(path, (n, robot.nq)) if use_cache else None
     if cached is not None:
         bad = _outside_limits(robot, cached)
@@ -344,7 +465,7 @@ def valid_configurations(robot: Robot, n: int = 25_000, seed: int = 0, use_cache
             return cached
         warnings.warn(f"{path}: {bad}, which the data set never holds (the file and its hash were changed after "
                       "they were written); regenerating it", RuntimeWarning, stacklevel=2)
-    data = generate(robot, n, seed, task, shard_size=shard_size, executor=executor, progress=progress)
+    data = generate(robot, n, seed, task, shard_size=shard_size, executor=executor, progress=progress, in_box=in_box)
     if use_cache:
         save_array(path, data)
     return data
@@ -360,15 +481,17 @@ class TaskData:
 
     ``task``: a Task, shipped name or task file with a [condition] (default: the robot's shipped
     ``<robot>_ik``). ``rows`` (n, nq): the configurations; default: the data set a learned sampler
-    of the task is trained on (:func:`valid_configurations`, ``size`` rows of seed ``seed``, made
-    once and cached). Raises ShapeError or NonFiniteError for bad ``rows``."""
+    of the task is trained on by default (:func:`valid_configurations`, ``size`` rows of seed
+    ``seed``, :func:`default_in_box` of them in the condition's box, made once and cached).
+    Raises ShapeError or NonFiniteError for bad ``rows``."""
 
     def __init__(self, robot: Robot, task: "str | os.PathLike[str] | P.Task | None" = None,
                  rows: Any = None, *, size: int = 25_000, seed: int = 0, progress: bool = False) -> None:
         self.robot = robot
         self._task = task
         if rows is None:
-            self.rows = valid_configurations(robot, size, seed, progress=progress, task=self.task)
+            self.rows = valid_configurations(robot, size, seed, progress=progress, task=self.task,
+                                             in_box=default_in_box(self.task))
         else:
             self.rows = as_configurations(rows, robot.nq, "data")
             if self.rows.ndim != 2:
@@ -396,7 +519,7 @@ class TaskData:
         from genplan.samplers.costs import sampling_box
 
         lo, hi = as_box(sampling_box(self.task) if box is None else box, "box")
-        keep = np.all((self.positions >= lo) & (self.positions <= hi), axis=1)
+        keep = in_box_mask(self.positions, [lo, hi])
         if not keep.any():
             raise SettingsError(f"box: none of the {len(self.rows)} configurations has its frame '{self.frame}' in "
                                 f"{[lo.tolist(), hi.tolist()]} (give another box, or in_box=False)")

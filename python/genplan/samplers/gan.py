@@ -99,9 +99,14 @@ class GanConfig(SamplerConfig):
     #: "data" (each member's output bias starts at a different configuration of the data, spread by
     #: farthest-point selection, so the members start in different regions of the manifold)
     member_init: str = "uniform"
+    #: the share of the generated training rows drawn with the condition frame in the condition's
+    #: box (:mod:`genplan.samplers.data`; 0 in cards written before it existed: uniform
+    #: projections alone); :func:`default_config` takes :func:`genplan.samplers.data.default_in_box`
+    data_in_box: float = 0.0
 
     #: fields a card written before they existed may lack (model_files.read_config)
-    ADDED_FIELDS: ClassVar[frozenset[str]] = frozenset({"task", "loss", "gp_weight", "w_diversity", "member_init"})
+    ADDED_FIELDS: ClassVar[frozenset[str]] = frozenset({"task", "loss", "gp_weight", "w_diversity", "member_init",
+                                                        "data_in_box"})
     #: the values of :attr:`loss` and :attr:`member_init`
     LOSSES: ClassVar[tuple[str, ...]] = ("bce", "wgan_gp")
     MEMBER_INITS: ClassVar[tuple[str, ...]] = ("uniform", "data")
@@ -114,6 +119,7 @@ class GanConfig(SamplerConfig):
             **dict.fromkeys(("gen_hidden", "disc_hidden"), integer(1, each=True)),
             **dict.fromkeys(("lr_gen", "lr_disc"), number(above=0)),
             **dict.fromkeys(("w_target", "w_limits", "w_constraint", "gp_weight", "w_diversity"), number(at_least=0)),
+            "data_in_box": number(at_least=0, at_most=1),
             "loss": one_of(self.LOSSES), "member_init": one_of(self.MEMBER_INITS)})
         self.check_target_box()
 
@@ -129,16 +135,18 @@ def default_config(robot: "str | Robot", task: "str | os.PathLike[str] | P.Task 
     discriminator and the Panda's loss weights; a larger one (a humanoid: Talos' 34) 30 noise
     dimensions, 5 members, a 2 x 40 discriminator, the Talos learning rates and weights. The
     targets are the condition term's frame; the sampling box is the condition's ``sample_low`` /
-    ``sample_high`` (else its ``low`` / ``high``).
+    ``sample_high`` (else its ``low`` / ``high``). The training data draws
+    :func:`~genplan.samplers.data.default_in_box` of its rows in the condition's box.
     """
     from genplan.samplers.costs import condition_term, default_task_name, sampling_box
+    from genplan.samplers.data import default_in_box
 
     rob = robot if isinstance(robot, Robot) else load(robot)
     t = P.load_task(default_task_name(rob) if task is None else task, rob)
     cond = condition_term(t)
     frame = next((role for role, link in rob.frames.items() if role == cond.frame or link == cond.frame), cond.frame)
     box = sampling_box(t)
-    common = {"robot": rob.name, "task": t.name, "target_frame": frame,
+    common = {"robot": rob.name, "task": t.name, "target_frame": frame, "data_in_box": default_in_box(t),
               "target_box": (tuple(map(float, box[0])), tuple(map(float, box[1])))}
     if feature_dim(rob) <= SMALL_DIM:
         # The authors' relative weight of the target term: lambda = 0.1 on a Gaussian
@@ -407,6 +415,8 @@ def train(cfg: GanConfig, data: NDArray[np.float64] | None = None, progress: boo
 def _train(cfg: GanConfig, data: NDArray[np.float64] | None, progress: bool, log_every: int,
            robot: Robot | None, task: "P.Task | None") -> GanModel:
     """:func:`train`'s work."""
+    from genplan.samplers.data import box_share, data_description
+
     prep = prepare_training(cfg, data, progress, robot, task, "GAN")
     robot, task, data, data_source, t_data, feats, codec = (prep.robot, prep.task, prep.data, prep.data_source,
                                                             prep.data_seconds, prep.features, prep.codec)
@@ -523,7 +533,8 @@ def _train(cfg: GanConfig, data: NDArray[np.float64] | None, progress: bool, log
         "robot": cfg.robot,
         "genplan_version": _core.__version__,
         "data": {"size": int(len(data)), "seed": cfg.data_seed, "seconds": t_data, "from": data_source,
-                 "source": "uniform samples in the joint limits projected onto the task's manifold"},
+                 "source": data_description(cfg.data_in_box if data_source != "given" else None),
+                 "in_condition_box": box_share(robot, task, data)},
         "training": {"seconds": train_s, "iterations": cfg.iterations, "seed": cfg.seed,
                      "load_average_1min_start_end": [load_start, os.getloadavg()[0]],
                      "threads": torch.get_num_threads(), "torch": torch.__version__, "loss_log": log},
