@@ -497,7 +497,7 @@ def test_a_plan_that_fails_exits_3_not_1_and_writes_no_trajectory(tmp_path, caps
     import json
 
     import genplan.planning
-    from genplan.cli import FAILED
+    from genplan.cli.args import FAILED
 
     real = genplan.planning.PlannerSettings
     monkeypatch.setattr(genplan.planning, "PlannerSettings", lambda **kw: real(**kw, max_extensions=1))

@@ -17,7 +17,8 @@ import pytest
 
 import genplan
 from genplan._shards import LOCK
-from genplan.cli import FAILED, main
+from genplan.cli import main
+from genplan.cli.args import FAILED
 from genplan.seq2seq import data as S
 
 BOXES = ["--start-box", "0.45", "-0.3", "0.15", "0.75", "0.3", "0.3",

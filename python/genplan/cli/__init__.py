@@ -10,7 +10,8 @@ size limit, permission, read-only file system) is such an error too, naming the 
 is written under a temporary name and renamed when whole (:mod:`genplan._files`), so nothing is
 left half-written. Ctrl-C prints ``genplan: interrupted`` and exits with code 130. A command that
 ran but whose result fails its own check (no path found, a trajectory over a limit, problems not
-adjusted, a robot that does not load) says so on stdout and exits with code 3 (:data:`FAILED`).
+adjusted, a robot that does not load) says so on stdout and exits with code 3
+(:data:`genplan.cli.args.FAILED`).
 A command that fails or is interrupted removes the output folders it created, when it left them
 empty. Anything else is a bug and keeps its traceback (exit code 1).
 
@@ -44,9 +45,6 @@ USER_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EACCES, 
                          errno.ENOENT, errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENAMETOOLONG, errno.EIO})
 #: the exit code of an interrupted command (128 + SIGINT, as a shell reports it)
 INTERRUPTED = 130
-#: the exit code of a command that ran but whose result fails its own check (no path, a
-#: trajectory over a limit, a problem not adjusted): not 1, which a bug's traceback exits with
-FAILED = 3
 
 
 #: (group, name, module, help) of every command, in the order ``genplan --help`` lists them (a

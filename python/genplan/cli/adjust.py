@@ -43,7 +43,6 @@ from typing import Any
 
 import numpy as np
 
-from genplan.cli import FAILED
 from genplan.cli import args as A
 
 #: the trajectory files of a run (what a later run into the same folder replaces)
@@ -244,7 +243,7 @@ def main(args: argparse.Namespace) -> int:
     if not success.all():
         print(f"{b - int(success.sum())} of {b} problems failed: "
               + "; ".join(f"{n} x {why}" for why, n in sorted(reasons.items(), key=lambda kv: -kv[1])))
-        return FAILED
+        return A.FAILED
     return 0
 
 

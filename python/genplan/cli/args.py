@@ -28,6 +28,10 @@ from genplan._files import missing_folders, remove_empty_folders
 from genplan.errors import GenplanError
 from genplan.model_files import inside_package, package_dir
 
+#: the exit code of a command that ran but whose result fails its own check (no path, a
+#: trajectory over a limit, a problem not adjusted): not 1, which a bug's traceback exits with
+FAILED = 3
+
 #: largest seed the commands accept (numpy, torch and the Rust samplers all take it)
 MAX_SEED = 2**32 - 1
 

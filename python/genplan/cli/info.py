@@ -9,7 +9,7 @@ import importlib.metadata
 import platform
 import time
 
-from genplan.cli import FAILED
+from genplan.cli.args import FAILED
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

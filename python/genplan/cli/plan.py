@@ -27,7 +27,6 @@ import argparse
 import json
 from typing import Any
 
-from genplan.cli import FAILED
 from genplan.cli import args as A
 
 
@@ -120,12 +119,12 @@ def main(args: argparse.Namespace) -> int:
     if args.trajectory is not None:
         if not r.success:
             print("no path: no trajectory written")
-            return FAILED
+            return A.FAILED
         try:
             traj = r.trajectory()
         except InvalidTrajectoryError as e:  # a path found, but its timed samples fail their check
             print(f"{e}; no trajectory written")
-            return FAILED
+            return A.FAILED
         traj.save(args.trajectory)
         print(f"trajectory: {traj.duration:.3f} s at {traj.rate_hz:g} Hz, max velocity ratio {traj.max_velocity_ratio:.3f}, "
               f"max residual ratio {traj.max_residual_ratio:.3f}, parameterised in "
@@ -133,7 +132,7 @@ def main(args: argparse.Namespace) -> int:
     if args.html is not None:
         if not r.success:
             print("no path: no HTML view written")
-            return FAILED
+            return A.FAILED
         from genplan.viewer import export_html
 
         export_html(outcome.robot, r.path if traj is None else traj, args.html, scene=outcome.scene,
