@@ -645,7 +645,9 @@ def test_integrity_rerun_a_card_without_a_task_is_matched_to_its_shipped_task(pa
 
 
 SHIPPED = [("panda_gan", "panda"), ("talos_gan", "talos"), ("talos_flow", "talos"), ("talos_flow_teacher", "talos"),
-           ("upright_cup_gan", str(REPO / "examples" / "xarm7" / "xarm7.toml"))]
+           ("xarm7/upright_cup_gan", str(REPO / "examples" / "xarm7" / "xarm7.toml")),
+           ("kinova/upright_tool_gan", "kinova"),
+           ("baxter/tray_gan", str(REPO / "examples" / "baxter" / "baxter_tray.toml"))]
 
 
 @pytest.mark.parametrize("name, robot", SHIPPED, ids=[s[0] for s in SHIPPED])
@@ -658,14 +660,20 @@ def test_integrity_4_shipped_cards_record_their_robots_kinematics(name: str, rob
     from genplan.samplers.loading import load_sampler_model
 
     rob = genplan.load(robot)
-    folder = REPO / "examples" / "xarm7" if name.startswith("upright") else models_dir()
-    path = folder / f"{name}.safetensors"
+    path = (REPO / "examples" if "/" in name else models_dir()) / f"{name}.safetensors"
     card = json.loads(path.with_suffix(".json").read_text())
     assert card["robot_kinematic_hash"] == rob.kinematic_hash
     assert card["weights_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         load_sampler_model(rob, path)
+    # the card's command retrains it: the options it names are the command's, the data's share in
+    # the condition box recorded as the model was trained (cards before the option: none)
+    command = card["command"].split()
+    assert command[:3] == ["genplan", "train", card.get("kind", "gan") if "flow" not in name else "flow"]
+    in_box = card.get("config", {}).get("data_in_box")
+    if command[2] == "gan" and "/" in name:
+        assert f"--data-in-box {in_box or 0:g}" in card["command"] or (in_box == 0.5 and "--data-in-box" not in command)
 
 
 def test_integrity_7_a_task_without_a_condition_target_trains_evaluates_and_writes_its_card(
