@@ -45,14 +45,14 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor
 
-from genplan._arrays import as_count, as_real
+from genplan._arrays import as_configurations, as_count, as_float_array, as_real
 from genplan._threads import uses_torch
-from genplan.errors import CallbackError, SettingsError, UnknownNameError
+from genplan.errors import CallbackError, SettingsError, ShapeError, UnknownNameError
 from genplan.seq2seq.model import Seq2SeqModel, check_trajectories, first_nonfinite
 from genplan.seq2seq.objectives import Context, Objective, load_objective
 from genplan.seq2seq.plants import Rollout
 
-__all__ = ["adjust", "AdjustResult", "METHODS", "STEPS", "ADAPTIVE_RADIUS", "ADAM_LR", "MAX_UPDATES", "method_name"]
+__all__ = ["adjust", "AdjustResult", "ClearEnds", "clear_ends", "aim_inputs", "METHODS", "STEPS", "ADAPTIVE_RADIUS", "ADAM_LR", "MAX_UPDATES", "method_name"]
 
 Method = Literal["latent", "random-latent", "direct"]
 METHODS: tuple[str, ...] = ("latent", "random-latent", "direct")
@@ -462,3 +462,120 @@ def _run(model: Seq2SeqModel, xt: Tensor, obj: Callable[[Rollout], Tensor], meth
         z=None if method == "direct" else var_out.double().cpu().numpy(), method=method, step=step, lr=lr,
         updates=updates, time_init_s=t_init, time_updates_s=float(times.sum()), time_total_s=t_total,
         update_times_s=times, snapshots=snaps, extras=arrays, model=model, context=ctx, objective=obj)
+
+
+#: :func:`clear_ends`: the IK guesses per blocked end (half drawn around the end with the spreads
+#: of CLEAR_END_SPREADS rad in turn, half uniform)
+CLEAR_END_GUESSES = 64
+CLEAR_END_SPREADS = (0.25, 0.5, 1.0)
+#: :func:`clear_ends`: the steps of the walk along the self-motion (push_clear's, each at most
+#: its CLEAR_MAX_STEP rad a joint)
+CLEAR_END_WALK = 30
+
+
+@dataclass
+class ClearEnds:
+    """What :func:`clear_ends` returns, per problem (B): ``q`` (B, nq) the end configurations
+    (a blocked end replaced by the clear one found, the others as given); ``blocked``: the given
+    end was in collision; ``found``: a clear end was found for it (``blocked & ~found``: none
+    among the guesses); ``moved``: the joint distance (rad, Euclidean) from the given end to the
+    chosen one (0 where nothing changed)."""
+
+    q: NDArray[np.float64]
+    blocked: NDArray[np.bool_]
+    found: NDArray[np.bool_]
+    moved: NDArray[np.float64]
+
+
+def clear_ends(robot: Any, ends: ArrayLike, world: Any, frame: str, *, task: Any = None, seed: int = 0,
+               guesses: int = CLEAR_END_GUESSES, margin: float | None = None) -> ClearEnds:
+    """For each end configuration of ``ends`` (B, nq) that is in collision in ``world`` (one
+    :class:`~genplan.collision.CollisionWorld`, or one per problem), another configuration with
+    ``frame`` at the same position on the task's manifold (``task``: its primary terms hold, as
+    the finish projects them; None: the joint limits alone) that is collision-free: the same
+    position reached elsewhere on the arm's self-motion. Candidates: the blocked end walked along
+    its self-motion (:func:`genplan.seq2seq.finish.push_clear` on its own target, stepping in the
+    null space of the task's and the position's Jacobian, :data:`CLEAR_END_WALK` steps), and IK
+    (the task with ``frame``'s position as its condition, :func:`genplan.ik.frame_task`, solved
+    with :data:`genplan.ik.IK_SETTINGS`) from ``guesses`` warm starts per blocked end, half drawn
+    around it (normal spreads of :data:`CLEAR_END_SPREADS` rad) and half uniform (seeded by
+    ``seed``), all blocked ends in one native batch, each solution projected onto the manifold at
+    the finish's tolerances. Of the candidates clear in the problem's world, the nearest to the
+    blocked end in joint space among those at least ``margin`` (m; default the finish's
+    :data:`~genplan.seq2seq.finish.CLEAR_MARGIN`) from every obstacle (else the clearest) is chosen.
+
+    A redundant arm often reaches a goal position only on another branch once an obstacle sits
+    where its elbow was, and the latent adjustment, which moves an input continuously, does not
+    reach a branch a radian or more away; with the chosen end as the input's new end
+    (:func:`aim_inputs`) the adjustment starts from a trajectory that ends clear."""
+    from genplan import projection as P
+    from genplan.ik import IK_SETTINGS, frame_task
+    from genplan.seq2seq.finish import CLEAR_MARGIN, push_clear
+
+    q = np.array(as_configurations(ends, robot.nq, "ends"), dtype=np.float64, ndmin=2)
+    b = len(q)
+    worlds = list(world) if isinstance(world, Sequence) else [world] * b
+    if len(worlds) != b:
+        raise SettingsError(f"world: one collision world or one per end ({b}), got {len(worlds)}")
+    guesses = as_count(guesses, "guesses", minimum=1)
+    margin = CLEAR_MARGIN if margin is None else as_real(margin, "margin", error=SettingsError)
+    if not (math.isfinite(margin) and margin >= 0):
+        raise SettingsError(f"margin must be a non-negative number of metres, got {margin!r}")
+    blocked = np.array([bool(w.in_collision(row)) for w, row in zip(worlds, q)], dtype=bool)
+    found = np.zeros(b, dtype=bool)
+    moved = np.zeros(b)
+    out = q.copy()
+    todo = np.nonzero(blocked)[0]
+    if len(todo) == 0:
+        return ClearEnds(q=out, blocked=blocked, found=found, moved=moved)
+    ik_task = frame_task(robot, frame, task)
+    ik = P.GaussNewtonProjector(robot, ik_task, IK_SETTINGS)
+    proj = P.GaussNewtonProjector(robot, P.manifold_task(ik_task, robot).with_tolerances_scaled(0.1))
+    rng = np.random.default_rng(as_count(seed, "seed"))
+    lo, hi = np.asarray(robot.lower, dtype=np.float64), np.asarray(robot.upper, dtype=np.float64)
+    near = guesses // 2
+    sigma = np.asarray(CLEAR_END_SPREADS)[np.arange(near) % len(CLEAR_END_SPREADS)]
+    seeds = np.concatenate([
+        np.clip(q[todo][:, None, :] + sigma[None, :, None] * rng.standard_normal((len(todo), near, robot.nq)), lo, hi),
+        robot.random_configurations(len(todo) * (guesses - near), rng).reshape(len(todo), guesses - near, robot.nq),
+    ], 1).reshape(-1, robot.nq)
+    targets = np.repeat(robot.frame_positions(q[todo], frame), guesses, 0)
+    sol = ik.solve_batch(seeds, targets={"frame_target": targets})
+    pr = proj.solve_batch(sol.q, sol.q)
+    good = (sol.success & pr.success).reshape(len(todo), guesses)
+    cand = pr.q.reshape(len(todo), guesses, robot.nq)
+    for row, i in enumerate(todo):
+        c = cand[row][good[row]]
+        # the walk along the self-motion: the blocked end pushed clear on its own target
+        on_target = P.GaussNewtonProjector(robot, ik_task.with_targets(frame_target=targets[row * guesses]).with_tolerances_scaled(0.1))
+        walked = push_clear(q[i:i + 1], worlds[i], lambda x, pe=on_target: pe.solve_batch(x, x), margin=margin,
+                            steps=CLEAR_END_WALK, constraints=on_target)
+        if walked is not None:
+            c = np.concatenate([walked, c])
+        if len(c):
+            c = c[~np.asarray(worlds[i].in_collision(c), dtype=bool).reshape(len(c))]
+        if len(c) == 0:
+            continue
+        gap = np.asarray(worlds[i].min_distance(c), dtype=np.float64).reshape(len(c))
+        dist = np.linalg.norm(c - q[i], axis=1)
+        pick = int(np.argmin(np.where(gap >= margin, dist, np.inf))) if (gap >= margin).any() else int(np.argmax(gap))
+        out[i] = c[pick]
+        found[i] = True
+        moved[i] = float(dist[pick])
+    return ClearEnds(q=out, blocked=blocked, found=found, moved=moved)
+
+
+def aim_inputs(x_in: ArrayLike, ends: ArrayLike) -> NDArray[np.float64]:
+    """The input trajectories ``x_in`` (B, K, d) bent to end at ``ends`` (B, d): each sample
+    moved by the change of its end times a smooth ramp of normalised time (the quintic
+    ``10 s^3 - 15 s^4 + 6 s^5``, 0 at the start and 1 at the end with zero slope and curvature at
+    both), so the start stays where it was and the bend adds no velocity or acceleration at the
+    ends. A problem whose end does not change is returned as it was."""
+    x = np.array(as_float_array(x_in, "x_in"), dtype=np.float64, ndmin=3)
+    e = np.array(as_float_array(ends, "ends"), dtype=np.float64, ndmin=2)
+    if x.ndim != 3 or e.shape != (x.shape[0], x.shape[2]):
+        raise ShapeError(f"ends: expected shape (B, d) = {x.shape[::2]} (one end per input of x_in, shape (B, K, d)), "
+                         f"got {e.shape}")
+    s = np.linspace(0.0, 1.0, x.shape[1])
+    ramp = s ** 3 * (10.0 - 15.0 * s + 6.0 * s ** 2)
+    return x + ramp[None, :, None] * (e - x[:, -1])[:, None, :]

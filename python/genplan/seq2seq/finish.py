@@ -23,7 +23,8 @@ too sparse to check the motion between them. :func:`finish` turns each into the 
    (the robot, the scene and any per-problem obstacle); a path with a state in collision (the
    projection onto the manifold can undo part of a detour the adjustment made around an
    obstacle) is repaired first: its states near a collision are moved along the clearance's
-   gradient and projected back onto the manifold, alternately (:func:`push_clear`), the path
+   gradient, its part in the manifold's tangent space, and projected back onto the manifold,
+   alternately (:func:`push_clear`), the path
    densified again (the end state keeps its target: it is pushed with the end projector), and
    then checked as any other;
 4. the dense path is timed by TOPP-RA (:func:`genplan.trajectory.parameterize`), whose samples
@@ -170,10 +171,12 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
         res = proj_end.solve_batch(last, last, targets={label: targets})
         q[:, -1] = res.q
         ok = res.success & ~_hits(worlds, res.q)
-        # a solution in collision: first pushed out along the clearance's gradient, on the target
+        # a solution in collision: first pushed out along the clearance's gradient (its part along the
+        # manifold and the target: the self-motion), on the target
         for i in np.nonzero(res.success & ~ok)[0]:
             pushed = push_clear(res.q[i:i + 1], worlds[i],
-                                lambda x, i=i: proj_end.solve_batch(x, x, targets={label: np.repeat(targets[i:i + 1], len(x), 0)}))
+                                lambda x, i=i: proj_end.solve_batch(x, x, targets={label: np.repeat(targets[i:i + 1], len(x), 0)}),
+                                constraints=proj_end)
             if pushed is not None and not _hits([worlds[i]], pushed)[0]:
                 q[i, -1] = pushed[0]
                 ok[i] = True
@@ -278,15 +281,19 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
 
 
 def push_clear(q: NDArray[np.float64], world: Any, project: Any, margin: float = CLEAR_MARGIN,
-               steps: int = CLEAR_STEPS) -> NDArray[np.float64] | None:
+               steps: int = CLEAR_STEPS, constraints: Any = None) -> NDArray[np.float64] | None:
     """The states ``q`` (m, nq) moved at least ``margin`` (m) away from any collision in
     ``world``, alternating a step along the gradient of the minimum signed distance
     (``world.min_distance``, by finite differences; the step that would bring it to ``margin``,
     at most :data:`CLEAR_MAX_STEP` rad a joint) with ``project(states)`` (a projector's
     ``solve_batch`` onto the task's manifold: a result with ``q`` and ``success``), up to ``steps``
-    times; the states already that clear are left as they are. Returns the states (each one
-    projected, possibly still nearer than ``margin`` when the steps ran out: the caller checks
-    them), or None when a projection failed."""
+    times; the states already that clear are left as they are. With ``constraints`` (a
+    :class:`~genplan.projection.GaussNewtonProjector` of the same manifold) the gradient is first
+    projected onto the manifold's tangent space at each state, the null space of the Jacobian of
+    the projector's primary terms: a step across the manifold is what the projection takes back,
+    so only the tangent part of the gradient moves a state clear, and the step is sized on it.
+    Returns the states (each one projected, possibly still nearer than ``margin`` when the steps
+    ran out: the caller checks them), or None when a projection failed."""
     q = np.array(q, dtype=np.float64)
     n = q.shape[1]
     eye = FD_STEP * np.eye(n)
@@ -297,6 +304,8 @@ def push_clear(q: NDArray[np.float64], world: Any, project: Any, margin: float =
             break
         probes = (q[todo][:, None, :] + eye[None]).reshape(-1, n)
         grad = (np.asarray(world.min_distance(probes), dtype=np.float64).reshape(len(todo), n) - d[todo, None]) / FD_STEP
+        if constraints is not None:
+            grad = _tangent(constraints, q[todo], grad)
         norm2 = np.maximum(np.einsum("ij,ij->i", grad, grad), 1e-12)
         step = grad * ((margin - d[todo]) / norm2)[:, None]
         step *= np.minimum(1.0, CLEAR_MAX_STEP / np.maximum(np.abs(step).max(axis=1), 1e-12))[:, None]
@@ -305,6 +314,22 @@ def push_clear(q: NDArray[np.float64], world: Any, project: Any, margin: float =
             return None
         q[todo] = res.q
     return q
+
+
+def _tangent(proj: Any, q: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The vectors ``v`` (m, nq) projected onto the tangent space of ``proj``'s manifold at the
+    states ``q`` (m, nq): ``v - J^+ J v`` with ``J`` the Jacobian of its primary terms' residuals
+    (a term that is inactive there, such as a joint limit not reached, has zero rows). Without a
+    native solver (the Pinocchio backend), or for a robot whose configuration has more
+    coordinates than velocities, ``v`` is returned as it is."""
+    native = proj.native
+    if native is None:
+        return v
+    _, jac = native.primary_residuals(q, True)
+    jac = np.asarray(jac, dtype=np.float64)
+    if jac.shape[-1] != q.shape[1]:
+        return v
+    return v - np.einsum("mij,mj->mi", np.linalg.pinv(jac, rcond=1e-8), np.einsum("mij,mj->mi", jac, v))
 
 
 def _repair(path: NDArray[np.float64], world: Any, proj: Any, chords: Any,
@@ -323,7 +348,7 @@ def _repair(path: NDArray[np.float64], world: Any, proj: Any, chords: Any,
         rows = np.nonzero(near)[0]
         if len(rows) == 0:
             return path, None  # only an end collides: the check names it
-        pushed = push_clear(path[rows], world, lambda x: proj.solve_batch(x, x))
+        pushed = push_clear(path[rows], world, lambda x: proj.solve_batch(x, x), constraints=proj)
         if pushed is None:
             return path, "a state pushed out of collision could not be projected back onto the task's manifold"
         path = path.copy()
