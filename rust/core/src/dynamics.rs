@@ -84,10 +84,15 @@ impl SpatialInertia {
         let hr = r * self.h;
         let m = self.mass;
         let diag = 2.0 * hr.dot(p) + m * p.norm_squared();
-        let mut i_o = r * self.i_o * r.transpose();
+        // R I R^T on one triangle (I symmetric), mirrored
+        let ir = self.i_o * r.transpose();
+        let mut i_o = Matrix3::zeros();
         for a in 0..3 {
-            for b in 0..3 {
-                i_o[(a, b)] -= p[a] * hr[b] + hr[a] * p[b] + m * p[a] * p[b];
+            for b in a..3 {
+                let x = r[(a, 0)] * ir[(0, b)] + r[(a, 1)] * ir[(1, b)] + r[(a, 2)] * ir[(2, b)]
+                    - (p[a] * hr[b] + hr[a] * p[b] + m * p[a] * p[b]);
+                i_o[(a, b)] = x;
+                i_o[(b, a)] = x;
             }
             i_o[(a, a)] += diag;
         }
@@ -141,6 +146,52 @@ pub struct Body {
     pub v_index: usize,
     /// Inertia of the lumped links in the body frame.
     pub inertia: SpatialInertia,
+    /// `Some((k, sign))` when `axis` is `sign` times the body frame's k-th unit vector (most
+    /// URDF joints): its rotation then turns two columns of `r_parent` and its world axis is a
+    /// column of the body's world rotation, without Rodrigues' matrix or a matrix product
+    /// (Pinocchio's `JointModelRevoluteX/Y/Z`).
+    principal: Option<(usize, f64)>,
+}
+
+impl Body {
+    /// The placement rotation in the parent for the joint at cosine `c`, sine `s`:
+    /// `r_parent R(axis, c, s)`.
+    #[inline]
+    fn rotation(&self, c: f64, s: f64) -> Matrix3<f64> {
+        match self.principal {
+            Some((k, sign)) => {
+                // about +-e_k: columns a, b turn in their plane, column k stays
+                let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+                let s = sign * s;
+                let r = &self.r_parent;
+                let mut out = *r;
+                for row in 0..3 {
+                    let (ra, rb) = (r[(row, a)], r[(row, b)]);
+                    out[(row, a)] = c * ra + s * rb;
+                    out[(row, b)] = c * rb - s * ra;
+                }
+                out
+            }
+            None => self.r_parent * axis_rotation(&self.axis, c, s),
+        }
+    }
+
+    /// The joint axis in world axes, given the body's world rotation `rw`.
+    #[inline]
+    fn world_axis(&self, rw: &Matrix3<f64>) -> Vector3<f64> {
+        match self.principal {
+            Some((k, sign)) => Vector3::new(rw[(0, k)], rw[(1, k)], rw[(2, k)]) * sign,
+            None => rw * self.axis,
+        }
+    }
+}
+
+/// `Some((k, sign))` when the unit `axis` is exactly `sign` times the k-th unit vector.
+fn principal_axis(axis: &Vector3<f64>) -> Option<(usize, f64)> {
+    (0..3).find_map(|k| {
+        let others_zero = axis[(k + 1) % 3] == 0.0 && axis[(k + 2) % 3] == 0.0;
+        (others_zero && axis[k].abs() == 1.0).then(|| (k, axis[k]))
+    })
 }
 
 /// A frame rigidly attached to a body (or to the world): where Jacobians are taken.
@@ -345,6 +396,7 @@ impl Dynamics {
                 q_index: j.q_index,
                 v_index: j.v_index,
                 inertia: SpatialInertia::zero(),
+                principal: principal_axis(&axis),
             });
         }
         let mut link_frames = Vec::with_capacity(n_links);
@@ -576,7 +628,7 @@ impl Dynamics {
                         }
                     };
                     ws.angles[i] = [c, s];
-                    (b.r_parent * axis_rotation(&b.axis, c, s), b.p_parent)
+                    (b.rotation(c, s), b.p_parent)
                 }
                 JointKind::Prismatic => {
                     let x = q[b.q_index] + moved.map_or(0.0, |(_, dq, factor)| factor * dq[b.v_index]);
@@ -595,7 +647,7 @@ impl Dynamics {
                     Some(pi) => (ws.vw[pi] + ws.ww[pi].cross(&(pw - ws.pw[pi])), ws.ww[pi]),
                     None => (Vector3::zeros(), Vector3::zeros()),
                 };
-                let axis = rw * b.axis;
+                let axis = b.world_axis(&rw);
                 match b.kind {
                     JointKind::Revolute | JointKind::Continuous => ww += axis * qd,
                     JointKind::Prismatic => vw += axis * qd,
@@ -838,7 +890,7 @@ impl Dynamics {
             let (rw, pw, w) = (&ws.rw[i], &ws.pw[i], ws.ww[i]);
             // the spatial velocity at the world origin and the joint's motion subspace S
             let v = ws.vw[i] + pw.cross(&w);
-            let axis = rw * b.axis;
+            let axis = b.world_axis(rw);
             let (sv, sw) = match b.kind {
                 JointKind::Revolute | JointKind::Continuous => (pw.cross(&axis), axis),
                 JointKind::Prismatic => (axis, Vector3::zeros()),
@@ -879,10 +931,21 @@ impl Dynamics {
             let pn = ws.n[i] + ia.b.tr_mul(&cv) + ia.c * cw + un * k;
             ws.f[pi] += pf;
             ws.n[pi] += pn;
+            // a and c symmetric: one triangle computed, mirrored
             let parent = &mut ws.ia[pi];
-            parent.a += ia.a - ufd * uf.transpose();
+            for r in 0..3 {
+                for c in r..3 {
+                    let xa = ia.a[(r, c)] - ufd[r] * uf[c];
+                    let xc = ia.c[(r, c)] - und[r] * un[c];
+                    parent.a[(r, c)] += xa;
+                    parent.c[(r, c)] += xc;
+                    if c != r {
+                        parent.a[(c, r)] += xa;
+                        parent.c[(c, r)] += xc;
+                    }
+                }
+            }
             parent.b += ia.b - ufd * un.transpose();
-            parent.c += ia.c - und * un.transpose();
         }
         let g0 = -self.gravity;
         for i in 0..nb {
@@ -941,7 +1004,7 @@ impl Dynamics {
         let (vf, _) = self.frame_velocity(frame, ws);
         for &j in &self.chains[fb] {
             let b = &self.bodies[j];
-            let a = ws.rw[j] * b.axis;
+            let a = b.world_axis(&ws.rw[j]);
             let c = b.v_index;
             match b.kind {
                 JointKind::Revolute | JointKind::Continuous => {
@@ -1152,5 +1215,73 @@ impl Dynamics {
     /// Whether the joint at v index `k` is continuous (no position limits).
     pub fn is_continuous(&self, k: usize) -> bool {
         self.bodies.iter().any(|b| b.v_index == k && b.kind == JointKind::Continuous)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{axis_rotation, principal_axis, Body, JointKind, SpatialInertia};
+    use nalgebra::{Matrix3, Rotation3, Vector3};
+
+    /// A body on `axis` under the placement rotation `r_parent`.
+    fn body(axis: Vector3<f64>, r_parent: Matrix3<f64>) -> Body {
+        Body {
+            joint: "j".into(),
+            link: "l".into(),
+            parent: None,
+            r_parent,
+            p_parent: Vector3::zeros(),
+            kind: JointKind::Revolute,
+            axis,
+            q_index: 0,
+            v_index: 0,
+            inertia: SpatialInertia::zero(),
+            principal: principal_axis(&axis),
+        }
+    }
+
+    #[test]
+    fn principal_axes_turn_and_map_as_rodrigues_and_the_matrix_product() {
+        let r_parent = Rotation3::from_euler_angles(0.3, -1.1, 2.4).into_inner();
+        let rw = Rotation3::from_euler_angles(-0.7, 0.4, 1.9).into_inner();
+        let mut principal = 0;
+        for k in 0..3 {
+            for sign in [1.0, -1.0] {
+                let mut axis = Vector3::zeros();
+                axis[k] = sign;
+                let b = body(axis, r_parent);
+                assert_eq!(b.principal, Some((k, sign)));
+                principal += 1;
+                for angle in [0.0, 0.4, -2.9, 3.1] {
+                    let (s, c) = f64::sin_cos(angle);
+                    let want = r_parent * axis_rotation(&axis, c, s);
+                    assert!((b.rotation(c, s) - want).amax() < 1e-15, "axis {axis:?} angle {angle}");
+                }
+                assert!((b.world_axis(&rw) - rw * axis).amax() < 1e-15);
+            }
+        }
+        assert_eq!(principal, 6);
+        // any other axis takes the general path, with the same results
+        for axis in [Vector3::new(0.6, 0.8, 0.0), Vector3::new(0.0, 1e-9, 1.0).normalize(), Vector3::new(1.0, 1.0, 1.0).normalize()] {
+            let b = body(axis, r_parent);
+            assert_eq!(b.principal, None, "{axis:?}");
+            let (s, c) = f64::sin_cos(0.7);
+            assert_eq!(b.rotation(c, s), r_parent * axis_rotation(&axis, c, s));
+            assert_eq!(b.world_axis(&rw), rw * axis);
+        }
+    }
+
+    #[test]
+    fn transformed_inertia_is_the_congruence_and_exactly_symmetric() {
+        let r = Rotation3::from_euler_angles(0.2, 0.9, -1.3).into_inner();
+        let p = Vector3::new(0.3, -0.2, 0.5);
+        let i_com = Matrix3::new(0.04, 0.001, -0.002, 0.001, 0.03, 0.003, -0.002, 0.003, 0.05);
+        let si = SpatialInertia::from_com(2.5, Vector3::new(0.01, 0.02, -0.1), i_com);
+        let t = si.transformed(&r, &p);
+        // the definition: the inertia about the new origin of the body's rotated inertia about its centre
+        let com = r * si.com() + p;
+        let want = SpatialInertia::from_com(2.5, com, r * si.inertia_about_com() * r.transpose());
+        assert!((t.i_o - want.i_o).amax() < 1e-14 && (t.h - want.h).amax() < 1e-15);
+        assert_eq!(t.i_o, t.i_o.transpose());
     }
 }
