@@ -20,7 +20,8 @@ def run(script: str, *args: str) -> str:
 
 def test_every_example_is_tested() -> None:
     tested = {"01_plan_with_gan_sampler.py", "02_ik_with_a_custom_task.py", "03_adjust_a_trajectory.py",
-              "04_execute_with_the_controller.py", "05_your_own_robot.py", "06_adapt_a_learned_motion.py", "07_execute_any_robot.py"}
+              "04_execute_with_the_controller.py", "05_your_own_robot.py", "06_adapt_a_learned_motion.py", "07_execute_any_robot.py",
+              "08_plan_through_a_point_cloud.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -95,3 +96,30 @@ def test_07_execute_any_robot(tmp_path) -> None:
     assert ratio > 3.0
     assert (tmp_path / "execute_panda.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "execute_panda_dob.npz").is_file() and (tmp_path / "execute_panda_no_dob.npz").is_file()
+
+
+def test_08_plan_through_a_point_cloud(tmp_path) -> None:
+    """The Panda shelf scene from three simulated depth cameras (small images), planned through as
+    a cloud (two ball radii) and with the shelf as one mesh: no plan state, nor any state along
+    its motions, touches the true scene; the thin cloud and the mesh plan what the boxes plan; the
+    conservative cloud (balls of the voxel's edge) refuses the starts 5 mm above the table."""
+    out = run("08_plan_through_a_point_cloud.py", "--queries", "2", "--width", "120", "--height", "90",
+              "--out-dir", str(tmp_path))
+    rows = {}
+    for line in out.splitlines():
+        cells = line.split()
+        if " of " in line and cells[0] in ("primitives", "cloud,", "shelf"):
+            at = cells.index("of")
+            rows[line[:24].strip()] = [int(cells[at - 1]), int(cells[at + 1])] + [int(c) for c in cells[at + 2:at + 7]]
+    assert set(rows) == {"primitives (the truth)", "cloud, r 4.5 mm", "cloud, r 10 mm", "shelf as one mesh"}, out
+    for planned, queries, refused, states, touching, samples, touching_samples in rows.values():
+        assert queries == 2 and touching == 0 and touching_samples == 0
+        assert states == 0 or samples > states
+    assert rows["primitives (the truth)"][0] == 2
+    assert rows["cloud, r 4.5 mm"][0] == rows["shelf as one mesh"][0] == 2
+    assert rows["cloud, r 10 mm"][2] == 2
+    import numpy as np
+
+    assert np.load(tmp_path / "cloud.npz")["points"].shape[1] == 3
+    if importlib.util.find_spec("viser") is not None:
+        assert (tmp_path / "cloud_plan.html").stat().st_size > 100_000
