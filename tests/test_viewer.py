@@ -384,3 +384,76 @@ def test_attached_objects_are_drawn_on_their_links(panda):
     local = (world - hand[:3, 3]) @ hand[:3, :3]  # in the hand's frame
     assert np.allclose(local.min(axis=0), [-0.015, -0.015, 0.15], atol=1e-6)
     assert np.allclose(local.max(axis=0), [0.015, 0.015, 0.35], atol=1e-6)
+
+
+def scene_buffers(page: str) -> list[bytes]:
+    """The binary buffers after the embedded recording's msgpack (arrays such as a point cloud's
+    positions), in the order of ``binaryBufferLengths``, each 8-byte aligned."""
+    m = re.search(r'window\.__VISER_EMBED_DATA__="([A-Za-z0-9+/=]*)"', page)
+    assert m
+    raw = base64.b64decode(m.group(1))
+    inner = zstandard.ZstdDecompressor().decompress(raw[8:], max_output_size=int.from_bytes(raw[:8], "little"))
+    n = int.from_bytes(inner[:8], "little")
+    out, offset = [], 8 + n
+    for length in msgspec.msgpack.decode(inner[8 : 8 + n])["binaryBufferLengths"]:
+        offset += -offset % 8  # each buffer starts 8-byte aligned (viser's computeBinaryOffsets)
+        out.append(inner[offset : offset + length])
+        offset += length
+    return out
+
+
+def drawn_clouds(page: str) -> dict[str, tuple[np.ndarray, np.ndarray, float]]:
+    """Each point cloud of the page: its points (float32), colours (uint8) and drawn size."""
+    buffers = scene_buffers(page)
+    out = {}
+    for _, m in decode_scene(page)["messages"]:
+        if m["type"] == "PointCloudMessage":
+            p = m["props"]
+            pts = np.frombuffer(buffers[p["points"]["__binary_index"]], dtype=p["points"]["dtype"]).reshape(-1, 3)
+            rgb = np.frombuffer(buffers[p["colors"]["__binary_index"]], dtype=p["colors"]["dtype"]).reshape(-1, 3)
+            out[m["name"]] = (pts, rgb, p["point_size"])
+    return out
+
+
+def test_point_clouds_are_drawn(panda, tmp_path, monkeypatch):
+    """A camera's cloud given as ``clouds`` and a scene's ``[[points]]`` are drawn as point clouds
+    in the file: every point where it was given (float32), coloured from low to high, the
+    scene's as wide as its balls; a cloud above MAX_CLOUD_POINTS is strided down to it; the
+    legend names them."""
+    from genplan.scene import HalfSpace, Points, Scene
+
+    pts = np.random.default_rng(0).uniform([0.3, -0.2, 0.0], [0.6, 0.2, 0.4], (1000, 3))
+    scene = Scene("with_points", (Points("seen", 0.02, points=tuple(map(tuple, pts[:10].tolist()))),
+                                  HalfSpace("floor", (0, 0, 1), -0.5)))
+    out = viewer.export_html(panda, short_path(panda), tmp_path / "c.html", clouds={"camera": pts}, scene=scene)
+    page = out.read_text(encoding="utf-8")
+    clouds = drawn_clouds(page)
+    assert set(clouds) == {"/environment/seen", "/environment/camera"}
+    cam, rgb, size = clouds["/environment/camera"]
+    assert np.array_equal(cam, pts.astype(np.float32)) and size == viewer.CLOUD_POINT_SIZE
+    low, high = int(np.argmin(pts[:, 2])), int(np.argmax(pts[:, 2]))
+    assert tuple(rgb[low]) == viewer._CLOUD_LOW_COLOR and tuple(rgb[high]) == viewer._CLOUD_HIGH_COLOR
+    seen, _, size = clouds["/environment/seen"]
+    assert np.array_equal(seen, pts[:10].astype(np.float32)) and size == pytest.approx(0.04)
+    assert "point clouds" in page
+
+    monkeypatch.setattr(viewer, "MAX_CLOUD_POINTS", 300)
+    out = viewer.export_html(panda, short_path(panda), tmp_path / "d.html", clouds={"camera": pts})
+    cam, _, _ = drawn_clouds(out.read_text(encoding="utf-8"))["/environment/camera"]
+    assert len(cam) == 250 and np.array_equal(cam, pts[::4].astype(np.float32))
+
+
+def test_bad_clouds(panda, tmp_path):
+    """A bad cloud is refused naming it, before anything is written."""
+    path = short_path(panda)
+    bad = np.zeros((4, 3))
+    bad[2, 1] = np.nan
+    with pytest.raises(NonFiniteError, match=r"clouds\['camera'\]: row 2"):
+        viewer.export_html(panda, path, tmp_path / "a.html", clouds={"camera": bad})
+    with pytest.raises(ShapeError, match=r"clouds\['camera'\].*shape \(4, 2\)"):
+        viewer.export_html(panda, path, tmp_path / "a.html", clouds={"camera": np.zeros((4, 2))})
+    with pytest.raises(ShapeError, match=r"clouds\['camera'\].*empty"):
+        viewer.export_html(panda, path, tmp_path / "a.html", clouds={"camera": np.zeros((0, 3))})
+    with pytest.raises(ShapeError, match="clouds: expected a mapping"):
+        viewer.export_html(panda, path, tmp_path / "a.html", clouds=np.zeros((4, 3)))  # type: ignore[arg-type]
+    assert not (tmp_path / "a.html").exists()

@@ -59,13 +59,18 @@ if TYPE_CHECKING:
     from genplan._execution import ExecutionLog
     from genplan.trajectory import Trajectory
 
-__all__ = ["DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "export_execution_html", "export_html", "export_plan_html",
+__all__ = ["CLOUD_POINT_SIZE", "DEFAULT_FPS", "DEFAULT_MAX_FRAMES", "MAX_CLOUD_POINTS", "export_execution_html", "export_html", "export_plan_html",
            "subsample_path"]
 
 #: Playback rate of the exported animation (frames per second at speed 1x).
 DEFAULT_FPS: float = 15.0
 #: The path is subsampled to at most this many frames (the trail keeps every state).
 DEFAULT_MAX_FRAMES: int = 150
+#: A point cloud is drawn with at most this many of its points (evenly strided): 12 bytes of
+#: position and 3 of colour each in the file.
+MAX_CLOUD_POINTS: int = 200_000
+#: The drawn size (m) of a cloud's points given to :func:`export_html` as ``clouds``.
+CLOUD_POINT_SIZE: float = 0.01
 
 _HalfSpace = tuple[str, Sequence[float], float]
 
@@ -74,6 +79,9 @@ _TRAIL_COLOR = (230, 40, 40)
 _START_COLOR = (40, 170, 60)
 _GOAL_COLOR = (40, 90, 230)
 _EXECUTED_COLOR = (150, 60, 200)
+#: a cloud's points from low to high (height read by colour)
+_CLOUD_LOW_COLOR = (40, 110, 200)
+_CLOUD_HIGH_COLOR = (240, 200, 60)
 #: the executed robot's opacity: a ghost over the planned one
 _GHOST_OPACITY = 0.45
 
@@ -342,7 +350,7 @@ def _scene_shapes(scene: Any) -> tuple[list[tuple[str, NDArray[np.float64], floa
     import trimesh
     import trimesh.creation as tc
 
-    from genplan.scene import Box, Capsule, Cylinder, HalfSpace, Mesh, Sphere, load_scene
+    from genplan.scene import Box, Capsule, Cylinder, HalfSpace, Mesh, Points, Sphere, load_scene
 
     s = load_scene(scene)
     planes: list[tuple[str, NDArray[np.float64], float]] = []
@@ -350,6 +358,8 @@ def _scene_shapes(scene: Any) -> tuple[list[tuple[str, NDArray[np.float64], floa
     for o in s.obstacles:
         if isinstance(o, HalfSpace):
             planes.append((o.name, np.asarray(o.normal, dtype=np.float64), float(o.offset)))
+            continue
+        if isinstance(o, Points):  # drawn as points: _scene_clouds
             continue
         if isinstance(o, Box):
             m = tc.box(extents=2.0 * np.asarray(o.half_extents))
@@ -374,7 +384,39 @@ def _scene_shapes(scene: Any) -> tuple[list[tuple[str, NDArray[np.float64], floa
     return planes, meshes
 
 
-def _legend(title: str, trail_label: str | None, obstacles: bool, executed: bool = False) -> str:
+def _scene_clouds(scene: Any) -> list[tuple[str, NDArray[np.float64], float]]:
+    """A scene's point clouds ``(name, points (n, 3) in the world, drawn size)``: each point as
+    wide as its collision ball (the file's points, before any voxel down-sampling)."""
+    from genplan.scene import Points, load_scene
+
+    return [(o.name, o.world_points(), 2.0 * float(o.radius)) for o in load_scene(scene).obstacles if isinstance(o, Points)]
+
+
+def _check_clouds(clouds: Mapping[str, ArrayLike] | None) -> list[tuple[str, NDArray[np.float64], float]]:
+    """``clouds`` ({name: points (n, 3)}) checked as a collision world's clouds are
+    (:func:`genplan.clouds.check_points`), each drawn :data:`CLOUD_POINT_SIZE` wide."""
+    from genplan.clouds import check_points
+
+    if clouds is None:
+        return []
+    if not isinstance(clouds, Mapping):
+        raise ShapeError(f"clouds: expected a mapping of names to (n, 3) points, got {type(clouds).__name__}")
+    return [(str(name), check_points(pts, f"clouds['{name}']"), CLOUD_POINT_SIZE) for name, pts in clouds.items()]
+
+
+def _cloud_arrays(points: NDArray[np.float64]) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
+    """At most :data:`MAX_CLOUD_POINTS` of ``points`` (evenly strided) and their colours, from
+    blue (lowest) to yellow (highest)."""
+    step = -(-len(points) // MAX_CLOUD_POINTS)
+    pts = points[::step]
+    z = pts[:, 2]
+    span = float(z.max() - z.min())
+    f = ((z - z.min()) / span if span > 0 else np.zeros_like(z))[:, None]
+    colors = (1.0 - f) * np.asarray(_CLOUD_LOW_COLOR) + f * np.asarray(_CLOUD_HIGH_COLOR)
+    return pts.astype(np.float32), np.round(colors).astype(np.uint8)
+
+
+def _legend(title: str, trail_label: str | None, obstacles: bool, executed: bool = False, points: bool = False) -> str:
     """A small fixed overlay: the title, what the colours mean, how to move the camera."""
     items = []
     if trail_label is not None:
@@ -388,6 +430,9 @@ def _legend(title: str, trail_label: str | None, obstacles: bool, executed: bool
                      + " and robot (translucent)")
     if obstacles:
         items.append('<span style="color:#cd853f">&#9632;</span> obstacles')
+    if points:
+        items.append('<span style="color:#286ec8">&#8226;</span><span style="color:#f0c83c">&#8226;</span>'
+                     " point clouds (colour: height)")
     return (
         '<div id="genplan-legend" style="position:fixed;top:8px;right:12px;z-index:1000;'
         'pointer-events:none;font:13px/1.4 system-ui,sans-serif;color:#333;'
@@ -483,6 +528,7 @@ def export_html(
     dark_mode: bool = False,
     scene: Any = None,
     executed: "ExecutionLog | Trajectory | Mapping[str, Any] | ArrayLike | None" = None,
+    clouds: Mapping[str, ArrayLike] | None = None,
 ) -> Path:
     """Write a self-contained HTML viewer of ``robot`` moving along ``path``; returns ``out``.
 
@@ -497,7 +543,12 @@ def export_html(
         halfspaces: ``(name, normal, offset)`` planes (e.g. ``env.halfspaces``), drawn as a grid.
         scene: a :class:`genplan.scene.Scene` (or a shipped scene's name, or a scene file): every
             obstacle drawn in place (boxes, spheres, cylinders, capsules, meshes; half-spaces as
-            grids), besides ``boxes`` and ``halfspaces``.
+            grids; point clouds as points as wide as their balls), besides ``boxes`` and
+            ``halfspaces``.
+        clouds: point clouds to draw, ``{name: points (n, 3)}`` in the world frame (e.g. a depth
+            camera's, :func:`genplan.clouds.points_from_depth`), as points
+            :data:`CLOUD_POINT_SIZE` wide coloured by height; at most :data:`MAX_CLOUD_POINTS` of
+            each (evenly strided).
         fps: playback rate of the subsampled frames at speed 1x.
         max_frames: at most this many frames are animated (evenly subsampled, first and last
             kept); the trail of ``trail_frame`` uses every state.
@@ -517,7 +568,7 @@ def export_html(
             beside its plan.
 
     Raises:
-        GenplanError: wrong path shape (ShapeError), non-finite values (NonFiniteError), bad fps /
+        GenplanError: wrong path shape or cloud (ShapeError), non-finite values (NonFiniteError), bad fps /
             max_frames (SettingsError), geometry (UnknownNameError), or an ``executed`` motion of
             another robot (ShapeError) or timed when ``path`` is not, or the other way round
             (SettingsError).
@@ -560,9 +611,11 @@ def export_html(
     obstacles = _check_boxes(boxes)
     planes = _check_halfspaces(halfspaces)
     shapes: list[tuple[str, NDArray[np.float32], NDArray[np.uint32]]] = []
+    point_clouds = _check_clouds(clouds)
     if scene is not None:
         extra_planes, shapes = _scene_shapes(scene)
         planes += extra_planes
+        point_clouds = _scene_clouds(scene) + point_clouds
     out_path = _check_out(out)
     frames = q[picks]
     exec_frames = exec_q[exec_picks] if exec_q is not None and exec_picks is not None else None
@@ -598,6 +651,8 @@ def export_html(
         cloud.append(np.stack([b.center - b.half_extents, b.center + b.half_extents]))
     for _, v, _ in shapes:
         cloud.append(v.astype(np.float64))
+    for _, pts, _ in point_clouds:
+        cloud.append(pts[[int(np.argmin(pts[:, k])) for k in range(3)] + [int(np.argmax(pts[:, k])) for k in range(3)]])
     all_pts = np.concatenate(cloud)
     lo, hi = all_pts.min(axis=0), all_pts.max(axis=0)
     center = 0.5 * (lo + hi)
@@ -622,6 +677,10 @@ def export_html(
                                  position=b.center, flat_shading=True)
         for shape_name, v, f in shapes:
             viewer_scene.add_mesh_simple(f"/environment/{shape_name}", v, f, color=_OBSTACLE_COLOR, flat_shading=True)
+        for cloud_name, pts, size in point_clouds:
+            drawn, colors = _cloud_arrays(pts)
+            viewer_scene.add_point_cloud(f"/environment/{cloud_name}", drawn, colors, point_size=size,
+                                         point_shape="rounded", precision="float32")
         for root, points, color in (("/trail", trail, _TRAIL_COLOR), ("/executed_trail", exec_trail, _EXECUTED_COLOR)):
             if points is not None and len(points) > 1:
                 seg = np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
@@ -668,7 +727,7 @@ def export_html(
 
     page = page.replace("<title>Viser</title>", f"<title>{html.escape(name)}</title>", 1)
     legend = _legend(name, trail_frame if trail is not None else None, bool(obstacles or shapes),
-                     executed=exec_q is not None)
+                     executed=exec_q is not None, points=bool(point_clouds))
     i = page.rfind("</body>")
     page = page[:i] + legend + page[i:] if i >= 0 else page + legend
     try:
