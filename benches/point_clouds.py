@@ -1,7 +1,8 @@
 """Point clouds as obstacles: the Panda shelf scene as a cloud against the same scene's primitives.
 
     python benches/point_clouds.py [--points 100000] [--voxel 0.01] [--radius 0.01] [--n 10000]
-                                   [--rounds 5] [--baseline DIR] [--out benches/results/point_clouds.json]
+                                   [--rounds 5] [--queries 20] [--plan-radius 0.0045] [--baseline DIR]
+                                   [--out benches/results/point_clouds.json]
 
 The cloud: ``--points`` points drawn uniformly (by area) on the surfaces of the shelf scene's
 boxes (table, boards, side panels; seeded), down-sampled by the world to one point per
@@ -17,7 +18,13 @@ figures:
   radius in a ``DynamicAABBTreeCollisionManager``, against the robot's coal geometry with its
   meshes as convex hulls, as genplan collides them) and the same floor (a ``coal.Halfspace``);
 * ``replace_ms``: ``world.replace_points`` with a new frame of ``--points`` points (the same
-  surfaces, another seed), with and without the voxel, median of ``--rounds``.
+  surfaces, another seed), with and without the voxel, median of ``--rounds``;
+* ``plans``: the environment's first ``--queries`` seeded Panda shelf queries (Table II; the GAN
+  sampler, simplified, seed 0) planned in the primitive world and in the cloud world with balls
+  of ``--radius`` and of ``--plan-radius`` (the queries start 5 mm above the table: balls wider
+  than that refuse the starts); per world the plans found, the queries refused (the start or
+  every goal in contact), and the plans' states and the states every 0.002 rad along their
+  motions in contact with the true (primitive) scene.
 
 ``--baseline DIR``: DIR holds another build of the ``genplan`` package (a copy of
 ``python/genplan`` with its ``_core`` extension, e.g. made before a change). The check and replace
@@ -163,6 +170,44 @@ class Bench:
         self.raw.replace_points("raw", self.pts)
 
 
+def plans(bench: Bench, args: argparse.Namespace) -> dict[str, dict[str, int]]:
+    """The shelf queries planned in each world, checked against the primitive scene."""
+    from genplan.errors import InvalidGoalError, InvalidStartError
+    from genplan.planning import Planner, PlannerSettings, environment
+
+    env = environment("panda_shelf")
+    queries = env.queries(bench.panda, n=args.queries, seed=args.seed)
+    worlds = {"primitives": bench.primitives, f"cloud r {args.radius:g}": bench.cloud}
+    thin = bench.panda.collision_world()
+    thin.add_halfspace(bench.floor.name, bench.floor.normal, bench.floor.offset)
+    thin.add_points("shelf", bench.pts, args.plan_radius, args.voxel)
+    worlds[f"cloud r {args.plan_radius:g}"] = thin
+    out = {}
+    for name, world in worlds.items():
+        planner = Planner(bench.panda, world=world, sampler="gan", settings=PlannerSettings(simplify=True), seed=0)
+        row = {"queries": len(queries), "planned": 0, "refused": 0, "states": 0, "states_touching": 0,
+               "motion_samples": 0, "motion_samples_touching": 0}
+        for q in queries:
+            try:
+                result = planner.plan(q.start, q.goals)
+            except (InvalidStartError, InvalidGoalError):
+                row["refused"] += 1
+                continue
+            if not result.success:
+                continue
+            path = np.asarray(result.path)
+            steps = [np.linspace(0.0, 1.0, max(1, int(np.ceil(np.abs(b - a).max() / 0.002))) + 1)[1:, None] * (b - a) + a
+                     for a, b in zip(path[:-1], path[1:])]
+            dense = np.concatenate([path[:1], *steps])
+            row["planned"] += 1
+            row["states"] += len(path)
+            row["states_touching"] += int(np.sum(bench.primitives.in_collision(path)))
+            row["motion_samples"] += len(dense)
+            row["motion_samples_touching"] += int(np.sum(bench.primitives.in_collision(dense)))
+        out[name] = row
+    return out
+
+
 def worker(args: argparse.Namespace) -> None:
     """Answer one JSON line per command read ("check", "spheres", "replace") until end of input."""
     bench = Bench(args)
@@ -222,6 +267,9 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=10_000, help="configurations")
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--queries", type=int, default=20, help="shelf queries planned in each world (0: none)")
+    parser.add_argument("--plan-radius", type=float, default=0.0045,
+                        help="the ball radius of the second cloud world the queries are planned in (m)")
     parser.add_argument("--baseline", type=Path, default=None,
                         help="a directory holding another build of the genplan package, timed against this one")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
@@ -253,9 +301,11 @@ def main() -> None:
     centres = _voxel_centroids(bench.pts, args.voxel)
     assert len(centres) == kept, (len(centres), kept)
     agree = coal_agreement(bench.panda, qs, centres, args.radius, bench.floor, ours)
+    cloud.check_self = True
+    planned = plans(bench, args) if args.queries > 0 else None
 
     result = {
-        "command": "python benches/point_clouds.py " + " ".join(f"--{k} {v}" for k, v in vars(args).items()
+        "command": "python benches/point_clouds.py " + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items()
                                                                if k not in ("out", "worker") and v is not None),
         "points": args.points, "voxel": args.voxel, "radius": args.radius, "balls": kept, "configurations": args.n,
         "check_us": {"primitives": med["primitives"], "cloud": med["cloud"], "ratio": med["cloud"] / med["primitives"],
@@ -266,6 +316,7 @@ def main() -> None:
         "obstacle_collision_rate_cloud": float(ours.mean()),
         "coal": agree,
         "replace_ms": {k: statistics.median(v) for k, v in replace.items()} | {"rounds": replace},
+        "plans": planned,
         "baseline": baseline,
         "load_average": [load_before, os.getloadavg()[0]],
         "machine": platform.machine(), "cpus": os.cpu_count(),
@@ -278,6 +329,10 @@ def main() -> None:
     print("check us/config:", {k: round(v, 3) for k, v in med.items()}, "ratio", round(med["cloud"] / med["primitives"], 2))
     print("spheres us/config:", {k: (round(v, 3) if v is not None else None) for k, v in sph.items()})
     print("replace ms:", {k: round(statistics.median(v), 1) for k, v in replace.items()})
+    for name, row in (planned or {}).items():
+        print(f"plans, {name}: {row['planned']} of {row['queries']} ({row['refused']} refused), states touching the "
+              f"primitives {row['states_touching']} of {row['states']}, motion samples {row['motion_samples_touching']} "
+              f"of {row['motion_samples']}")
     if baseline is not None:
         print("after / before:", json.dumps(baseline["ratio_after_before"]))
         for b in ("before", "after"):

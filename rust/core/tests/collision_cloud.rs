@@ -138,6 +138,66 @@ fn voxels_keep_one_centroid_each_within_reach_of_their_points() {
 }
 
 #[test]
+fn voxels_come_out_in_the_order_of_their_coordinates_whatever_the_extent() {
+    // the voxel rank as one u64 (a cloud in a room) and as three i64 (a box whose voxels do not
+    // fit a u64) give the centroids of a plain sort of the integer coordinates
+    let reference = |pts: &[f64], v: f64| {
+        let inv = 1.0 / v; // the voxel's key: floor(x * (1 / voxel)), as the down-sampling computes it
+        let mut keys: Vec<([i64; 3], usize)> =
+            pts.chunks_exact(3).enumerate().map(|(i, p)| ([0, 1, 2].map(|k| (p[k] * inv).floor() as i64), i)).collect();
+        keys.sort_unstable();
+        let mut out: Vec<f64> = Vec::new();
+        for run in keys.chunk_by(|a, b| a.0 == b.0) {
+            let n = run.len() as f64;
+            out.extend((0..3).map(|k| run.iter().map(|&(_, i)| pts[3 * i + k]).sum::<f64>() / n));
+        }
+        out
+    };
+    let mut rng = StdRng::seed_from_u64(5);
+    let mut pts = wall(&mut rng, 5000);
+    pts.extend((0..3000).map(|_| rng.random_range(-2.0..2.0)));
+    for v in [0.01, 0.05, 0.3] {
+        let (got, want) = (voxel_downsample(&pts, v), reference(&pts, v));
+        assert_eq!(got.len(), want.len(), "voxel {v}: voxels");
+        assert!(got == want, "voxel {v}: first difference at {:?}", got.iter().zip(&want).position(|(a, b)| a != b));
+    }
+    let far = [-9e5, 1.0, 2.0, 9e5, -3.0, 0.5, 1e-7, 2e-7, 0.0, 1.5e-7, 2.5e-7, 0.0, 9e5, -3.0, 0.5];
+    assert_eq!(voxel_downsample(&far, 1e-6), reference(&far, 1e-6));
+    assert_eq!(voxel_downsample(&far, 1e-6).len(), 3 * 3);
+}
+
+#[test]
+fn a_query_sphere_meets_the_balls_it_reaches() {
+    // any_within against every ball, for spheres of many sizes around and inside the cloud,
+    // some exactly at a ball's reach
+    let mut rng = StdRng::seed_from_u64(8);
+    let pts = wall(&mut rng, 3000);
+    let r = 0.01;
+    let grid = CloudGrid::new(&pts, r);
+    let balls: Vec<Point3<f64>> = pts.chunks_exact(3).map(|p| Point3::new(p[0], p[1], p[2])).collect();
+    let (mut hits, mut misses) = (0, 0);
+    for k in 0..4000 {
+        let s = rng.random_range(0.0..0.12);
+        let c = if k % 4 == 0 {
+            // just inside or outside a ball's reach along a random direction
+            let b = balls[rng.random_range(0..balls.len())];
+            let d = nalgebra::Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize();
+            b + d * (s + r) * if k % 8 == 0 { 0.999_999 } else { 1.000_001 }
+        } else {
+            Point3::new(rng.random_range(-0.3..1.3), rng.random_range(-0.9..0.9), rng.random_range(-0.3..1.5))
+        };
+        let want = balls.iter().any(|b| (b - c).norm_squared() <= (s + r) * (s + r));
+        assert_eq!(grid.any_within(&c, s), want, "sphere {s} at {c:?}");
+        if want {
+            hits += 1;
+        } else {
+            misses += 1;
+        }
+    }
+    assert!(hits > 500 && misses > 500, "{hits} hits, {misses} misses");
+}
+
+#[test]
 fn the_robots_own_points_are_found() {
     let (model, w) = panda();
     let q: Vec<f64> = model.lower.iter().zip(&model.upper).map(|(l, u)| 0.5 * (l + u)).collect();

@@ -35,22 +35,49 @@ pub struct Cloud {
 /// of every point it stands for. Voxels in the order of their integer coordinates (x, then y,
 /// then z), so the output depends only on the set of input points and their order within a
 /// voxel (rows of x, y, z, finite: checked by the caller). The voxels are found by sorting the
-/// points' voxel coordinates (no hash table: a sort of 100k keys is a few ms).
+/// points' voxel coordinates (no hash table), each as one `u64` (its rank in the voxel box of the
+/// cloud, x slowest) beside the point's index when the box's voxels fit one, else as three `i64`.
 pub fn voxel_downsample(points: &[f64], voxel: f64) -> Vec<f64> {
     let inv = 1.0 / voxel;
     // a coordinate within MAX_OBSTACLE_EXTENT over a voxel >= MIN_VOXEL fits an i64
-    let mut keys: Vec<([i64; 3], usize)> = points
-        .chunks_exact(3)
-        .enumerate()
-        .map(|(i, p)| ([(p[0] * inv).floor() as i64, (p[1] * inv).floor() as i64, (p[2] * inv).floor() as i64], i))
-        .collect();
-    keys.sort_unstable();
+    let key = |p: &[f64]| [(p[0] * inv).floor() as i64, (p[1] * inv).floor() as i64, (p[2] * inv).floor() as i64];
+    let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+    for p in points.chunks_exact(3) {
+        let k = key(p);
+        for i in 0..3 {
+            lo[i] = lo[i].min(k[i]);
+            hi[i] = hi[i].max(k[i]);
+        }
+    }
+    let dims = [0, 1, 2].map(|i| (hi[i] - lo[i]) as u128 + 1);
+    if points.len() / 3 <= u32::MAX as usize && dims[0] * dims[1] * dims[2] <= u64::MAX as u128 {
+        let (dy, dz) = (dims[1] as u64, dims[2] as u64);
+        let mut keys: Vec<(u64, u32)> = points
+            .chunks_exact(3)
+            .enumerate()
+            .map(|(i, p)| {
+                let k = key(p);
+                let d = [0, 1, 2].map(|j| (k[j] - lo[j]) as u64);
+                ((d[0] * dy + d[1]) * dz + d[2], i as u32)
+            })
+            .collect();
+        keys.sort_unstable();
+        centroids(points, &keys, |k| k.0, |k| k.1 as usize)
+    } else {
+        let mut keys: Vec<([i64; 3], usize)> = points.chunks_exact(3).enumerate().map(|(i, p)| (key(p), i)).collect();
+        keys.sort_unstable();
+        centroids(points, &keys, |k| k.0, |k| k.1)
+    }
+}
+
+/// The centroid of each run of equal keys of `keys` (sorted), in their order.
+fn centroids<K, V: PartialEq>(points: &[f64], keys: &[K], voxel: impl Fn(&K) -> V, index: impl Fn(&K) -> usize) -> Vec<f64> {
     let mut out = Vec::new();
     let mut k = 0;
     while k < keys.len() {
-        let (key, mut sum, mut n) = (keys[k].0, [0.0; 3], 0.0);
-        while k < keys.len() && keys[k].0 == key {
-            let i = keys[k].1 * 3;
+        let (key, mut sum, mut n) = (voxel(&keys[k]), [0.0; 3], 0.0);
+        while k < keys.len() && voxel(&keys[k]) == key {
+            let i = index(&keys[k]) * 3;
             for (s, x) in sum.iter_mut().zip(&points[i..i + 3]) {
                 *s += x;
             }
