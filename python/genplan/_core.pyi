@@ -20,6 +20,7 @@ __all__ = [
     "PlanResult", "UniformSampler", "DataSampler", "MixtureSampler", "GanSampler", "FlowSampler", "Dynamics", "ControllerSettings",
     "Disturbances", "Payload", "JointLimits", "SpatulaSetup", "PancakeSettings", "RunSummary", "PancakeSummary",
     "Simulation", "SpatulaSimulation", "spatula_reference_disturbances", "pancake_phi", "MAX_TICKS", "residual_sizes",
+    "dense_paths",
     "GenplanError", "ShapeError", "NonFiniteError", "UnknownNameError", "SettingsError", "RobotFileError",
     "InvalidStartError", "InvalidGoalError", "InvalidTrajectoryError", "LimitExceededError", "CallbackError", "ERRORS",
     "ALGORITHMS", "EDGE_CHECKS", "CONTROL_SPACES", "LIMIT_POLICIES",
@@ -282,6 +283,19 @@ def disabled_pairs_srdf(
 ) -> str: ...
 def load_robot(path: _Path, package_dirs: list[_Path]) -> tuple[KinematicModel, CollisionWorld]: ...
 def residual_sizes(projector: Projector, q: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def dense_paths(
+    paths: NDArray[np.float64],
+    resolution: float,
+    *,
+    max_jump: float,
+    max_rounds: int,
+    chord_rounds: int,
+    chord_fraction: float,
+    projector: Projector | None = None,
+    chords: Projector | None = None,
+    todo: Sequence[bool] | None = None,
+    densify: bool = True,
+) -> list[tuple[NDArray[np.float64], tuple[str, float] | None] | None]: ...
 def time_optimal(
     grid: Sequence[float], d1: NDArray[np.float64], d2: NDArray[np.float64], vlim: Sequence[float], alim: Sequence[float]
 ) -> NDArray[np.float64]: ...

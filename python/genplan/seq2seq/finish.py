@@ -18,7 +18,8 @@ too sparse to check the motion between them. :func:`finish` turns each into the 
    ``resolution`` (a projected state that jumps more than ``MAX_JUMP`` steps away from its
    neighbours is a failure: the path would change branch); then the chords between the states are
    held to the task's tolerance as the planner's are (a straying chord split at its projected
-   midpoint);
+   midpoint); natively, one call for the batch (``genplan_core::projection::dense_path``, the
+   paths on rayon's threads);
 3. every dense state is checked against the joint limits (no tolerance) and the collision world
    (the robot, the scene and any per-problem obstacle); a path with a state in collision (the
    projection onto the manifold can undo part of a detour the adjustment made around an
@@ -28,7 +29,8 @@ too sparse to check the motion between them. :func:`finish` turns each into the 
    densified again (the end state keeps its target: it is pushed with the end projector), and
    then checked as any other;
 4. the dense path is timed by TOPP-RA (:func:`genplan.trajectory.parameterize`), whose samples
-   are checked again on the limits and the task's residuals.
+   are checked again on the limits and the task's residuals (the paths on :data:`TIME_WORKERS`
+   threads).
 
 A problem that fails a step is reported as failed with the reason (the step, the sample), never
 as a success.
@@ -69,6 +71,8 @@ CLEAR_MAX_STEP = 0.05
 CLEAR_STEPS = 8
 CLEAR_ROUNDS = 3
 FD_STEP = 1e-5
+#: the paths are timed on this many threads (at most one per core; see :func:`_threads`)
+TIME_WORKERS = 2
 
 
 @dataclass
@@ -201,18 +205,15 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
 
     # 2. densify, holding the chords between dense states to the task's tolerance
     t0 = time.perf_counter()
-    paths: list[NDArray[np.float64] | None] = []
     proj_dense = GaussNewtonProjector(robot, manifold.with_tolerances_scaled(0.1)) if manifold is not None else None
     chords = _ChordCheck(robot, manifold) if manifold is not None else None
-    for i in range(b):
-        if reasons[i] is not None:
-            paths.append(None)
-            continue
-        path, why = densify(q[i], resolution, proj_dense)
-        if why is None and chords is not None and proj_dense is not None:
-            path, why = chords.hold(path, proj_dense, resolution)
-        paths.append(path)
-        reasons[i] = why
+    # one native call for the batch: the paths on rayon's threads
+    dense = _dense(q, resolution, proj_dense, chords.check if chords is not None else None,
+                   todo=[r is None for r in reasons])
+    paths: list[NDArray[np.float64] | None] = [None] * b
+    for i, d in enumerate(dense):
+        if d is not None:
+            paths[i], reasons[i] = d
     seconds["densify"] = time.perf_counter() - t0
 
     # 3. check limits and collisions
@@ -249,14 +250,18 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
     trajectories: list[Any] = [None] * b
     ratio = np.full(b, np.nan)
     if time_parameterize:
-        for i in range(b):
-            if reasons[i] is not None:
-                continue
+        to_time = [i for i in range(b) if reasons[i] is None]
+
+        def timed(i: int) -> Any:
             try:
-                traj = parameterize(robot, paths[i], manifold, rate_hz=rate_hz, velocity_scale=velocity_scale,
+                return parameterize(robot, paths[i], manifold, rate_hz=rate_hz, velocity_scale=velocity_scale,
                                     acceleration_scale=acceleration_scale)
             except GenplanError as exc:
-                reasons[i] = f"timing: {exc}"
+                return exc
+
+        for i, traj in zip(to_time, _threads(timed, to_time)):
+            if isinstance(traj, GenplanError):
+                reasons[i] = f"timing: {traj}"
                 continue
             r = traj.max_residual_ratio if manifold is not None else 0.0
             if manifold is not None and not traj.within_tolerance:
@@ -361,6 +366,24 @@ def _repair(path: NDArray[np.float64], world: Any, proj: Any, chords: Any,
     return path, None
 
 
+def _threads(fn: Any, items: list[int]) -> list[Any]:
+    """``[fn(i) for i in items]`` on :data:`TIME_WORKERS` threads (at most one per core), in
+    order: TOPP-RA, the samples and their residual check run natively without the GIL, so one
+    path's native work overlaps another's Python. An exception ``fn`` raises reaches the caller
+    unchanged (the items not started are cancelled)."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    workers = min(TIME_WORKERS, os.cpu_count() or 1, len(items))
+    if workers <= 1:
+        return [fn(i) for i in items]
+    pool = ThreadPoolExecutor(workers, thread_name_prefix="genplan-finish")
+    try:
+        return list(pool.map(fn, items))
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
 def _hits(worlds: list[Any], q: NDArray[np.float64]) -> NDArray[np.bool_]:
     """Per row of ``q``, whether it is in collision in its problem's world."""
     if len(q) and all(w is worlds[0] for w in worlds):
@@ -386,90 +409,83 @@ def _worlds(world: Any, robot: Any, ctx: Any, b: int) -> list[Any]:
 class _ChordCheck:
     """The planner's chord rule (rust/core/src/planning/constrained.rs, ``hold_chords``) for a
     dense path: the midpoint of every chord between consecutive states is evaluated on the task's
-    primary terms (no solver step) and a chord whose midpoint strays beyond 3/4 of the tolerance is
-    split at its projected midpoint, in rounds, down to ``resolution / 8``; the spline TOPP-RA lays
-    through the states then stays within the tolerance."""
+    primary terms (no solver step) and a chord whose midpoint strays beyond :attr:`FRACTION` of
+    the tolerance is split at its projected midpoint, in :attr:`ROUNDS` rounds, down to
+    ``resolution / 8``; the spline TOPP-RA lays through the states then stays within the
+    tolerance. Native: ``genplan_core::projection::hold_chords``."""
 
     ROUNDS = 3
+    FRACTION = 0.75
 
     def __init__(self, robot: Any, task: Any) -> None:
         from genplan.projection import GaussNewtonProjector
 
         self.check = GaussNewtonProjector(robot, task)
-        self.tolerance = {t.label(): float(t.tolerance) for t in task.primary}
-
-    def _stray(self, q: NDArray[np.float64]) -> NDArray[np.bool_]:
-        res = self.check.residual_sizes(q)
-        bad = np.zeros(len(q), dtype=bool)
-        for name, v in res.items():
-            bad |= np.asarray(v) > 0.75 * self.tolerance[name]
-        return bad
 
     def hold(self, path: NDArray[np.float64], proj: Any, resolution: float) -> tuple[NDArray[np.float64], str | None]:
-        for _ in range(self.ROUNDS):
-            mid = 0.5 * (path[1:] + path[:-1])
-            bad = self._stray(mid)
-            if not bad.any():
-                return path, None
-            short = np.abs(path[1:] - path[:-1]).max(axis=1) < resolution / 8
-            if np.any(bad & short):
-                return path, "a chord strays off the task's manifold even at an eighth of the resolution"
-            res = proj.solve_batch(mid[bad], mid[bad])
-            if not res.success.all():
-                return path, "a chord's midpoint could not be projected onto the task's manifold"
-            rows = list(path[:1])
-            extra = iter(res.q)
-            for s_, flag in enumerate(bad):
-                if flag:
-                    rows.append(next(extra))
-                rows.append(path[s_ + 1])
-            path = np.asarray(rows)
-        return path, None
+        """``path`` (a dense path) with its straying chords split at their midpoints projected
+        with ``proj``; the path and None, or the path so far and why it failed."""
+        out = _dense(np.asarray(path, dtype=np.float64)[None], resolution, proj, self.check, densify_first=False)[0]
+        assert out is not None
+        return out
+
+
+#: the failures of the native dense paths (genplan_core::projection::DenseFailure), as reasons
+_DENSE_FAILURES = {
+    "projection": "an interpolated state could not be projected onto the task's manifold",
+    "jump": "a projected interpolated state jumped {value:.3g} rad off its chord (a change of branch)",
+    "steps": "the path could not be densified to {resolution} rad steps (largest {value:.3g})",
+    "chord_too_short": "a chord strays off the task's manifold even at an eighth of the resolution",
+    "chord_projection": "a chord's midpoint could not be projected onto the task's manifold",
+}
+
+
+def _native(proj: Any, what: str) -> Any:
+    """The native solver of the projector ``proj`` (None for None); a SettingsError naming
+    ``what`` for a projector without one (the Pinocchio backend)."""
+    if proj is None:
+        return None
+    native = getattr(proj, "native", None)
+    if native is None:
+        raise SettingsError(f"{what}: dense paths need a projector with the native backend "
+                            "(GaussNewtonProjector(..., backend='native'))")
+    return native
+
+
+def _dense(paths: NDArray[np.float64], resolution: float, proj: Any, check: Any, *, todo: Sequence[bool] | None = None,
+           densify_first: bool = True) -> list[tuple[NDArray[np.float64], str | None] | None]:
+    """Per path of ``paths`` (B, K, n) whose ``todo`` flag is set (all by default): the path
+    made dense with ``proj`` (:func:`densify`, when ``densify_first``) and then, with ``check``
+    (the task's projector at its own tolerances), its chords held (:class:`_ChordCheck`), and
+    None or why it failed; None for a path not to do. One native call for the batch
+    (``_core.dense_paths``: the paths on rayon's threads, every row checked first)."""
+    if not (np.isfinite(resolution) and resolution > 0):
+        raise SettingsError(f"resolution must be a positive number of radians, got {resolution!r}")
+    from genplan import _core
+
+    out = _core.dense_paths(np.ascontiguousarray(paths, dtype=np.float64), float(resolution), max_jump=MAX_JUMP,
+                            max_rounds=MAX_ROUNDS, chord_rounds=_ChordCheck.ROUNDS, chord_fraction=_ChordCheck.FRACTION,
+                            projector=_native(proj, "proj"), chords=_native(check, "chords") if proj is not None else None,
+                            todo=None if todo is None else [bool(t) for t in todo], densify=densify_first)
+    return [None if d is None else
+            (d[0], None if d[1] is None else _DENSE_FAILURES[d[1][0]].format(value=d[1][1], resolution=resolution))
+            for d in out]
 
 
 def densify(q: NDArray[np.float64], resolution: float, proj: Any = None) -> tuple[NDArray[np.float64], str | None]:
     """The path through the states ``q`` (K, n) with every step at most ``resolution`` (max over
     the joints): states interpolated linearly between neighbours further apart and projected
-    with ``proj`` (a :class:`~genplan.projection.GaussNewtonProjector`, or None to keep the
-    interpolation), in rounds; a projected state more than :data:`MAX_JUMP` resolutions off its
-    chord is a change of branch. Returns the path and None, or the path so far and why it failed."""
-    path = q
-    for _ in range(MAX_ROUNDS):
-        steps = np.abs(np.diff(path, axis=0)).max(axis=1)
-        if np.all(steps <= resolution * (1.0 + 1e-9)):
-            return path, None
-        new_rows: list[NDArray[np.float64]] = []
-        spans: list[tuple[int, int]] = []
-        offset = 0  # rows in new_rows so far
-        for s in range(len(path) - 1):
-            m = int(np.ceil(steps[s] / resolution))
-            if m > 1:
-                f = np.arange(1, m)[:, None] / m
-                inter = path[s] + f * (path[s + 1] - path[s])
-                spans.append((offset, len(inter)))
-                new_rows.append(inter)
-                offset += len(inter)
-        if new_rows:
-            rows = np.concatenate(new_rows)
-            if proj is not None:
-                res = proj.solve_batch(rows, rows)
-                if not res.success.all():
-                    return path, "an interpolated state could not be projected onto the task's manifold"
-                moved = np.abs(res.q - rows).max(axis=1)
-                if np.any(moved > MAX_JUMP * resolution):
-                    return path, ("a projected interpolated state jumped "
-                                  f"{float(moved.max()):.3g} rad off its chord (a change of branch)")
-                rows = res.q
-            out: list[NDArray[np.float64]] = [path[:1]]
-            it = iter(spans)
-            for s in range(len(path) - 1):
-                m = int(np.ceil(steps[s] / resolution))
-                if m > 1:
-                    start, count = next(it)
-                    out.append(rows[start:start + count])
-                out.append(path[s + 1:s + 2])
-            path = np.concatenate(out)
-    steps = np.abs(np.diff(path, axis=0)).max(axis=1)
-    if np.all(steps <= 1.5 * resolution):
-        return path, None
-    return path, f"the path could not be densified to {resolution} rad steps (largest {float(steps.max()):.3g})"
+    with ``proj`` (a :class:`~genplan.projection.GaussNewtonProjector` with the native backend,
+    each around itself, or None to keep the interpolation), in rounds (at most
+    :data:`MAX_ROUNDS`; steps of up to 1.5 resolutions accepted after them); a projected state
+    more than :data:`MAX_JUMP` resolutions off its chord is a change of branch. Returns the path
+    and None, or the path so far and why it failed. Native:
+    ``genplan_core::projection::densify``."""
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim != 2:
+        from genplan.errors import ShapeError
+
+        raise ShapeError(f"q: expected shape (K, n), got {q.shape}")
+    out = _dense(q[None], resolution, proj, None)[0]
+    assert out is not None
+    return out

@@ -25,6 +25,7 @@ mod control;
 mod kinematics;
 mod planning;
 mod residuals;
+mod dense;
 mod projection;
 mod robot;
 mod timing;
@@ -46,5 +47,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     planning::register(m)?;
     control::register(m)?;
     residuals::register(m)?;
+    dense::register(m)?;
     Ok(())
 }

@@ -36,7 +36,8 @@ pub(crate) fn residual_sizes<'py>(
     for_chunks(py, n, |rows| {
         // after a failure no further chunk runs (its error becomes a Python one with the GIL held)
         if failure.is_none() {
-            match solver.try_residual_sizes(&data[rows.start * nq..rows.end * nq], parallel) {
+            // the rows were checked above, once
+            match solver.try_residual_sizes_unchecked(&data[rows.start * nq..rows.end * nq], parallel) {
                 Ok(sizes) => out.extend(sizes),
                 Err(e) => failure = Some(e),
             }

@@ -25,9 +25,11 @@
 //! One concept per file: the terms, their residuals and analytic Jacobians (`terms.rs`), their
 //! checks (`validate.rs`), the caller's own terms (`custom.rs`), the solver (`solver.rs`:
 //! [`Settings`], [`Outcome`], [`Projector`], solving and retargeting), its linear algebra
-//! (`linalg.rs`), the residuals without a solve (`residuals.rs`) and the errors (`error.rs`).
+//! (`linalg.rs`), the residuals without a solve (`residuals.rs`), dense paths on the manifold
+//! (`dense.rs`) and the errors (`error.rs`).
 
 mod custom;
+mod dense;
 mod error;
 mod linalg;
 mod residuals;
@@ -36,6 +38,7 @@ mod terms;
 mod validate;
 
 pub use custom::{CustomTerm, TermError};
+pub use dense::{dense_path, densify, hold_chords, Dense, DenseFailure, DenseSettings, MAX_DENSE_STATES};
 pub use error::{SolveError, TermFailure, TermResult};
 pub use solver::{Outcome, Projector, Settings};
 pub use terms::{axis_complement, residual_size, Term, TermKind};

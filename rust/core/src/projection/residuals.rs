@@ -48,13 +48,25 @@ impl Projector {
     /// [`solve`](Self::solve) before any is evaluated. Rows run on rayon's threads when
     /// `parallel`; a failing custom term's error is returned intact (the first one met).
     pub fn try_residual_sizes(&self, qs: &[f64], parallel: bool) -> std::result::Result<Vec<f64>, SolveError> {
-        use rayon::prelude::*;
         let nq = self.model.nq.max(1);
         if qs.len() % nq != 0 {
             return Err(Error::Invalid(format!("q: {} numbers are not rows of {nq}", qs.len())).into());
         }
         for q in qs.chunks(nq) {
             self.model.check_configuration(q)?;
+        }
+        self.try_residual_sizes_unchecked(qs, parallel)
+    }
+
+    /// [`try_residual_sizes`](Self::try_residual_sizes) of rows already checked by
+    /// [`KinematicModel::check_configuration`] (the bindings check a batch once, up front,
+    /// naming the bad row; the midpoints of checked rows need none). A length that is not rows
+    /// of `nq` is still refused; a non-finite row gives +inf sizes, never a panic.
+    pub fn try_residual_sizes_unchecked(&self, qs: &[f64], parallel: bool) -> std::result::Result<Vec<f64>, SolveError> {
+        use rayon::prelude::*;
+        let nq = self.model.nq.max(1);
+        if qs.len() % nq != 0 {
+            return Err(Error::Invalid(format!("q: {} numbers are not rows of {nq}", qs.len())).into());
         }
         let terms = self.primary.len();
         let mut out = vec![0.0; qs.len() / nq * terms];
