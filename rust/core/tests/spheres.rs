@@ -218,6 +218,47 @@ fn the_sphere_checker_is_the_limits_and_the_spheres() {
 }
 
 #[test]
+fn all_valid_stops_early_and_agrees_with_check() {
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    w.add_box("table", [0.3, 0.3, 0.02], Isometry3::translation(0.5, 0.0, 0.3)).unwrap();
+    let spheres = box_cover(&w);
+    let sw = Arc::new(SphereWorld::new(Arc::new(w), spheres).unwrap());
+    let mut rng = StdRng::seed_from_u64(11);
+    let mut checker = SphereChecker::new(sw.clone(), false);
+    let mut s8 = SphereScratch::default();
+    let (mut all_free, mut some_hit) = (0, 0);
+    for trial in 0..60 {
+        // every length of a block (one row at a time, four lanes, eight lanes, several blocks)
+        let n = 1 + trial % 19;
+        // rows around one configuration (a short motion's states): free together, or not
+        let base = draw(&model, &mut rng);
+        let mut qs: Vec<f64> = (0..n)
+            .flat_map(|_| base.iter().zip(model.lower.iter().zip(&model.upper)).map(|(&x, (&l, &u))| (x + rng.random_range(-0.05..0.05)).clamp(l, u)).collect::<Vec<_>>())
+            .collect();
+        if trial % 7 == 3 {
+            qs[(n - 1) * model.nq] = model.upper[0] + 0.1;
+        }
+        let mut valid = vec![false; n];
+        checker.check(&qs, &mut valid).unwrap();
+        let want = valid.iter().all(|&v| v);
+        let (got, checked) = checker.all_valid(&qs, n).unwrap();
+        assert_eq!(got, want, "trial {trial}: {n} rows");
+        assert!(checked >= 1 && checked <= n && (!got || checked == n), "trial {trial}: {checked} of {n} rows checked");
+        // the spheres alone: a hit is in a block at or before the first row in collision
+        let mut batch = vec![false; n];
+        sw.in_collision_batch(&qs, &mut batch, &mut s8);
+        let (hit, upto) = sw.any_in_collision(&qs, &mut s8);
+        assert_eq!(hit, batch.iter().any(|&b| b), "trial {trial}");
+        if hit {
+            assert!(batch[..upto].iter().any(|&b| b), "trial {trial}: the hit within the {upto} rows checked");
+        }
+        all_free += want as usize;
+        some_hit += !want as usize;
+    }
+    assert!(all_free > 5 && some_hit > 5, "{all_free} free and {some_hit} blocked batches: both must be met");
+}
+
+#[test]
 fn bad_spheres_are_refused_by_name() {
     let (model, _) = preset("panda").unwrap().load().unwrap();
     let e = SphereModel::new(&model, &["panda_link1", "panda_link2"], &[[0.0; 3]], &[0.1, 0.1]).unwrap_err();

@@ -350,6 +350,51 @@ impl SphereWorld {
         }
     }
 
+    /// Is any row of `qs` (checked configurations, n x nq) in collision by the spheres, and how
+    /// many rows were checked to say so? The rows are checked in order, [`LANES`] at a time (a
+    /// last block of fewer than [`SHORT_BLOCK`] rows one row at a time, one of at most 4 in
+    /// four lanes), and the check stops at the first block with a row in collision, inside that
+    /// block at the first lane found in collision (its rows count as checked): a caller that
+    /// only needs to know whether all rows are free (an edge, a shortcut) puts the rows most
+    /// likely to collide first.
+    pub fn any_in_collision(&self, qs: &[f64], s: &mut SphereScratch<LANES>) -> (bool, usize) {
+        let nq = self.world.model.nq;
+        let mut checked = 0;
+        for rows in qs.chunks(nq * LANES) {
+            let n = rows.len() / nq;
+            let hit = if n < SHORT_BLOCK {
+                if s.one.is_empty() {
+                    s.one.push(SphereScratch::default());
+                }
+                rows.chunks(nq).any(|q| self.in_collision_unchecked(q, &mut s.one[0]))
+            } else if n <= 4 {
+                if s.four.is_empty() {
+                    s.four.push(SphereScratch::default());
+                }
+                self.block_any(rows, &mut s.four[0])
+            } else {
+                self.block_any(rows, s)
+            };
+            checked += n;
+            if hit {
+                return (true, checked);
+            }
+        }
+        (false, checked)
+    }
+
+    /// Is any of the rows of `rows` (at most `N`, in `N` lanes as [`block`](Self::block)) in
+    /// collision? Stops at the first lane found in collision.
+    fn block_any<const N: usize>(&self, rows: &[f64], s: &mut SphereScratch<N>) -> bool {
+        let nq = self.world.model.nq;
+        let n = rows.len() / nq;
+        let lane = |l: usize| &rows[l.min(n - 1) * nq..(l.min(n - 1) + 1) * nq];
+        let mut live = [false; N];
+        live[..n].fill(true);
+        self.place(std::array::from_fn(lane), s);
+        self.collide(s, live, true).iter().any(|&h| h)
+    }
+
     /// The rows of `rows` (at most `N`) in `N` lanes, a short block repeating its last row in
     /// the idle lanes (their answers are dropped).
     fn block<const N: usize>(&self, rows: &[f64], res: &mut [bool], s: &mut SphereScratch<N>) {

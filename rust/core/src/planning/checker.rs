@@ -19,6 +19,16 @@ pub trait ValidityChecker: Send {
     /// `valid[i]` for row i of `qs` (n x nq).
     fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()>;
 
+    /// True when each of the `n` rows of `qs` (n x nq) is valid, and how many rows were checked
+    /// to say so (`n` when they all are). A checker may stop at the first invalid row it meets
+    /// (the rows in order: a caller puts those most likely to fail first); the answer is the
+    /// same as [`check`](Self::check)'s. Default: [`check`](Self::check) on every row.
+    fn all_valid(&mut self, qs: &[f64], n: usize) -> PlanResult<(bool, usize)> {
+        let mut valid = vec![false; n];
+        self.check(qs, &mut valid)?;
+        Ok((valid.iter().all(|&v| v), n))
+    }
+
     /// Can [`certify_motion`](Self::certify_motion) answer (default: no)?
     fn certifies_motions(&self) -> bool {
         false
@@ -259,6 +269,19 @@ impl ValidityChecker for SphereChecker {
             run(qs, valid, &mut self.scratch);
         }
         Ok(())
+    }
+
+    /// The joint limits of every row first (no kinematics), then the spheres in blocks of
+    /// [`LANES`] rows, stopping at the first lane in collision
+    /// ([`SphereWorld::any_in_collision`]).
+    fn all_valid(&mut self, qs: &[f64], n: usize) -> PlanResult<(bool, usize)> {
+        let m = &self.spheres.world.model;
+        debug_assert_eq!(qs.len(), n * m.nq);
+        if let Some(i) = qs.chunks(m.nq).position(|q| !CollisionChecker::in_limits(m, q)) {
+            return Ok((false, i + 1));
+        }
+        let (hit, checked) = self.spheres.any_in_collision(qs, &mut self.scratch);
+        Ok((!hit, checked))
     }
 }
 

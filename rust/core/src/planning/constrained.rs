@@ -83,6 +83,18 @@ impl<'a> ConstrainedSpace<'a> {
         r
     }
 
+    /// True when each of the `n` rows of `qs` is valid ([`ValidityChecker::all_valid`]: the
+    /// checker may stop at the first invalid row; the rows it checked counted in
+    /// `validity_checks`, timed in `checker_s`).
+    pub fn all_valid(&mut self, qs: &[f64], n: usize) -> PlanResult<bool> {
+        let t = Instant::now();
+        let r = self.checker.all_valid(qs, n);
+        self.stats.checker_s += t.elapsed().as_secs_f64();
+        let (valid, checked) = r?;
+        self.stats.validity_checks += checked;
+        Ok(valid)
+    }
+
     /// Project the rows of `qs`, each around its row of `q_noms` (timed in `projector_s`; the
     /// caller counts the iterations where they belong). In free space the rows are copied as
     /// they are, each a success in no iteration (callers skip the call there; this keeps the
@@ -269,9 +281,8 @@ impl<'a> ConstrainedSpace<'a> {
             return self.certify_states(a, states, tree_edge);
         }
         let n_check = n_mid + usize::from(check_end);
-        let mut valid = vec![false; n_check];
-        self.check(&states[..n_check * nq], &mut valid)?;
-        if valid.iter().all(|&v| v) {
+        let raked = rake(&states[..n_check * nq], nq);
+        if self.all_valid(&raked, n_check)? {
             states.truncate(n_mid * nq);
             Ok(Some(states))
         } else {
@@ -472,10 +483,44 @@ impl<'a> ConstrainedSpace<'a> {
     }
 }
 
+/// States checked together along a motion (the sphere checker's lanes).
+pub(super) const RAKE: usize = 8;
+
+/// The rows of `states` (n x nq, in order along a motion) in "rake" order: a batch of [`RAKE`]
+/// rows spread evenly along the motion first (every `ceil(n / RAKE)`-th row), then the batches
+/// between them, so that a checker that stops at its first invalid row
+/// ([`ValidityChecker::all_valid`]) refuses a blocked motion after a few checks instead of
+/// all of its states.
+pub(super) fn rake(states: &[f64], nq: usize) -> Vec<f64> {
+    let n = if nq == 0 { 0 } else { states.len() / nq };
+    let stride = n.div_ceil(RAKE).max(1);
+    let mut out = Vec::with_capacity(states.len());
+    for r in 0..stride.min(n) {
+        for k in (r..n).step_by(stride) {
+            out.extend_from_slice(&states[k * nq..(k + 1) * nq]);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::planning::{AlwaysValid, EuclideanSpace};
+
+    #[test]
+    fn rake_order_spreads_the_first_batch_and_keeps_every_row_once() {
+        // 20 rows of nq = 2, row k = (k, -k): stride ceil(20 / 8) = 3
+        let states: Vec<f64> = (0..20).flat_map(|k| [k as f64, -(k as f64)]).collect();
+        let raked = rake(&states, 2);
+        let order: Vec<usize> = raked.chunks(2).map(|r| { assert_eq!(r[1], -r[0]); r[0] as usize }).collect();
+        assert_eq!(&order[..7], &[0, 3, 6, 9, 12, 15, 18]);
+        let mut sorted = order.clone();
+        sorted.sort();
+        assert_eq!(sorted, (0..20).collect::<Vec<_>>());
+        assert!(rake(&[], 2).is_empty());
+        assert_eq!(rake(&states[..6], 2), states[..6].to_vec(), "fewer rows than a batch: in order");
+    }
 
     /// The identity projector (R^n is its own manifold).
     pub(crate) struct Identity;

@@ -24,6 +24,7 @@
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
+use super::constrained::rake;
 use super::rrt::Run;
 use super::{EdgeCheck, PlanResult, Settings};
 
@@ -31,8 +32,6 @@ use super::{EdgeCheck, PlanResult, Settings};
 const MAX_ROUNDS: usize = 5;
 /// A round that shortens the path by less than this share of its length is the last.
 const MIN_GAIN: f64 = 5e-3;
-/// States checked per batch along a motion (the sphere checker's lanes).
-const RAKE: usize = 8;
 /// Partial shortcut attempts per round: this many plus two per waypoint.
 const PARTIAL_ATTEMPTS: usize = 16;
 /// A round's partial shortcuts stop after this many failures in a row.
@@ -100,20 +99,9 @@ impl Run<'_> {
         }
         states[n_mid * nq..].copy_from_slice(b);
         let n_check = n_mid + usize::from(check_end);
-        let stride = n_check.div_ceil(RAKE).max(1);
-        let mut batch = Vec::with_capacity(RAKE * nq);
-        let mut valid = [false; RAKE];
-        for r in 0..stride.min(n_check) {
-            batch.clear();
-            let mut n = 0;
-            for k in (r..n_check).step_by(stride) {
-                batch.extend_from_slice(&states[k * nq..(k + 1) * nq]);
-                n += 1;
-            }
-            self.space.check(&batch, &mut valid[..n])?;
-            if !valid[..n].iter().all(|&v| v) {
-                return Ok(None);
-            }
+        let raked = rake(&states[..n_check * nq], nq);
+        if !self.space.all_valid(&raked, n_check)? {
+            return Ok(None);
         }
         states.truncate(n_mid * nq);
         Ok(Some(states))
