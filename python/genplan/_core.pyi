@@ -15,7 +15,7 @@ __all__ = [
     "__version__", "CRATE_VERSIONS", "KinematicModel", "CollisionWorld", "SphereChecker", "Projector",
     "MESH_SHAPES", "set_decomposition_cache",
     "SolverSettings", "read_robot_file", "robot_description", "read_robot", "load_robot", "srdf_disabled_pairs",
-    "disabled_pairs_srdf", "time_optimal", "TimedPath", "MAX_TRAJECTORY_BYTES", "sample_bytes",
+    "disabled_pairs_srdf", "time_optimal", "TimedPath", "JerkPath", "MAX_TRAJECTORY_BYTES", "sample_bytes",
     "Planner", "PlannerSettings", "PlanStats",
     "PlanResult", "UniformSampler", "DataSampler", "MixtureSampler", "GanSampler", "FlowSampler", "Dynamics", "ControllerSettings",
     "Disturbances", "Payload", "JointLimits", "SpatulaSetup", "PancakeSettings", "RunSummary", "PancakeSummary",
@@ -329,6 +329,25 @@ class TimedPath:
     def sample(
         self, rate: float, scale: float
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
+
+@final
+class JerkPath:
+    """A piecewise-linear path timed with jerk limits, stopping at each state: per segment a
+    phase-synchronised rest-to-rest S-curve under ``vlim``, ``alim``, ``jlim``
+    (genplan_core::jerk::JerkPath)."""
+
+    def __new__(
+        cls, states: NDArray[np.float64], vlim: Sequence[float], alim: Sequence[float], jlim: Sequence[float]
+    ) -> Self: ...
+    @property
+    def duration(self) -> float: ...
+    @property
+    def times(self) -> NDArray[np.float64]: ...
+    def sample(
+        self, rate: float
+    ) -> tuple[
+        NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]
+    ]: ...
 
 # --- constrained planning (genplan_core::planning / gan; genplan.planning) ---
 

@@ -66,13 +66,18 @@ from genplan.errors import (DataFileError, GenplanError, InvalidTrajectoryError,
                             ShapeError, UnknownNameError)
 from genplan.robots import Robot
 
-__all__ = ["DEFAULT_ACCELERATION_FACTOR", "FORMATS", "Trajectory", "parameterize"]
+__all__ = ["DEFAULT_ACCELERATION_FACTOR", "DEFAULT_JERK_FACTOR", "FORMATS", "Trajectory", "parameterize",
+           "parameterize_jerk"]
 
 Array = NDArray[np.float64]
 
 #: Without ``acceleration_limits`` (URDFs carry none), each joint's acceleration limit is this
 #: factor times its URDF velocity limit (per second): full speed is reached in 0.5 s.
 DEFAULT_ACCELERATION_FACTOR = 2.0
+#: Without ``jerk_limits`` (URDFs carry none), each joint's jerk limit in
+#: :func:`parameterize_jerk` is this factor times its acceleration limit (per second): full
+#: acceleration is reached in 0.1 s.
+DEFAULT_JERK_FACTOR = 10.0
 #: The file formats :meth:`Trajectory.save` writes, by suffix.
 FORMATS = (".npz", ".json", ".csv")
 #: Base grid: at most this many grid points spread evenly over the path's states.
@@ -112,6 +117,10 @@ class Trajectory:
     robot: str = ""
     task: str = ""
     stats: dict[str, Any] = field(default_factory=dict)
+    #: The jerks (m, nq) of a jerk-limited trajectory (:func:`parameterize_jerk`; not written
+    #: to files), and the jerk limits it was made for.
+    qddd: Array | None = None
+    jerk_limits: Array | None = None
 
     @property
     def duration(self) -> float:
@@ -153,7 +162,8 @@ class Trajectory:
                 "robot": self.robot, "task": self.task, "residuals": self.residuals, "tolerances": self.tolerances,
                 "stats": self.stats,
                 "velocity_limits": None if self.velocity_limits is None else self.velocity_limits.tolist(),
-                "acceleration_limits": None if self.acceleration_limits is None else self.acceleration_limits.tolist()}
+                "acceleration_limits": None if self.acceleration_limits is None else self.acceleration_limits.tolist(),
+                "jerk_limits": None if self.jerk_limits is None else self.jerk_limits.tolist()}
 
     def to_dict(self) -> dict[str, Any]:
         """The trajectory as plain data (the JSON file's content)."""
@@ -225,6 +235,7 @@ class Trajectory:
 
         return cls(**arrays, joint_names=tuple(meta["joint_names"]), rate_hz=float(meta["rate_hz"]),
                    velocity_limits=limits("velocity_limits"), acceleration_limits=limits("acceleration_limits"),
+                   jerk_limits=limits("jerk_limits"),
                    residuals=dict(meta.get("residuals", {})), tolerances=dict(meta.get("tolerances", {})),
                    robot=meta.get("robot", ""), task=meta.get("task", ""), stats=dict(meta.get("stats", {})))
 
@@ -392,13 +403,106 @@ def parameterize(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: fl
     checked = _checked(Trajectory(t=t, q=q, qd=qd, qdd=qdd, joint_names=names, rate_hz=check_rate,
                                   velocity_limits=vlim, acceleration_limits=alim, robot=robot.name, stats=stats),
                        robot, task, world, "" if every == 1 else f" of the samples checked at {check_rate:g} Hz")
+    return _every(checked, every, rate)
+
+
+def _every(checked: Trajectory, every: int, rate: float) -> Trajectory:
+    """The samples of ``checked`` at ``rate`` Hz, every ``every``-th of them (sampled and checked
+    ``every`` times faster) and the end: a subset of checked samples."""
     if every == 1:
         return checked
-    # the asked rate's samples: the checked ones at its ticks, and the end (a superset checked)
+    t = checked.t
     keep = np.arange(0, len(t), every)
     if t[-1] - t[keep[-1]] > 1e-9:
         keep = np.append(keep, len(t) - 1)
-    return checked.replace(t=t[keep], q=q[keep], qd=qd[keep], qdd=qdd[keep], rate_hz=rate)
+    return checked.replace(t=t[keep], q=checked.q[keep], qd=checked.qd[keep], qdd=checked.qdd[keep],
+                           qddd=None if checked.qddd is None else checked.qddd[keep], rate_hz=rate)
+
+
+def parameterize_jerk(robot: Robot, path: ArrayLike, task: Any = None, *, rate_hz: float = 1000.0,
+                      velocity_scale: float = 1.0, acceleration_scale: float = 1.0, jerk_scale: float = 1.0,
+                      acceleration_limits: ArrayLike | None = None, jerk_limits: ArrayLike | None = None,
+                      world: Any = None, time_limit: float | None = None) -> Trajectory:
+    """The jerk-limited trajectory through the states of ``path`` ((m, nq): a plan's waypoints,
+    or two states for a point-to-point move) **stopping at each state**, sampled at ``rate_hz``.
+
+    Each segment between two consecutive states is a rest-to-rest motion along the straight
+    line in joint space between them (the motion the planner checked), timed by a 7-segment
+    S-curve under the velocity, acceleration and jerk limits, phase-synchronised: every joint
+    follows one normalised profile, the least duration any straight-line motion takes under the
+    limits (native: rust/core/src/jerk.rs; within 1e-9 of ruckig's phase-synchronised duration,
+    ``python benches/jerk_timing.py``). Stopping at every state is the simple, honest timing of
+    a plan's waypoints: it cuts no corner the planner did not check, but a path of many states
+    (a dense path) takes long; :func:`parameterize` (TOPP-RA, no jerk limit) does not stop.
+
+    Args:
+        robot, path, task, rate_hz, velocity_scale, acceleration_scale, acceleration_limits,
+            world: as :func:`parameterize` (the states within the joint limits, consecutive
+            duplicates dropped; every sample checked at :data:`CHECK_RATE_HZ` at least).
+        jerk_limits: rad/s^3, one number or one per joint; default :data:`DEFAULT_JERK_FACTOR`
+            (10.0) x the acceleration limits per second.
+        jerk_scale: multiplies the jerk limits.
+        time_limit: the longest the trajectory may last (seconds), or None: a longer one is a
+            LimitExceededError naming it, before any sample is taken.
+
+    Every sample is within the joint limits, the velocity, acceleration and jerk limits
+    (``Trajectory.qddd``, ``jerk_limits``), with no tolerance (the profiles are built for the
+    limits times 1 - 1e-9, against rounding), each state reached exactly, at rest; with ``task``
+    and ``world``, on the manifold and valid. ``stats["waypoint_times"]`` holds when each state
+    is reached.
+
+    Raises:
+        GenplanError: a bad argument (ShapeError, NonFiniteError, SettingsError naming it), an
+            unsupported robot; LimitExceededError: longer than ``time_limit``;
+            InvalidTrajectoryError: a state outside the joint limits or a sample that fails a
+            check (naming the first bad state or sample).
+    """
+    if robot.floating_base:
+        raise GenplanError(f"robot '{robot.name}': trajectories of a free-flying base (nq {robot.nq} != nv {robot.nv}) "
+                           "are not supported yet")
+    rate = _positive(rate_hz, "rate_hz")
+    vlim, alim = joint_limits(robot, velocity_scale, acceleration_scale, acceleration_limits)
+    jscale = _positive(jerk_scale, "jerk_scale")
+    jlim = (DEFAULT_JERK_FACTOR * alim if jerk_limits is None else _limits(jerk_limits, robot.nv, "jerk_limits")) * jscale
+    limit = None if time_limit is None else _positive(time_limit, "time_limit")
+    configurations = robot.check_configuration(path, "path")
+    if configurations.ndim != 2 or len(configurations) == 0:
+        raise ShapeError(f"path: expected shape (m, {robot.nq}) with m >= 1, got {configurations.shape}")
+    names = tuple(robot.joint_names)
+    states = robot.joint_values(robot.normalize(configurations) if robot.continuous else configurations)
+    lower, upper = _value_limits(robot)
+    _check_states(states, names, lower, upper)
+    t0 = time.perf_counter()
+    keep = np.concatenate([[True], np.any(np.diff(states, axis=0) != 0.0, axis=1)])
+    states = np.ascontiguousarray(states[keep])
+    base: dict[str, Any] = dict(velocity_limits=vlim, acceleration_limits=alim, jerk_limits=jlim, robot=robot.name)
+    if len(states) == 1:  # nothing to move: one sample at rest
+        zero = np.zeros((1, robot.nv))
+        traj = Trajectory(t=np.zeros(1), q=robot.from_joint_values(states), qd=zero, qdd=zero.copy(), qddd=zero.copy(),
+                          joint_names=names, rate_hz=rate, **base,
+                          stats={"parameterisation_s": time.perf_counter() - t0, "path_states": 1,
+                                 "waypoint_times": [0.0]})
+        return _checked(traj, robot, task, world)
+    timed = _core.JerkPath(states, vlim.tolist(), alim.tolist(), jlim.tolist())
+    if limit is not None and timed.duration > limit:
+        from genplan.errors import LimitExceededError
+
+        raise LimitExceededError(f"time_limit: the jerk-limited trajectory through the path's {len(states)} states "
+                                 f"lasts {timed.duration:.4g} s, more than the {limit:g} s allowed (it stops at each "
+                                 "state: fewer states, or higher limits)")
+    every = max(1, math.ceil(CHECK_RATE_HZ / rate - 1e-9))
+    check_rate = rate * every
+    try:
+        t, q, qd, qdd, qddd = timed.sample(check_rate)
+    except SettingsError as e:
+        raise SettingsError(f"rate_hz: a {timed.duration:.4g} s trajectory of {robot.nq} joints at {rate:g} Hz "
+                            f"(checked at {check_rate:g} Hz): {e}") from None
+    stats = {"parameterisation_s": time.perf_counter() - t0, "path_states": int(len(states)),
+             "waypoint_times": timed.times.tolist(), "check_rate_hz": check_rate}
+    checked = _checked(Trajectory(t=t, q=robot.from_joint_values(q), qd=qd, qdd=qdd, qddd=qddd, joint_names=names,
+                                  rate_hz=check_rate, **base, stats=stats),
+                       robot, task, world, "" if every == 1 else f" of the samples checked at {check_rate:g} Hz")
+    return _every(checked, every, rate)
 
 
 def _value_limits(robot: Robot) -> tuple[Array, Array]:
@@ -467,14 +571,15 @@ def _checked(traj: Trajectory, robot: Robot, task: Any, world: Any, where: str =
         i, j = (int(k) for k in np.argwhere(out)[0])
         failures.append((i, f"is outside the limits of joint {j} ({traj.joint_names[j]}): {float(values[i, j])!r} not "
                             f"in [{float(lower[j])!r}, {float(upper[j])!r}]"))
-    for what, values, limits in (("velocity", traj.qd, traj.velocity_limits),
-                                 ("acceleration", traj.qdd, traj.acceleration_limits)):
-        if limits is None:
+    for what, derivative, limits in (("velocity", traj.qd, traj.velocity_limits),
+                                     ("acceleration", traj.qdd, traj.acceleration_limits),
+                                     ("jerk", traj.qddd, traj.jerk_limits)):
+        if limits is None or derivative is None:
             continue
-        over = np.abs(values) > limits
+        over = np.abs(derivative) > limits
         if over.any():
             i, j = (int(k) for k in np.argwhere(over)[0])
-            failures.append((i, f"exceeds the {what} limit of joint {j} ({traj.joint_names[j]}): |{values[i, j]:.6g}| > "
+            failures.append((i, f"exceeds the {what} limit of joint {j} ({traj.joint_names[j]}): |{derivative[i, j]:.6g}| > "
                                 f"{limits[j]:.6g}"))
     stats = dict(traj.stats)
     if task is not None:

@@ -12,6 +12,8 @@
 //! * [`gan`]: native inference of a trained GAN generator, as a planner sampler.
 //! * [`planning`]: the constrained RRT, one file per concept (errors, space, samplers,
 //!   projectors, validity checkers, nearest neighbours, the RRT itself).
+//! * [`jerk`]: jerk-limited, phase-synchronised rest-to-rest timing of straight joint-space
+//!   segments (7-segment S-curves), stopping at each state of a path.
 //! * [`dynamics`] / [`control`]: rigid-body dynamics of a fixed-base robot and its 1 kHz P-D +
 //!   disturbance-observer loop (the seq2seq paper's spatula experiment one configuration of it).
 //! * [`error`]: the crate's [`Error`] (the planner has its own, [`planning::PlanError`]).
@@ -27,6 +29,7 @@ pub mod dynamics;
 pub mod flow;
 pub mod error;
 pub mod gan;
+pub mod jerk;
 pub mod kinematics;
 pub mod lie;
 pub mod mesh;

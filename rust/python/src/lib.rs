@@ -1,6 +1,6 @@
 //! `genplan._core`: the private native module. Thin wrappers around `genplan-core`, one file per
 //! core module: [`kinematics`], [`collision`], [`projection`] (and [`residuals`], its
-//! residual-only check), [`robot`] (robot files and descriptions), [`timing`], [`planning`],
+//! residual-only check), [`robot`] (robot files and descriptions), [`timing`], [`jerk`], [`planning`],
 //! [`control`]; [`batch`] runs their batched calls, [`arrays`] reads their configurations,
 //! [`settings`] makes their typed settings classes and [`errors`] their error classes; this
 //! file only registers them.
@@ -22,6 +22,7 @@ mod settings;
 
 mod collision;
 mod control;
+mod jerk;
 mod kinematics;
 mod planning;
 mod residuals;
@@ -44,6 +45,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     projection::register(m)?;
     robot::register(m)?;
     timing::register(m)?;
+    jerk::register(m)?;
     planning::register(m)?;
     control::register(m)?;
     residuals::register(m)?;
