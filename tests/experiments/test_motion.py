@@ -85,3 +85,35 @@ def test_a_small_run_writes_the_table_and_json(tmp_path, capsys) -> None:
     assert "table_pick" in printed and "genplan_exact" in printed
     if "vamp" not in arms:
         assert "vamp" in payload["skipped"]
+
+
+def test_other_robots_get_the_scenes_placed_for_them() -> None:
+    obstacles, grasps = bench.FAMILIES["box"](np.random.default_rng(0))
+    # the Panda's scenes are the families' own
+    same = bench.placed(bench.ROBOTS["panda"], obstacles, grasps)
+    assert same[0] is obstacles and same[1] is grasps
+    setup = bench.ROBOTS["baxter"]
+    moved, goals = bench.placed(setup, obstacles, grasps)
+    k, off = setup.scale, np.asarray(setup.offset)
+    for a, b in zip(obstacles, moved):
+        assert np.allclose(b.pose.position, k * np.asarray(a.pose.position) + off)
+    assert np.allclose(goals[0][:3, 3], k * grasps[0][:3, 3] + off) and np.allclose(goals[0][:3, :3], grasps[0][:3, :3])
+    # the UR5's tool frame (its flange) stops tool_back short of the grasp, along the tool's z
+    ur5 = bench.ROBOTS["ur5"]
+    _, back = bench.placed(ur5, obstacles, grasps)
+    assert np.allclose(grasps[0][:3, 3] - back[0][:3, 3], ur5.tool_back * grasps[0][:3, 2])
+
+
+def test_ur5_problems_are_valid_for_vamp_in_its_own_frame() -> None:
+    vamp = pytest.importorskip("vamp")
+    setup = bench.ROBOTS["ur5"]
+    ur5 = setup.load()
+    p = bench.make_problems(ur5, "table_pick", 1, seed=0, vamp=vamp, setup=setup)[0]
+    env = bench.vamp_environment(vamp, p.obstacles, setup.vamp_base)
+    assert all(vamp.ur5.validate(q.astype(np.float32), env) for q in (p.start, p.goal))
+    # the same obstacles in genplan's frame (no base given) collide with VAMP's UR5 somewhere else:
+    # a table top at VAMP's origin level in front of the arm's base
+    lifted = bench.vamp_environment(vamp, p.obstacles)
+    qs = np.random.default_rng(0).uniform(-3.0, 3.0, (200, 6)).astype(np.float32)
+    assert [vamp.ur5.validate(q, env) for q in qs] != [vamp.ur5.validate(q, lifted) for q in qs]
+    assert np.all((p.start >= np.asarray(vamp.ur5.lower_bounds())) & (p.goal <= np.asarray(vamp.ur5.upper_bounds())))

@@ -1,6 +1,12 @@
 """Free-space motion planning on MotionBenchMaker-style Panda problems, VAMP side by side.
 
     genplan bench motion --problems 20 --seed 0 --out benches/results/motion.json
+    genplan bench motion --robot ur5 --problems 20 --seed 0 --out benches/results/motion_ur5.json
+
+``--robot`` (:data:`ROBOTS`) puts the same families in front of another robot: the UR5 and
+Baxter, which VAMP ships too, and the Kinova Jaco2, which it does not (genplan alone, its spheres
+generated from its meshes); the scenes are the Panda's, scaled and shifted to the robot's reach
+(:func:`placed`), handed to VAMP in its own world frame where its model stands elsewhere.
 
 Problem families (generated here, seeded; MotionBenchMaker's names): ``bookshelf_tall``,
 ``bookshelf_small``, ``bookshelf_thin`` (a bookshelf in front of the robot, its boards, walls and,
@@ -78,6 +84,55 @@ TOOL = "tcp"
 def load_panda() -> genplan.Robot:
     """genplan's Panda with the fingers open as VAMP's are."""
     return genplan.load("panda", locked_joints=FINGERS)
+
+
+def _load_baxter() -> genplan.Robot:
+    """Baxter as examples/baxter/baxter.toml describes it (both arms active)."""
+    from pathlib import Path
+
+    return genplan.load(Path(genplan.__file__).resolve().parents[2] / "examples" / "baxter" / "baxter.toml")
+
+
+@dataclass(frozen=True)
+class RobotSetup:
+    """How a robot meets the problem families: how to load it, the posture every start jitters
+    (``jitter`` rad), the frame the grasps place, VAMP's model of it (its name in ``vamp``, or
+    None: genplan only), and where the Panda-sized scenes go: scaled by ``scale`` about the
+    robot's base and shifted by ``offset`` (m; the scenes are built for a Panda on the floor,
+    its reach 0.85 m). ``vamp_base``: VAMP's world frame in genplan's (4 x 4), when VAMP's model
+    stands elsewhere (the obstacles are handed to VAMP in its frame). ``tool_back``: how far
+    behind a grasp point (along the tool's z) the ``tool`` frame goes, for a tool frame at the
+    flange of an arm without a gripper (m)."""
+
+    load: Callable[[], genplan.Robot]
+    ready: tuple[float, ...]
+    tool: str
+    vamp: str | None
+    scale: float = 1.0
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    jitter: float = 0.15
+    vamp_base: tuple[tuple[float, ...], ...] | None = None
+    tool_back: float = 0.0
+
+
+#: the robots ``--robot`` takes: the Panda (VAMP's and genplan's), the UR5 (VAMP ships its UR5
+#: with a Robotiq gripper on a stand: its base turned 90 degrees about z and raised 0.915 m, the
+#: mean over 200 configurations of its end effector's pose against genplan's tool0; its link
+#: lengths differ from example-robot-data's by centimetres; genplan's UR5 has no gripper: its
+#: flange stops 0.15 m short of the grasps, as long as VAMP's gripper), Baxter (the same kinematics in both;
+#: the scenes in front of its left arm, lowered to its shoulders' height) and the Kinova Jaco2,
+#: which VAMP does not ship (genplan only, its spheres generated from its meshes)
+ROBOTS: dict[str, RobotSetup] = {
+    "panda": RobotSetup(load=load_panda, ready=tuple(READY), tool=TOOL, vamp="panda"),
+    "ur5": RobotSetup(load=lambda: genplan.load("ur5"), ready=(0.0, -2.2, 1.6, -1.0, -1.57, 0.0), tool="tool0",
+                      tool_back=0.15,
+                      vamp="ur5", vamp_base=((0.0, 1.0, 0.0, 0.0), (-1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 1.0, -0.915),
+                                             (0.0, 0.0, 0.0, 1.0))),
+    "baxter": RobotSetup(load=_load_baxter, ready=(0.0, -0.55, 0.0, 0.75, 0.0, 1.26, 0.0) * 2, tool="left_gripper",
+                         vamp="baxter", scale=1.15, offset=(0.1, 0.3, -0.55)),
+    "kinova": RobotSetup(load=lambda: genplan.load("kinova"), ready=(0.0, 3.4, 1.2, 0.0, 2.0, 0.0), tool="ee",
+                         vamp=None, scale=0.9),
+}
 
 
 # --- problem families ---------------------------------------------------------------------------
@@ -240,6 +295,29 @@ FAMILIES: dict[str, Callable[[np.random.Generator], tuple[Obstacles, list[NDArra
 }
 
 
+def placed(setup: RobotSetup, obstacles: Obstacles,
+           grasps: list[NDArray[np.float64]]) -> tuple[Obstacles, list[NDArray[np.float64]]]:
+    """A family's scene and grasps for ``setup``'s robot: positions and sizes scaled by
+    ``setup.scale`` about the origin, then shifted by ``setup.offset``, the grasps' tool frame
+    ``setup.tool_back`` behind them (the Panda's unchanged)."""
+    if setup.scale == 1.0 and not any(setup.offset) and setup.tool_back == 0.0:
+        return obstacles, grasps
+    k, off = setup.scale, np.asarray(setup.offset)
+
+    def at(o: Any) -> Pose:
+        return Pose(position=tuple(k * np.asarray(o.pose.position) + off), rpy=o.pose.rpy)
+
+    out: Obstacles = [Box(name=o.name, half_extents=tuple(k * np.asarray(o.half_extents)), pose=at(o))
+                      if isinstance(o, Box) else
+                      Capsule(name=o.name, radius=k * o.radius, length=k * o.length, pose=at(o)) for o in obstacles]
+    moved = []
+    for g in grasps:
+        g = g.copy()
+        g[:3, 3] = k * g[:3, 3] + off - setup.tool_back * g[:3, 2]
+        moved.append(g)
+    return out, moved
+
+
 # --- VAMP ---------------------------------------------------------------------------------------
 
 def vamp_module() -> Any:
@@ -251,14 +329,19 @@ def vamp_module() -> Any:
     return vamp
 
 
-def vamp_environment(vamp: Any, obstacles: Obstacles) -> Any:
+def vamp_environment(vamp: Any, obstacles: Obstacles, base: Any = None) -> Any:
     """The obstacles as a VAMP environment: boxes turned about z as cuboids, upright capsules as
     VAMP's capsules (``vamp.Cylinder`` added with ``add_capsule``: a segment of ``length`` along z
-    with round ends, as genplan's :class:`~genplan.scene.Capsule`)."""
+    with round ends, as genplan's :class:`~genplan.scene.Capsule`); with ``base`` (VAMP's world
+    frame in genplan's, a turn about z and a shift: :class:`RobotSetup`) in VAMP's frame."""
     env = vamp.Environment()
+    inv = None if base is None else np.linalg.inv(np.asarray(base, dtype=np.float64))
+    turn = 0.0 if inv is None else math.atan2(inv[1, 0], inv[0, 0])
     for o in obstacles:
         p = list(map(float, o.pose.position))
-        yaw = float(o.pose.rpy[2]) if o.pose.rpy is not None else 0.0
+        yaw = (float(o.pose.rpy[2]) if o.pose.rpy is not None else 0.0) + turn
+        if inv is not None:
+            p = list(map(float, inv[:3, :3] @ np.asarray(p) + inv[:3, 3]))
         if isinstance(o, Box):
             env.add_cuboid(vamp.Cuboid(p, [0.0, 0.0, yaw], list(map(float, o.half_extents))))
         else:
@@ -318,7 +401,8 @@ class Problem:
 class _Checkers:
     """Every validity check a problem's start and goal must pass (one per planner compared)."""
 
-    def __init__(self, robot: genplan.Robot, obstacles: Obstacles, vamp: Any, vsph: RobotSpheres | None) -> None:
+    def __init__(self, robot: genplan.Robot, obstacles: Obstacles, vamp: Any, vsph: RobotSpheres | None,
+                 setup: RobotSetup) -> None:
         self.world = robot.collision_world()
         self.world.add_scene(Scene(name="problem", obstacles=tuple(obstacles)))
         self.checks: list[Callable[[NDArray[np.float64]], NDArray[np.bool_]]] = [
@@ -328,9 +412,10 @@ class _Checkers:
         if vsph is not None:
             v = sphere_checker(robot, self.world, spheres=vsph)
             self.checks.append(lambda q: ~np.asarray(v.in_collision(q), dtype=bool))
-        if vamp is not None:
-            env = vamp_environment(vamp, obstacles)
-            self.checks.append(lambda q: np.array([vamp.panda.validate(r.astype(np.float32), env) for r in q]))
+        if vamp is not None and setup.vamp is not None:
+            model = getattr(vamp, setup.vamp)
+            env = vamp_environment(vamp, obstacles, setup.vamp_base)
+            self.checks.append(lambda q: np.array([model.validate(r.astype(np.float32), env) for r in q]))
 
     def valid(self, q: NDArray[np.float64]) -> NDArray[np.bool_]:
         ok = np.ones(len(q), dtype=bool)
@@ -340,20 +425,30 @@ class _Checkers:
 
 
 def make_problems(robot: genplan.Robot, family: str, n: int, seed: int, vamp: Any = None,
-                  vsph: RobotSpheres | None = None, max_scenes: int | None = None) -> list[Problem]:
-    """``n`` problems of ``family`` (seeded by ``seed`` and the family's name): a scene, a start
-    (the ready posture with jitter) and a goal (IK to the scene's grasp poses), both valid for
-    every checker; scenes where either cannot be found are skipped (at most ``max_scenes``,
+                  vsph: RobotSpheres | None = None, max_scenes: int | None = None,
+                  setup: RobotSetup | None = None) -> list[Problem]:
+    """``n`` problems of ``family`` (seeded by ``seed`` and the family's name) for ``setup``'s
+    robot (default the Panda): a scene, a start (the ready posture with jitter) and a goal (IK to
+    the scene's grasp poses), both valid for every checker and within VAMP's joint bounds when
+    VAMP plans too; scenes where either cannot be found are skipped (at most ``max_scenes``,
     default 20 n, are drawn; fewer problems are returned when they run out)."""
+    setup = setup or ROBOTS["panda"]
     rng = np.random.default_rng([seed, sum(map(ord, family))])
-    task = frame_task(robot, TOOL)
+    task = frame_task(robot, setup.tool)
+    lower, upper = robot.lower, robot.upper
+    model = getattr(vamp, setup.vamp) if vamp is not None and setup.vamp is not None else None
+    if model is not None:  # the joint ranges both planners sample
+        lower = np.maximum(lower, np.asarray(model.lower_bounds(), dtype=np.float64))
+        upper = np.minimum(upper, np.asarray(model.upper_bounds(), dtype=np.float64))
+    ready = np.asarray(setup.ready, dtype=np.float64)
     out: list[Problem] = []
     for _ in range(max_scenes or 20 * n):
         if len(out) == n:
             break
-        obstacles, grasps = FAMILIES[family](rng)
-        checkers = _Checkers(robot, obstacles, vamp, vsph)
-        starts = np.clip(READY + rng.uniform(-0.15, 0.15, (16, robot.nq)), robot.lower, robot.upper)
+        obstacles, grasps = placed(setup, *FAMILIES[family](rng))
+        checkers = _Checkers(robot, obstacles, vamp, vsph, setup)
+        values = ready + rng.uniform(-setup.jitter, setup.jitter, (16, len(ready)))
+        starts = robot.from_joint_values(values) if robot.continuous else np.clip(values, lower, upper)
         ok = checkers.valid(starts)
         if not ok.any():
             continue
@@ -363,6 +458,7 @@ def make_problems(robot: genplan.Robot, family: str, n: int, seed: int, vamp: An
             ik = solve_ik(robot, task, np.repeat(g[None], 8, axis=0), init="uniform", restarts=4,
                           seed=int(rng.integers(2**31)), parallel=False)
             cand = ik.q[ik.success]
+            cand = cand[((cand >= lower) & (cand <= upper)).all(axis=1)]
             if len(cand):
                 ok = checkers.valid(cand) & (np.linalg.norm(cand - start, axis=1) > 0.5)
                 if ok.any():
@@ -402,52 +498,62 @@ def _genplan_arm(robot: genplan.Robot, problem: Problem, checker: Any, seed: int
             "shortcuts": int(r.stats.shortcuts)}
 
 
-def _vamp_arm(vamp: Any, problem: Problem, seed: int) -> dict[str, Any]:
-    env = vamp_environment(vamp, problem.obstacles)
+def _vamp_arm(vamp: Any, problem: Problem, seed: int, setup: RobotSetup) -> dict[str, Any]:
+    assert setup.vamp is not None
+    model = getattr(vamp, setup.vamp)
+    env = vamp_environment(vamp, problem.obstacles, setup.vamp_base)
     plan_settings = vamp.RRTCSettings()
-    plan_settings.range = vamp.ROBOT_RRT_RANGES["panda"]
+    plan_settings.range = vamp.ROBOT_RRT_RANGES[setup.vamp]
     simplify_settings = vamp.SimplifySettings()
-    rng = vamp.panda.halton()
+    rng = model.halton()
     rng.skip(seed % 1009)  # a different stretch of the sequence per problem
     start, goal = problem.start.astype(np.float32), problem.goal.astype(np.float32)
     t0 = time.perf_counter()
-    r = vamp.panda.rrtc(start, goal, env, plan_settings, rng)
+    r = model.rrtc(start, goal, env, plan_settings, rng)
     t1 = time.perf_counter()
     if not r.solved:
         return {"success": False, "plan_ms": (t1 - t0) * 1e3, "simplify_ms": math.nan, "length": math.nan}
-    s = vamp.panda.simplify(r.path, env, simplify_settings, rng)
+    s = model.simplify(r.path, env, simplify_settings, rng)
     t2 = time.perf_counter()
     return {"success": bool(s.solved), "plan_ms": (t1 - t0) * 1e3, "simplify_ms": (t2 - t1) * 1e3,
             "length": path_length(s.path.numpy()) if s.solved else math.nan}
 
 
-def run(families: list[str], n: int, seed: int, arms: list[str] | None = None) -> dict[str, Any]:
-    """Every problem of every family through every arm (VAMP's only when installed); the results
-    per problem and the per-family summary."""
-    vamp = vamp_module()
-    robot = load_panda()
-    vsph = vamp_spheres(vamp, robot) if vamp is not None else None
+def run(families: list[str], n: int, seed: int, arms: list[str] | None = None, robot_name: str = "panda") -> dict[str, Any]:
+    """Every problem of every family through every arm (VAMP's only when installed and shipping
+    the robot; VAMP's spheres in genplan on the Panda only) for the robot ``robot_name`` (a key of
+    :data:`ROBOTS`); the results per problem and the per-family summary."""
+    setup = ROBOTS[robot_name]
+    installed = vamp_module()
+    vamp = installed if setup.vamp is not None else None
+    robot = setup.load()
+    vsph = vamp_spheres(vamp, robot) if vamp is not None and robot_name == "panda" else None
     arms = [a for a in (arms or ARMS) if a != "vamp" or vamp is not None]
-    skipped = {} if vamp is not None else {"vamp": "not installed (pip install the vamp_planner wheel)"}
+    skipped = {} if vamp is not None else {
+        "vamp": "not installed (pip install the vamp_planner wheel)" if installed is None else
+        f"VAMP does not ship a {robot_name} model"}
     checker_of = {"genplan_spheres": "spheres", "genplan_vamp_spheres": vsph, "genplan_exact": "exact"}
     if vsph is None and "genplan_vamp_spheres" in arms:
         arms.remove("genplan_vamp_spheres")
-        skipped["genplan_vamp_spheres"] = "needs VAMP's spheres: vamp not installed"
+        skipped["genplan_vamp_spheres"] = ("needs VAMP's spheres: vamp not installed" if robot_name == "panda" else
+                                           "VAMP's spheres are mapped onto the Panda only")
     load0 = os.getloadavg()
     t_start = time.time()
     records: list[dict[str, Any]] = []
     counts: dict[str, int] = {}
     for family in families:
-        problems = make_problems(robot, family, n, seed, vamp, vsph)
+        problems = make_problems(robot, family, n, seed, vamp, vsph, setup=setup)
         counts[family] = len(problems)
         for p in problems:
             order = arms if p.index % 2 == 0 else arms[::-1]  # alternate who runs first
             pseed = seed * 100_003 + p.index
             for arm in order:
-                rec = _vamp_arm(vamp, p, pseed) if arm == "vamp" else _genplan_arm(robot, p, checker_of[arm], pseed)
+                rec = (_vamp_arm(vamp, p, pseed, setup) if arm == "vamp" else
+                       _genplan_arm(robot, p, checker_of[arm], pseed))
                 records.append({"family": family, "problem": p.index, "arm": arm, **rec})
     rows = summarize(records, families, arms)
-    return {"benchmark": "motion", "robot": "panda (fingers open 0.04 m)", "problems_per_family": n, "seed": seed,
+    robot_label = "panda (fingers open 0.04 m)" if robot_name == "panda" else robot_name
+    return {"benchmark": "motion", "robot": robot_label, "problems_per_family": n, "seed": seed,
             "problems": counts, "arms": arms, "skipped": skipped, "settings": settings().to_dict(),
             "rows": rows, "records": records, "wall_s": time.time() - t_start, "load_1min_start": load0[0],
             "load_1min_end": os.getloadavg()[0], "machine": machine()}
@@ -502,12 +608,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--problems", type=A.positive_int, default=20, help="problems per family")
     p.add_argument("--arms", nargs="+", choices=list(ARMS), default=list(ARMS), metavar="ARM",
                    help=f"planners compared (default: all: {', '.join(ARMS)}; vamp only when installed)")
+    p.add_argument("--robot", choices=list(ROBOTS), default="panda",
+                   help="the robot (default panda; VAMP plans the panda, ur5 and baxter, genplan alone the kinova)")
     p.add_argument("--seed", type=A.seed, default=0)
     p.add_argument("--out", type=A.output_file, default=None, help="write the results as JSON (folders are created)")
 
 
 def main(args: argparse.Namespace) -> int:
-    payload = run(args.families, args.problems, args.seed, args.arms)
+    payload = run(args.families, args.problems, args.seed, args.arms, args.robot)
     print_table(payload)
     write_json(args.out, payload)
     return 0
