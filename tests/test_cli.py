@@ -479,6 +479,12 @@ def test_plan_without_a_task_plans_in_free_space(tmp_path, capsys) -> None:
     assert np.all(path >= panda.lower) and np.all(path <= panda.upper)
     world = genplan.planning.environment("panda_shelf").world(panda)
     assert not np.any(world.in_collision(path))
+    # --simplify: shortcuts and smoothing, the same ends, a path no longer than before, still valid
+    assert main([*argv, "--simplify"]) == 0, capsys.readouterr()
+    short = np.array(json.loads(out.read_text())["path"])
+    assert np.allclose(short[[0, -1]], path[[0, -1]]) and not np.any(world.in_collision(short))
+    length = lambda p: float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())  # noqa: E731
+    assert length(short) <= length(path) + 1e-9
     pose = panda.frame_placement(np.array([float(x) for x in goal.split()]), "hand")
     import pinocchio as pin
 

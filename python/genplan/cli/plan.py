@@ -84,6 +84,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="sampled: edge states checked 0.025 rad apart (default); certified: every motion between "
                         "them certified collision-free as well (PlannerSettings.edge_check; slower)")
     p.add_argument("--model", type=A.existing_file, default=None, help="the learned sampler's file (a GAN or a flow) for --sampler gan, hybrid or adaptive")
+    p.add_argument("--simplify", action="store_true",
+                   help="shorten the path: shortcuts (and, in free space, B-spline smoothing) between checked states")
     p.add_argument("--seed", type=A.seed, default=0)
     p.add_argument("--out", type=A.output_file, required=True, help="the plan as JSON")
     p.add_argument("--html", type=A.output_file, default=None,
@@ -110,7 +112,7 @@ def main(args: argparse.Namespace) -> int:
     outcome = plan(robot, task, args.scene, start=args.start,
                    goal=args.goal, target=args.target, frame=args.frame, sampler=args.sampler, model=args.model,
                    k=args.goals, seed=args.seed, algorithm=args.algorithm,
-                   settings=PlannerSettings(edge_check=args.edge_check), start_target=args.start_target)
+                   settings=PlannerSettings(edge_check=args.edge_check, simplify=args.simplify), start_target=args.start_target)
     r = outcome.result
     write_text(args.out, json.dumps(outcome.to_dict(), indent=1) + "\n")
     print(f"{'found' if r.success else 'no path found'}: {len(r.path)} states, {r.stats.extensions} extensions, "
