@@ -338,16 +338,26 @@ def robots(res: Results) -> str:
                 "coal on raw meshes: agreement, largest disagreement distance", "load ms"], rows)
 
 
-def xarm_cup(res: Results) -> str:
-    """The xArm7 cup GAN's card evaluation: GAN against uniform starts."""
-    e = res["../../examples/xarm7/upright_cup_gan.json"]["evaluation"]
+def _card_evaluation(card: Any, label: str) -> str:
+    """A GAN card's evaluation: projection and IK from GAN against uniform starts."""
+    e = card["evaluation"]
     rows = []
     for kind, name in (("projection", "projection onto the manifold: success, steps*"),
                        ("ik", "IK to the target: success, steps*")):
         g, u = e["gan"][kind], e["uniform"][kind]
         rows.append([name, f"{g['success_rate']:.1f} %, {g['steps_star']:.2f}",
                      f"{u['success_rate']:.1f} %, {u['steps_star']:.2f}", f"{g['steps_star'] / u['steps_star']:.2f}"])
-    return _md(["xArm7, cup upright", "GAN starts", "uniform starts", "GAN / uniform steps*"], rows)
+    return _md([label, "GAN starts", "uniform starts", "GAN / uniform steps*"], rows)
+
+
+def xarm_cup(res: Results) -> str:
+    """The xArm7 cup GAN's card evaluation: GAN against uniform starts."""
+    return _card_evaluation(res["../../examples/xarm7/upright_cup_gan.json"], "xArm7, cup upright")
+
+
+def baxter_tray_card(res: Results) -> str:
+    """The Baxter tray GAN's card evaluation: GAN against uniform starts."""
+    return _card_evaluation(res["../../examples/baxter/tray_gan.json"], "Baxter, tray in both hands")
 
 
 def scaling(res: Results) -> str:
@@ -402,6 +412,59 @@ def adapt(res: Results) -> str:
     return _md(["row", "updates", "success", "end error mm (max)", "residual / tolerance (max)", "ms per problem"], rows)
 
 
+def motion(res: Results) -> str:
+    """Free-space planning against VAMP on MotionBenchMaker-style families, per robot: success,
+    median planning and simplification time, path length against VAMP's; the geometric mean of
+    the families' planning-time ratios."""
+    rows = []
+    for name in ("motion.json", "motion_ur5.json"):
+        m = res[name]
+        by = {(r["family"], r["arm"]): r for r in m["rows"]}
+        families = list(dict.fromkeys(r["family"] for r in m["rows"]))
+        arms = [a for a in ("genplan_spheres", "genplan_exact") if any(k[1] == a for k in by)]
+        for fam in families:
+            v = by[(fam, "vamp")]
+            cells = [m["robot"], fam, f"{v['success_pct']:.0f} %, {v['plan_ms_median']:.2f} + {v['simplify_ms_median']:.2f}"]
+            for arm in arms:
+                g = by[(fam, arm)]
+                cells.append(f"{g['success_pct']:.0f} %, {g['plan_ms_median']:.2f} + {g['simplify_ms_median']:.2f} "
+                             f"({_x(g['plan_ms_over_vamp'])}); length {g['length_over_vamp_median']:.2f}x")
+            rows.append(cells)
+        means = [geometric_mean([by[(f, arm)]["plan_ms_over_vamp"] for f in families]) for arm in arms]
+        rows.append([m["robot"], "**geometric mean of the planning-time ratios**", "1x",
+                     *[f"**{_x(x)}**" for x in means]])
+    return _md(["robot", "family", "VAMP: success, ms plan + simplify",
+                "genplan spheres: success, ms plan + simplify (plan / VAMP); length / VAMP",
+                "genplan exact: the same"], rows)
+
+
+def jerk_timing(res: Results) -> str:
+    """Jerk-limited rest-to-rest moves: genplan's phase-synchronised S-curve against ruckig."""
+    s = res["jerk_timing.json"]["summary"]
+    return _md(["moves", "duration / ruckig's (phase sync.)", "ruckig's phase-sync. paths straight",
+                "profile us: genplan / ruckig", "parameterize_jerk at 1 kHz with its checks (ms)"],
+               [[str(s["moves"]), f"{s['ratio_phase_median']:.9f} (max {s['ratio_phase_max']:.9f})",
+                 f"{s['ruckig_phase_straight']} of {s['moves']}",
+                 f"{s['genplan_profile_us_median']:.2f} / {s['ruckig_phase_us_median']:.2f} "
+                 f"({_x(s['profile_time_ratio_vs_ruckig_phase'])})", f"{s['genplan_parameterize_jerk_ms_median']:.2f}"]])
+
+
+def baxter_tray(res: Results) -> str:
+    """Baxter carrying a tray in both hands through a padded two-box scene, every 1 kHz sample
+    checked again with Pinocchio + coal."""
+    rows = []
+    for name in ("baxter_tray.json", "baxter_tray_hybrid.json"):
+        b = res[name]
+        s = b["summary"]
+        rows.append([b["sampler"], f"{s['succeeded']} of {s['queries']}",
+                     f"{s['all_samples_pass_independent_check']} ({s['samples_checked']:,} samples)",
+                     f"{100 * s['min_clearance_m']:.2f} (padding {100 * s['padding_m']:.0f})",
+                     f"{s['max_velocity_ratio_urdf']:.3f}", f"{1e3 * s['max_grip_position_error_m']:.2f}",
+                     f"{1e3 * s['max_tray_tilt_rad']:.2f}", f"{s['median_plan_ms']:.0f}"])
+    return _md(["sampler", "planned", "plans passing the independent check", "min clearance cm",
+                "max velocity / limit", "grip error mm (max)", "tray tilt mrad (max)", "median plan ms"], rows)
+
+
 TABLES: dict[str, Table] = {
     "table1": Table(("table1_panda_uniform.json", "table1_panda_gan.json", "table1_panda_scipy.json",
                      "table1_talos_uniform.json", "table1_talos_gan.json", "table1_talos_scipy.json"),
@@ -449,6 +512,17 @@ TABLES: dict[str, Table] = {
     "control": Table(("control.json",), "genplan bench control --out benches/results/control.json", control),
     "adapt": Table(("adapt_panda.json",), "genplan bench adapt --model models/panda_shelf_seq2seq.safetensors --data "
                    "DATA --held-out HELD_OUT --problems 200 --out benches/results/adapt_panda.json", adapt),
+    "motion": Table(("motion.json", "motion_ur5.json"),
+                    "genplan bench motion --robot {panda,ur5} --problems 20 --seed 0 --out "
+                    "benches/results/motion[_ur5].json", motion),
+    "jerk_timing": Table(("jerk_timing.json",), "python benches/jerk_timing.py --moves 1000 --seed 0 --out "
+                         "benches/results/jerk_timing.json", jerk_timing),
+    "baxter_tray": Table(("baxter_tray.json", "baxter_tray_hybrid.json"),
+                         "python benches/baxter_tray.py [--sampler hybrid --model examples/baxter/tray_gan.safetensors "
+                         "--out benches/results/baxter_tray_hybrid.json]", baxter_tray),
+    "baxter_tray_card": Table(("../../examples/baxter/tray_gan.json",),
+                              "genplan train gan --robot examples/baxter/baxter_tray.toml --task examples/baxter/tray.toml "
+                              "--seed 0 --out examples/baxter/tray_gan.safetensors", baxter_tray_card),
     "robots": Table(("robots.json",), "genplan bench robots --samples 10000 --seed 0 --out benches/results/robots.json",
                     robots),
     "xarm_cup": Table(("../../examples/xarm7/upright_cup_gan.json",),
