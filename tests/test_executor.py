@@ -200,6 +200,18 @@ def test_integrity_6_ctrl_c_stops_worker_threads_that_poll_stopping() -> None:
         E._STOP.clear()
 
 
+def _group_ends(pgid: int, seconds: float) -> bool:
+    """Whether every process of the group ``pgid`` has ended within ``seconds``."""
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.05)
+    return False
+
+
 @pytest.mark.parametrize("after", [0.05, 0.3, 2.0])
 def test_integrity_6_ctrl_c_ends_worker_processes_without_a_traceback(after: float) -> None:
     import signal
@@ -225,13 +237,7 @@ def test_integrity_6_ctrl_c_ends_worker_processes_without_a_traceback(after: flo
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and time.perf_counter() - t0 < 10
     assert err == "", err  # no worker printed a traceback
-    for _ in range(100):  # and none is left running
-        try:
-            os.killpg(proc.pid, 0)
-        except ProcessLookupError:
-            break
-        time.sleep(0.05)
-    else:
+    if not _group_ends(proc.pid, 5.0):  # and none is left running
         pytest.fail("worker processes outlived the interrupted run")
 
 
@@ -253,14 +259,6 @@ def test_worker_processes_exit_when_their_parent_is_ended_without_ending_them(ho
     time.sleep(0.3)
     os.kill(proc.pid, getattr(signal, how))  # the parent only: its pool gets no chance to end the workers
     proc.communicate(timeout=60)
-    t0 = time.perf_counter()
-    while time.perf_counter() - t0 < 30:  # the workers: the rest of the process group
-        try:
-            os.killpg(proc.pid, 0)
-        except ProcessLookupError:
-            break
-        time.sleep(0.05)
-    else:
+    if not _group_ends(proc.pid, 5.0):  # the workers: the rest of the process group
         os.killpg(proc.pid, signal.SIGKILL)
-        pytest.fail(f"worker processes outlived their parent's {how} by 30 s")
-    assert time.perf_counter() - t0 < 5
+        pytest.fail(f"worker processes outlived their parent's {how} by 5 s")
