@@ -9,7 +9,7 @@ use genplan_core::projection::{dense_path, DenseSettings};
 
 use crate::batch::chunked;
 use crate::errors::{err, to_py, to_py_in, Kind};
-use crate::projection::{has_python_terms, solve_error_to_py, PyProjector};
+use crate::projection::{first_failure, has_python_terms, PyProjector};
 
 /// One path's answer: the dense path (m, n) and None, or the path so far and why it failed
 /// (the failure's name and number, NaN for the kinds without one).
@@ -89,15 +89,11 @@ fn dense_paths<'py>(
         }
         Some(out)
     })?;
-    if let Some(e) = outs.iter().position(|o| matches!(o, Some(Err(_)))) {
-        let Some(Some(Err(e))) = outs.into_iter().nth(e) else { unreachable!("position found an error") };
-        return Err(solve_error_to_py(e));
-    }
     let mut answer = Vec::with_capacity(b);
-    for out in outs {
+    for out in first_failure(outs)? {
         answer.push(match out {
-            None | Some(Err(_)) => None,
-            Some(Ok(d)) => {
+            None => None,
+            Some(d) => {
                 let rows = d.path.len() / n;
                 let path = Array2::from_shape_vec((rows, n), d.path).map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
                 Some((path.into_pyarray(py), d.failure.map(|f| f.parts())))

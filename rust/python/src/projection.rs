@@ -155,6 +155,13 @@ pub(crate) fn has_python_terms(p: &Projector) -> bool {
     p.has_custom_terms()
 }
 
+/// The outcomes of a batch that stops at its first failed row (a custom term's error: the rows
+/// after it are not run, None): the first failure raised as [`solve_error_to_py`] does, else every
+/// row's outcome (None for a row not run).
+pub(crate) fn first_failure<T>(outs: Vec<Option<Result<T, genplan_core::projection::SolveError>>>) -> PyResult<Vec<Option<T>>> {
+    outs.into_iter().map(|o| o.transpose().map_err(solve_error_to_py)).collect()
+}
+
 /// The Python error of a failed solve: a custom term's own exception unchanged, a core error as
 /// its `genplan.errors` class.
 pub(crate) fn solve_error_to_py(e: genplan_core::projection::SolveError) -> PyErr {
@@ -361,11 +368,7 @@ impl PyProjector {
             }
             Some(out)
         })?;
-        if let Some(e) = outs.iter().position(|o| matches!(o, Some(Err(_)))) {
-            let Some(Some(Err(e))) = outs.into_iter().nth(e) else { unreachable!("position found an error") };
-            return Err(solve_error_to_py(e));
-        }
-        let outs: Vec<genplan_core::projection::Outcome> = outs.into_iter().flatten().flatten().collect();
+        let outs: Vec<genplan_core::projection::Outcome> = first_failure(outs)?.into_iter().flatten().collect();
         let nt = solver.primary.len();
         let q = Array::from_shape_vec(IxDyn(&[n, nq]), outs.iter().flat_map(|o| o.q.iter().copied()).collect())
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
