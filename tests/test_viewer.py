@@ -457,3 +457,26 @@ def test_bad_clouds(panda, tmp_path):
     with pytest.raises(ShapeError, match="clouds: expected a mapping"):
         viewer.export_html(panda, path, tmp_path / "a.html", clouds=np.zeros((4, 3)))  # type: ignore[arg-type]
     assert not (tmp_path / "a.html").exists()
+
+
+@pytest.mark.parametrize("shape", ["hull", "mesh", "decomposed"])
+def test_mesh_obstacles_are_drawn_as_collision_keeps_them(tmp_path, shape):
+    """A non-convex mesh (an L of two cubes) is drawn as its convex hull when the scene keeps it
+    as one, and as its own triangles when it is kept as a mesh or decomposed: the drawing never
+    shows a filled corner the planner treats as free."""
+    import trimesh
+
+    from genplan.scene import Mesh, Pose, Scene
+
+    ell = trimesh.util.concatenate([trimesh.creation.box(extents=(1, 1, 1)),
+                                    trimesh.creation.box(extents=(1, 1, 1), transform=trimesh.transformations.translation_matrix((1, 0, 0))),
+                                    trimesh.creation.box(extents=(1, 1, 1), transform=trimesh.transformations.translation_matrix((0, 1, 0)))])
+    path = tmp_path / "ell.obj"
+    ell.export(path)
+    scene = Scene(name="ell", obstacles=(Mesh("ell", path, scale=(0.1, 0.1, 0.1), pose=Pose(position=(0.5, 0, 0.2)), shape=shape),))
+    _, ((name, v, f),) = viewer._scene_shapes(scene)
+    drawn = trimesh.Trimesh(v, f)
+    expected = (ell.convex_hull if shape == "hull" else ell).volume * 1e-3
+    assert name == "ell"
+    assert drawn.volume == pytest.approx(expected, rel=1e-6)
+    assert np.allclose(drawn.bounds, [[0.45, -0.05, 0.15], [0.65, 0.15, 0.25]], atol=1e-6)

@@ -371,8 +371,9 @@ def _scene_shapes(scene: Any) -> tuple[list[tuple[str, NDArray[np.float64], floa
             m = tc.capsule(height=float(o.length), radius=float(o.radius), count=(16, 16))
         elif isinstance(o, Mesh):
             loaded = trimesh.load_mesh(str(o.path))
-            # collision treats a mesh obstacle as its convex hull (docs/SCENES.md): draw that
-            m = loaded.convex_hull
+            # drawn as collision keeps it (docs/SCENES.md): the convex hull for "hull"; the
+            # triangles for "mesh", and for "decomposed", whose convex parts follow the triangles
+            m = loaded.convex_hull if o.shape == "hull" else loaded
             m.apply_scale(np.asarray(o.scale, dtype=np.float64))
         else:  # pragma: no cover - Scene admits only the classes above
             raise GenplanError(f"scene '{s.name}': cannot draw {type(o).__name__} '{o.name}'")
