@@ -465,6 +465,82 @@ def baxter_tray(res: Results) -> str:
                 "max velocity / limit", "grip error mm (max)", "tray tilt mrad (max)", "median plan ms"], rows)
 
 
+
+def _load(r: Any) -> str:
+    """A results file's load average (first and last reading), as the text of a cell."""
+    la = r.get("load_average") or r.get("load_average_before_after") or []
+    flat = [float(x) for part in la for x in (part if isinstance(part, list) else [part])]
+    return f"{min(flat):.1f}-{max(flat):.1f}" if flat else "-"
+
+
+def execute_ticks(res: Results) -> str:
+    """The 1 kHz loop per robot: the wall time of a tick (controller, plant, observer, log), the
+    median and the best of the runs, and how much faster than real time the loop runs."""
+    r = res["execute_ticks.json"]
+    rows = [[t["robot"], t["configuration"], str(t["joints"]), f"{t['us_per_tick']:.1f}",
+             f"{t['us_per_tick_min']:.1f}", f"{t['realtime_factor']:.0f}x"] for t in r["ticks"]]
+    return _md(["robot", "controller", "joints", "us / tick (median)", "best run", "real time / wall time (median)"],
+               rows) + f"\n\nLoad average during the run: {_load(r)}."
+
+
+def execute_tracking(res: Results) -> str:
+    """The Panda shelf plans executed with an unknown payload, friction and offsets in the plant:
+    tracking error with and without the disturbance observer, torques, limits, collisions."""
+    r = res["execute.json"]["plans"]
+    d = r["deviations"]
+    rows = []
+    for space, s in r["summary"].items():
+        rows.append([space, str(s["planned"]), f"{s['max_error_mm_dob']:.2f} / {s['max_error_mm_no_dob']:.2f}",
+                     f"{s['error_ratio_min']:.2f} (median {s['error_ratio_median']:.2f})",
+                     f"{s['plans_at_least_3x']} of {s['planned']}",
+                     f"{s['max_torque_ratio_dob']:.2f} / {s['max_torque_ratio_no_dob']:.2f}",
+                     f"{s['plans_colliding_dob']} / {s['plans_colliding_no_dob']}",
+                     f"{s['max_plan_residual_ratio']:.2f} / {s['max_residual_ratio_dob']:.0f}"])
+    table = _md(["controller", "plans", "max tool error mm: DOB / none", "error without / with DOB: min",
+                 "plans with a ratio >= 3", "max torque / limit: DOB / none", "plans touching: DOB / none",
+                 "task residual / tolerance: plan / executed (max)"], rows)
+    return (f"{table}\n\nIn the plant: {d['payload']['mass']} kg at `{d['payload']['link']}` (com "
+            f"{d['payload']['com']}), Coulomb friction {d['coulomb']} N m, viscous {d['viscous']} N m s, "
+            f"offsets {d['offset']} N m, per joint.")
+
+
+def point_clouds(res: Results) -> str:
+    """The Panda shelf scene as a point cloud against its primitives: check cost, agreement with
+    coal, the cost of a new frame, plans."""
+    r = res["point_clouds.json"]
+    c, sp, rp, co = r["check_us"], r["spheres_us"], r["replace_ms"], r["coal"]
+    rows = [["`in_collision` per configuration (median of the rounds)", f"{c['primitives']:.1f} us",
+             f"{c['cloud']:.1f} us ({_x(c['ratio'])})"],
+            ["the sphere checker per configuration", f"{sp['primitives']:.1f} us", f"{sp['cloud']:.1f} us ({_x(sp['ratio'])})"],
+            ["agreement with coal (each ball a coal sphere)", "-",
+             f"{100 * co['agreement']:.2f} % ({co['missed']} missed, {co['extra']} extra)"],
+            [f"replacing the cloud ({r['points']:,} points): with the {100 * r['voxel']:g} cm voxel / without", "-",
+             f"{rp['voxel']:.1f} ms / {rp['no_voxel']:.1f} ms"]]
+    plans = {name: f"{p['planned']} of {p['queries']} ({p['refused']} starts or goals refused); touching the "
+             f"primitives: {p['states_touching']} of {p['states']:,} states, {p['motion_samples_touching']} of "
+             f"{p['motion_samples']:,} motion samples" for name, p in r["plans"].items()}
+    for name, text in plans.items():
+        if name != "primitives":
+            rows.append([f"Table II shelf queries planned, {name.replace('cloud ', 'balls of ')} m",
+                         plans.get("primitives", "-"), text])
+    return (_md(["measure", "primitives", f"cloud ({r['balls']:,} balls of {100 * r['radius']:g} cm)"], rows)
+            + f"\n\n{r['configurations']:,} random configurations; load average {_load(r)}.")
+
+
+def custom_term_data(res: Results) -> str:
+    """Training data for a task with a Python term on 1 and 2 worker processes (and 2 threads),
+    with the control that measures what the machine gave."""
+    r = res["custom_term_data.json"]
+    m, cpu = r["median_seconds"], r["median_cpu_seconds"]
+    rows = [[side.replace("_", " x"), f"{m[side]:.1f}", f"{cpu[side]:.1f}", f"{r['configurations_per_second'][side]:.1f}"]
+            for side in ("process_1", "process_2", "thread_2")]
+    return (_md(["workers", "median s", "median CPU s", "configurations / s"], rows)
+            + f"\n\n{r['n']:,} configurations in shards of {r['shard_size']}, {r['rounds']} rounds; 2 processes over 1: "
+            f"**{r['speedup_2_processes_over_1']:.2f}x** (median of the rounds' ratios "
+            f"{r['speedup_median_of_round_ratios']:.2f}x); the control (pure Python on 1 or 2 processes): "
+            f"{r['control_speedup']:.2f}x; load average {_load(r)}.")
+
+
 TABLES: dict[str, Table] = {
     "table1": Table(("table1_panda_uniform.json", "table1_panda_gan.json", "table1_panda_scipy.json",
                      "table1_talos_uniform.json", "table1_talos_gan.json", "table1_talos_scipy.json"),
@@ -523,6 +599,12 @@ TABLES: dict[str, Table] = {
     "baxter_tray_card": Table(("../../examples/baxter/tray_gan.json",),
                               "genplan train gan --robot examples/baxter/baxter_tray.toml --task examples/baxter/tray.toml "
                               "--seed 0 --out examples/baxter/tray_gan.safetensors", baxter_tray_card),
+    "execute_ticks": Table(("execute_ticks.json",), "python benches/execute.py --plans 0 --repeats 5 --out "
+                           "benches/results/execute_ticks.json", execute_ticks),
+    "execute_tracking": Table(("execute.json",), "python benches/execute.py --plans 20 --out benches/results/execute.json",
+                              execute_tracking),
+    "point_clouds": Table(("point_clouds.json",), "python benches/point_clouds.py --rounds 5", point_clouds),
+    "custom_term_data": Table(("custom_term_data.json",), "python benches/custom_term_data.py", custom_term_data),
     "robots": Table(("robots.json",), "genplan bench robots --samples 10000 --seed 0 --out benches/results/robots.json",
                     robots),
     "xarm_cup": Table(("../../examples/xarm7/upright_cup_gan.json",),
