@@ -7,11 +7,15 @@ observer buys on the Panda's shelf plans.
    configuration: 0.25 of its speed limits' reach, in phase per joint) executed unpaced
    ``--repeats`` times with joint friction, offsets and an unknown payload in the plant; the
    median and the best wall time of the loop per tick (controller + plant RK4 + observer +
-   logging) over the runs, and how much faster than real time the median is. The load average
-   while timing is recorded: on a shared machine the wall times follow the other jobs. Rows: the UR5 in the seq2seq paper's spatula
-   configuration (task space on the spatula point, eq. 23, the pancake), every fixed-base robot
-   of ``genplan bench robots`` in task space on its tool frame (a redundant arm: the damped
-   pseudo-inverse and the null-space posture term), and the 7-joint Panda in joint space.
+   logging) over the runs, how much faster than real time the median is, and the median over
+   the runs of each run's median tick compute time (a tick preempted by another job moves the
+   wall time, not this median). The configurations take turns (one run each per round), so a
+   load that changes while the bench runs reaches every row alike. The load average while
+   timing is recorded: on a shared machine the wall times follow the other jobs. Rows: the UR5
+   in the seq2seq paper's spatula configuration (task space on the spatula point, eq. 23, the
+   pancake), every fixed-base robot of ``genplan bench robots`` in task space on its tool frame
+   (a redundant arm: the damped pseudo-inverse and the null-space posture term), and the
+   7-joint Panda in joint space.
 2. **The observer on 20 Panda shelf plans.** The Table II protocol's queries of
    ``panda_shelf`` (seed ``--seed``), planned with the shipped GAN and shortcuts, timed by
    ``PlanResult.trajectory()`` (TOPP-RA, 1 kHz), executed in the task space of the hand (full
@@ -36,7 +40,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Literal
 
 import numpy as np
 
@@ -94,37 +98,56 @@ def _range(robot: Any, k: int) -> tuple[float, float]:
     return float(robot.lower[qi]), float(robot.upper[qi])
 
 
-def tick_rows(repeats: int) -> list[dict[str, Any]]:
+def tick_configurations() -> list[tuple[dict[str, Any], Callable[[], Any]]]:
+    """Each timed configuration: its row's description and a call running it once (its log)."""
     from genplan.pancake import control as pc
     from genplan.pancake.trajectories import s_curve
 
-    rows = []
     arm = pc.SpatulaArm(disturbances=pc.reference_disturbances(), settle=0.5)
     x = s_curve([0.0, 0.0, 0.0], [0.05, 0.02, -0.4], K=1500)
-    us = [arm.execute(x).us_per_tick for _ in range(repeats)]
-    rows.append({"robot": "ur5", "configuration": "spatula (eq. 23, pancake)", "joints": 6, "ticks": 2000,
-                 "us_per_tick": statistics.median(us), "us_per_tick_runs": us})
+    out: list[tuple[dict[str, Any], Callable[[], Any]]] = [
+        ({"robot": "ur5", "configuration": "spatula (eq. 23, pancake)", "joints": 6}, lambda: arm.execute(x))]
     for name, load in ROBOTS.items():
         robot = load()
         if robot.floating_base:
             continue
         t, q = motion(robot)
-        spaces = ["task", "joint"] if name == "panda" else ["task"]
+        spaces: list[Literal["task", "joint"]] = ["task", "joint"] if name == "panda" else ["task"]
         for space in spaces:
-            ctrl = ControllerSettings(space=space)
-            us = []
-            for _ in range(repeats):
+            def run(robot: Any = robot, t: Any = t, q: Any = q, ctrl: Any = ControllerSettings(space=space)) -> Any:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", control.LimitWarning)
-                    log = control.execute(robot, (t, q), controller=ctrl, disturbances=generic_deviations(robot),
-                                          settle=0.0)
-                us.append(log.us_per_tick)
-            rows.append({"robot": name, "configuration": f"{space} space on {log.meta['frame']}", "joints": robot.nv,
-                         "ticks": len(log.t), "us_per_tick": statistics.median(us), "us_per_tick_runs": us,
-                         "max_error_mm": log.max_tracking_error_mm})
-    for r in rows:
-        r["us_per_tick_min"] = min(r["us_per_tick_runs"])
-        r["realtime_factor"] = 1e3 / r["us_per_tick"]
+                    return control.execute(robot, (t, q), controller=ctrl, disturbances=generic_deviations(robot),
+                                           settle=0.0)
+            out.append(({"robot": name, "space": space, "joints": robot.nv}, run))
+    return out
+
+
+def tick_rows(repeats: int) -> list[dict[str, Any]]:
+    """The rows of part 1. The configurations take turns, one run each per round, so that a load
+    that changes during the bench reaches every row alike (one configuration's runs after
+    another's compared different loads). Per run: the loop's wall time per tick (the mean: a tick
+    preempted by another job counts whole) and the median of the ticks' own compute times, which
+    such ticks do not move."""
+    configurations = tick_configurations()
+    us: list[list[float]] = [[] for _ in configurations]
+    compute: list[list[float]] = [[] for _ in configurations]
+    last: list[Any] = [None] * len(configurations)
+    for _ in range(repeats):
+        for i, (_, run) in enumerate(configurations):
+            log = last[i] = run()
+            us[i].append(log.us_per_tick)
+            compute[i].append(1e6 * float(np.median(log.compute)))
+    rows = []
+    for (row, _), log, wall, tick in zip(configurations, last, us, compute):
+        configuration = row.get("configuration") or f"{row['space']} space on {log.meta['frame']}"
+        row = {"robot": row["robot"], "configuration": configuration, "joints": row["joints"], "ticks": len(log.t),
+               "us_per_tick": statistics.median(wall), "us_per_tick_runs": wall, "us_per_tick_min": min(wall),
+               "realtime_factor": 1e3 / statistics.median(wall), "compute_us_median": statistics.median(tick),
+               "compute_us_runs": tick}
+        if row["configuration"].startswith(("task", "joint")):
+            row["max_error_mm"] = log.max_tracking_error_mm
+        rows.append(row)
     return rows
 
 
@@ -228,9 +251,10 @@ def main() -> None:
     t0 = time.perf_counter()
     ticks = tick_rows(max(1, args.repeats))
     load = os.getloadavg()
-    print(table(["robot", "controller", "joints", "us / tick (median)", "us / tick (best)", "x real time (median)"],
+    print(table(["robot", "controller", "joints", "us / tick (median)", "us / tick (best)", "x real time (median)",
+                 "tick compute us (median)"],
                 [[r["robot"], r["configuration"], r["joints"], r["us_per_tick"], r["us_per_tick_min"],
-                  r["realtime_factor"]] for r in ticks]))
+                  r["realtime_factor"], r["compute_us_median"]] for r in ticks]))
     print(f"load average while timing (1, 5, 15 min): {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f} on "
           f"{os.cpu_count()} cores")
     crit = criterion_ticks()

@@ -147,6 +147,7 @@ def test_execute_prints_the_tick_table_and_the_dob_table(tmp_path, monkeypatch, 
     assert {("ur5", "spatula (eq. 23, pancake)"), ("panda", "task space"), ("panda", "joint space"),
             ("kinova", "task space"), ("xarm7", "task space")} <= robots
     assert all(0 < r["us_per_tick_min"] <= r["us_per_tick"] and r["realtime_factor"] > 0 for r in data["ticks"])
+    assert all(len(r["compute_us_runs"]) == 1 and r["compute_us_median"] > 0 for r in data["ticks"])
     assert len(data["load_average"]) == 3
     row = data["plans"]["rows"][0]
     for space in ("task", "joint"):
@@ -154,6 +155,38 @@ def test_execute_prints_the_tick_table_and_the_dob_table(tmp_path, monkeypatch, 
         assert data["plans"]["summary"][space]["planned"] == 1
     assert data["plans"]["deviations"]["payload"]["mass"] == 0.6
     assert "error ratio without / with the observer" in capsys.readouterr().out
+
+
+def test_execute_tick_rows_take_turns_and_report_the_median_tick_compute() -> None:
+    import numpy as np
+
+    tick_rows = runpy.run_path(str(BENCHES / "execute.py"))["tick_rows"]
+    calls: list[str] = []
+
+    class Log:
+        def __init__(self, name: str, k: int) -> None:
+            self.us_per_tick = 10.0 + k
+            self.compute = np.array([1e-6, 2e-6 + 1e-6 * k, 9e-6])  # a preempted tick does not move the median
+            self.t = np.zeros(3)
+            self.meta = {"frame": "tool"}
+            self.max_tracking_error_mm = 0.5
+
+    def configuration(name: str, row: dict) -> tuple:
+        def run() -> Log:
+            calls.append(name)
+            return Log(name, calls.count(name) - 1)
+        return row, run
+
+    fake = [configuration("a", {"robot": "ur5", "configuration": "spatula (eq. 23, pancake)", "joints": 6}),
+            configuration("b", {"robot": "panda", "space": "task", "joints": 7})]
+    tick_rows.__globals__["tick_configurations"] = lambda: fake
+    rows = tick_rows(3)
+    assert calls == ["a", "b", "a", "b", "a", "b"]
+    assert [r["configuration"] for r in rows] == ["spatula (eq. 23, pancake)", "task space on tool"]
+    for r in rows:
+        assert r["us_per_tick_runs"] == [10.0, 11.0, 12.0] and r["us_per_tick"] == 11.0 and r["us_per_tick_min"] == 10.0
+        assert r["compute_us_runs"] == pytest.approx([2.0, 3.0, 4.0]) and r["compute_us_median"] == pytest.approx(3.0)
+    assert "max_error_mm" not in rows[0] and rows[1]["max_error_mm"] == 0.5
 
 
 def test_free_space_plan_compares_the_same_queries_with_and_without_the_projector(tmp_path, monkeypatch) -> None:
@@ -204,3 +237,4 @@ def test_custom_term_data_times_1_and_2_processes_on_the_same_rows(tmp_path, mon
                                                                / data["median_seconds"]["process_2"])
     assert data["task"]["primary"][1]["entry"] == "tests.custom_terms_example:OnCircle"
     assert data["command"].startswith("python benches/custom_term_data.py --n 8") and data["control_speedup"] is None
+
