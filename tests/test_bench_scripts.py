@@ -238,3 +238,44 @@ def test_custom_term_data_times_1_and_2_processes_on_the_same_rows(tmp_path, mon
     assert data["task"]["primary"][1]["entry"] == "tests.custom_terms_example:OnCircle"
     assert data["command"].startswith("python benches/custom_term_data.py --n 8") and data["control_speedup"] is None
 
+
+def test_roboplan_box_plans_the_same_queries_with_both_planners(tmp_path, monkeypatch, capsys) -> None:
+    pytest.importorskip("roboplan.rrt")
+    out = tmp_path / "roboplan_box.json"
+    _run("roboplan_box.py", ["--queries", "2", "--seed", "3", "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    assert len(data["records"]) == 2 and data["ground_drop_m"] >= 0.001
+    for r in data["records"]:
+        for side in ("roboplan", "genplan"):
+            assert r[side]["success"] and r[side]["length"] > 0
+        assert r["genplan"]["free_for_itself"]  # genplan's path, checked again every 0.01 rad
+        # roboplan's own length metric is the same joint-space L2 length
+        assert r["roboplan"]["length"] == pytest.approx(r["roboplan"]["length_roboplan_metric"], rel=1e-9)
+    assert data["summary"]["both_solved"] == 2
+    assert "genplan length / roboplan's" in capsys.readouterr().out
+
+
+def test_gan_training_times_both_builds_on_a_short_run(tmp_path, monkeypatch, capsys) -> None:
+    import shutil
+
+    import genplan
+
+    # the baseline is a copy of the installed package: the same code in another folder
+    before = tmp_path / "before"
+    shutil.copytree(Path(genplan.__file__).parent, before / "genplan", ignore=shutil.ignore_patterns("__pycache__"))
+    out = tmp_path / "gan_training.json"
+    _run("gan_training.py", ["--robot", "panda", "--task", "panda_ik", "--iterations", "3", "--data-rows", "20",
+                             "--data-size", "200", "--rounds", "1", "--baseline", str(before), "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    for build in ("this", "baseline"):
+        train, gen = data["summary"][build]["train"], data["summary"][build]["data"]
+        assert train["iterations"] == 3 and train["median_cpu_s"] > 0 and train["cpu_ms_per_iteration"] > 0
+        assert train["full_run_cpu_s_estimate"] > train["median_setup_cpu_s"] and gen["rows"] == 20
+    assert data["measurements"]["baseline"]["train"][0]["genplan"].startswith(str(before))
+    assert set(data["ratio_this_over_baseline"]) == {"train", "data"}
+
+
+def test_gan_training_refuses_a_folder_without_a_package(tmp_path, monkeypatch, capsys) -> None:
+    with pytest.raises(SystemExit):
+        _run("gan_training.py", ["--baseline", str(tmp_path), "--rounds", "1"], monkeypatch)
+    assert "--baseline: expected a folder holding a genplan package" in capsys.readouterr().err

@@ -438,6 +438,24 @@ def motion(res: Results) -> str:
                 "genplan exact: the same"], rows)
 
 
+
+def roboplan_box(res: Results) -> str:
+    """roboplan's own UR5 example scene: its RRT-Connect + shortcutting against genplan's
+    RRT-Connect + simplification on the same queries."""
+    r = res["roboplan_box.json"]
+    s = r["summary"]
+    rows = [[name, f"{s[name]['success_pct']:.0f} %", f"{s[name]['plan_ms_median']:.2f} + {s[name]['shortcut_ms_median']:.2f}",
+             f"{s[name]['length_median']:.3f}", f"{s[name]['paths_free_for_itself']} / {s[name]['paths_free_for_the_other']}"]
+            for name in ("roboplan", "genplan")]
+    return (_md(["planner", "success", "median ms: plan + shortcut", "median path length (rad)",
+                 "paths free every 0.01 rad: by its own checker / the other's"], rows)
+            + f"\n\nOver the {s['both_solved']} queries both solved: genplan's length over roboplan's, median "
+            f"**{s['length_genplan_over_roboplan_median']:.3f}** (mean {s['length_genplan_over_roboplan_mean']:.3f}; "
+            f"longer on {s['queries_genplan_longer']}); over the {s['both_free_for_both']} whose two paths pass every "
+            f"check: median **{s['length_genplan_over_roboplan_median_both_free']:.3f}** (longer on "
+            f"{s['queries_genplan_longer_both_free']}); roboplan's time over genplan's, median "
+            f"{_x(s['time_roboplan_over_genplan_median'])}; roboplan {r['roboplan']['version']}; load average {_load(r)}.")
+
 def jerk_timing(res: Results) -> str:
     """Jerk-limited rest-to-rest moves: genplan's phase-synchronised S-curve against ruckig."""
     s = res["jerk_timing.json"]["summary"]
@@ -477,10 +495,13 @@ def execute_ticks(res: Results) -> str:
     """The 1 kHz loop per robot: the wall time of a tick (controller, plant, observer, log), the
     median and the best of the runs, and how much faster than real time the loop runs."""
     r = res["execute_ticks.json"]
-    rows = [[t["robot"], t["configuration"], str(t["joints"]), f"{t['us_per_tick']:.1f}",
+    def compute(t: Any) -> str:  # recorded since the rows take turns
+        return f"{t['compute_us_median']:.2f}" if "compute_us_median" in t else "-"
+
+    rows = [[t["robot"], t["configuration"], str(t["joints"]), compute(t), f"{t['us_per_tick']:.1f}",
              f"{t['us_per_tick_min']:.1f}", f"{t['realtime_factor']:.0f}x"] for t in r["ticks"]]
-    return _md(["robot", "controller", "joints", "us / tick (median)", "best run", "real time / wall time (median)"],
-               rows) + f"\n\nLoad average during the run: {_load(r)}."
+    return _md(["robot", "controller", "joints", "tick compute us (median)", "loop us / tick with the log (median)",
+                "best run", "real time / wall time (median)"], rows) + f"\n\nLoad average during the run: {_load(r)}."
 
 
 def execute_tracking(res: Results) -> str:
@@ -591,6 +612,7 @@ TABLES: dict[str, Table] = {
     "motion": Table(("motion.json", "motion_ur5.json"),
                     "genplan bench motion --robot {panda,ur5} --problems 20 --seed 0 --out "
                     "benches/results/motion[_ur5].json", motion),
+    "roboplan_box": Table(("roboplan_box.json",), "python benches/roboplan_box.py --queries 50 --seed 0", roboplan_box),
     "jerk_timing": Table(("jerk_timing.json",), "python benches/jerk_timing.py --moves 1000 --seed 0 --out "
                          "benches/results/jerk_timing.json", jerk_timing),
     "baxter_tray": Table(("baxter_tray.json", "baxter_tray_hybrid.json"),
