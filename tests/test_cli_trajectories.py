@@ -185,6 +185,9 @@ def test_adjust_end_to_end(model, family, tmp_path, capsys) -> None:
     summary = json.loads((out / "summary.json").read_text())
     assert code == (0 if summary["failed"] == 0 else 1)
     assert summary["problems"] == 3 and summary["succeeded"] + summary["failed"] == 3
+    # an objective without a clearance term runs one start per problem by default
+    assert summary["starts"] == 1 and summary["restarted"] == 0
+    assert all(r["starts_run"] == 1 and r["start"] == 0 for r in summary["results"])
     printed = capsys.readouterr().out
     assert f"{summary['succeeded']} of 3 problems adjusted" in printed
     if summary["failed"]:
@@ -277,6 +280,8 @@ def test_adjust_refuses_bad_input_naming_the_file_and_the_field(model, tmp_path,
                    "--targets", str(tmp_path / "t.npz")], "unknown frame 'nope'"))
     cases.append((["--input", str(tmp_path / "in.npz"), "--method", "newton"],
                   "argument --method: invalid choice: 'newton' (choose from latent, random-latent, direct)"))
+    cases.append((["--input", str(tmp_path / "in.npz"), "--targets", str(tmp_path / "t.npz"), "--starts", "0"],
+                  "argument --starts"))
     monkeypatch.setattr(adjust_module, "_run", started)
     for extra, message in cases:
         assert main([*base, *extra]) == 2, message

@@ -1,5 +1,6 @@
-"""genplan.seq2seq.adjust: the step rules' arithmetic; blocked ends moved to a clear branch
-(clear_ends) and inputs bent to a new end (aim_inputs)."""
+"""genplan.seq2seq.adjust: the step rules' arithmetic; several starts per problem (the restarts of
+problems left in an obstacle, the finish falling back on another start); blocked ends moved to a
+clear branch (clear_ends) and inputs bent to a new end (aim_inputs)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import pytest
 import torch
 
 from genplan.errors import SettingsError, ShapeError
-from genplan.seq2seq.adjust import _Adam, aim_inputs, clear_ends
+from genplan.seq2seq.adjust import MAX_STARTS, _Adam, adjust, aim_inputs, clear_ends
 
 
 def test_adam_is_torch_adam_step_for_step() -> None:
@@ -93,3 +94,113 @@ def test_clear_ends_refuses_bad_arguments_before_any_work(panda) -> None:
         clear_ends(panda, np.zeros((2, panda.nq)), [world], "hand")
     with pytest.raises(SettingsError, match="margin"):
         clear_ends(panda, np.zeros((1, panda.nq)), world, "hand", margin=-1.0)
+
+
+@pytest.fixture(scope="module")
+def tiny_panda_model(panda):
+    """An untrained small joint-space model of the Panda (8 samples): with the input anchor the
+    adjustment starts from the input itself, whatever the weights."""
+    from genplan.seq2seq.config import joint_space_config
+    from genplan.seq2seq.model import Seq2SeqModel, Seq2SeqNet
+
+    torch.manual_seed(0)
+    cfg = joint_space_config(panda.joint_names, 8, panda.lower, panda.upper, hidden=16, latent=4)
+    return Seq2SeqModel(cfg, Seq2SeqNet(cfg), {"description": "tiny test model"})
+
+
+def _ball_problems(panda):
+    """Two copies of a straight joint-space move (8 samples, the base joint turning 1.6 rad): the
+    first with a ball far from it, the second with a ball of 8 cm on its hand's mid-time
+    position; their avoid_spheres targets."""
+    q0 = np.asarray(panda.q_default, dtype=np.float64)
+    turn = np.zeros(panda.nq)
+    turn[0] = 0.8
+    x = np.linspace(q0 - turn, q0 + turn, 8)[None].repeat(2, 0)
+    mid = panda.frame_positions(x[1, 4:5], "hand")[0]
+    balls = np.array([[[5.0, 5.0, 5.0, 0.08]], [[*mid, 0.08]]])
+    return x, balls
+
+
+def _ball_objective():
+    from genplan.seq2seq.objectives import AvoidSpheres, Objective, StayNear
+
+    return Objective([AvoidSpheres(1e4, margin=0.04), StayNear(1.0)], name="avoid")
+
+
+def test_starts_rerun_only_problems_left_in_an_obstacle_and_keep_the_lowest_objective(panda, tiny_panda_model) -> None:
+    """starts=3: the problem whose path still runs through the ball after its first start runs
+    two more, seeded; the problem clear of its ball runs one start and is the single start's
+    result exactly."""
+    import genplan.seq2seq.adjust as adj
+
+    x, balls = _ball_problems(panda)
+    kw = dict(targets={"avoid_spheres": balls}, updates=3, step="adam", lr=0.02, robot=panda)
+    one = adjust(tiny_panda_model, x, _ball_objective(), starts=1, **kw)
+    three = adjust(tiny_panda_model, x, _ball_objective(), starts=3, **kw)
+    assert one.starts == 1 and one.starts_run.tolist() == [1, 1] and one.start_index.tolist() == [0, 0]
+    assert three.starts == 3 and three.starts_run.tolist() == [1, 3]
+    np.testing.assert_array_equal(three.p[0], one.p[0])
+    np.testing.assert_array_equal(three.objective_history[:, 0], one.objective_history[:, 0])
+    # the kept start is one left clear of the ball when there is one, else the lowest objective
+    obj = _ball_objective()
+    three = adjust(tiny_panda_model, x, obj, starts=3, **kw)
+    if adj._blocked(obj, three.p)[1]:
+        assert three.objective_history[-1, 1] <= one.objective_history[-1, 1]
+    assert three.alternatives[0] == []
+    assert {s for s, _ in three.alternatives[1]} <= {0, 1, 2} - {int(three.start_index[1])}
+    assert all(not np.allclose(p, three.p[1]) for _, p in three.alternatives[1])
+    again = adjust(tiny_panda_model, x, _ball_objective(), starts=3, **kw)
+    np.testing.assert_array_equal(again.p, three.p)  # seeded
+    # the default: several starts for an objective with a clearance term, one without
+    from genplan.seq2seq.adjust import DEFAULT_STARTS
+    from genplan.seq2seq.objectives import Objective, StayNear
+
+    assert adjust(tiny_panda_model, x, _ball_objective(), **kw).starts == DEFAULT_STARTS
+    assert adjust(tiny_panda_model, x, Objective([StayNear(1.0)]), updates=1, robot=panda).starts == 1
+
+
+def test_finish_falls_back_on_another_start_when_the_kept_one_collides(panda, tiny_panda_model) -> None:
+    """A problem whose kept trajectory runs through its ball and whose other start goes around it
+    is finished from that start (start_index says which, starts_finished how many were tried);
+    when every start collides the problem fails with the kept start's reason."""
+    x, balls = _ball_problems(panda)
+    res = adjust(tiny_panda_model, x, _ball_objective(), targets={"avoid_spheres": balls}, updates=0, robot=panda,
+                 starts=1)
+    worlds = []
+    for ball in balls[:, 0]:
+        w = panda.collision_world()
+        w.add_sphere("ball", float(ball[3]), ball[:3])
+        worlds.append(w)
+    assert np.asarray(worlds[1].in_collision(res.p[1])).any()
+    # another start of problem 1: the same move with the elbow bent, the hand clear of the ball
+    around = x[1].copy()
+    around[1:-1, 3] += 0.9
+    assert not np.asarray(worlds[1].in_collision(around)).any()
+    res.alternatives = [[], [(2, x[1].copy()), (1, around)]]
+    fin = res.finish(world=worlds, time_parameterize=False)
+    assert fin.success.tolist() == [True, True]
+    assert fin.start_index.tolist() == [0, 1] and fin.starts_finished.tolist() == [1, 3]
+    assert not np.asarray(worlds[1].in_collision(fin.paths[1])).any()
+    res.alternatives = [[], [(1, x[1].copy())]]
+    fin = res.finish(world=worlds, time_parameterize=False)
+    assert fin.success.tolist() == [True, False] and "collision" in fin.reasons[1]
+    assert fin.start_index.tolist() == [0, 0] and fin.starts_finished.tolist() == [1, 2]
+
+
+def test_starts_refuses_bad_values_before_any_work(panda, tiny_panda_model, monkeypatch) -> None:
+    import genplan.seq2seq.adjust as adj
+
+    def started(*args, **kwargs):
+        raise AssertionError("an update ran before the arguments were checked")
+
+    monkeypatch.setattr(adj, "_run", started)
+    x, balls = _ball_problems(panda)
+    kw = dict(targets={"avoid_spheres": balls}, robot=panda)
+    for bad in (0, -1, 2.0, True, "2", MAX_STARTS + 1):
+        with pytest.raises(SettingsError, match="starts"):
+            adjust(tiny_panda_model, x, _ball_objective(), starts=bad, **kw)
+    for bad in (0.0, -0.5, float("nan"), float("inf"), "a"):
+        with pytest.raises(SettingsError, match="start_spread"):
+            adjust(tiny_panda_model, x, _ball_objective(), start_spread=bad, **kw)
+    with pytest.raises(SettingsError, match="starts > 1 needs an Objective"):
+        adjust(tiny_panda_model, x, lambda r: r.p.square().mean((1, 2)), starts=2, robot=panda)

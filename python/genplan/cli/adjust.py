@@ -3,7 +3,7 @@
 manifold, checked against the scene and timed (:func:`genplan.seq2seq.finish.finish`).
 
     genplan adjust --model shelf.safetensors --input start.npz --objective reach.toml \\
-        --targets goals.npz --out adjusted/ [--method latent] [--updates 40] [--scene panda_shelf]
+        --targets goals.npz --out adjusted/ [--method latent] [--updates 40] [--scene panda_shelf] [--starts 4]
 
 Inputs, each checked (a typed error naming the file and the field, before any work):
 
@@ -17,12 +17,18 @@ Inputs, each checked (a typed error naming the file and the field, before any wo
 * ``--targets``: a ``.npz`` of per-problem targets keyed by the objective's term names (e.g.
   ``end_position``: (B, 3)); optional when every term's target is written in the file.
 
-Writes to ``--out`` (a folder): ``adjusted.npz`` (the adjusted trajectories ``p``, ``v``, ``u``,
-the latent ``z``, per problem ``success``, ``end_error_m``, ``max_residual_ratio``, and the
-objective per update ``objective_history`` (updates + 1, B)); ``objective.json`` (the objective per
-update, per problem and its mean); ``summary.json`` (per problem: success or the reason it
-failed, end error, largest residual over the task's tolerance, its trajectory file; the run's
-settings and times); and ``trajectory_NNNNN.npz`` for each problem that finished (a
+``--starts K``: a problem whose first start leaves a clearance term of the objective positive is
+adjusted again from K - 1 other starts and finished from the first start that passes (see
+:func:`genplan.seq2seq.adjust.adjust`); default 4 for an objective with a clearance term, else 1.
+
+Writes to ``--out`` (a folder): ``adjusted.npz`` (the adjusted trajectories ``p``, ``v``, ``u`` of
+the start each problem kept, the latent ``z``, per problem ``success``, ``end_error_m``,
+``max_residual_ratio``, ``starts_run`` (the starts it ran) and ``start_index`` (the start its
+finished trajectory came from, 0 the input's encoding), and the objective per update
+``objective_history`` (updates + 1, B)); ``objective.json`` (the objective per update, per problem
+and its mean); ``summary.json`` (per problem: success or the reason it failed, end error, largest
+residual over the task's tolerance, the starts it ran and the one it finished from, its trajectory
+file; the run's settings and times); and ``trajectory_NNNNN.npz`` for each problem that finished (a
 :class:`~genplan.trajectory.Trajectory`, as a plan gives: ``genplan execute --trajectory``). A
 ``trajectory_NNNNN.npz`` of an earlier run into the same folder whose problem did not finish this
 time is removed, so the folder holds this run's results only. Every file is written whole or not
@@ -73,7 +79,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the scene (a shipped scene's name or a scene file) of the objective's clearance terms and "
                         "of the finished trajectories' collision checks (default: the --input data set's scene; "
                         "none for a .npz input)")
-    p.add_argument("--seed", type=A.seed, default=0, help="the seed of random-latent's starting z (default 0)")
+    p.add_argument("--seed", type=A.seed, default=0,
+                   help="the seed of random-latent's starting z and of the restarts' starts (default 0)")
+    p.add_argument("--starts", type=A.positive_int, default=None,
+                   help="starts per problem: a problem whose adjusted trajectory leaves a clearance term of the "
+                        "objective positive is adjusted again from the others, and the finish falls back on them "
+                        "(default: genplan.seq2seq.adjust's, see genplan.adjust)")
     A.add_allow_python(p, "--objective")
     p.add_argument("--threads", type=A.positive_int, default=None,
                    help="torch threads (default: genplan's choice, one; $GENPLAN_TORCH_THREADS overrides it too)")
@@ -189,7 +200,7 @@ def main(args: argparse.Namespace) -> int:
     try:  # every argument is checked before any update: errors name the files
         result = adjust(model, x, objective, targets=targets, method=args.method, updates=args.updates, lr=args.lr,
                         step=args.step, seed=args.seed, scene=scene, allow_python=args.allow_python,
-                        progress=not args.no_progress, threads=args.threads)
+                        progress=not args.no_progress, threads=args.threads, starts=args.starts)
     except GenplanError as exc:
         if isinstance(exc, A.UsageError):
             raise
@@ -212,7 +223,8 @@ def main(args: argparse.Namespace) -> int:
     with atomic_path(out / "adjusted.npz") as tmp:
         with open(tmp, "wb") as fh:
             arrays = {"p": result.p, "v": result.v, "u": result.u, "objective_history": result.objective_history,
-                      "success": success, "end_error_m": fin.end_error_m, "max_residual_ratio": fin.max_residual_ratio,
+                      "success": success, "start_index": fin.start_index, "starts_run": result.starts_run,
+                      "end_error_m": fin.end_error_m, "max_residual_ratio": fin.max_residual_ratio,
                       "axes": np.array(model.config.axes)}
             if result.z is not None:
                 arrays["z"] = result.z
@@ -229,10 +241,12 @@ def main(args: argparse.Namespace) -> int:
         "input": {k: v for k, v in source.items() if k != "scene"}, "objective": str(args.objective), "targets": None if args.targets is None else str(args.targets),
         "scene": scene if scene is None or isinstance(scene, str) else getattr(scene, "name", str(scene)),
         "method": result.method, "step": result.step, "lr": result.lr, "updates": result.updates, "seed": args.seed,
+        "starts": result.starts, "restarted": int((result.starts_run > 1).sum()),
         "seconds": {"adjust": result.time_total_s, **{f"finish_{k}": v for k, v in fin.seconds.items()}},
         "objective_first": hist[0].tolist() if b else [], "objective_last": hist[-1].tolist() if b else [],
         "results": [{"problem": i, "success": bool(success[i]), "reason": fin.reasons[i],
                      "end_error_m": _number(fin.end_error_m[i]), "max_residual_ratio": _number(fin.max_residual_ratio[i]),
+                     "starts_run": int(result.starts_run[i]), "start": int(fin.start_index[i]),
                      "trajectory": files[i]} for i in range(b)],
     }
     write_text(out / "summary.json", json.dumps(summary, indent=1, default=json_default) + "\n")

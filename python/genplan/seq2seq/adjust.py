@@ -34,6 +34,7 @@ value per problem, shape (B,) (a 0-d tensor is accepted when B = 1).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -52,7 +53,7 @@ from genplan.seq2seq.model import Seq2SeqModel, check_trajectories, first_nonfin
 from genplan.seq2seq.objectives import Context, Objective, load_objective
 from genplan.seq2seq.plants import Rollout
 
-__all__ = ["adjust", "AdjustResult", "ClearEnds", "clear_ends", "aim_inputs", "METHODS", "STEPS", "ADAPTIVE_RADIUS", "ADAM_LR", "MAX_UPDATES", "method_name"]
+__all__ = ["adjust", "AdjustResult", "ClearEnds", "clear_ends", "aim_inputs", "METHODS", "STEPS", "ADAPTIVE_RADIUS", "ADAM_LR", "MAX_UPDATES", "MAX_STARTS", "DEFAULT_STARTS", "START_SPREAD", "method_name"]
 
 Method = Literal["latent", "random-latent", "direct"]
 METHODS: tuple[str, ...] = ("latent", "random-latent", "direct")
@@ -68,6 +69,18 @@ ADAPTIVE_RADIUS = {"latent": 0.02, "random-latent": 0.02, "direct": 0.02}
 ADAM_LR = {"latent": 0.02, "random-latent": 0.02, "direct": 0.08}
 #: most updates per call (the history keeps one objective per problem and update)
 MAX_UPDATES = 1_000_000
+#: most starts per problem (see :func:`adjust`'s ``starts``)
+MAX_STARTS = 64
+#: a problem runs the other starts when a clearance term of the objective, its margin times this,
+#: is positive after the first start: a robot's sphere nearer an obstacle than that (the spheres
+#: cover the links, so 0: a sample possibly in collision; on the Panda obstacle case 0 restarts
+#: the fewest problems and still every one whose finished trajectory fails its checks)
+RESTART_MARGIN = 0.0
+#: the starts per problem by default for an objective with clearance terms (one otherwise)
+DEFAULT_STARTS = 4
+#: the spread of the restarts' latent starts around the first one (standard deviation, latent
+#: units: the encoder's prior is N(0, I))
+START_SPREAD = 0.5
 
 
 def method_name(method: str) -> str:
@@ -91,6 +104,15 @@ class AdjustResult:
     step), ``time_updates_s`` their sum, ``ms_per_update`` their median over B; ``time_init_s`` is
     the encoder (or decoder) pass that gives the start point. ``context``: what the objective was
     bound to (the robot, task and scene :meth:`finish` uses); ``objective``: what was minimised.
+
+    Several starts (``adjust(..., starts=K)``): ``starts`` is K; ``starts_run[b]`` how many starts
+    problem b ran (1 when its first start left no clearance term positive, else K);
+    ``start_index[b]`` the start whose trajectory the result holds (0: the first, from the input's
+    encoding; j >= 1: the j-th restart): of the starts that leave no clearance term positive (at
+    :data:`RESTART_MARGIN` times its margin) the one of lowest objective, else the lowest of all;
+    the result holds its history, ``z`` and snapshots too; ``alternatives[b]``: the other clear
+    starts' trajectories as (start index, positions (K, d)), lowest objective first, which
+    :meth:`finish` falls back on when the kept one fails its checks.
     """
 
     p: NDArray[np.float64]
@@ -108,6 +130,10 @@ class AdjustResult:
     update_times_s: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     snapshots: dict[int, dict[str, NDArray[np.float64]]] = field(default_factory=dict)
     extras: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    starts: int = 1
+    starts_run: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    start_index: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    alternatives: list[list[tuple[int, NDArray[np.float64]]]] = field(default_factory=list, repr=False)
     model: Seq2SeqModel | None = field(default=None, repr=False)
     context: Context | None = field(default=None, repr=False)
     objective: Any = field(default=None, repr=False)
@@ -129,6 +155,15 @@ class AdjustResult:
         if len(self.update_times_s) == 0 or self.batch == 0:
             return float("nan")
         return 1e3 * float(np.median(self.update_times_s)) / self.batch
+
+    def __post_init__(self) -> None:
+        b = self.batch
+        if len(self.starts_run) != b:
+            self.starts_run = np.ones(b, dtype=np.int64)
+        if len(self.start_index) != b:
+            self.start_index = np.zeros(b, dtype=np.int64)
+        if len(self.alternatives) != b:
+            self.alternatives = [[] for _ in range(b)]
 
     def first_update_below(self, level: float) -> NDArray[np.int64]:
         """Per problem, the first update index whose objective is below ``level`` (-1: never)."""
@@ -194,7 +229,7 @@ def _empty_result(model: Seq2SeqModel, method: str, step: str, lr: float, update
     k, d = cfg.K, cfg.dim
     arrays = {"p": np.zeros((0, k, d)), "v": np.zeros((0, k, d)), "u": np.zeros((0, k, d))}
     extras = {"phi": np.zeros((0, k))} if cfg.plant == "spatula" else {}
-    return AdjustResult(**arrays, objective_history=np.zeros((updates + 1, 0)),
+    return AdjustResult(p=arrays["p"], v=arrays["v"], u=arrays["u"], objective_history=np.zeros((updates + 1, 0)),
                         z=None if method == "direct" else np.zeros((0, cfg.latent_dim)), method=method,
                         step=step, lr=lr, updates=updates, time_init_s=0.0, time_updates_s=0.0, time_total_s=0.0,
                         update_times_s=np.zeros(updates), extras=extras,
@@ -218,7 +253,8 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
            method: str = "latent", updates: int = 100, lr: float | None = None, step: str = "adaptive",
            seed: int = 0, snapshots: Sequence[int] = (), progress: bool = False, max_step: float | None = None,
            robot: Any = None, task: Any = None, scene: Any = None, allow_python: bool = False,
-           anchor: str = "auto", threads: int | None = None, device: str | torch.device = "cpu") -> AdjustResult:
+           anchor: str = "auto", threads: int | None = None, device: str | torch.device = "cpu",
+           starts: int | None = None, start_spread: float = START_SPREAD) -> AdjustResult:
     """Adjust the model's decoding of ``x_in`` to minimise ``objective``.
 
     ``model``: a :class:`~genplan.seq2seq.model.Seq2SeqModel` (or a model file's path).
@@ -242,6 +278,22 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
     "input" for plants that can invert a trajectory (the position plant of robot families),
     "none" otherwise (the pancake's). ``threads``: torch threads (default one, see
     genplan._threads); ``device``: the torch device (CPU by default).
+
+    ``starts``: the starts per problem (default :data:`DEFAULT_STARTS` for an objective with a
+    clearance term, 1 otherwise). With K > 1, a problem whose adjusted
+    trajectory still has a clearance term of the objective positive at :data:`RESTART_MARGIN`
+    times the term's margin (``clearance``, ``avoid_spheres``, ``self_clearance``: a robot sphere
+    of some sample that near an obstacle; without such terms, every problem; not a problem whose
+    start sample itself is blocked, which no start can clear) is adjusted again
+    from K - 1 other starts, all in one batch: the first start's z plus normal noise of
+    ``start_spread`` latent units (seeded by ``seed``), the same updates, step and objective. A gradient method is local: the clearance's
+    gradient from opposite sides of an obstacle cancels and a path that must pass it on the other
+    side never gets there, which another start often does. Each problem keeps, of its starts that
+    leave every clearance term zero at that margin, the one of lowest objective (of all, when
+    none does); the other clear ones stay in the result (``alternatives``), which :meth:`finish`
+    tries in turn when the kept trajectory fails its checks. ``starts_run`` and ``start_index``
+    say what each problem used. Needs an :class:`~genplan.seq2seq.objectives.Objective` (a
+    callable's per-problem values cannot be repeated for the restarts).
 
     Every argument is checked before any update. Every decoded trajectory is finite, or
     FloatingPointError names the problem and the update (as for an objective that becomes NaN or
@@ -287,15 +339,53 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
     else:
         max_step = ADAPTIVE_RADIUS[method] * (_out_rms(model) if method == "direct" else 1.0)
     seed = as_count(seed, "seed", maximum=2**64 - 1)
+    if starts is None:
+        starts = DEFAULT_STARTS if _clearance_terms(obj) else 1
+    starts = as_count(starts, "starts", minimum=1, maximum=MAX_STARTS)
+    start_spread = as_real(start_spread, "start_spread", error=SettingsError)
+    if not (math.isfinite(start_spread) and start_spread > 0):
+        raise SettingsError(f"start_spread must be a positive finite number (latent units), got {start_spread!r}")
+    if starts > 1 and not isinstance(obj, Objective):
+        raise SettingsError("starts > 1 needs an Objective (terms as data, or a file): a callable's per-problem values "
+                            "cannot be repeated for the restarts")
     keep = {as_count(s, "snapshots") for s in snapshots}
     if any(s > updates for s in keep):  # as_count refused negatives
         raise SettingsError(f"snapshots must lie in [0, {updates}], got {sorted(keep)}")
     if b == 0:
-        return _empty_result(model, method, step, float(lr), updates, keep, ctx, obj)
+        res = _empty_result(model, method, step, float(lr), updates, keep, ctx, obj)
+        res.starts = starts
+        return res
     if dev != torch.device("cpu"):
         model.net.to(dev)
-    return _run(model, torch.as_tensor(x, dtype=torch.float32, device=dev), obj, method, updates, float(lr), step,
-                seed, keep, progress, float(max_step), ctx, getattr(obj, "name", "objective"), use_anchor)
+    xt = torch.as_tensor(x, dtype=torch.float32, device=dev)
+    name = getattr(obj, "name", "objective")
+    first = _run(model, xt, obj, method, updates, float(lr), step, seed, keep, progress, float(max_step), ctx, name,
+                 use_anchor)
+    first.starts = starts
+    if starts == 1:
+        return first
+    assert isinstance(obj, Objective)
+    blocked = _blocked(obj, first.p)
+    # a problem whose start itself is blocked (the decoding starts there) no start can clear
+    redo = blocked & ~_blocked(obj, first.p[:, :1]) if _clearance_terms(obj) else np.ones(b, dtype=bool)
+    todo = np.nonzero(redo)[0]
+    if len(todo) == 0:
+        return first
+    # the restarts: each unresolved problem K - 1 times, the objective bound to that batch (the
+    # targets as bound for the problems), then bound back to the problems for finish
+    rows = np.repeat(todo, starts - 1)
+    bound = {t.name: t.target[torch.as_tensor(rows, device=dev)] for t in obj.terms if t.has_target}
+    ctx_r = dataclasses.replace(ctx, batch=len(rows), x_in=ctx.x_in[torch.as_tensor(rows)], targets=bound, _scope=None)
+    obj.bind(ctx_r)
+    gen = torch.Generator().manual_seed(int(seed))
+    noise = start_spread * torch.randn(len(rows), model.config.latent_dim, generator=gen)
+    try:
+        again = _run(model, xt[torch.as_tensor(rows, device=dev)], obj, method, updates, float(lr), step,
+                     (seed + 1) % 2**64, keep, progress, float(max_step), ctx_r, name, use_anchor, perturb=noise.to(dev))
+        blocked_again = _blocked(obj, again.p)
+    finally:
+        obj.bind(ctx)
+    return _merge(first, again, todo, starts, blocked, blocked_again)
 
 
 def _context(model: Seq2SeqModel, x: NDArray[np.float64], targets: dict[str, Any], robot: Any, task: Any,
@@ -330,8 +420,9 @@ def _context(model: Seq2SeqModel, x: NDArray[np.float64], targets: dict[str, Any
 
 def _run(model: Seq2SeqModel, xt: Tensor, obj: Callable[[Rollout], Tensor], method: str, updates: int, lr: float,
          step: str, seed: int, keep: set[int], progress: bool, max_step: float, ctx: Context,
-         name: str, anchor: bool) -> AdjustResult:
-    """The update loop of :func:`adjust` (arguments checked)."""
+         name: str, anchor: bool, perturb: Tensor | None = None) -> AdjustResult:
+    """The update loop of :func:`adjust` (arguments checked); ``perturb`` (B, latent) is added to
+    each problem's starting z (after the anchor's offset is taken at the unperturbed z)."""
     b = xt.shape[0]
     t_start = time.perf_counter()
     x0 = model.start(xt)
@@ -354,6 +445,8 @@ def _run(model: Seq2SeqModel, xt: Tensor, obj: Callable[[Rollout], Tensor], meth
             # adjustment starts from the input trajectory itself, not from its reconstruction
             z_in = var if method != "random-latent" else model.encode(xt, sign)
             offset = model.plant.inputs(xt, x0) - outputs(z_in)
+        if perturb is not None:
+            var = var + perturb
         if method == "direct":
             var = outputs(var) + (offset if offset is not None else 0.0)
     var = var.clone().requires_grad_(True)
@@ -462,6 +555,79 @@ def _run(model: Seq2SeqModel, xt: Tensor, obj: Callable[[Rollout], Tensor], meth
         z=None if method == "direct" else var_out.double().cpu().numpy(), method=method, step=step, lr=lr,
         updates=updates, time_init_s=t_init, time_updates_s=float(times.sum()), time_total_s=t_total,
         update_times_s=times, snapshots=snaps, extras=arrays, model=model, context=ctx, objective=obj)
+
+
+def _clearance_terms(obj: Any) -> list[str]:
+    """The names of the clearance terms of ``obj`` (``clearance``, ``avoid_spheres``,
+    ``self_clearance``; none for a callable)."""
+    from genplan.seq2seq.objectives import Clearance
+
+    return [t.name for t in obj.terms if isinstance(t, Clearance)] if isinstance(obj, Objective) else []
+
+
+def _blocked(obj: Objective, p: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """(B,) the trajectories ``p`` (B, K, d) that leave a clearance term of ``obj`` positive at
+    :data:`RESTART_MARGIN` times its margin (none when ``obj`` has no such term)."""
+    from genplan.seq2seq.objectives import Clearance
+
+    terms = [t for t in obj.terms if isinstance(t, Clearance)]
+    if not terms or len(p) == 0:
+        return np.zeros(len(p), dtype=bool)
+    dev = obj._ctx.device if obj._ctx is not None else torch.device("cpu")
+    pt = torch.as_tensor(p, dtype=torch.float32, device=dev)
+    r = Rollout(p=pt, v=torch.zeros_like(pt), u=torch.zeros_like(pt))
+    margins = [t.margin for t in terms]
+    try:  # the terms' screening cutoffs were set at bind for their full margins: still conservative
+        for t in terms:
+            t.margin = RESTART_MARGIN * t.margin
+        with torch.no_grad():
+            values = [t(r) for t in terms]
+    finally:
+        for t, m in zip(terms, margins):
+            t.margin = m
+    return np.asarray(torch.stack(values).amax(0).cpu().numpy() > 0.0, dtype=bool)
+
+
+def _merge(first: AdjustResult, again: AdjustResult, todo: NDArray[np.int64], starts: int,
+           blocked: NDArray[np.bool_], blocked_again: NDArray[np.bool_]) -> AdjustResult:
+    """``first`` (B problems) with the restarts ``again`` (starts - 1 rows per problem of
+    ``todo``, in order): per problem the starts ranked, those left clear of the obstacles
+    (``blocked``, ``blocked_again`` false: no clearance term positive, see :func:`_blocked`)
+    first, then by final objective; the first kept, the other clear ones kept as alternatives in
+    that order (a blocked trajectory is one the finish's dense check fails or repairs slowly)."""
+    n = starts - 1
+    out = dataclasses.replace(first, extras={k: a.copy() for k, a in first.extras.items()},
+                              snapshots={i: {k: a.copy() for k, a in d.items()} for i, d in first.snapshots.items()})
+    out.p, out.v, out.u = first.p.copy(), first.v.copy(), first.u.copy()
+    out.objective_history = first.objective_history.copy()
+    out.z = None if first.z is None else first.z.copy()
+    out.starts_run = first.starts_run.copy()
+    out.start_index = first.start_index.copy()
+    out.alternatives = [list(a) for a in first.alternatives]
+    for j, i in enumerate(todo):
+        rows = j * n + np.arange(n)
+        finals = np.concatenate([[first.objective_history[-1, i]], again.objective_history[-1, rows]])
+        stuck = np.concatenate([[blocked[i]], blocked_again[rows]])
+        order = np.lexsort((finals, stuck))
+        source = [(first, int(i))] + [(again, int(r)) for r in rows]  # start s: (its result, its row)
+        best, row = source[int(order[0])]
+        out.p[i], out.v[i], out.u[i] = best.p[row], best.v[row], best.u[row]
+        out.objective_history[:, i] = best.objective_history[:, row]
+        if out.z is not None and best.z is not None:
+            out.z[i] = best.z[row]
+        for k in out.extras:
+            out.extras[k][i] = best.extras[k][row]
+        for u, snap in out.snapshots.items():
+            for k in snap:
+                snap[k][i] = best.snapshots[u][k][row]
+        out.starts_run[i] = starts
+        out.start_index[i] = int(order[0])
+        out.alternatives[i] = [(int(s), source[s][0].p[source[s][1]].copy()) for s in order[1:] if not stuck[s]]
+    out.update_times_s = first.update_times_s + again.update_times_s
+    out.time_init_s = first.time_init_s + again.time_init_s
+    out.time_updates_s = first.time_updates_s + again.time_updates_s
+    out.time_total_s = first.time_total_s + again.time_total_s
+    return out
 
 
 #: :func:`clear_ends`: the IK guesses per blocked end (half drawn around the end with the spreads

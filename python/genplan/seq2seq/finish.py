@@ -82,7 +82,11 @@ class FinishResult:
     failed); ``paths`` (the dense paths, or None); ``end_error_m`` (the distance of the end
     target's frame from its target after finishing; NaN without such a term or when the problem
     failed before); ``max_residual_ratio`` (the largest residual over its tolerance along the
-    timed trajectory; NaN for a failure); ``seconds``: the time of each stage for the batch."""
+    timed trajectory; NaN for a failure); ``seconds``: the time of each stage for the batch.
+    After an adjustment with several starts: ``start_index`` the start whose trajectory was
+    finished (see :class:`~genplan.seq2seq.adjust.AdjustResult`), ``starts_finished`` how many of
+    a problem's starts were finished (more than one when the kept one failed and another start's
+    trajectory was tried: the first that passes is the result)."""
 
     success: NDArray[np.bool_]
     trajectories: list[Any]
@@ -91,6 +95,8 @@ class FinishResult:
     end_error_m: NDArray[np.float64]
     max_residual_ratio: NDArray[np.float64]
     seconds: dict[str, float] = field(default_factory=dict)
+    start_index: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    starts_finished: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def batch(self) -> int:
@@ -106,10 +112,23 @@ def _end_target(result: Any) -> tuple[Any, str, NDArray[np.float64]] | None:
     from genplan.seq2seq.objectives import EndPose, EndPosition
 
     obj = getattr(result, "objective", None)
+    rows = getattr(result, "rows", None)  # a _Candidates' problems
     for t in getattr(obj, "terms", ()):
         if isinstance(t, (EndPosition, EndPose)) and t._target is not None:
-            return t, t.frame, t._target.double().cpu().numpy()
+            targets = t._target.double().cpu().numpy()
+            return t, t.frame, targets if rows is None else targets[rows]
     return None
+
+
+@dataclass
+class _Candidates:
+    """Other starts' trajectories of some problems of an adjustment, finished as it is: ``p``
+    (m, K, d), ``rows`` (m,) the problems they belong to."""
+
+    p: NDArray[np.float64]
+    rows: NDArray[np.int64]
+    context: Any
+    objective: Any
 
 
 def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = None,
@@ -281,8 +300,43 @@ def finish(result: Any, *, world: Any = None, robot: Any = None, task: Any = Non
                 end_err[i] = float(np.linalg.norm(pos - goal))
     success = np.array([reasons[i] is None and (trajectories[i] is not None or not time_parameterize)
                         for i in range(b)], dtype=bool)
-    return FinishResult(success=success, trajectories=trajectories, reasons=reasons, paths=paths,
-                        end_error_m=end_err, max_residual_ratio=ratio, seconds=seconds)
+    out = FinishResult(success=success, trajectories=trajectories, reasons=reasons, paths=paths,
+                       end_error_m=end_err, max_residual_ratio=ratio, seconds=seconds,
+                       start_index=np.array(getattr(result, "start_index", np.zeros(b, dtype=np.int64)), dtype=np.int64),
+                       starts_finished=np.ones(b, dtype=np.int64))
+    alternatives = getattr(result, "alternatives", None)
+    if alternatives:
+        _fall_back(out, result, alternatives, worlds, dict(robot=robot, task=task, resolution=resolution,
+                                                           velocity_scale=velocity_scale,
+                                                           acceleration_scale=acceleration_scale, rate_hz=rate_hz,
+                                                           time_parameterize=time_parameterize))
+    return out
+
+
+def _fall_back(out: FinishResult, result: Any, alternatives: list[list[tuple[int, NDArray[np.float64]]]],
+               worlds: list[Any], kwargs: dict[str, Any]) -> None:
+    """The failures of ``out`` finished again from their other starts' trajectories (lowest
+    objective first), round by round, each round one batch; the first that passes replaces the
+    failure (``out`` updated in place; the reason kept is the kept start's)."""
+    t0 = time.perf_counter()
+    for rnd in range(max(len(a) for a in alternatives)):
+        todo = np.array([i for i in range(out.batch) if not out.success[i] and len(alternatives[i]) > rnd], dtype=np.int64)
+        if len(todo) == 0:
+            break
+        cand = _Candidates(p=np.stack([alternatives[i][rnd][1] for i in todo]), rows=todo, context=result.context,
+                           objective=result.objective)
+        again = finish(cand, world=[worlds[i] for i in todo], **kwargs)
+        out.starts_finished[todo] += 1
+        for j, i in enumerate(todo):
+            if again.success[j]:
+                out.success[i] = True
+                out.trajectories[i] = again.trajectories[j]
+                out.reasons[i] = None
+                out.paths[i] = again.paths[j]
+                out.end_error_m[i] = again.end_error_m[j]
+                out.max_residual_ratio[i] = again.max_residual_ratio[j]
+                out.start_index[i] = alternatives[i][rnd][0]
+    out.seconds["other_starts"] = time.perf_counter() - t0
 
 
 def push_clear(q: NDArray[np.float64], world: Any, project: Any, margin: float = CLEAR_MARGIN,
