@@ -61,6 +61,10 @@ PROMP_DEMONSTRATIONS = 300
 #: the obstacle case's Adam learning rate (latent units)
 OBSTACLE_LR = 0.02
 #: the targets on held-out problems (printed beside the rows)
+#: the obstacle case's starts per problem (see genplan.seq2seq.adjust.adjust's ``starts``)
+OBSTACLE_STARTS = 4
+#: the benchmark's rows (``--rows`` runs some of them)
+ROWS = ("latent", "direct", "replanning", "promp", "obstacle")
 TARGETS = {"success_percent": 95.0, "end_error_mm": 1.0, "ms_per_problem": 20.0, "obstacle_success_percent": 90.0}
 
 
@@ -76,8 +80,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--obstacle-radius", type=A.positive_float, default=0.05, help="the obstacle sphere's radius (m)")
     p.add_argument("--obstacle-updates", type=A.positive_int, default=400,
                    help="updates of the obstacle case (Adam, lr OBSTACLE_LR: a detour is a larger change than a new goal)")
+    p.add_argument("--obstacle-starts", type=A.positive_int, default=OBSTACLE_STARTS,
+                   help="starts per problem of the obstacle case (genplan.adjust's starts: a problem whose first start "
+                        "leaves a clearance term positive runs again from the others)")
     p.add_argument("--no-promp", action="store_true", help="skip the ProMP row")
+    p.add_argument("--rows", type=_rows, default=ROWS,
+                   help=f"the rows to run, comma-separated, of {','.join(ROWS)} (default: all; replanning and ProMP "
+                        "start from the latent row's goals and run only with it)")
     p.add_argument("--out", type=A.output_file, default=None)
+
+
+def _rows(text: str) -> tuple[str, ...]:
+    rows = tuple(r.strip() for r in text.split(",") if r.strip())
+    unknown = sorted(set(rows) - set(ROWS))
+    if unknown or not rows:
+        raise argparse.ArgumentTypeError(f"rows must be some of {','.join(ROWS)}, got {text!r}")
+    return rows
 
 
 def objective(frame: str, *, obstacle: bool = False) -> Any:
@@ -126,101 +144,111 @@ def main(args: argparse.Namespace) -> int:
     targets, x_in, idx = problems(data, held_out, robot, frame, args.problems)
     rows: dict[str, Any] = {}
 
-    # latent adjustment + finish
-    t0 = time.perf_counter()
-    lat = adjust(model, x_in, objective(frame), targets={"end_position": targets}, updates=args.updates, scene=scene)
-    t_adjust = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    fin = lat.finish()
-    t_finish = time.perf_counter() - t0
-    rows["latent"] = _finish_row(fin, (t_adjust + t_finish) / args.problems, args.updates)
-    rows["latent"].update(adjust_ms_per_problem=1e3 * t_adjust / args.problems,
-                          finish_ms_per_problem=1e3 * t_finish / args.problems, finish_stages_s=fin.seconds,
-                          failure_reasons=_reasons(fin.reasons))
-    _say("latent", rows["latent"])
+    if set(args.rows) & {"latent", "direct", "replanning", "promp"}:
+        # latent adjustment + finish
+        t0 = time.perf_counter()
+        lat = adjust(model, x_in, objective(frame), targets={"end_position": targets}, updates=args.updates, scene=scene)
+        t_adjust = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        fin = lat.finish()
+        t_finish = time.perf_counter() - t0
+        rows["latent"] = _finish_row(fin, (t_adjust + t_finish) / args.problems, args.updates)
+        rows["latent"].update(adjust_ms_per_problem=1e3 * t_adjust / args.problems,
+                              finish_ms_per_problem=1e3 * t_finish / args.problems, finish_stages_s=fin.seconds,
+                              failure_reasons=_reasons(fin.reasons))
+        _say("latent", rows["latent"])
 
-    # direct optimisation of the same objective from the same starts
-    t0 = time.perf_counter()
-    dire = adjust(model, x_in, objective(frame), targets={"end_position": targets}, method="direct",
-                  updates=args.direct_updates, scene=scene)
-    t_direct = time.perf_counter() - t0
-    level = lat.objective_history[-1]
-    reach = np.array([np.argmax(dire.objective_history[:, i] <= level[i]) if (dire.objective_history[:, i] <= level[i]).any()
-                      else -1 for i in range(args.problems)])
-    reached = reach >= 0
-    rows["direct"] = {
-        "updates": args.direct_updates, "reached_latent_level_percent": 100.0 * float(reached.mean()),
-        "median_updates_to_latent_level": float(np.median(reach[reached])) if reached.any() else None,
-        "update_ratio_to_latent": (float(np.median(reach[reached])) / args.updates) if reached.any() else None,
-        "ms_per_update_per_problem": 1e3 * t_direct / args.direct_updates / args.problems,
-        "latent_ms_per_update_per_problem": 1e3 * t_adjust / args.updates / args.problems,
-        "median_objective_final": float(np.median(dire.objective_history[-1])),
-        "latent_median_objective_final": float(np.median(level)),
-    }
+        if "direct" in args.rows:
+            # direct optimisation of the same objective from the same starts
+            t0 = time.perf_counter()
+            dire = adjust(model, x_in, objective(frame), targets={"end_position": targets}, method="direct",
+                          updates=args.direct_updates, scene=scene)
+            t_direct = time.perf_counter() - t0
+            level = lat.objective_history[-1]
+            reach = np.array([np.argmax(dire.objective_history[:, i] <= level[i]) if (dire.objective_history[:, i] <= level[i]).any()
+                              else -1 for i in range(args.problems)])
+            reached = reach >= 0
+            rows["direct"] = {
+                "updates": args.direct_updates, "reached_latent_level_percent": 100.0 * float(reached.mean()),
+                "median_updates_to_latent_level": float(np.median(reach[reached])) if reached.any() else None,
+                "update_ratio_to_latent": (float(np.median(reach[reached])) / args.updates) if reached.any() else None,
+                "ms_per_update_per_problem": 1e3 * t_direct / args.direct_updates / args.problems,
+                "latent_ms_per_update_per_problem": 1e3 * t_adjust / args.updates / args.problems,
+                "median_objective_final": float(np.median(dire.objective_history[-1])),
+                "latent_median_objective_final": float(np.median(level)),
+            }
 
-    _say("direct", rows["direct"])
-    # replanning from scratch to the goal the latent method reached
-    rows["replanning"] = _replan(robot, task, scene, x_in, fin, args.replan)
-    _say("replanning", rows["replanning"])
+            _say("direct", rows["direct"])
 
-    # ProMP on the same data, conditioned on the same start and goal configurations
-    if not args.no_promp:
-        rows["promp"] = _promp(data, robot, task, scene, x_in, fin, frame, targets)
-        _say("promp", rows["promp"])
+        if "replanning" in args.rows:
+            # replanning from scratch to the goal the latent method reached
+            rows["replanning"] = _replan(robot, task, scene, x_in, fin, args.replan)
+            _say("replanning", rows["replanning"])
 
-    # a new obstacle on each original path at mid-time
-    mid = robot.frame_positions(x_in[:, x_in.shape[1] // 2], frame)
-    spheres = np.concatenate([mid, np.full((args.problems, 1), args.obstacle_radius)], 1)[:, None, :]
-    own_end = robot.frame_positions(x_in[:, -1], frame)
-    worlds = []
-    for i in range(args.problems):
-        w = robot.collision_world()
-        if scene is not None:
-            w.add_scene(scene)
-        w.add_sphere("obstacle", args.obstacle_radius, mid[i])
-        worlds.append(w)
-    t0 = time.perf_counter()
-    # an input whose last configuration is in the sphere cannot keep it: it is bent towards a clear
-    # configuration with the frame at the same end position, and the adjustment starts from that
-    ends = clear_ends(robot, x_in[:, -1], worlds, frame, task=task)
-    t_clear_ends = time.perf_counter() - t0
-    obs = adjust(model, aim_inputs(x_in, ends.q), objective(frame, obstacle=True),
-                 targets={"end_position": own_end, "avoid_spheres": spheres},
-                 updates=args.obstacle_updates, step="adam", lr=OBSTACLE_LR, scene=scene)
-    t_obs_adjust = time.perf_counter() - t0 - t_clear_ends
-    fin_obs = obs.finish(world=worlds)
-    t_obs = time.perf_counter() - t0
-    inputs_hit = sum(bool(np.any(worlds[i].in_collision(x_in[i]))) for i in range(args.problems))
-    # a start in the sphere (another link than the frame passing through it) leaves no motion clear of it
-    starts_hit = np.array([bool(worlds[i].in_collision(x_in[i, 0])) for i in range(args.problems)])
-    ends_hit = np.array([bool(worlds[i].in_collision(x_in[i, -1])) for i in range(args.problems)])
-    free = ~starts_hit & ~ends_hit
-    rows["obstacle"] = _finish_row(fin_obs, t_obs / args.problems, args.obstacle_updates)
-    rows["obstacle"].update(radius_m=args.obstacle_radius, inputs_in_collision_percent=100.0 * inputs_hit / args.problems,
-                            starts_in_collision_percent=100.0 * float(starts_hit.mean()),
-                            ends_in_collision_percent=100.0 * float(ends_hit.mean()),
-                            free_problems=int(free.sum()),
-                            free_success_percent=100.0 * float(fin_obs.success[free].mean()) if free.any() else float("nan"),
-                            ends_reaimed=int(ends.found.sum()), ends_without_clear_configuration=int((ends.blocked & ~ends.found).sum()),
-                            reaimed_success_percent=(100.0 * float(fin_obs.success[ends.found].mean()) if ends.found.any()
-                                                     else float("nan")),
-                            median_end_move_rad=float(np.median(ends.moved[ends.found])) if ends.found.any() else float("nan"),
-                            clear_ends_ms_per_problem=1e3 * t_clear_ends / args.problems,
-                            adjust_ms_per_problem=1e3 * t_obs_adjust / args.problems, finish_stages_s=fin_obs.seconds,
-                            failure_reasons=_reasons(fin_obs.reasons))
-    _say("obstacle", rows["obstacle"])
+        if "promp" in args.rows and not args.no_promp:
+            # ProMP on the same data, conditioned on the same start and goal configurations
+            rows["promp"] = _promp(data, robot, task, scene, x_in, fin, frame, targets)
+            _say("promp", rows["promp"])
+
+    if "obstacle" in args.rows:
+        # a new obstacle on each original path at mid-time
+        mid = robot.frame_positions(x_in[:, x_in.shape[1] // 2], frame)
+        spheres = np.concatenate([mid, np.full((args.problems, 1), args.obstacle_radius)], 1)[:, None, :]
+        own_end = robot.frame_positions(x_in[:, -1], frame)
+        worlds = []
+        for i in range(args.problems):
+            w = robot.collision_world()
+            if scene is not None:
+                w.add_scene(scene)
+            w.add_sphere("obstacle", args.obstacle_radius, mid[i])
+            worlds.append(w)
+        t0 = time.perf_counter()
+        # an input whose last configuration is in the sphere cannot keep it: it is bent towards a clear
+        # configuration with the frame at the same end position, and the adjustment starts from that
+        ends = clear_ends(robot, x_in[:, -1], worlds, frame, task=task)
+        t_clear_ends = time.perf_counter() - t0
+        obs = adjust(model, aim_inputs(x_in, ends.q), objective(frame, obstacle=True),
+                     targets={"end_position": own_end, "avoid_spheres": spheres},
+                     updates=args.obstacle_updates, step="adam", lr=OBSTACLE_LR, scene=scene, starts=args.obstacle_starts)
+        t_obs_adjust = time.perf_counter() - t0 - t_clear_ends
+        fin_obs = obs.finish(world=worlds)
+        t_obs = time.perf_counter() - t0
+        inputs_hit = sum(bool(np.any(worlds[i].in_collision(x_in[i]))) for i in range(args.problems))
+        # a start in the sphere (another link than the frame passing through it) leaves no motion clear of it
+        starts_hit = np.array([bool(worlds[i].in_collision(x_in[i, 0])) for i in range(args.problems)])
+        ends_hit = np.array([bool(worlds[i].in_collision(x_in[i, -1])) for i in range(args.problems)])
+        free = ~starts_hit & ~ends_hit
+        rows["obstacle"] = _finish_row(fin_obs, t_obs / args.problems, args.obstacle_updates)
+        rows["obstacle"].update(radius_m=args.obstacle_radius, inputs_in_collision_percent=100.0 * inputs_hit / args.problems,
+                                starts_in_collision_percent=100.0 * float(starts_hit.mean()),
+                                ends_in_collision_percent=100.0 * float(ends_hit.mean()),
+                                free_problems=int(free.sum()),
+                                free_success_percent=100.0 * float(fin_obs.success[free].mean()) if free.any() else float("nan"),
+                                ends_reaimed=int(ends.found.sum()), ends_without_clear_configuration=int((ends.blocked & ~ends.found).sum()),
+                                reaimed_success_percent=(100.0 * float(fin_obs.success[ends.found].mean()) if ends.found.any()
+                                                         else float("nan")),
+                                median_end_move_rad=float(np.median(ends.moved[ends.found])) if ends.found.any() else float("nan"),
+                                clear_ends_ms_per_problem=1e3 * t_clear_ends / args.problems,
+                                starts=args.obstacle_starts, restarted_problems=int((obs.starts_run > 1).sum()),
+                                success_from_restart=int((fin_obs.success & (fin_obs.start_index > 0)).sum()),
+                                starts_run_mean=float(obs.starts_run.mean()),
+                                adjust_ms_per_problem=1e3 * t_obs_adjust / args.problems, finish_stages_s=fin_obs.seconds,
+                                failure_reasons=_reasons(fin_obs.reasons))
+        _say("obstacle", rows["obstacle"])
 
     print(table(["row", "success %", "end error mm (max)", "residual / tol (max)", "ms / problem"],
                 [[k, f"{r.get('success_percent', float('nan')):.1f}", f"{r.get('max_end_error_mm', float('nan')):.3f}",
                   f"{r.get('max_residual_ratio', float('nan')):.3g}", f"{r.get('ms_per_problem', float('nan')):.1f}"]
                  for k, r in rows.items() if "success_percent" in r]))
-    o = rows["obstacle"]
-    print(f"obstacle: {o['success_percent']:.1f} % of all {args.problems} problems, {o['free_success_percent']:.1f} % of the "
-          f"{o['free_problems']} whose input starts and ends clear of the sphere; {o['ends_reaimed']} inputs ending in it "
-          f"re-aimed at a clear end ({o['reaimed_success_percent']:.1f} % of them succeed)")
-    d = rows["direct"]
-    print(f"direct: {d['reached_latent_level_percent']:.0f} % reach the latent's objective level, median "
-          f"{d['median_updates_to_latent_level']} updates ({d['update_ratio_to_latent']}x the latent's {args.updates})")
+    if "obstacle" in rows:
+        o = rows["obstacle"]
+        print(f"obstacle: {o['success_percent']:.1f} % of all {args.problems} problems, {o['free_success_percent']:.1f} % of the "
+              f"{o['free_problems']} whose input starts and ends clear of the sphere; {o['ends_reaimed']} inputs ending in it "
+              f"re-aimed at a clear end ({o['reaimed_success_percent']:.1f} % of them succeed)")
+    if "direct" in rows:
+        d = rows["direct"]
+        print(f"direct: {d['reached_latent_level_percent']:.0f} % reach the latent's objective level, median "
+              f"{d['median_updates_to_latent_level']} updates ({d['update_ratio_to_latent']}x the latent's {args.updates})")
     out = {"benchmark": "adapt", "machine": machine(), "args": {k: str(v) for k, v in vars(args).items() if k != "func"},
            "model": {"path": str(args.model), "weights_sha256": model.card.get("weights_sha256"),
                      "config": model.config.to_dict(), "training_seconds": model.card.get("training", {}).get("seconds")},
