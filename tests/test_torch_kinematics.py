@@ -29,6 +29,22 @@ def test_frames_and_com_match_pinocchio(name: str) -> None:
             assert np.abs(pos[i].numpy() - ref.translation).max() <= 1e-9
             assert np.abs(rot[i].numpy() - ref.rotation).max() <= 1e-9
         np.testing.assert_allclose(com[i], pin.centerOfMass(robot.model, robot.data, q), atol=1e-9)
+    for f in frames:  # without the joints' pass, a frame's placement runs its own chain: the same numbers
+        rot, pos = kin.frame_placement(qt, f)
+        assert torch.allclose(rot, placements[f][0], rtol=0, atol=1e-12)
+        assert torch.allclose(pos, placements[f][1], rtol=0, atol=1e-12)
+
+
+def test_float32_chain_and_its_gradient_match_the_full_pass(panda: genplan.Robot) -> None:
+    kin = TorchKinematics(panda, dtype=torch.float32)
+    q = torch.tensor(random_configurations(panda, 50, seed=4), dtype=torch.float32, requires_grad=True)
+    rot, pos = kin.frame_placement(q, "hand")
+    (grad_chain,) = torch.autograd.grad((pos.sum() + rot.sum()), q)
+    rot_full, pos_full = kin.frame_placement(q, "hand", kin.joint_placements(q))
+    (grad_full,) = torch.autograd.grad((pos_full.sum() + rot_full.sum()), q)
+    ref = np.array([panda.frame_placement(x, "hand").translation for x in q.detach().double().numpy()])
+    np.testing.assert_allclose(pos.detach().numpy(), ref, atol=1e-5)
+    assert torch.allclose(grad_chain, grad_full, atol=1e-5)
 
 
 def test_gradients_flow_and_match_pinocchio_jacobian(panda: genplan.Robot) -> None:

@@ -42,14 +42,6 @@ def _joint_kind(joint: pin.JointModel) -> tuple[str, tuple[float, float, float] 
     raise RobotFileError(f"joint type {name} is not supported by TorchKinematics")
 
 
-def _skew(v: torch.Tensor) -> torch.Tensor:
-    z = torch.zeros_like(v[..., 0])
-    return torch.stack(
-        [torch.stack([z, -v[..., 2], v[..., 1]], -1),
-         torch.stack([v[..., 2], z, -v[..., 0]], -1),
-         torch.stack([-v[..., 1], v[..., 0], z], -1)], -2)
-
-
 def quaternion_to_matrix(quat: torch.Tensor) -> torch.Tensor:
     """(B, 4) quaternions [x, y, z, w] (normalised here) to (B, 3, 3) rotation matrices."""
     q = quat / quat.norm(dim=-1, keepdim=True)
@@ -61,7 +53,16 @@ def quaternion_to_matrix(quat: torch.Tensor) -> torch.Tensor:
 
 
 class TorchKinematics(torch.nn.Module):
-    """Batched forward kinematics of a :class:`~genplan.robots.Robot` in torch."""
+    """Batched forward kinematics of a :class:`~genplan.robots.Robot` in torch.
+
+    A joint's placement in its parent's is the affine matrix ``[R | p]`` (3 x 4), affine in two
+    numbers ``(a, b)`` of q: ``C0 + a C1 + b C2`` with constant 4 x 4 matrices (Rodrigues' formula
+    with the joint's fixed placement folded in): a revolute joint's sine and cosine of its angle, a
+    continuous joint's [sin, cos] entries of q, a prismatic joint's displacement and 0. So every
+    joint's local placement is a few element-wise operations over the batch and the chain one
+    matrix product per joint, forward and backward; a frame's placement runs only the chain of
+    its joint's ancestors.
+    """
 
     def __init__(self, robot: Robot, dtype: torch.dtype = torch.float64) -> None:
         super().__init__()
@@ -71,90 +72,138 @@ class TorchKinematics(torch.nn.Module):
         self._parents: list[int] = []
         self._kinds: list[str] = []
         self._idx_q: list[int] = []
-        rots, trans, axes, masses, levers = [], [], [], [], []
         for jid in range(1, model.njoints):
-            kind, axis = _joint_kind(model.joints[jid])
+            kind, _ = _joint_kind(model.joints[jid])
             self._parents.append(int(model.parents[jid]))
             self._kinds.append(kind)
             self._idx_q.append(int(model.joints[jid].idx_q))
+        revolute = [iq for kind, iq in zip(self._kinds, self._idx_q) if kind == "revolute"]
+        # (a, b) of each joint as columns of the features [q, sin(revolute q), cos(revolute q), 0]
+        nr, zero = len(revolute), self.nq + 2 * len(revolute)
+        self._a: list[int] = []
+        self._b: list[int] = []
+        c0s, c1s, c2s, rots, trans, masses, levers = [], [], [], [], [], [], []
+        for j, jid in enumerate(range(1, model.njoints)):
+            kind, axis = _joint_kind(model.joints[jid])
+            iq = self._idx_q[j]
             placement = model.jointPlacements[jid]
-            rots.append(np.array(placement.rotation))
-            trans.append(np.array(placement.translation))
-            axes.append(axis or (0.0, 0.0, 0.0))
+            r0, p0 = np.array(placement.rotation), np.array(placement.translation)
+            rots.append(r0)
+            trans.append(p0)
+            c0, c1, c2 = np.zeros((4, 4)), np.zeros((4, 4)), np.zeros((4, 4))
+            c0[:3, :3], c0[:3, 3], c0[3, 3] = r0, p0, 1.0
+            a, b = zero, zero
+            if kind in ("revolute", "continuous"):
+                assert axis is not None
+                # r0 (I + s K + (1 - c) K^2) = r0 (I + K^2) + s r0 K - c r0 K^2
+                k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+                c0[:3, :3] = r0 @ (np.eye(3) + k @ k)
+                c1[:3, :3] = r0 @ k
+                c2[:3, :3] = -r0 @ k @ k
+                if kind == "revolute":
+                    a, b = self.nq + revolute.index(iq), self.nq + nr + revolute.index(iq)
+                else:  # [cos, sin] in q, used as given (Pinocchio's convention: q is normalised)
+                    a, b = iq + 1, iq
+            elif kind == "prismatic":  # rotation r0, translation p0 + d r0 axis
+                c1[:3, 3] = r0 @ np.asarray(axis)
+                a = iq
+            self._a.append(a)
+            self._b.append(b)
+            c0s.append(c0)
+            c1s.append(c1)
+            c2s.append(c2)
             masses.append(float(model.inertias[jid].mass))
             levers.append(np.array(model.inertias[jid].lever))
-        self.register_buffer("_rot0", torch.tensor(np.array(rots), dtype=dtype))
-        self.register_buffer("_trans0", torch.tensor(np.array(trans), dtype=dtype))
-        self.register_buffer("_axes", torch.tensor(np.array(axes), dtype=dtype))
+        self.register_buffer("_revolute_q", torch.tensor(revolute, dtype=torch.long))
+        self.register_buffer("_c0", torch.tensor(np.array(c0s).reshape(-1, 4, 4), dtype=dtype))
+        self.register_buffer("_c1", torch.tensor(np.array(c1s).reshape(-1, 4, 4), dtype=dtype))
+        self.register_buffer("_c2", torch.tensor(np.array(c2s).reshape(-1, 4, 4), dtype=dtype))
+        self.register_buffer("_rot0", torch.tensor(np.array(rots).reshape(-1, 3, 3), dtype=dtype))
+        self.register_buffer("_trans0", torch.tensor(np.array(trans).reshape(-1, 3), dtype=dtype))
         self.register_buffer("_masses", torch.tensor(masses, dtype=dtype))
-        self.register_buffer("_levers", torch.tensor(np.array(levers), dtype=dtype))
+        self.register_buffer("_levers", torch.tensor(np.array(levers).reshape(-1, 3), dtype=dtype))
         self.total_mass = float(sum(masses))
-        self._frames: dict[str, tuple[int, torch.Tensor, torch.Tensor]] = {}
+        self._frames: dict[str, tuple[int, torch.Tensor]] = {}
+        #: per joint list, dtype and device of :meth:`_chain`: the joints' a and b feature columns
+        #: and their C0, C1, C2
+        self._selections: dict[tuple[tuple[int, ...], torch.dtype, torch.device], tuple[torch.Tensor, ...]] = {}
 
-    def joint_placements(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """World placements of every joint (Pinocchio's oMi for i >= 1): (B, J, 3, 3), (B, J, 3)."""
+    def _ancestors(self, joints: list[int]) -> list[int]:
+        """The 0-based joints ``joints`` and all their ancestors, in the model's (parent-first) order."""
+        need: set[int] = set()
+        for j in joints:
+            while j >= 0 and j not in need:
+                need.add(j)
+                j = self._parents[j] - 1
+        return sorted(need)
+
+    def _chain(self, q: torch.Tensor, joints: list[int]) -> dict[int, torch.Tensor]:
+        """World placements (B, 3, 4) of the 0-based ``joints`` (ancestors first, as
+        :meth:`_ancestors` lists them), by joint."""
         if q.shape[-1] != self.nq:
             raise ShapeError(f"q: expected last dimension {self.nq}, got {tuple(q.shape)}")
         batch = q.shape[0]
-        eye = torch.eye(3, dtype=q.dtype, device=q.device)
-        rots: list[torch.Tensor] = []
-        poss: list[torch.Tensor] = []
-        for j, (parent, kind, iq) in enumerate(zip(self._parents, self._kinds, self._idx_q)):
-            r0 = self._rot0[j].to(q.dtype)
-            p0 = self._trans0[j].to(q.dtype)
-            if parent == 0:
-                r_par = r0.expand(batch, 3, 3)
-                p_par = p0.expand(batch, 3)
-            else:
-                rp, pp = rots[parent - 1], poss[parent - 1]
-                r_par = rp @ r0
-                p_par = pp + (rp @ p0.unsqueeze(-1)).squeeze(-1)
-            if kind == "free":
-                rm = quaternion_to_matrix(q[:, iq + 3:iq + 7])
-                rots.append(r_par @ rm)
-                poss.append(p_par + (r_par @ q[:, iq:iq + 3].unsqueeze(-1)).squeeze(-1))
-            elif kind in ("revolute", "continuous"):
-                if kind == "revolute":
-                    theta = q[:, iq].reshape(batch, 1, 1)
-                    sin, cos = torch.sin(theta), torch.cos(theta)
-                else:  # [cos, sin] in q, used as given (Pinocchio's convention: q is normalised)
-                    cos, sin = q[:, iq].reshape(batch, 1, 1), q[:, iq + 1].reshape(batch, 1, 1)
-                k = _skew(self._axes[j].to(q.dtype)).expand(batch, 3, 3)
-                rm = eye + sin * k + (1 - cos) * (k @ k)
-                rots.append(r_par @ rm)
-                poss.append(p_par)
-            else:  # prismatic
-                d = q[:, iq:iq + 1] * self._axes[j].to(q.dtype)
-                rots.append(r_par)
-                poss.append(p_par + (r_par @ d.unsqueeze(-1)).squeeze(-1))
-        return torch.stack(rots, 1), torch.stack(poss, 1)
+        key = (tuple(joints), q.dtype, q.device)
+        if key not in self._selections:
+            sel = torch.tensor(joints, dtype=torch.long)
+            self._selections[key] = (
+                torch.tensor([self._a[j] for j in joints], dtype=torch.long, device=q.device),
+                torch.tensor([self._b[j] for j in joints], dtype=torch.long, device=q.device),
+                *(c[sel].to(q) for c in (self._c0, self._c1, self._c2)))
+        a_col, b_col, c0, c1, c2 = self._selections[key]
+        rev = q.index_select(1, self._revolute_q.to(q.device))
+        feats = torch.cat([q, torch.sin(rev), torch.cos(rev), q.new_zeros(batch, 1)], 1)
+        a, b = feats.index_select(1, a_col)[:, :, None, None], feats.index_select(1, b_col)[:, :, None, None]
+        # (B, n, 4, 4), split by joint in one operation (its backward stacks the gradients once)
+        local = (c0 + a * c1 + b * c2).unbind(1)
+        out: dict[int, torch.Tensor] = {}
+        for i, j in enumerate(joints):
+            m = local[i]
+            if self._kinds[j] == "free":
+                iq = self._idx_q[j]
+                r0, p0 = self._rot0[j].to(q), self._trans0[j].to(q)
+                top = torch.cat([r0 @ quaternion_to_matrix(q[:, iq + 3:iq + 7]),
+                                 (p0 + q[:, iq:iq + 3] @ r0.T).unsqueeze(-1)], -1)
+                m = torch.cat([top, c0[i, 3:].expand(batch, 1, 4)], 1)
+            parent = self._parents[j] - 1
+            out[j] = m[:, :3] if parent < 0 else out[parent] @ m
+        return out
 
-    def _frame(self, frame: str) -> tuple[int, torch.Tensor, torch.Tensor]:
+    def joint_placements(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """World placements of every joint (Pinocchio's oMi for i >= 1): (B, J, 3, 3), (B, J, 3)."""
+        chain = self._chain(q, list(range(len(self._parents))))
+        t = torch.stack([chain[j] for j in range(len(self._parents))], 1)
+        return t[..., :3], t[..., 3]
+
+    def _frame(self, frame: str) -> tuple[int, torch.Tensor]:
+        """The frame's parent joint (1-based, 0: the universe) and its placement there (4 x 4)."""
         if frame not in self._frames:
-            fid = self.robot.frame_id(frame)
-            f = self.robot.model.frames[fid]
-            self._frames[frame] = (
-                int(f.parentJoint),
-                torch.tensor(np.array(f.placement.rotation), dtype=self._rot0.dtype),
-                torch.tensor(np.array(f.placement.translation), dtype=self._rot0.dtype),
-            )
+            f = self.robot.model.frames[self.robot.frame_id(frame)]
+            self._frames[frame] = (int(f.parentJoint), torch.tensor(np.array(f.placement.homogeneous),
+                                                                    dtype=self._c0.dtype))
         return self._frames[frame]
 
     def frame_placement(self, q: torch.Tensor, frame: str,
                         joints: tuple[torch.Tensor, torch.Tensor] | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """World rotation (B, 3, 3) and position (B, 3) of a frame (role or frame name).
-        Pass ``joints`` (from :meth:`joint_placements`) to reuse one forward pass."""
-        rots, poss = self.joint_placements(q) if joints is None else joints
-        parent, r_f, p_f = self._frame(frame)
+        Pass ``joints`` (from :meth:`joint_placements`) to reuse one forward pass; without it,
+        only the joints between the root and the frame are computed."""
+        parent, placement = self._frame(frame)
+        f = placement.to(q)
         if parent == 0:
+            if q.shape[-1] != self.nq:
+                raise ShapeError(f"q: expected last dimension {self.nq}, got {tuple(q.shape)}")
             b = q.shape[0]
-            return r_f.to(q.dtype).expand(b, 3, 3), p_f.to(q.dtype).expand(b, 3)
-        rp, pp = rots[:, parent - 1], poss[:, parent - 1]
-        return rp @ r_f.to(q.dtype), pp + (rp @ p_f.to(q.dtype).unsqueeze(-1)).squeeze(-1)
+            return f[:3, :3].expand(b, 3, 3), f[:3, 3].expand(b, 3)
+        if joints is None:
+            t = self._chain(q, self._ancestors([parent - 1]))[parent - 1] @ f
+            return t[..., :3], t[..., 3]
+        rp, pp = joints[0][:, parent - 1], joints[1][:, parent - 1]
+        return rp @ f[:3, :3], pp + (rp @ f[:3, 3].unsqueeze(-1)).squeeze(-1)
 
     def center_of_mass(self, q: torch.Tensor, joints: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
         """Centre of mass (B, 3), as Pinocchio's ``centerOfMass``."""
         rots, poss = self.joint_placements(q) if joints is None else joints
-        world = poss + (rots @ self._levers.to(q.dtype).unsqueeze(-1)).squeeze(-1)  # (B, J, 3)
-        m = self._masses.to(q.dtype)
+        world = poss + (rots @ self._levers.to(q).unsqueeze(-1)).squeeze(-1)  # (B, J, 3)
+        m = self._masses.to(q)
         return (world * m[None, :, None]).sum(1) / m.sum()

@@ -100,8 +100,11 @@ class _NativeResiduals(torch.autograd.Function):
         qn = q.detach().double().numpy()
         r, jac = cost.evaluate(qn, jacobian=q.requires_grad)
         if jac is not None:
-            # d r / d q = J (tangent) @ d v / d q, one (m, nq) matrix per row
-            ctx.save_for_backward(torch.from_numpy(np.einsum("bmv,bvq->bmq", jac, tangent_map(cost.robot, qn))))
+            # d r / d q = J (tangent) @ d v / d q, one (m, nq) matrix per row; with as many
+            # coordinates as velocities every joint is a vector space and d v / d q the identity
+            if cost.robot.nq != cost.robot.nv:
+                jac = np.einsum("bmv,bvq->bmq", jac, tangent_map(cost.robot, qn))
+            ctx.save_for_backward(torch.from_numpy(jac))
         return torch.from_numpy(r).to(q.dtype)
 
     @staticmethod
@@ -147,9 +150,10 @@ class Constraints:
     def evaluate(self, q: torch.Tensor, constraint: bool = True) -> dict[str, torch.Tensor]:
         """Per-sample quantities for q (B, nq): ee position/rotation, limit and (when
         ``constraint``) constraint costs, and the discriminator's augmented features."""
-        joints = self.kin.joint_placements(q)
+        # without the centre of mass, only the target frame's chain (one arm of a two-arm robot)
+        joints = self.kin.joint_placements(q) if self.with_com else None
         rot, pos = self.kin.frame_placement(q, self.cfg.target_frame, joints)
-        qb = q[:, self.bounded]
+        qb = q.index_select(1, self.bounded)
         limits = (torch.relu(self.lo - qb) ** 2 + torch.relu(qb - self.hi) ** 2).sum(-1)
         out = {"ee_pos": pos, "ee_rot": rot, "limits": limits}
         if constraint:
