@@ -456,6 +456,25 @@ def roboplan_box(res: Results) -> str:
             f"{s['queries_genplan_longer_both_free']}); roboplan's time over genplan's, median "
             f"{_x(s['time_roboplan_over_genplan_median'])}; roboplan {r['roboplan']['version']}; load average {_load(r)}.")
 
+
+def gan_training(res: Results) -> str:
+    """The CPU a default GAN training costs, this build against a baseline build, interleaved."""
+    r = res["gan_training_baxter_tray.json"]
+    s = r["summary"]
+    rows = []
+    for side in ("baseline", "this"):
+        if side in s:
+            t, d = s[side]["train"], s[side]["data"]
+            rows.append([side, f"{t['cpu_ms_per_iteration']:.1f}", f"{t['full_run_cpu_s_estimate'] / 60:.1f}",
+                         f"{d['full_data_cpu_s_estimate'] / 60:.1f}",
+                         f"{(t['full_run_cpu_s_estimate'] + d['full_data_cpu_s_estimate']) / 60:.1f}"])
+    la = r.get("load_average_1min_start_end", [])
+    return (_md(["build", "training CPU ms / iteration", "training CPU min (10,000 iterations, estimated)",
+                 "data CPU min (25,000 rows, estimated)", "total CPU min"], rows)
+            + f"\n\n{r['rounds']} interleaved rounds of {s['this']['train']['iterations']} iterations and "
+            f"{s['this']['data']['rows']:,} rows, {r['torch_threads']} torch thread; load average "
+            f"{min(la):.1f}-{max(la):.1f}." if la else "")
+
 def jerk_timing(res: Results) -> str:
     """Jerk-limited rest-to-rest moves: genplan's phase-synchronised S-curve against ruckig."""
     s = res["jerk_timing.json"]["summary"]
@@ -613,6 +632,8 @@ TABLES: dict[str, Table] = {
                     "genplan bench motion --robot {panda,ur5} --problems 20 --seed 0 --out "
                     "benches/results/motion[_ur5].json", motion),
     "roboplan_box": Table(("roboplan_box.json",), "python benches/roboplan_box.py --queries 50 --seed 0", roboplan_box),
+    "gan_training": Table(("gan_training_baxter_tray.json",), "python benches/gan_training.py --iterations 300 "
+                          "--data-rows 2000 --rounds 3 --baseline DIR", gan_training),
     "jerk_timing": Table(("jerk_timing.json",), "python benches/jerk_timing.py --moves 1000 --seed 0 --out "
                          "benches/results/jerk_timing.json", jerk_timing),
     "baxter_tray": Table(("baxter_tray.json", "baxter_tray_hybrid.json"),
