@@ -299,7 +299,32 @@ fn check_grid_against_every_ball(pts: &[f64], r: f64, seed: u64) -> (usize, usiz
             assert_eq!(grid.any_within(&p, sphere), centers.iter().any(|k| (k - p).norm() <= sphere + r));
         }
     }
+    check_clearance(&grid, &centers, &mut rng);
     (met, missed)
+}
+
+/// The grid's clearance field bounds the distance to the nearest centre from below, at points
+/// anywhere and near the centres, and within four half diagonals of a field cell of it inside
+/// the centres' box (so it clears what it should).
+fn check_clearance(grid: &CloudGrid, centers: &[Point3<f64>], rng: &mut StdRng) {
+    let (lo, hi) = centers.iter().fold((Point3::from([f64::INFINITY; 3]), Point3::from([f64::NEG_INFINITY; 3])), |(a, b), c| (a.inf(c), b.sup(c)));
+    let h = grid.field_cell();
+    let mut cleared = 0;
+    for k in 0..600 {
+        let p = match k % 3 {
+            0 => Point3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)),
+            1 => centers[k % centers.len()] + nalgebra::Vector3::new(rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2)),
+            _ => Point3::from(lo.coords.zip_map(&hi.coords, |a, b| if a < b { rng.random_range(a..=b) } else { a })),
+        };
+        let want = centers.iter().map(|c| (p - c).norm()).fold(f64::INFINITY, f64::min);
+        let got = grid.clearance(&p);
+        assert!(got <= want, "clearance {got} above the distance {want} at {p:?}");
+        if (0..3).all(|i| p[i] >= lo[i] && p[i] <= hi[i]) {
+            assert!(got >= want - 2.0 * 3f64.sqrt() * h - 1e-5, "clearance {got} loose for {want} at {p:?} (cell {h})");
+        }
+        cleared += usize::from(got > 0.0);
+    }
+    assert!(cleared > 0 || centers.len() > 1000, "nothing cleared");
 }
 
 #[test]

@@ -10,9 +10,19 @@
 //! one over the cells (no hierarchy to build: a new frame costs the sort), the number of cells
 //! bounded by [`MAX_CELLS_PER_BALL`] per ball so that a sparse cloud spread over a room stays small.
 //!
+//! A clearance field rides on the grid ([`CloudGrid::clearance`]): on cells half the grid's edge
+//! (while that stays within `FIELD_CELLS_PER_BALL` cells per ball), a lower bound on the
+//! distance to the nearest centre, built with the grid by an exact separable Euclidean distance
+//! transform of the occupied cells. One lookup then clears a sphere whose centre is farther
+//! from every centre than its radius plus the balls' (the sphere checker's spheres, the parts of
+//! a robot shape's box): far from the cloud's surfaces, no ball is visited. The bound only ever
+//! clears what is clear, so the answers stay exact.
+//!
 //! The queries answer for the union of the balls exactly as parry's ball queries do, one ball at
-//! a time, with cheap rejections first: a robot shape is tested ([`CloudGrid::touches`]) against
-//! the balls in its box, each first against the shape's own box in its frame, then against the
+//! a time, with cheap rejections first: a robot shape's box is cut into up to `MAX_PARTS` parts
+//! per axis and the parts the clearance field clears are dropped; the shape is then tested
+//! ([`CloudGrid::touches`]) against the balls near the remaining parts' box, each first against
+//! that box in the shape's frame, then against the
 //! planes that separated the shape from earlier balls of the same query (a dot product each),
 //! then by GJK on the shape's support map, stopped as soon as the ball is found within reach or
 //! a separating plane is found (which joins the planes). Distances ([`CloudGrid::distance`],
@@ -46,6 +56,20 @@ pub const MIN_CELLS: usize = 1 << 15;
 /// Cells per side of a block (the grid's occupancy flags).
 const BLOCK: usize = 4;
 
+/// The clearance field's cells per grid cell along each axis, when the field stays within
+/// [`FIELD_CELLS_PER_BALL`] cells per ball (plus [`MIN_CELLS`]); else one.
+const FIELD_SPLIT: usize = 2;
+
+/// At most this many clearance-field cells per ball (plus [`MIN_CELLS`]).
+const FIELD_CELLS_PER_BALL: usize = 4;
+
+/// At most this many parts per axis a robot shape's box is split into, each part's bounding
+/// sphere tested against the clearance field before any ball is ([`CloudGrid::touches`]).
+const MAX_PARTS: usize = 3;
+
+/// Half a unit cube's diagonal.
+const HALF_DIAGONAL: f64 = 0.8660254037844386;
+
 /// How many separating planes one query keeps (the most recent first).
 const PLANES: usize = 4;
 
@@ -73,6 +97,14 @@ pub struct CloudGrid {
     /// The box of the centres.
     lo: Point3<f64>,
     hi: Point3<f64>,
+    /// The clearance field: cells of edge `fcell` (the grid's cells split [`FIELD_SPLIT`] ways
+    /// per axis when that fits the budget, else the grid's own) from `origin`, `fdims` per
+    /// axis, x fastest; per cell a lower bound (m, rounded down) on the distance from the cell's
+    /// centre to every ball centre ([`CloudGrid::clearance`]).
+    fcell: f64,
+    finv: f64,
+    fdims: [usize; 3],
+    field: Vec<f32>,
 }
 
 /// Cell ranges (inclusive) along each axis.
@@ -133,7 +165,42 @@ impl CloudGrid {
             let (x, y, z) = (k % dims[0], (k / dims[0]) % dims[1], k / (dims[0] * dims[1]));
             blocks[x / BLOCK + block_dims[0] * (y / BLOCK + block_dims[1] * (z / BLOCK))] = true;
         }
-        CloudGrid { radius, origin: lo.coords, cell, inv, dims, start, blocks, block_dims, centers, lo, hi }
+        let split = if dims.iter().map(|&d| d * FIELD_SPLIT).product::<usize>() <= FIELD_CELLS_PER_BALL * n + MIN_CELLS { FIELD_SPLIT } else { 1 };
+        let fdims = dims.map(|d| d * split);
+        let fcell = cell / split as f64;
+        let field = clearance_field(&centers, &lo.coords, 1.0 / fcell, fcell, fdims);
+        CloudGrid { radius, origin: lo.coords, cell, inv, dims, start, blocks, block_dims, centers, lo, hi, fcell, finv: 1.0 / fcell, fdims, field }
+    }
+
+    /// A lower bound on the distance from the world point `p` to every ball centre (possibly
+    /// negative: no bound). For `p` in the centres' box: the field's value at the cell holding
+    /// `p` less the distance from `p` to that cell's centre. Outside: `q`, `p` clamped to the
+    /// box, is bounded so, and a centre `c` in the (convex) box has
+    /// `|p - c|^2 >= |p - q|^2 + |q - c|^2`. A sphere of radius `s` about `p` is clear of every
+    /// ball when this exceeds `s + radius`.
+    #[inline]
+    pub fn clearance(&self, p: &Point3<f64>) -> f64 {
+        let (mut index, mut stride, mut d2, mut gap2) = (0, 1, 0.0, 0.0);
+        for k in 0..3 {
+            let q = p[k].clamp(self.lo[k], self.hi[k]);
+            gap2 += (p[k] - q) * (p[k] - q);
+            let i = (((q - self.origin[k]) * self.finv).max(0.0) as usize).min(self.fdims[k] - 1);
+            let off = q - (self.origin[k] + (i as f64 + 0.5) * self.fcell);
+            d2 += off * off;
+            index += i * stride;
+            stride *= self.fdims[k];
+        }
+        let inside = self.field[index] as f64 - d2.sqrt();
+        if gap2 == 0.0 {
+            inside - EDGE
+        } else {
+            (gap2 + inside.max(0.0).powi(2)).sqrt() - EDGE
+        }
+    }
+
+    /// The clearance field's cell edge (m).
+    pub fn field_cell(&self) -> f64 {
+        self.fcell
     }
 
     /// The balls' radius (m).
@@ -204,14 +271,46 @@ impl CloudGrid {
         let reach = self.radius + margin;
         let grow = Vector3::repeat(reach);
         let (wlo, whi) = (world_aabb.mins - grow, world_aabb.maxs + grow);
-        let Some((a, b)) = self.cells(&wlo, &whi) else { return false };
-        let (lc, lh) = (local_aabb.center().coords, local_aabb.half_extents() + grow);
+        if self.cells(&wlo, &whi).is_none() {
+            return false;
+        }
+        // the parts of the shape's box (up to MAX_PARTS per axis, near cubes) whose bounding
+        // spheres the clearance field cannot clear: a ball within reach of the shape is within
+        // reach of one of them, so only the balls near their union are tested
+        let (mins, maxs) = (local_aabb.mins.coords, local_aabb.maxs.coords);
+        let ext = maxs - mins;
+        let unit = ext.min().max(self.fcell);
+        let parts = ext.map(|e| ((e / unit).round() as usize).clamp(1, MAX_PARTS));
+        let cut = |k: usize, i: usize| if i == parts[k] { maxs[k] } else { mins[k] + ext[k] * i as f64 / parts[k] as f64 };
+        let (mut plo, mut phi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+        for ix in 0..parts[0] {
+            for iy in 0..parts[1] {
+                for iz in 0..parts[2] {
+                    let lo = Vector3::new(cut(0, ix), cut(1, iy), cut(2, iz));
+                    let hi = Vector3::new(cut(0, ix + 1), cut(1, iy + 1), cut(2, iz + 1));
+                    let c = (lo + hi) * 0.5;
+                    if self.clearance(&(pose * Point3::from(c))) > (hi - c).norm() + reach {
+                        continue;
+                    }
+                    plo = plo.inf(&lo);
+                    phi = phi.sup(&hi);
+                }
+            }
+        }
+        if plo.x > phi.x {
+            return false;
+        }
+        let (lc, lh) = ((plo + phi) * 0.5, (phi - plo) * 0.5 + grow);
         let rot = pose.rotation.to_rotation_matrix().into_inner();
         let t = pose.translation.vector;
         let support = shape.as_support_map();
-        // the shape's oriented box grown by the reach: its world centre, and per axis the centre's
-        // coordinate along it
+        // the union's oriented box grown by the reach: its world centre, and per axis the
+        // centre's coordinate along it; the world box is the shape's, clipped to that box's
         let center = pose * Point3::from(lc);
+        let half = rot.abs() * lh;
+        let (wlo, whi) = (wlo.coords.sup(&(center.coords - half)), whi.coords.inf(&(center.coords + half)));
+        let (wlo, whi) = (Point3::from(wlo), Point3::from(whi));
+        let Some((a, b)) = self.cells(&wlo, &whi) else { return false };
         let along = [0, 1, 2].map(|i| rot.column(i).dot(&center.coords));
         // separating planes in the shape's frame: (unit normal, the shape's support value)
         let mut planes = [(Vector3::zeros(), f64::INFINITY); PLANES];
@@ -324,6 +423,9 @@ impl CloudGrid {
     /// the sum of the radii)?
     pub fn any_within(&self, c: &Point3<f64>, sphere: f64) -> bool {
         let r = sphere + self.radius;
+        if self.clearance(c) > r {
+            return false;
+        }
         let grow = Vector3::repeat(r);
         let Some(cells) = self.cells(&(c - grow), &(c + grow)) else { return false };
         let r2 = r * r;
@@ -439,6 +541,80 @@ impl CloudGrid {
 /// The least extent (m) counted in the volume whose cube root widens the cells, so that a flat
 /// or linear cloud (an extent of zero) still gets a finite cell.
 const MIN_CUBE_ROOT_EDGE: f64 = 1e-3;
+
+/// The clearance field of `centers` (see [`CloudGrid::clearance`]): the squared distance in
+/// cells from each cell to the nearest cell holding a centre, by three passes of the exact
+/// separable Euclidean distance transform (Felzenszwalb and Huttenlocher's lower envelope of
+/// parabolas, one axis at a time), then per cell `cell * (sqrt(that) - half a diagonal)`: a
+/// centre lies within half a diagonal of its own cell's centre. Rounded down to `f32`.
+fn clearance_field(centers: &[Point3<f64>], origin: &Vector3<f64>, inv: f64, cell: f64, dims: [usize; 3]) -> Vec<f32> {
+    let n = dims[0] * dims[1] * dims[2];
+    let mut d = vec![FAR; n];
+    for c in centers {
+        let i = |k: usize| (((c[k] - origin[k]) * inv).max(0.0) as usize).min(dims[k] - 1);
+        d[i(0) + dims[0] * (i(1) + dims[1] * i(2))] = 0.0;
+    }
+    let longest = dims.iter().copied().max().unwrap_or(1);
+    let (mut f, mut v, mut z) = (vec![0.0; longest], vec![0usize; longest], vec![0.0; longest + 1]);
+    let strides = [1, dims[0], dims[0] * dims[1]];
+    for axis in 0..3 {
+        let (len, step) = (dims[axis], strides[axis]);
+        // every line along `axis`: its first cell's index runs over the other two axes
+        let (a, b) = ([1, 0, 0][axis], [2, 2, 1][axis]);
+        for j in 0..dims[b] {
+            for i in 0..dims[a] {
+                let first = i * strides[a] + j * strides[b];
+                for (q, fq) in f[..len].iter_mut().enumerate() {
+                    *fq = d[first + q * step];
+                }
+                envelope(&f[..len], &mut v, &mut z, |q, x| d[first + q * step] = x);
+            }
+        }
+    }
+    d.iter()
+        .map(|&e| {
+            let bound = cell * (e.sqrt() - HALF_DIAGONAL);
+            // rounded to f32 (relative error below 1e-7), then down by more than that
+            (bound - 1e-6 * (1.0 + bound.abs())) as f32
+        })
+        .collect()
+}
+
+/// A squared distance larger than any in a field (no centre on the line yet).
+const FAR: f64 = 1e30;
+
+/// One line of the distance transform: `out(q, min over p of (q - p)^2 + f[p])` for each `q`
+/// (`v`, `z`: scratch of `f.len()` and `f.len() + 1`).
+fn envelope(f: &[f64], v: &mut [usize], z: &mut [f64], mut out: impl FnMut(usize, f64)) {
+    let n = f.len();
+    let mut k = 0;
+    v[0] = 0;
+    z[0] = f64::NEG_INFINITY;
+    z[1] = f64::INFINITY;
+    for q in 1..n {
+        let fq = f[q] + (q * q) as f64;
+        // where q's parabola drops below the envelope's last one (z[0] = -inf stops the loop)
+        let meet = |p: usize| (fq - (f[p] + (p * p) as f64)) / (2 * (q - p)) as f64;
+        let mut s = meet(v[k]);
+        while s <= z[k] {
+            k -= 1;
+            s = meet(v[k]);
+        }
+        k += 1;
+        v[k] = q;
+        z[k] = s;
+        z[k + 1] = f64::INFINITY;
+    }
+    k = 0;
+    for q in 0..n {
+        while z[k + 1] < q as f64 {
+            k += 1;
+        }
+        let p = v[k];
+        let dq = q as f64 - p as f64;
+        out(q, dq * dq + f[p]);
+    }
+}
 
 /// The distance from `p` to the box `b` (0 inside).
 #[inline]
