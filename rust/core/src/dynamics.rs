@@ -77,7 +77,7 @@ impl SpatialInertia {
 
     /// The same inertia seen from a parent frame in which this frame sits at (`r`, `p`)
     /// (`x_parent = r x_this + p`).
-    #[inline]
+    #[inline(always)]
     pub fn transformed(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> Self {
         // R I R^T - [h']x[p]x - [p]x[h']x - m [p]x[p]x with h' = R h, using
         // [a]x[b]x = b a^T - (a . b) I
@@ -105,6 +105,7 @@ impl SpatialInertia {
         (v * self.mass - self.h.cross(w), self.i_o * w + self.h.cross(v))
     }
 
+    #[inline]
     fn add(&mut self, o: &SpatialInertia) {
         self.mass += o.mass;
         self.h += o.h;
@@ -156,22 +157,13 @@ pub struct Body {
 impl Body {
     /// The placement rotation in the parent for the joint at cosine `c`, sine `s`:
     /// `r_parent R(axis, c, s)`.
-    #[inline]
+    #[inline(always)]
     fn rotation(&self, c: f64, s: f64) -> Matrix3<f64> {
         match self.principal {
-            Some((k, sign)) => {
-                // about +-e_k: columns a, b turn in their plane, column k stays
-                let (a, b) = ((k + 1) % 3, (k + 2) % 3);
-                let s = sign * s;
-                let r = &self.r_parent;
-                let mut out = *r;
-                for row in 0..3 {
-                    let (ra, rb) = (r[(row, a)], r[(row, b)]);
-                    out[(row, a)] = c * ra + s * rb;
-                    out[(row, b)] = c * rb - s * ra;
-                }
-                out
-            }
+            // about +-e_k: columns k + 1, k + 2 (mod 3) turn in their plane, column k stays
+            Some((0, sign)) => turn_columns::<1, 2>(&self.r_parent, c, sign * s),
+            Some((1, sign)) => turn_columns::<2, 0>(&self.r_parent, c, sign * s),
+            Some((_, sign)) => turn_columns::<0, 1>(&self.r_parent, c, sign * s),
             None => self.r_parent * axis_rotation(&self.axis, c, s),
         }
     }
@@ -184,6 +176,20 @@ impl Body {
             None => rw * self.axis,
         }
     }
+}
+
+/// `r` with its columns `A`, `B` turned in their plane by the angle of cosine `c`, sine `s`:
+/// `r R` for the rotation `R` about the third axis. The columns are constants, so the product is
+/// six multiply-adds without index arithmetic.
+#[inline(always)]
+fn turn_columns<const A: usize, const B: usize>(r: &Matrix3<f64>, c: f64, s: f64) -> Matrix3<f64> {
+    let mut out = *r;
+    for row in 0..3 {
+        let (ra, rb) = (r[(row, A)], r[(row, B)]);
+        out[(row, A)] = c * ra + s * rb;
+        out[(row, B)] = c * rb - s * ra;
+    }
+    out
 }
 
 /// `Some((k, sign))` when the unit `axis` is exactly `sign` times the k-th unit vector.
@@ -309,6 +315,17 @@ enum Pass {
     Local,
     Full,
     World,
+}
+
+/// One body's world placement and velocity as a `World` kinematics pass computes them, with its
+/// joint axis in world axes: handed to the articulated-body algorithm's first pass in the same
+/// loop, without a round trip through the workspace.
+struct WorldMotion {
+    rw: Matrix3<f64>,
+    pw: Vector3<f64>,
+    vw: Vector3<f64>,
+    ww: Vector3<f64>,
+    axis: Vector3<f64>,
 }
 
 /// `(sin x, cos x)` for the small angle of one integration step: their Taylor series (to
@@ -572,7 +589,7 @@ impl Dynamics {
 
     /// Placements and velocities of every body for (q, v) (v = None: at rest).
     pub fn update_kinematics_unchecked(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace) {
-        self.kinematics_pass(q, None, v, ws, Pass::Full);
+        self.kinematics_pass(q, None, v, ws, Pass::Full, |_, _, _, _| {});
     }
 
     /// The kinematics at `q (+) factor dq` (see [`integrate_scaled`](Self::integrate_scaled))
@@ -586,7 +603,19 @@ impl Dynamics {
     /// Jacobians; the body-frame velocities (`v`, `w`) are left stale (not for RNEA). The RK
     /// stages of the 1 kHz plant take their kinematics this way from the period's start.
     pub fn update_kinematics_moved_unchecked(&self, angles: &[[f64; 2]], q: &[f64], dq: &[f64], factor: f64, v: &[f64], ws: &mut DynWorkspace) {
-        self.kinematics_pass(q, Some((angles, dq, factor)), Some(v), ws, Pass::World);
+        self.kinematics_pass(q, Some((angles, dq, factor)), Some(v), ws, Pass::World, |_, _, _, _| {});
+    }
+
+    /// [`update_kinematics_moved_unchecked`](Self::update_kinematics_moved_unchecked) followed
+    /// by [`aba_from_kinematics`](Self::aba_from_kinematics) under `tau`, with the kinematics
+    /// and the articulated-body algorithm's first pass in one loop over the bodies: the same
+    /// arithmetic (the same bits in `qdd` and the workspace) without writing and re-reading each
+    /// body's world placement and velocity or taking its joint axis twice. The RK stages of the
+    /// 1 kHz plant after the first.
+    #[allow(clippy::too_many_arguments)]
+    pub fn aba_moved_unchecked(&self, angles: &[[f64; 2]], q: &[f64], dq: &[f64], factor: f64, v: &[f64], tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
+        self.kinematics_pass(q, Some((angles, dq, factor)), Some(v), ws, Pass::World, |i, b, m, ws| self.aba_first_pass_body(i, b, m, ws));
+        self.aba_inward_outward(tau, ws, qdd)
     }
 
     /// As [`update_kinematics_unchecked`](Self::update_kinematics_unchecked) but without the
@@ -596,12 +625,16 @@ impl Dynamics {
     /// [`forward_dynamics_from_kinematics`](Self::forward_dynamics_from_kinematics), not for
     /// frames and Jacobians.
     pub fn update_local_kinematics_unchecked(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace) {
-        self.kinematics_pass(q, None, v, ws, Pass::Local);
+        self.kinematics_pass(q, None, v, ws, Pass::Local, |_, _, _, _| {});
     }
 
     /// The kinematics at q, or with `moved` = (angles at q, dq, factor) at `q (+) factor dq`.
+    /// A `World` pass hands each body's world motion to `then` once it is written.
     #[inline]
-    fn kinematics_pass(&self, q: &[f64], moved: Option<(&[[f64; 2]], &[f64], f64)>, v: Option<&[f64]>, ws: &mut DynWorkspace, pass: Pass) {
+    fn kinematics_pass<F>(&self, q: &[f64], moved: Option<(&[[f64; 2]], &[f64], f64)>, v: Option<&[f64]>, ws: &mut DynWorkspace, pass: Pass, mut then: F)
+    where
+        F: FnMut(usize, &Body, &WorldMotion, &mut DynWorkspace),
+    {
         for (i, b) in self.bodies.iter().enumerate() {
             let qd = v.map_or(0.0, |v| v[b.v_index]);
             ws.qd[b.v_index] = qd;
@@ -656,6 +689,7 @@ impl Dynamics {
                 ws.pw[i] = pw;
                 ws.vw[i] = vw;
                 ws.ww[i] = ww;
+                then(i, b, &WorldMotion { rw, pw, vw, ww, axis }, ws);
                 continue;
             }
             let rt = r.transpose();
@@ -884,29 +918,43 @@ impl Dynamics {
     /// joint's articulated inertia `S^T IA S` is not positive (a moving body without inertia), as
     /// the mass matrix's Cholesky factor fails.
     pub fn aba_from_kinematics(&self, tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
-        let nb = self.bodies.len();
-        for i in 0..nb {
-            let b = &self.bodies[i];
-            let (rw, pw, w) = (&ws.rw[i], &ws.pw[i], ws.ww[i]);
-            // the spatial velocity at the world origin and the joint's motion subspace S
-            let v = ws.vw[i] + pw.cross(&w);
-            let axis = b.world_axis(rw);
-            let (sv, sw) = match b.kind {
-                JointKind::Revolute | JointKind::Continuous => (pw.cross(&axis), axis),
-                JointKind::Prismatic => (axis, Vector3::zeros()),
-            };
-            let qd = ws.qd[b.v_index];
-            let (jv, jw) = (sv * qd, sw * qd);
-            ws.c_v[i] = w.cross(&jv) + v.cross(&jw);
-            ws.c_w[i] = w.cross(&jw);
-            ws.s_v[i] = sv;
-            ws.s_w[i] = sw;
-            let inertia = b.inertia.transformed(rw, pw);
-            let (f, n) = inertia.apply(&v, &w);
-            ws.f[i] = w.cross(&f);
-            ws.n[i] = w.cross(&n) + v.cross(&f);
-            ws.ia[i] = ArticulatedInertia::rigid(&inertia);
+        for (i, b) in self.bodies.iter().enumerate() {
+            let rw = ws.rw[i];
+            let m = WorldMotion { rw, pw: ws.pw[i], vw: ws.vw[i], ww: ws.ww[i], axis: b.world_axis(&rw) };
+            self.aba_first_pass_body(i, b, &m, ws);
         }
+        self.aba_inward_outward(tau, ws, qdd)
+    }
+
+    /// The articulated-body algorithm's first pass for body `i` moving as `m`: the joint's
+    /// motion subspace, the velocity-product acceleration, the bias force and the rigid
+    /// articulated inertia, in world axes about the world origin.
+    #[inline(always)]
+    fn aba_first_pass_body(&self, i: usize, b: &Body, m: &WorldMotion, ws: &mut DynWorkspace) {
+        let (rw, pw, w, axis) = (&m.rw, &m.pw, m.ww, m.axis);
+        // the spatial velocity at the world origin and the joint's motion subspace S
+        let v = m.vw + pw.cross(&w);
+        let (sv, sw) = match b.kind {
+            JointKind::Revolute | JointKind::Continuous => (pw.cross(&axis), axis),
+            JointKind::Prismatic => (axis, Vector3::zeros()),
+        };
+        let qd = ws.qd[b.v_index];
+        let (jv, jw) = (sv * qd, sw * qd);
+        ws.c_v[i] = w.cross(&jv) + v.cross(&jw);
+        ws.c_w[i] = w.cross(&jw);
+        ws.s_v[i] = sv;
+        ws.s_w[i] = sw;
+        let inertia = b.inertia.transformed(rw, pw);
+        let (f, n) = inertia.apply(&v, &w);
+        ws.f[i] = w.cross(&f);
+        ws.n[i] = w.cross(&n) + v.cross(&f);
+        ws.ia[i] = ArticulatedInertia::rigid(&inertia);
+    }
+
+    /// The articulated-body algorithm's last two passes on the first pass's results in `ws`
+    /// (see [`aba_from_kinematics`](Self::aba_from_kinematics)).
+    fn aba_inward_outward(&self, tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
+        let nb = self.bodies.len();
         for i in (0..nb).rev() {
             let b = &self.bodies[i];
             let ia = ws.ia[i];

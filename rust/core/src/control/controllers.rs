@@ -70,33 +70,38 @@ pub struct JointCommand<'a> {
 /// dynamically sized product gives the same bits as a fixed-size one. `m` is `y.len() x x.len()`.
 pub(crate) fn gemv(m: &DMatrix<f64>, x: &[f64], y: &mut [f64]) {
     let (r, c) = m.shape();
-    let a = m.as_slice();
-    if c == 0 {
-        y.fill(0.0);
+    let y = &mut y[..r];
+    if r == 0 {
         return;
     }
-    for i in 0..r {
-        y[i] = a[i] * x[0];
+    // slices zipped to the same length: no bounds check in the inner loop, which vectorises
+    let mut cols = m.as_slice().chunks_exact(r).zip(&x[..c]);
+    match cols.next() {
+        Some((col, &x0)) => {
+            for (yi, &a) in y.iter_mut().zip(col) {
+                *yi = a * x0;
+            }
+        }
+        None => y.fill(0.0),
     }
-    for j in 1..c {
-        let col = &a[j * r..(j + 1) * r];
-        for i in 0..r {
-            y[i] = col[i] * x[j] + y[i];
+    for (col, &xj) in cols {
+        for (yi, &a) in y.iter_mut().zip(col) {
+            *yi = a * xj + *yi;
         }
     }
 }
 
 /// `y = M^T x` (`m` is `x.len() x y.len()`), each entry summed in row order.
 fn gemv_transposed(m: &DMatrix<f64>, x: &[f64], y: &mut [f64]) {
-    let r = m.nrows();
-    let a = m.as_slice();
-    for (j, yj) in y.iter_mut().enumerate() {
-        let col = &a[j * r..(j + 1) * r];
-        let mut s = 0.0;
-        for i in 0..r {
-            s += col[i] * x[i];
-        }
-        *yj = s;
+    let (r, c) = m.shape();
+    let y = &mut y[..c];
+    if r == 0 {
+        y.fill(0.0);
+        return;
+    }
+    let x = &x[..r];
+    for (yj, col) in y.iter_mut().zip(m.as_slice().chunks_exact(r)) {
+        *yj = col.iter().zip(x).fold(0.0, |s, (&a, &b)| s + a * b);
     }
 }
 

@@ -31,11 +31,27 @@ impl Forces {
     /// the friction `coulomb tanh(v / friction_velocity) + viscous v`, by the articulated-body
     /// algorithm (the result of CRBA + RNEA + Cholesky up to rounding).
     fn accel_from_kinematics(&mut self, tau: &[f64], v: &[f64], out: &mut [f64]) -> Result<()> {
+        self.set_torque(tau, v);
+        self.model.aba_from_kinematics(&self.torque, &mut self.ws, out)
+    }
+
+    /// As [`accel_from_kinematics`](Self::accel_from_kinematics) at the state `q (+) factor dq`
+    /// (speed `v`), its kinematics taken from `angles` (each joint's `[cos, sin]` at `q`) in the
+    /// articulated-body algorithm's first pass
+    /// ([`Dynamics::aba_moved_unchecked`]).
+    #[allow(clippy::too_many_arguments)]
+    fn accel_moved(&mut self, angles: &[[f64; 2]], q: &[f64], dq: &[f64], factor: f64, tau: &[f64], v: &[f64], out: &mut [f64]) -> Result<()> {
+        self.set_torque(tau, v);
+        self.model.aba_moved_unchecked(angles, q, dq, factor, v, &self.torque, &mut self.ws, out)
+    }
+
+    /// `self.torque`: the applied torque `tau` plus the offset minus the friction at speed `v`.
+    #[inline]
+    fn set_torque(&mut self, tau: &[f64], v: &[f64]) {
         for i in 0..tau.len() {
             let fr = self.coulomb[i] * tanh(v[i] / self.friction_velocity) + self.viscous[i] * v[i];
             self.torque[i] = tau[i] + self.offset[i] - fr;
         }
-        self.model.aba_from_kinematics(&self.torque, &mut self.ws, out)
     }
 }
 
@@ -179,20 +195,17 @@ impl Plant {
                 self.vt[i] = v[i] + 0.5 * h * self.k1[i];
             }
             self.v2.copy_from_slice(&self.vt);
-            f.model.update_kinematics_moved_unchecked(&self.angles, q, v, 0.5 * h, &self.vt, &mut f.ws);
-            f.accel_from_kinematics(tau, &self.vt, &mut self.k2)?;
+            f.accel_moved(&self.angles, q, v, 0.5 * h, tau, &self.vt, &mut self.k2)?;
             for i in 0..nv {
                 self.vt[i] = v[i] + 0.5 * h * self.k2[i];
             }
             self.v3.copy_from_slice(&self.vt);
-            f.model.update_kinematics_moved_unchecked(&self.angles, q, &self.v2, 0.5 * h, &self.vt, &mut f.ws);
-            f.accel_from_kinematics(tau, &self.vt, &mut self.k3)?;
+            f.accel_moved(&self.angles, q, &self.v2, 0.5 * h, tau, &self.vt, &mut self.k3)?;
             for i in 0..nv {
                 self.vt[i] = v[i] + h * self.k3[i];
             }
             self.v4.copy_from_slice(&self.vt);
-            f.model.update_kinematics_moved_unchecked(&self.angles, q, &self.v3, h, &self.vt, &mut f.ws);
-            f.accel_from_kinematics(tau, &self.vt, &mut self.k4)?;
+            f.accel_moved(&self.angles, q, &self.v3, h, tau, &self.vt, &mut self.k4)?;
             for i in 0..nv {
                 self.sum[i] = v[i] + 2.0 * self.v2[i] + 2.0 * self.v3[i] + self.v4[i];
             }
