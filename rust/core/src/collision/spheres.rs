@@ -475,9 +475,9 @@ impl SphereWorld {
                     for l in 0..N {
                         let q = qs[l];
                         let t = if *continuous { q[index + 1].atan2(q[*index]) } else { multiplier * q[*index] + offset };
-                        let (sn, cs) = t.sin_cos();
-                        a[0][l] = cs as f32;
-                        a[1][l] = sn as f32;
+                        let (sn, cs) = sin_cos_f32(t);
+                        a[0][l] = cs;
+                        a[1][l] = sn;
                     }
                 }
                 LaneMotion::Prismatic { index, multiplier, offset, .. } => {
@@ -525,35 +525,33 @@ impl SphereWorld {
         let mut hit = [false; N];
         let done = |hit: &[bool; N]| if any { hit.iter().any(|&h| h) } else { (0..N).all(|l| hit[l] || !live[l]) };
         let radius = &self.local[3];
+        // the lane masks combine with `&` and `|` (no short circuit), so that each lane loop
+        // stays one vector instruction per operation
         for (k, ls) in self.links.iter().enumerate() {
             let bc = &s.bounds[k];
+            let reach2 = ls.radius * ls.radius;
+            // lanes still to decide: live and not yet in collision
+            let mut open: [bool; N] = std::array::from_fn(|l| live[l] & !hit[l]);
             for o in &self.obstacles {
                 // lanes where the link's bounding sphere meets the obstacle's box (or plane)
-                let mut near = [false; N];
-                match (&o.aabb, &o.shape) {
-                    (Some((lo, hi)), _) => {
-                        for l in 0..N {
-                            let mut d2 = 0.0;
-                            for i in 0..3 {
-                                let e = (lo[i] - bc[i][l]).max(0.0) + (bc[i][l] - hi[i]).max(0.0);
-                                d2 += e * e;
-                            }
-                            near[l] = live[l] && !hit[l] && d2 <= ls.radius * ls.radius;
-                        }
-                    }
-                    (None, _) => near = std::array::from_fn(|l| live[l] && !hit[l]),
-                }
-                if !near.iter().any(|&n| n) {
+                let near = match &o.aabb {
+                    Some((lo, hi)) => box_near(lo, hi, bc, reach2, &open),
+                    None => open,
+                };
+                if !near.iter().fold(false, |a, &n| a | n) {
                     continue;
                 }
                 for i in ls.start..ls.end {
                     let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK, &near);
                     for l in 0..N {
-                        hit[l] |= h[l] && near[l];
+                        hit[l] |= h[l] & near[l];
                     }
                 }
                 if done(&hit) {
                     return hit;
+                }
+                for l in 0..N {
+                    open[l] &= !hit[l];
                 }
             }
         }
@@ -561,11 +559,16 @@ impl SphereWorld {
             let (la, lb) = (&self.links[a], &self.links[b]);
             let (ca, cb) = (&s.bounds[a], &s.bounds[b]);
             let reach = la.radius + lb.radius;
-            let near: [bool; N] = std::array::from_fn(|l| {
-                let d2 = (0..3).map(|i| (ca[i][l] - cb[i][l]) * (ca[i][l] - cb[i][l])).sum::<f32>();
-                live[l] && !hit[l] && d2 <= reach * reach
-            });
-            if !near.iter().any(|&n| n) {
+            let mut d2 = [0.0f32; N];
+            for i in 0..3 {
+                let (pa, pb) = (&ca[i], &cb[i]);
+                for l in 0..N {
+                    let e = pa[l] - pb[l];
+                    d2[l] += e * e;
+                }
+            }
+            let near: [bool; N] = std::array::from_fn(|l| live[l] & !hit[l] & (d2[l] <= reach * reach));
+            if !near.iter().fold(false, |a, &n| a | n) {
                 continue;
             }
             for i in la.start..la.end {
@@ -577,7 +580,7 @@ impl SphereWorld {
                         let d2 = (p[0][l] - q[0][l]) * (p[0][l] - q[0][l])
                             + (p[1][l] - q[1][l]) * (p[1][l] - q[1][l])
                             + (p[2][l] - q[2][l]) * (p[2][l] - q[2][l]);
-                        hit[l] |= near[l] && d2 <= rr * rr;
+                        hit[l] |= near[l] & (d2 <= rr * rr);
                     }
                 }
             }
@@ -662,6 +665,48 @@ impl SphereWorld {
         }
         out
     }
+}
+
+/// The sine and cosine of the angle `t` (rad) in `f32`, within 2e-7 of the exact values (the
+/// `f32` rounding of the link poses that [`F32_SLACK`] covers is of that order), without a call
+/// to the `f64` library function: `t` reduced to |r| <= pi/4 by the nearest multiple of pi/2 (in
+/// `f64`), then the Taylor series of degree 9 (sine) and 8 (cosine) in `f32` (their truncation
+/// error below 3e-8 there), the quadrant selecting and signing them. Angles beyond 1e6 rad take
+/// the library function.
+#[inline(always)]
+fn sin_cos_f32(t: f64) -> (f32, f32) {
+    if !(t.abs() <= 1e6) {
+        let (sn, cs) = t.sin_cos();
+        return (sn as f32, cs as f32);
+    }
+    let x = t * std::f64::consts::FRAC_2_PI;
+    let k = (x + 0.5f64.copysign(x)) as i64;
+    let r = (t - k as f64 * std::f64::consts::FRAC_PI_2) as f32;
+    let r2 = r * r;
+    let sn = r + r * r2 * (-1.0 / 6.0 + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0 + r2 * (1.0 / 362_880.0))));
+    let cs = 1.0 + r2 * (-0.5 + r2 * (1.0 / 24.0 + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40_320.0))));
+    // t = r + k pi/2: the quadrant k mod 4 rotates (sin r, cos r)
+    let (s, c) = if k & 1 == 0 { (sn, cs) } else { (cs, -sn) };
+    if k & 2 == 0 {
+        (s, c)
+    } else {
+        (-s, -c)
+    }
+}
+
+/// The lanes of `open` where a sphere of squared radius `r2` centred at `c` (per lane) meets the
+/// box `lo`..`hi`: the squared distance from the centre to the box against `r2`.
+#[inline(always)]
+fn box_near<const N: usize>(lo: &[f32; 3], hi: &[f32; 3], c: &[[f32; N]; 3], r2: f32, open: &[bool; N]) -> [bool; N] {
+    let mut d2 = [0.0f32; N];
+    for i in 0..3 {
+        let (a, b, ci) = (lo[i], hi[i], &c[i]);
+        for l in 0..N {
+            let e = (a - ci[l]).max(0.0) + (ci[l] - b).max(0.0);
+            d2[l] += e * e;
+        }
+    }
+    std::array::from_fn(|l| open[l] & (d2[l] <= r2))
 }
 
 /// The joints of `model` that [`KinematicModel::forward_kinematics_prefix`] would run (the first
@@ -801,4 +846,22 @@ fn dispatch_collide<const N: usize>(w: &SphereWorld, s: &SphereScratch<N>, live:
 fn avx2() -> bool {
     static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *HAS.get_or_init(|| is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sin_cos_f32;
+
+    #[test]
+    fn f32_sine_and_cosine_are_within_2e_7_of_the_exact_ones() {
+        let quarter = std::f64::consts::FRAC_PI_4;
+        // a fine grid over +-20 rad, the quadrants' edges and their neighbours, huge angles
+        let grid = (-200_000..=200_000).map(|i| i as f64 * 1e-4);
+        let edges = (-40..=40).flat_map(|k| [-1e-12, 0.0, 1e-12].map(|e| k as f64 * quarter + e));
+        for t in grid.chain(edges).chain([1e6, -1e6, 3.5e7, -2.0e9]) {
+            let (s, c) = sin_cos_f32(t);
+            let (es, ec) = t.sin_cos();
+            assert!((s as f64 - es).abs() < 2e-7 && (c as f64 - ec).abs() < 2e-7, "t {t}: {s} {c} vs {es} {ec}");
+        }
+    }
 }

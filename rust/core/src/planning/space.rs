@@ -27,17 +27,35 @@ pub trait Space: Send + Sync {
 
     /// Tangent distance |q1 (-) q0|.
     fn distance(&self, q0: &[f64], q1: &[f64]) -> f64 {
-        let mut v = vec![0.0; self.nv()];
-        self.difference(q0, q1, &mut v);
-        v.iter().map(|x| x * x).sum::<f64>().sqrt()
+        with_tangent(self.nv(), |v| {
+            self.difference(q0, q1, v);
+            v.iter().map(|x| x * x).sum::<f64>().sqrt()
+        })
     }
 
     /// `out = q0 (+) t (q1 (-) q0)`.
     fn interpolate(&self, q0: &[f64], q1: &[f64], t: f64, out: &mut [f64]) {
-        let mut v = vec![0.0; self.nv()];
-        self.difference(q0, q1, &mut v);
-        v.iter_mut().for_each(|x| *x *= t);
-        self.integrate(q0, &v, out);
+        with_tangent(self.nv(), |v| {
+            self.difference(q0, q1, v);
+            v.iter_mut().for_each(|x| *x *= t);
+            self.integrate(q0, v, out);
+        })
+    }
+}
+
+/// Tangent vectors up to this length live on the stack in [`Space::distance`] and
+/// [`Space::interpolate`] (the planner calls them for every step and edge: no allocation there).
+const STACK_TANGENT: usize = 32;
+
+/// `f` on a zeroed tangent buffer of length `nv`: on the stack up to [`STACK_TANGENT`], else on
+/// the heap.
+#[inline]
+fn with_tangent<R>(nv: usize, f: impl FnOnce(&mut [f64]) -> R) -> R {
+    if nv <= STACK_TANGENT {
+        let mut buf = [0.0; STACK_TANGENT];
+        f(&mut buf[..nv])
+    } else {
+        f(&mut vec![0.0; nv])
     }
 }
 
