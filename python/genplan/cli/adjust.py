@@ -19,7 +19,7 @@ Inputs, each checked (a typed error naming the file and the field, before any wo
 
 ``--starts K``: a problem whose first start leaves a clearance term of the objective positive is
 adjusted again from K - 1 other starts and finished from the first start that passes (see
-:func:`genplan.seq2seq.adjust.adjust`); default 4 for an objective with a clearance term, else 1.
+:func:`genplan.seq2seq.adjust.adjust`); default 8 for an objective with a clearance term, else 1.
 
 Writes to ``--out`` (a folder): ``adjusted.npz`` (the adjusted trajectories ``p``, ``v``, ``u`` of
 the start each problem kept, the latent ``z``, per problem ``success``, ``end_error_m``,

@@ -6,7 +6,8 @@ objective, replanning from scratch, and ProMP conditioning.
 
 Problems: the end targets are the family's frame at the ends of ``--held-out`` trajectories (a
 data set made like the training data with another seed: goals inside the data's range, each one
-reachable and collision-free, none seen in training; the first ``--problems`` of them); each
+reachable and collision-free, none seen in training; the first ``--problems`` of them, or those
+after the first ``--skip``: a check on problems a tuning run did not see); each
 problem's input is the training data's trajectory whose end is nearest its target, and starts
 where that trajectory starts. Rows:
 
@@ -44,6 +45,8 @@ where that trajectory starts. Rows:
 from __future__ import annotations
 
 import argparse
+import os
+import re
 import time
 from typing import Any
 
@@ -60,11 +63,11 @@ PROMP_ITERATIONS = 10
 PROMP_DEMONSTRATIONS = 300
 #: the obstacle case's Adam learning rate (latent units)
 OBSTACLE_LR = 0.02
-#: the targets on held-out problems (printed beside the rows)
 #: the obstacle case's starts per problem (see genplan.seq2seq.adjust.adjust's ``starts``)
-OBSTACLE_STARTS = 4
+OBSTACLE_STARTS = 8
 #: the benchmark's rows (``--rows`` runs some of them)
 ROWS = ("latent", "direct", "replanning", "promp", "obstacle")
+#: the targets on held-out problems (printed beside the rows)
 TARGETS = {"success_percent": 95.0, "end_error_mm": 1.0, "ms_per_problem": 20.0, "obstacle_success_percent": 90.0}
 
 
@@ -74,6 +77,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--held-out", type=A.existing_folder, required=True,
                    help="a trajectory data set made like --data with another seed: the problems' goals (tune on another)")
     p.add_argument("--problems", type=A.positive_int, default=200)
+    p.add_argument("--skip", type=A.non_negative_int, default=0,
+                   help="leave out the first SKIP held-out trajectories (problems SKIP .. SKIP+PROBLEMS-1: a run on "
+                        "problems another run did not see)")
     p.add_argument("--updates", type=A.positive_int, default=40, help="latent updates")
     p.add_argument("--direct-updates", type=A.positive_int, default=400, help="updates of the direct method")
     p.add_argument("--replan", type=A.non_negative_int, default=50, help="problems replanned from scratch")
@@ -83,6 +89,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--obstacle-starts", type=A.positive_int, default=OBSTACLE_STARTS,
                    help="starts per problem of the obstacle case (genplan.adjust's starts: a problem whose first start "
                         "leaves a clearance term positive runs again from the others)")
+    p.add_argument("--obstacle-start-spread", type=A.positive_float, default=None,
+                   help="the spread of the obstacle case's other starts around the first (latent units; default "
+                        "genplan.adjust's start_spread)")
     p.add_argument("--no-promp", action="store_true", help="skip the ProMP row")
     p.add_argument("--rows", type=_rows, default=ROWS,
                    help=f"the rows to run, comma-separated, of {','.join(ROWS)} (default: all; replanning and ProMP "
@@ -114,21 +123,23 @@ def objective(frame: str, *, obstacle: bool = False) -> Any:
     return Objective(terms, name="reach" + ("_avoid" if obstacle else ""))
 
 
-def problems(data: Any, held_out: Any, robot: Any, frame: str, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def problems(data: Any, held_out: Any, robot: Any, frame: str, n: int,
+             skip: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(targets (n, 3), inputs (n, K, nq), indices into the data) of ``n`` problems: the frame's
-    positions at the ends of the first ``n`` held-out trajectories, each with the data's
-    trajectory whose end is nearest."""
+    positions at the ends of the held-out trajectories ``skip`` .. ``skip + n - 1``, each with the
+    data's trajectory whose end is nearest."""
     from scipy.spatial import cKDTree
 
-    if n > len(held_out):
-        raise A.UsageError(f"--problems: the held-out set has {len(held_out)} trajectories, fewer than {n}")
-    targets = robot.frame_positions(held_out.positions[:n, -1], frame)
+    if skip + n > len(held_out):
+        raise A.UsageError(f"--problems, --skip: the held-out set has {len(held_out)} trajectories, fewer than "
+                           f"{skip} + {n}")
+    targets = robot.frame_positions(held_out.positions[skip:skip + n, -1], frame)
     _, idx = cKDTree(robot.frame_positions(data.positions[:, -1], frame)).query(targets)
     return targets, data.positions[idx], np.asarray(idx)
 
 
 def main(args: argparse.Namespace) -> int:
-    from genplan.seq2seq.adjust import adjust, aim_inputs, clear_ends
+    from genplan.seq2seq.adjust import START_SPREAD, adjust, aim_inputs, clear_ends
     from genplan.seq2seq.data import read_trajectories
     from genplan.seq2seq.model import load_model
 
@@ -141,7 +152,7 @@ def main(args: argparse.Namespace) -> int:
                      targets={"end_position": np.zeros((1, 3))}, updates=0, scene=data.scene)
     robot, task, scene = res_ctx.context.robot, res_ctx.context.task, res_ctx.context.scene
     frame = data.source.get("frame") or "hand"
-    targets, x_in, idx = problems(data, held_out, robot, frame, args.problems)
+    targets, x_in, idx = problems(data, held_out, robot, frame, args.problems, args.skip)
     rows: dict[str, Any] = {}
 
     if set(args.rows) & {"latent", "direct", "replanning", "promp"}:
@@ -209,8 +220,10 @@ def main(args: argparse.Namespace) -> int:
         t_clear_ends = time.perf_counter() - t0
         obs = adjust(model, aim_inputs(x_in, ends.q), objective(frame, obstacle=True),
                      targets={"end_position": own_end, "avoid_spheres": spheres},
-                     updates=args.obstacle_updates, step="adam", lr=OBSTACLE_LR, scene=scene, starts=args.obstacle_starts)
+                     updates=args.obstacle_updates, step="adam", lr=OBSTACLE_LR, scene=scene, starts=args.obstacle_starts,
+                     **({} if args.obstacle_start_spread is None else {"start_spread": args.obstacle_start_spread}))
         t_obs_adjust = time.perf_counter() - t0 - t_clear_ends
+        obs_spread = START_SPREAD if args.obstacle_start_spread is None else args.obstacle_start_spread
         fin_obs = obs.finish(world=worlds)
         t_obs = time.perf_counter() - t0
         inputs_hit = sum(bool(np.any(worlds[i].in_collision(x_in[i]))) for i in range(args.problems))
@@ -229,7 +242,7 @@ def main(args: argparse.Namespace) -> int:
                                                          else float("nan")),
                                 median_end_move_rad=float(np.median(ends.moved[ends.found])) if ends.found.any() else float("nan"),
                                 clear_ends_ms_per_problem=1e3 * t_clear_ends / args.problems,
-                                starts=args.obstacle_starts, restarted_problems=int((obs.starts_run > 1).sum()),
+                                starts=args.obstacle_starts, start_spread=obs_spread, restarted_problems=int((obs.starts_run > 1).sum()),
                                 success_from_restart=int((fin_obs.success & (fin_obs.start_index > 0)).sum()),
                                 starts_run_mean=float(obs.starts_run.mean()),
                                 adjust_ms_per_problem=1e3 * t_obs_adjust / args.problems, finish_stages_s=fin_obs.seconds,
@@ -254,7 +267,9 @@ def main(args: argparse.Namespace) -> int:
                      "config": model.config.to_dict(), "training_seconds": model.card.get("training", {}).get("seconds")},
            "data": {"folder": str(args.data), "trajectories": len(data), "sha256": data.sha256},
            "held_out": {"folder": str(args.held_out), "sha256": held_out.sha256, "seed": held_out.source.get("seed")},
-           "targets": TARGETS, "rows": rows}
+           "targets": TARGETS, "rows": rows,
+           # the 1/5/15-minute load when the rows were done: times on a shared machine read against it
+           "load_average": list(os.getloadavg())}
     if args.out is not None:
         write_json(args.out, out)
         print(f"wrote {args.out}")
@@ -268,11 +283,12 @@ def _say(name: str, row: dict[str, Any]) -> None:
 
 
 def _reasons(reasons: list[str | None]) -> dict[str, int]:
-    """How many problems failed for each kind of reason (the reason's text up to its first digit)."""
+    """How many problems failed for each kind of reason (the reason's text with each number as N;
+    a timing failure by its first clause)."""
     out: dict[str, int] = {}
     for r in reasons:
         if r is not None:
-            key = r.split(":")[0] if r.startswith("timing") else "".join(c for c in r if not c.isdigit()).strip()
+            key = r.split(":")[0] if r.startswith("timing") else re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "N", r).strip()
             out[key] = out.get(key, 0) + 1
     return out
 
