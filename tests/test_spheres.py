@@ -120,6 +120,33 @@ def test_every_kind_of_geometry_is_covered_a_closed_mesh_with_its_inside(small: 
     assert d.min(axis=1).max() <= 0
 
 
+def test_a_link_of_spheres_alone_is_covered_by_those_spheres() -> None:
+    place = np.eye(4)
+    place[:3, 3] = [0.1, -0.2, 0.3]
+    geoms = [sph.LinkGeometry("a_0", "a", "sphere", (0.22,), place), sph.LinkGeometry("a_1", "a", "sphere", (0.01,), np.eye(4))]
+    centers, radii, excess = sph._cover_link("a", geoms, 0.01, 0.005)
+    np.testing.assert_array_equal(centers, [[0.1, -0.2, 0.3], [0.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(radii, [0.22, 0.01])
+    np.testing.assert_array_equal(excess, [0.0, 0.0])
+
+
+def test_triangles_are_cut_along_their_long_edges_into_short_pieces_that_tile_them() -> None:
+    """A long thin triangle (a cylinder cap's, 12 cm by 8 mm) and a wide one become pieces
+    whose edges are at most the length asked, of the same area and orientation; the thin one a
+    row of pieces along it."""
+    v = np.array([[0.0, 0.0, 0.0], [0.12, 0.0, 0.0], [0.06, 0.008, 0.0], [0.0, 0.05, 0.03]])
+    for tri, most in (([0, 1, 2], 200), ([0, 3, 1], 2000)):
+        pv, pt = sph._subdivide(v, np.array([tri]), 0.005)
+        a, b, c = pv[pt[:, 0]], pv[pt[:, 1]], pv[pt[:, 2]]
+        edges = np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1), np.linalg.norm(a - c, axis=1)])
+        assert edges.max() <= 0.005 * (1 + 1e-9)
+        normals = np.cross(b - a, c - a)
+        whole = np.cross(v[tri[1]] - v[tri[0]], v[tri[2]] - v[tri[0]])
+        assert np.isclose(np.linalg.norm(normals, axis=1).sum(), np.linalg.norm(whole), rtol=1e-12)
+        assert np.all(normals @ whole > 0)
+        assert len(pt) <= most  # the thin one: k^2 similar pieces (k = 24) would be 576
+
+
 def test_the_geometry_is_read_in_each_links_frame(small: genplan.Robot) -> None:
     """link_geometries' placements against Pinocchio's world placements and genplan's FK."""
     import pinocchio as pin

@@ -22,7 +22,8 @@ are then padded by ``padding`` (default 0.1 mm) so that the cover survives float
 
 1. each geometry becomes closed polyhedra containing it (a mesh as it is, one per connected
    shell; a primitive as a circumscribed polyhedron, at most ``max_error / 50`` larger), their
-   triangles cut into pieces no longer than ``resolution``, and the grid's nodes classified inside
+   triangles cut into pieces no longer than ``resolution`` (each split at its longest edge's
+   midpoint until none is longer), and the grid's nodes classified inside
    or outside (signed ray crossings, exact for a closed mesh; the solid-angle winding number
    where a ray grazes an edge); pieces inside another geometry are no boundary of the union;
 2. the solid is split into cells whose convex hulls cover it: a grid cube that no boundary piece
@@ -34,13 +35,16 @@ are then padded by ``padding`` (default 0.1 mm) so that the cover survives float
 3. candidate spheres sit near the solid's medial axis (grid nodes where the depth stops growing
    at the rate 1 (a sphere elsewhere is held by a deeper one that reaches no farther out), moved
    deeper, and the primitives' own axes), each of radius ``depth + max_error``, reaching at most
-   ``max_error`` beyond the solid. They are chosen as a set cover: the cell the fewest
+   ``max_error`` beyond the solid; a candidate that a larger one holds (to within 5 % of the
+   resolution) is dropped. They are chosen as a set cover: the cell the fewest
    candidates hold first, by the candidate holding it that holds the most cells still open (on a
    segment, the optimal cover), then any two spheres whose cells one candidate holds replaced by
    it, redundant ones dropped (cells no candidate holds, in parts thinner than the grid, get
    spheres of their own). Each cell goes to the sphere that holds it with the most room, and each
    sphere shrinks to the farthest point of its cells (or becomes their smallest enclosing ball,
    when that reaches less far beyond the solid).
+
+A link whose geometry is spheres alone is covered by those spheres.
 
 ``max_error`` trades count for tightness: the largest distance a sphere may reach beyond the
 solid (:attr:`RobotSpheres.excess` holds each sphere's estimate, the depth measured to the
@@ -61,6 +65,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -93,7 +98,7 @@ DEFAULT_MAX_ERROR = 0.01
 #: coordinates, about 1e-6 m each), and the float32 rounding of the sphere data itself.
 DEFAULT_PADDING = 1e-4
 #: The version of the generator; part of the cache key (a new version generates again).
-ALGORITHM_VERSION = 1
+ALGORITHM_VERSION = 2
 #: The ``format`` field of :meth:`RobotSpheres.to_dict`.
 FORMAT = "genplan-robot-spheres"
 
@@ -110,8 +115,14 @@ _BLOCK = 4
 _MEDIAL_SLOPE = 0.85
 # Candidate centres per link, at most (about): more are thinned to the deepest of each block.
 _MAX_CANDIDATES = 2500
+# A candidate ball within this fraction of the resolution of a larger candidate is dropped.
+_DOMINATED = 0.05
+# Balls per query of the cells' k-d tree when finding the cells each ball holds.
+_HOLDS_GROUP = 64
 # Iterations of the Badoiu-Clarkson smallest enclosing ball.
 _MEB_ITERATIONS = 300
+# Points the Badoiu-Clarkson iteration runs on, at most (then a few steps on all).
+_MEB_POINTS = 4096
 
 
 # --- the geometry ------------------------------------------------------------------------------
@@ -165,11 +176,20 @@ class LinkGeometry:
             h.update(np.ascontiguousarray(self.triangles, dtype="<i8").tobytes())
 
 
+#: Each robot's geometries, read once (:func:`link_geometries`).
+_GEOMETRIES: weakref.WeakKeyDictionary[Robot, tuple[LinkGeometry, ...]] = weakref.WeakKeyDictionary()
+
+
 def link_geometries(robot: Robot) -> list[LinkGeometry]:
     """Every collision geometry of ``robot`` (its Pinocchio collision model, the same geometry
     genplan's collision world and coal see; the locked joints' links where the locks hold them),
     in the frame of the link it is attached to. RobotFileError names a geometry of a kind genplan
-    does not read (a cone, an ellipsoid, a height field) or a link the kinematics lacks."""
+    does not read (a cone, an ellipsoid, a height field) or a link the kinematics lacks. Read
+    once per robot object (a mesh's triangles come out of coal one at a call: seconds for a
+    detailed robot, and every sphere checker asks), then kept while the robot lives."""
+    known_geometries = _GEOMETRIES.get(robot)
+    if known_geometries is not None:
+        return list(known_geometries)
     import coal
 
     geom = robot.collision_model
@@ -207,6 +227,11 @@ def link_geometries(robot: Robot) -> list[LinkGeometry]:
             raise RobotFileError(
                 f"{where}: a {type(g).__name__} cannot be covered by spheres (genplan reads boxes, "
                 "spheres, cylinders, capsules and meshes)")
+    for g in out:
+        for a in (g.placement, g.vertices, g.triangles):
+            if a is not None:
+                a.setflags(write=False)
+    _GEOMETRIES[robot] = tuple(out)
     return out
 
 
@@ -622,29 +647,32 @@ def _mesh_solids(g: LinkGeometry) -> list[_Solid]:
 
 
 def _subdivide(v: NDArray[np.float64], tri: NDArray[np.int64], edge: float) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """The triangles cut into pieces whose edges are at most ``edge`` (each triangle into k^2
-    similar ones, k = ceil(longest edge / edge)): the pieces' vertices and their indices."""
+    """The triangles cut into pieces whose edges are at most ``edge``: each triangle split at the
+    midpoint of its longest edge until none is longer (a long thin triangle becomes a row of
+    pieces along it, not slivers across it): the pieces' vertices (three per piece) and their
+    indices. The pieces keep their triangle's orientation."""
     a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
-    longest = np.max(np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
-                               np.linalg.norm(a - c, axis=1)]), axis=0)
-    k = np.maximum(1, np.ceil(longest / edge - 1e-9)).astype(np.int64)
-    points, pieces, base = [], [], 0
-    for kk in np.unique(k):
-        sel = np.flatnonzero(k == kk)
-        ij = [(i, j) for i in range(kk + 1) for j in range(kk + 1 - i)]
-        index = {p: n for n, p in enumerate(ij)}
-        bary = np.array([((kk - i - j) / kk, i / kk, j / kk) for i, j in ij])
-        local = [(index[(i, j)], index[(i + 1, j)], index[(i, j + 1)]) for i in range(kk) for j in range(kk - i)]
-        local += [(index[(i + 1, j)], index[(i + 1, j + 1)], index[(i, j + 1)]) for i in range(kk - 1)
-                  for j in range(kk - 1 - i)]
-        loc = np.array(local, dtype=np.int64)
-        pts = (bary[None, :, 0, None] * a[sel, None] + bary[None, :, 1, None] * b[sel, None]
-               + bary[None, :, 2, None] * c[sel, None])
-        points.append(pts.reshape(-1, 3))
-        offsets = base + np.arange(len(sel), dtype=np.int64) * len(ij)
-        pieces.append((loc[None] + offsets[:, None, None]).reshape(-1, 3))
-        base += len(sel) * len(ij)
-    return np.concatenate(points), np.concatenate(pieces)
+    done: list[NDArray[np.float64]] = []
+    limit = edge * (1 + 1e-9)
+    while len(a):
+        lengths = np.stack([np.einsum("ij,ij->i", b - a, b - a), np.einsum("ij,ij->i", c - b, c - b),
+                            np.einsum("ij,ij->i", a - c, a - c)], axis=1)
+        longest = np.argmax(lengths, axis=1)
+        split = lengths[np.arange(len(a)), longest] > limit * limit
+        if not split.all():
+            keep = ~split
+            done.append(np.stack([a[keep], b[keep], c[keep]], axis=1))
+        a, b, c, longest = a[split], b[split], c[split], longest[split]
+        # rotate each triangle so that its longest edge is (a, b), then split it into (a, m, c)
+        # and (m, b, c)
+        r1, r2 = longest == 1, longest == 2
+        a, b, c = (np.where(r1[:, None], b, np.where(r2[:, None], c, a)),
+                   np.where(r1[:, None], c, np.where(r2[:, None], a, b)),
+                   np.where(r1[:, None], a, np.where(r2[:, None], b, c)))
+        m = (a + b) / 2
+        a, b, c = np.concatenate([a, m]), np.concatenate([m, b]), np.concatenate([c, c])
+    pieces = np.concatenate(done) if done else np.zeros((0, 3, 3))
+    return pieces.reshape(-1, 3), np.arange(3 * len(pieces), dtype=np.int64).reshape(-1, 3)
 
 
 class _Surface:
@@ -881,6 +909,9 @@ def _cover_link(link: str, geoms: Sequence[LinkGeometry], eps: float, res: float
     from scipy import ndimage
     from scipy.spatial import cKDTree
 
+    if all(g.kind == "sphere" for g in geoms):  # spheres are their own exact cover
+        return (np.array([g.placement[:3, 3] for g in geoms]), np.array([g.size[0] for g in geoms]),
+                np.zeros(len(geoms)))
     solids = [s for g in geoms for s in
               (_mesh_solids(g) if g.kind == "mesh" else [_primitive_solid(g, eps / _CIRCUMSCRIBE)])]
     shrink = max(s.shrink for s in solids)
@@ -1002,7 +1033,14 @@ def _cover_link(link: str, geoms: Sequence[LinkGeometry], eps: float, res: float
     has_points = cell_end > cell_start  # a partial cube may hold no point of the solid
     cell_first = np.minimum(cell_start, len(pair_cell) - 1)
     pc_pts = points[pair_point]
-    cell_mid = (np.minimum.reduceat(pc_pts, cell_first) + np.maximum.reduceat(pc_pts, cell_first)) / 2
+    cell_lo, cell_hi = np.minimum.reduceat(pc_pts, cell_first), np.maximum.reduceat(pc_pts, cell_first)
+    cell_mid = (cell_lo + cell_hi) / 2
+    # each cell's lowest and highest point along each axis (the first and last of its points
+    # sorted by that coordinate): a ball missing one of them does not hold the cell
+    by_axis = [np.lexsort((pc_pts[:, axis], pair_cell)) for axis in range(3)]
+    cell_extremes = np.stack([pc_pts[order[at]] for order in by_axis
+                              for at in (cell_first, np.maximum(cell_end - 1, 0))], axis=1)
+    del by_axis
     cell_reach = np.maximum.reduceat(np.linalg.norm(pc_pts - cell_mid[pair_cell], axis=1), cell_first)
     cell_size = cell_end - cell_start
 
@@ -1019,27 +1057,48 @@ def _cover_link(link: str, geoms: Sequence[LinkGeometry], eps: float, res: float
     cell_ids = np.flatnonzero(has_points)
     mids, reaches = cell_mid[cell_ids], cell_reach[cell_ids]
 
+    cell_tree = cKDTree(mids)
+    reach_max = float(reaches.max()) if len(reaches) else 0.0
+
     def holds_all(centers: NDArray[np.float64], radius: NDArray[np.float64]) -> list[NDArray[np.int32]]:
         """For each ball, the cells all of whose points lie in it: those whose bounding ball
-        does, and of those whose bounding ball the sphere crosses, the ones whose points do."""
-        from scipy.spatial.distance import cdist
-
-        out: list[NDArray[np.int32]] = []
-        for lo in range(0, len(centers), 32):
-            dm = cdist(centers[lo:lo + 32], mids)
-            rr = radius[lo:lo + 32, None]
-            sure = dm + reaches <= rr
-            maybe = ~sure & (dm - reaches <= rr)
-            for k in range(len(dm)):
-                held = cell_ids[sure[k]]
-                cand_cells = cell_ids[maybe[k]]
-                if len(cand_cells):
-                    idx = _ranges(cell_start[cand_cells], cell_end[cand_cells])
-                    diff = pc_pts[idx] - centers[lo + k]
-                    inside_p = np.einsum("ij,ij->i", diff, diff) <= rr[k, 0] ** 2
-                    seg = np.cumsum(cell_size[cand_cells]) - cell_size[cand_cells]
-                    held = np.sort(np.concatenate([held, cand_cells[np.logical_and.reduceat(inside_p, seg)]]))
-                out.append(held.astype(np.int32))
+        does or whose box does, and of the others whose bounding ball the sphere crosses and
+        whose extreme points it holds, the ones whose points do. The balls go in groups of
+        similar radius; a group's (ball, cell) pairs within reach come from the cells' k-d tree
+        in one query, and every pair's points are tested at once."""
+        out: list[NDArray[np.int32]] = [np.zeros(0, dtype=np.int32)] * len(centers)
+        by_radius = np.argsort(radius, kind="stable")
+        for lo in range(0, len(centers), _HOLDS_GROUP):
+            group = by_radius[lo:lo + _HOLDS_GROUP]
+            pairs = cKDTree(centers[group]).sparse_distance_matrix(
+                cell_tree, float(radius[group].max()) + reach_max, output_type="ndarray")
+            ball, cell, dist = group[pairs["i"]], pairs["j"].astype(np.int64), pairs["v"]
+            rr = radius[ball]
+            sure = dist + reaches[cell] <= rr
+            maybe = np.flatnonzero(~sure & (dist - reaches[cell] <= rr))
+            held = sure
+            if len(maybe):
+                # a ball holding the cell's box holds the cell; one missing an extreme point not
+                mc = cell_ids[cell[maybe]]
+                c, r2 = centers[ball[maybe]], rr[maybe] ** 2
+                box_far = np.maximum(np.abs(cell_lo[mc] - c), np.abs(cell_hi[mc] - c))
+                held = sure.copy()
+                held[maybe[np.einsum("ij,ij->i", box_far, box_far) <= r2]] = True
+                ext = cell_extremes[mc] - c[:, None]
+                open_ = (np.einsum("ikj,ikj->ik", ext, ext) <= r2[:, None]).all(axis=1) & ~held[maybe]
+                maybe = maybe[open_]
+            if len(maybe):
+                mc = cell_ids[cell[maybe]]
+                idx = _ranges(cell_start[mc], cell_end[mc])
+                diff = pc_pts[idx] - np.repeat(centers[ball[maybe]], cell_size[mc], axis=0)
+                inside_p = np.einsum("ij,ij->i", diff, diff) <= np.repeat(rr[maybe] ** 2, cell_size[mc])
+                held[maybe] = np.logical_and.reduceat(inside_p, np.cumsum(cell_size[mc]) - cell_size[mc])
+            ball, cell = ball[held], cell_ids[cell[held]]
+            order = np.lexsort((cell, ball))
+            ball, cell = ball[order], cell[order].astype(np.int32)
+            bounds = np.searchsorted(ball, group, side="left"), np.searchsorted(ball, group, side="right")
+            for g, a, b in zip(group, *bounds):
+                out[g] = cell[a:b]
         return out
 
     # candidates: inside nodes near the medial axis (where the distance transform stops growing)
@@ -1073,6 +1132,8 @@ def _cover_link(link: str, geoms: Sequence[LinkGeometry], eps: float, res: float
     cand_radius = depth(cand_centers, np.ones(len(cand_centers), dtype=bool)) + eps
     ok = cand_radius > 0
     cand_centers, cand_radius = cand_centers[ok], cand_radius[ok]
+    keep = _undominated(cand_centers, cand_radius, _DOMINATED * res)
+    cand_centers, cand_radius = cand_centers[keep], cand_radius[keep]
 
     uncovered = has_points.copy()
     chosen: list[tuple[NDArray[np.float64], float, NDArray[Any]]] = []
@@ -1119,6 +1180,22 @@ def _cover_link(link: str, geoms: Sequence[LinkGeometry], eps: float, res: float
 
         masks = [mask(j) for j in picked]
         count = np.sum(masks, axis=0) if masks else np.zeros(ncells, dtype=np.int64)
+        # a candidate replacing x and y holds the cells x alone holds: the candidates that hold
+        # them (None: x holds no cell alone) rule out most pairs before their cells are compared
+        unknown = object()
+        holders: list[Any] = [unknown] * len(picked)
+
+        def holders_of(x: int) -> set[int] | None:
+            if holders[x] is unknown:
+                own = np.flatnonzero(masks[x] & target & (count == 1))
+                if len(own):
+                    rare = own[int(np.argmin(ncov[own]))]
+                    js = cand_by_cell[c_start[rare]:c_end[rare]]
+                    holders[x] = {int(k) for k in js[lens[js] >= len(own)] if mask(int(k))[own].all()}
+                else:
+                    holders[x] = None
+            return holders[x]  # type: ignore[no-any-return]
+
         improved = True
         while improved and len(picked) > 1:
             improved = False
@@ -1126,6 +1203,10 @@ def _cover_link(link: str, geoms: Sequence[LinkGeometry], eps: float, res: float
             while x < len(picked):
                 y = x + 1
                 while y < len(picked):
+                    hx, hy = holders_of(x), holders_of(y)
+                    if hx is not None and hy is not None and not (hx & hy):
+                        y += 1
+                        continue
                     ma, mb = masks[x], masks[y]
                     alone = np.flatnonzero((ma | mb) & target & (count - ma - mb == 0))
                     j = -1
@@ -1143,6 +1224,7 @@ def _cover_link(link: str, geoms: Sequence[LinkGeometry], eps: float, res: float
                     count = count - ma - mb + mj
                     picked[x], masks[x] = j, mj
                     del picked[y], masks[y]
+                    holders = [unknown] * len(picked)
                     improved = True
                 x += 1
         for j in picked:
@@ -1265,6 +1347,28 @@ def _medial_points(g: LinkGeometry, res: float) -> NDArray[np.float64]:
     return _transform(g.placement, local)
 
 
+def _undominated(centers: NDArray[np.float64], radius: NDArray[np.float64], tol: float) -> NDArray[np.int64]:
+    """The balls (largest first) that no larger ball kept before them holds to within ``tol``
+    (ball i is held by ball j when |c_i - c_j| + r_i <= r_j + tol): the cells a dropped ball
+    holds lie in a kept one, but for a shell of width ``tol``, which other balls hold (or the
+    cover's spheres of its own). Near the medial axis many candidates are such balls (a
+    sphere's centre region: thousands of balls within a tenth of a millimetre of the one at its
+    centre)."""
+    order = np.argsort(-radius, kind="stable")
+    kept_c = np.empty((len(order), 3))
+    kept_r = np.empty(len(order))
+    kept: list[int] = []
+    for i in order:
+        n = len(kept)
+        if n:
+            d = kept_c[:n] - centers[i]
+            if np.any(np.sqrt(np.einsum("ij,ij->i", d, d)) + radius[i] <= kept_r[:n] + tol):
+                continue
+        kept_c[n], kept_r[n] = centers[i], radius[i]
+        kept.append(int(i))
+    return np.sort(np.array(kept, dtype=np.int64))
+
+
 def _ranges(starts: NDArray[np.int64], ends: NDArray[np.int64]) -> NDArray[np.int64]:
     """The concatenated ranges ``starts[i]:ends[i]``."""
     lens = ends - starts
@@ -1286,7 +1390,12 @@ def _enclosing_ball(points: NDArray[np.float64], start: NDArray[np.float64]) -> 
             points = points[ConvexHull(points).vertices]
         except (QhullError, ValueError):  # flat or too few points: all of them
             pass
-    for i in range(1, _MEB_ITERATIONS + 1):
-        d = np.einsum("ij,ij->i", points - c, points - c)
-        c = c + (points[int(np.argmax(d))] - c) / (i + 1)
+    # the iteration runs on at most _MEB_POINTS of them (every k-th: a curved surface's points
+    # are all on its hull), then a few steps on all; any centre is valid, its radius exact
+    sample = points[:: max(1, len(points) // _MEB_POINTS)]
+    # the farthest point from c maximises |p|^2 - 2 p.c (one product per iteration)
+    for pts, steps, first in ((sample, _MEB_ITERATIONS, 1), (points, 10, _MEB_ITERATIONS + 1)):
+        norms = np.einsum("ij,ij->i", pts, pts)
+        for i in range(first, first + steps):
+            c = c + (pts[int(np.argmax(norms - 2.0 * (pts @ c)))] - c) / (i + 1)
     return c, float(np.sqrt(np.einsum("ij,ij->i", points - c, points - c).max()))
