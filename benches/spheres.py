@@ -1,14 +1,16 @@
 """Collision spheres per robot (genplan.spheres): count, time, the cover's check, tightness, and
 the false positives against coal on the raw geometry.
 
-    python benches/spheres.py [--robots panda ur5 kinova xarm7] [--max-error 0.01]
-                              [--configurations 2000] [--points 20000] [--seed 0]
+    python benches/spheres.py [--robots panda ur5 baxter kinova xarm7] [--max-error 0.01]
+                              [--configurations 2000] [--points 20000] [--seed 0] [--cache]
                               [--out benches/results/spheres.json]
 
-Per robot (``xarm7`` is example-robot-data's xArm7 URDF, loaded with ``genplan.load(urdf=...)``):
+Per robot (``xarm7`` is example-robot-data's xArm7 URDF, loaded with ``genplan.load(urdf=...)``;
+``baxter`` is examples/baxter/baxter.toml, both arms active):
 
 * ``spheres``, ``generation_s``: :func:`genplan.spheres.robot_spheres` in an empty cache folder
-  (a temporary ``$GENPLAN_CACHE``); ``cached_load_s``: the same call again in a fresh process's
+  (a temporary ``$GENPLAN_CACHE``; with ``--cache`` the user's, ``cached_from_disk`` true when the
+  spheres were read from it, not generated); ``cached_load_s``: the same call again in a fresh process's
   state (the in-memory copy dropped), read from the cache file;
 * ``cover``: ``--points`` points per collision geometry (uniform on its surface and in its solid,
   plus a mesh's vertices and edge points), each placed in its link's frame with Pinocchio's
@@ -48,6 +50,8 @@ def load_robot(name: str) -> genplan.Robot:
     """A preset, ``xarm7`` (example-robot-data's URDF) or a URDF path."""
     if name == "xarm7":
         return genplan.load(urdf=robots_dir() / "xarm_description" / "urdf" / "xarm7.urdf", name="xarm7")
+    if name == "baxter":
+        return genplan.load(ROOT / "examples" / "baxter" / "baxter.toml")
     if name.endswith(".urdf"):
         return genplan.load(urdf=name)
     return genplan.load(name)
@@ -184,10 +188,11 @@ def against_coal(robot: genplan.Robot, spheres, n: int, rng: np.random.Generator
         data = pin.GeometryData(geom)
         qs = robot.random_configurations(per_scene, rng)
         ref = np.array([pin.computeCollisions(robot.model, robot.data, geom, data, q, True) for q in qs])
-        centers = spheres.world_centers(robot, qs)  # (n, S, 3)
         ours = np.zeros(len(qs), dtype=bool)
-        for center, rot, half in boxes:
-            ours |= np.any(box_distance(centers, center, rot, half) <= spheres.radii, axis=1)
+        for lo in range(0, len(qs), 1000):  # (1000, S, 3) centres at a time: memory
+            centers = spheres.world_centers(robot, qs[lo:lo + 1000])
+            for center, rot, half in boxes:
+                ours[lo:lo + 1000] |= np.any(box_distance(centers, center, rot, half) <= spheres.radii, axis=1)
         coal_contacts += int(ref.sum())
         sphere_contacts += int(ours.sum())
         missed += int((ref & ~ours).sum())
@@ -208,6 +213,9 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=20000, help="cover check points per geometry and kind")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=ROOT / "benches" / "results" / "spheres.json")
+    parser.add_argument("--cache", action="store_true",
+                        help="use $GENPLAN_CACHE (spheres generated before are read: generation_s is then "
+                             "the read's time, and cached_from_disk true) instead of an empty temporary one")
     args = parser.parse_args()
 
     from genplan import spheres as sph
@@ -216,7 +224,8 @@ def main() -> None:
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as cache:
         old = os.environ.get("GENPLAN_CACHE")
-        os.environ["GENPLAN_CACHE"] = cache
+        if not args.cache:
+            os.environ["GENPLAN_CACHE"] = cache
         try:
             for entry in args.robots:
                 name, _, given = entry.rpartition(":") if ":" in entry else (entry, "", "")
@@ -237,6 +246,7 @@ def main() -> None:
                     "robot": robot.name, "spheres": len(spheres), "per_link": spheres.counts(),
                     "max_error_m": spheres.max_error, "resolution_m": spheres.resolution,
                     "padding_m": spheres.padding, "generation_s": round(generation, 2),
+                    "cached_from_disk": spheres.generation_s == 0.0,
                     "cached_load_s": round(cached, 4),
                     "cover": cover_check(robot, spheres, args.points, rng),
                     "excess_max_m": float(spheres.excess.max()), "excess_mean_m": float(spheres.excess.mean()),

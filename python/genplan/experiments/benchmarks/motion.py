@@ -402,8 +402,14 @@ class _Checkers:
     """Every validity check a problem's start and goal must pass (one per planner compared)."""
 
     def __init__(self, robot: genplan.Robot, obstacles: Obstacles, vamp: Any, vsph: RobotSpheres | None,
-                 setup: RobotSetup) -> None:
-        self.world = robot.collision_world()
+                 setup: RobotSetup, world: genplan.CollisionWorld | None = None) -> None:
+        """``world``: the robot's world to reuse (its obstacles replaced by the problem's), or
+        None: a new one."""
+        if world is None:
+            world = robot.collision_world()
+        else:
+            world.clear_obstacles()
+        self.world = world
         self.world.add_scene(Scene(name="problem", obstacles=tuple(obstacles)))
         self.checks: list[Callable[[NDArray[np.float64]], NDArray[np.bool_]]] = [
             lambda q: ~np.asarray(self.world.in_collision(q), dtype=bool)]
@@ -441,12 +447,15 @@ def make_problems(robot: genplan.Robot, family: str, n: int, seed: int, vamp: An
         lower = np.maximum(lower, np.asarray(model.lower_bounds(), dtype=np.float64))
         upper = np.minimum(upper, np.asarray(model.upper_bounds(), dtype=np.float64))
     ready = np.asarray(setup.ready, dtype=np.float64)
+    # one world for every scene drawn (building a mesh robot's takes longer than checking a
+    # scene), unless the robot carries objects, which a cleared world would lose
+    world = None if robot.attached else robot.collision_world()
     out: list[Problem] = []
     for _ in range(max_scenes or 20 * n):
         if len(out) == n:
             break
         obstacles, grasps = placed(setup, *FAMILIES[family](rng))
-        checkers = _Checkers(robot, obstacles, vamp, vsph, setup)
+        checkers = _Checkers(robot, obstacles, vamp, vsph, setup, world)
         values = ready + rng.uniform(-setup.jitter, setup.jitter, (16, len(ready)))
         starts = robot.from_joint_values(values) if robot.continuous else np.clip(values, lower, upper)
         ok = checkers.valid(starts)
