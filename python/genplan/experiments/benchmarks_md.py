@@ -407,9 +407,23 @@ def adapt(res: Results) -> str:
                      f"{pr['max_end_error_mm']:.3f}", f"{pr['max_residual_ratio']:.3g} (median "
                      f"{pr['median_residual_ratio']:.3g}; genplan's {pr['genplan_median_residual_ratio']:.3g})",
                      f"{pr['ms_per_problem']:.1f}"])
-    rows.append(cells("obstacle", f"a {100 * r['obstacle']['radius_m']:.0f} cm ball on each path at mid-time",
-                      str(r["obstacle"]["updates"])))
-    return _md(["row", "updates", "success", "end error mm (max)", "residual / tolerance (max)", "ms per problem"], rows)
+    o = r["obstacle"]
+    rows.append(cells("obstacle", f"a {100 * o['radius_m']:.0f} cm ball on each path at mid-time"
+                      + (f", up to {o['starts']} starts" if o.get("starts", 1) > 1 else ""), str(o["updates"])))
+    table = _md(["row", "updates", "success", "end error mm (max)", "residual / tolerance (max)", "ms per problem"], rows)
+    if "free_problems" not in o:
+        return table
+    parts = [f"of the {o['free_problems']} problems whose input starts and ends clear of the ball "
+             f"{o['free_success_percent']:.1f} % succeed; of the {o['ends_reaimed']} whose end was moved to a clear "
+             f"configuration first {o['reaimed_success_percent']:.1f} %; {o['starts_in_collision_percent']:.1f} % of the "
+             f"inputs start inside the ball"]
+    if "restarted_problems" in o:
+        parts.append(f"{o['restarted_problems']} problems ran the other starts ({o['success_from_restart']} succeed "
+                     f"from one), {o['starts_run_mean']:.2f} starts per problem on average")
+    reasons = ", ".join(f"{k.strip()}: {v}" for k, v in sorted(o.get("failure_reasons", {}).items(), key=lambda kv: -kv[1]))
+    if reasons:
+        parts.append(f"failures by reason: {reasons}")
+    return table + "\n\nThe ball: " + "; ".join(parts) + "."
 
 
 def motion(res: Results) -> str:
