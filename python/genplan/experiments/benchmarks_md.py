@@ -483,11 +483,11 @@ def gan_training(res: Results) -> str:
                          f"{d['full_data_cpu_s_estimate'] / 60:.1f}",
                          f"{(t['full_run_cpu_s_estimate'] + d['full_data_cpu_s_estimate']) / 60:.1f}"])
     la = r.get("load_average_1min_start_end", [])
+    load = f"; load average {min(la):.1f}-{max(la):.1f}" if la else ""
     return (_md(["build", "training CPU ms / iteration", "training CPU min (10,000 iterations, estimated)",
                  "data CPU min (25,000 rows, estimated)", "total CPU min"], rows)
             + f"\n\n{r['rounds']} interleaved rounds of {s['this']['train']['iterations']} iterations and "
-            f"{s['this']['data']['rows']:,} rows, {r['torch_threads']} torch thread; load average "
-            f"{min(la):.1f}-{max(la):.1f}." if la else "")
+            f"{s['this']['data']['rows']:,} rows, {r['torch_threads']} torch thread{load}.")
 
 def jerk_timing(res: Results) -> str:
     """Jerk-limited rest-to-rest moves: genplan's phase-synchronised S-curve against ruckig."""
