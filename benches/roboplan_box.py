@@ -45,6 +45,7 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 import genplan  # noqa: E402
+from genplan.experiments.benchmarks.motion import path_length  # noqa: E402
 from genplan.experiments.common import machine, write_json  # noqa: E402
 from genplan.planning import Planner, PlannerSettings  # noqa: E402
 from genplan.scene import Box, Pose, Scene, Sphere  # noqa: E402
@@ -111,10 +112,6 @@ def dense(path: np.ndarray, step: float) -> np.ndarray:
         n = max(1, math.ceil(float(np.abs(b - a).max()) / step))
         out.append(a + (b - a) * (np.arange(1, n + 1)[:, None] / n))
     return np.concatenate(out)
-
-
-def path_length(path: np.ndarray) -> float:
-    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) > 1 else 0.0
 
 
 def main() -> None:

@@ -482,8 +482,8 @@ def gan_training(res: Results) -> str:
             rows.append([side, f"{t['cpu_ms_per_iteration']:.1f}", f"{t['full_run_cpu_s_estimate'] / 60:.1f}",
                          f"{d['full_data_cpu_s_estimate'] / 60:.1f}",
                          f"{(t['full_run_cpu_s_estimate'] + d['full_data_cpu_s_estimate']) / 60:.1f}"])
-    la = r.get("load_average_1min_start_end", [])
-    load = f"; load average {min(la):.1f}-{max(la):.1f}" if la else ""
+    load = _load(r)
+    load = f"; load average {load}" if load != "-" else ""
     return (_md(["build", "training CPU ms / iteration", "training CPU min (10,000 iterations, estimated)",
                  "data CPU min (25,000 rows, estimated)", "total CPU min"], rows)
             + f"\n\n{r['rounds']} interleaved rounds of {s['this']['train']['iterations']} iterations and "
@@ -519,7 +519,7 @@ def baxter_tray(res: Results) -> str:
 
 def _load(r: Any) -> str:
     """A results file's load average (first and last reading), as the text of a cell."""
-    la = r.get("load_average") or r.get("load_average_before_after") or []
+    la = r.get("load_average") or r.get("load_average_before_after") or r.get("load_average_1min_start_end") or []
     flat = [float(x) for part in la for x in (part if isinstance(part, list) else [part])]
     return f"{min(flat):.1f}-{max(flat):.1f}" if flat else "-"
 
