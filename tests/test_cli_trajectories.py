@@ -230,6 +230,15 @@ def test_adjust_end_to_end(model, family, tmp_path, capsys) -> None:
     assert [r["success"] for r in summary["results"]][1] is False and summary["failed"] >= 1
     assert f"{summary['failed']} of 2 problems failed: " in capsys.readouterr().out
     assert not (out / "trajectory_00001.npz").exists() and not (out / "trajectory_00002.npz").exists()
+    # restarts from the data set as the pool: without a clearance term every problem runs them
+    out3 = tmp_path / "out3"
+    code = main(["adjust", "--model", str(model), "--input", str(tmp_path / "in.npz"), "--objective",
+                 str(_reach_objective(tmp_path)), "--targets", str(tmp_path / "targets.npz"), "--out", str(out3),
+                 "--updates", "2", "--scene", "panda_shelf", "--starts", "3", "--pool", str(family), "--no-progress"])
+    summary = json.loads((out3 / "summary.json").read_text())
+    assert summary["starts"] == 3 and summary["restarted"] == 3
+    assert all(r["starts_run"] == 3 and r["start"] in (0, 1, 2) for r in summary["results"])
+    assert code == (0 if summary["failed"] == 0 else FAILED)
 
 
 def test_adjust_refuses_bad_input_naming_the_file_and_the_field(model, tmp_path, capsys, monkeypatch) -> None:
@@ -282,6 +291,10 @@ def test_adjust_refuses_bad_input_naming_the_file_and_the_field(model, tmp_path,
                   "argument --method: invalid choice: 'newton' (choose from latent, random-latent, direct)"))
     cases.append((["--input", str(tmp_path / "in.npz"), "--targets", str(tmp_path / "t.npz"), "--starts", "0"],
                   "argument --starts"))
+    cases.append((["--input", str(tmp_path / "in.npz"), "--targets", str(tmp_path / "t.npz"), "--starts", "3",
+                   "--pool", str(tmp_path / "k.npz")], f"--pool {tmp_path / 'k.npz'}: q must be trajectories of shape (8, 7)"))
+    cases.append((["--input", str(tmp_path / "in.npz"), "--targets", str(tmp_path / "t.npz"), "--pool",
+                   str(tmp_path / "in.npz")], "pool gives restarts their latent starts: it needs starts > 1"))
     monkeypatch.setattr(adjust_module, "_run", started)
     for extra, message in cases:
         assert main([*base, *extra]) == 2, message

@@ -204,3 +204,70 @@ def test_starts_refuses_bad_values_before_any_work(panda, tiny_panda_model, monk
             adjust(tiny_panda_model, x, _ball_objective(), start_spread=bad, **kw)
     with pytest.raises(SettingsError, match="starts > 1 needs an Objective"):
         adjust(tiny_panda_model, x, lambda r: r.p.square().mean((1, 2)), starts=2, robot=panda)
+
+
+def test_pool_restarts_start_from_the_best_scored_of_the_nearest_pool_trajectories(panda, tiny_panda_model,
+                                                                                  monkeypatch) -> None:
+    """With a pool, a restarted problem's restarts start from the encodings of the pool's
+    trajectories nearest its input (start and end samples), lowest objective first when decoded
+    from its start; a pool member far from the input is not scored; restarts beyond the members
+    found keep the random spread; seeded."""
+    import genplan.seq2seq.adjust as adj
+
+    x, balls = _ball_problems(panda)
+    near_a, near_b = x[1].copy(), x[1].copy()
+    near_a[1:-1, 3] += 0.9  # the elbow bent
+    near_b[1:-1, 1] -= 0.5  # the shoulder lifted
+    far = x[1] + 1.0  # start and end a radian away in every joint
+    pool = np.stack([far, near_a, near_b])
+    monkeypatch.setattr(adj, "POOL_NEAREST", 2)
+    calls: list[tuple[int, torch.Tensor | None, adj.AdjustResult]] = []
+    run = adj._run
+
+    def spy(*args, **kwargs):
+        out = run(*args, **kwargs)
+        calls.append((args[4], kwargs.get("perturb"), out))  # (updates, perturb, result)
+        return out
+
+    monkeypatch.setattr(adj, "_run", spy)
+    kw = dict(targets={"avoid_spheres": balls}, updates=2, step="adam", lr=0.02, robot=panda)
+    res = adjust(tiny_panda_model, x, _ball_objective(), starts=4, pool=pool, **kw)
+    assert res.starts_run.tolist() == [1, 4]
+    (_, first, _), (scored_updates, scored, scores), (_, restarts, _) = calls
+    assert first is None and scored_updates == 0 and scored is not None and restarts is not None
+    with torch.no_grad():
+        z = tiny_panda_model.encode(torch.as_tensor(np.concatenate([x[1:], pool]), dtype=torch.float32))
+    # the two near members scored (their offsets from the problem's own encoding), the far one not
+    torch.testing.assert_close(scored, z[[2, 3]] - z[0], rtol=0, atol=1e-6)
+    assert scores.batch == 2 and scores.objective_history.shape == (1, 2)
+    assert scores.objective_history[0, 0] != scores.objective_history[0, 1]
+    best, other = 2 + np.argsort(scores.objective_history[0])
+    torch.testing.assert_close(restarts[:2], z[[best, other]] - z[0], rtol=0, atol=1e-6)
+    # the third restart: two members near, so the random spread
+    assert not any(torch.allclose(restarts[2], z[k] - z[0], atol=1e-3) for k in (1, 2, 3))
+    calls.clear()
+    again = adjust(tiny_panda_model, x, _ball_objective(), starts=4, pool=pool, **kw)
+    np.testing.assert_array_equal(again.p, res.p)
+
+
+def test_pool_refuses_bad_values_before_any_work(panda, tiny_panda_model, monkeypatch) -> None:
+    import genplan.seq2seq.adjust as adj
+    from genplan.errors import NonFiniteError
+
+    def started(*args, **kwargs):
+        raise AssertionError("an update ran before the arguments were checked")
+
+    monkeypatch.setattr(adj, "_run", started)
+    x, balls = _ball_problems(panda)
+    kw = dict(targets={"avoid_spheres": balls}, robot=panda)
+    with pytest.raises(ShapeError, match="pool"):
+        adjust(tiny_panda_model, x, _ball_objective(), starts=3, pool=x[:, :5], **kw)
+    with pytest.raises(ShapeError, match="pool"):
+        adjust(tiny_panda_model, x, _ball_objective(), starts=3, pool=x[:0], **kw)
+    bad = x.copy()
+    bad[1, 3, 2] = np.nan
+    with pytest.raises(NonFiniteError, match="pool"):
+        adjust(tiny_panda_model, x, _ball_objective(), starts=3, pool=bad, **kw)
+    for wrong in (dict(starts=1), dict(starts=3, method="random-latent")):
+        with pytest.raises(SettingsError, match="pool"):
+            adjust(tiny_panda_model, x, _ball_objective(), pool=x, **{**kw, **wrong})

@@ -20,6 +20,8 @@ Inputs, each checked (a typed error naming the file and the field, before any wo
 ``--starts K``: a problem whose first start leaves a clearance term of the objective positive is
 adjusted again from K - 1 other starts and finished from the first start that passes (see
 :func:`genplan.seq2seq.adjust.adjust`); default 8 for an objective with a clearance term, else 1.
+``--pool DIR``: trajectories of the family (the model's training data, say) half of those restarts
+start from: the pool's members near the problem's input that score best on the objective.
 
 Writes to ``--out`` (a folder): ``adjusted.npz`` (the adjusted trajectories ``p``, ``v``, ``u`` of
 the start each problem kept, the latent ``z``, per problem ``success``, ``end_error_m``,
@@ -81,6 +83,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "none for a .npz input)")
     p.add_argument("--seed", type=A.seed, default=0,
                    help="the seed of random-latent's starting z and of the restarts' starts (default 0)")
+    p.add_argument("--pool", default=None,
+                   help="trajectories the restarts may start from (as --input: a data set's folder, e.g. the model's "
+                        "training data, or a .npz): the restarts of a problem start from the encodings of the pool's "
+                        "members near its input that score best on the objective (genplan.adjust's pool)")
     p.add_argument("--starts", type=A.positive_int, default=None,
                    help="starts per problem: a problem whose adjusted trajectory leaves a clearance term of the "
                         "objective positive is adjusted again from the others, and the finish falls back on them "
@@ -96,8 +102,9 @@ def _model_robot(model: Any) -> dict[str, Any]:
     return robot if isinstance(robot, dict) else {}
 
 
-def _inputs(path_text: str, model: Any, model_path: Path) -> tuple[np.ndarray, dict[str, Any]]:
-    """The input trajectories (B, K, n) and where they came from, checked against the model."""
+def _inputs(path_text: str, model: Any, model_path: Path, option: str = "--input") -> tuple[np.ndarray, dict[str, Any]]:
+    """The trajectories (B, K, n) of ``option`` (``--input`` or ``--pool``) and where they came
+    from, checked against the model."""
     from genplan._files import read_npz
     from genplan.errors import GenplanError, NonFiniteError, ShapeError, UnknownNameError
     from genplan.seq2seq.data import read_trajectories, resample
@@ -109,37 +116,37 @@ def _inputs(path_text: str, model: Any, model_path: Path) -> tuple[np.ndarray, d
     if path.is_dir():
         data = read_trajectories(path)
         if list(data.axes) != axes:
-            raise UnknownNameError(f"--input {path}: a data set of the axes {list(data.axes)}; the model {model_path} "
+            raise UnknownNameError(f"{option} {path}: a data set of the axes {list(data.axes)}; the model {model_path} "
                                    f"is of {axes}")
         theirs, mine = (data.robot or {}).get("sha256"), _model_robot(model).get("sha256")
         if theirs is not None and mine is not None and theirs != mine:
-            raise GenplanError(f"--input {path}: a data set of robot '{(data.robot or {}).get('name')}' (sha256 "
+            raise GenplanError(f"{option} {path}: a data set of robot '{(data.robot or {}).get('name')}' (sha256 "
                                f"{str(theirs)[:12]}), the model {model_path} is of robot "
                                f"'{_model_robot(model).get('name')}' (sha256 {str(mine)[:12]}): their files differ")
         if data.K != cfg.K:
-            raise ShapeError(f"--input {path}: trajectories of {data.K} samples, the model {model_path} takes {cfg.K}")
+            raise ShapeError(f"{option} {path}: trajectories of {data.K} samples, the model {model_path} takes {cfg.K}")
         return data.positions, {"data_set": str(path), "sha256": data.sha256, "scene": data.scene}
     if not path.is_file():
-        raise FileNotFoundError(f"--input {path}: no such file or folder")
-    arrays = read_npz(path, "--input")
+        raise FileNotFoundError(f"{option} {path}: no such file or folder")
+    arrays = read_npz(path, option)
     if "q" not in arrays:
-        raise GenplanError(f"--input {path}: no array 'q' (the trajectories, shape (B, {cfg.K}, {cfg.dim})); it holds "
+        raise GenplanError(f"{option} {path}: no array 'q' (the trajectories, shape (B, {cfg.K}, {cfg.dim})); it holds "
                            f"{sorted(arrays)}")
     if "joint_names" in arrays:
         names = [str(n) for n in np.atleast_1d(arrays["joint_names"])]
         if names != axes:
-            raise UnknownNameError(f"--input {path}: joint_names {names}, the model {model_path} is of {axes}")
+            raise UnknownNameError(f"{option} {path}: joint_names {names}, the model {model_path} is of {axes}")
     q = arrays["q"]
     if q.dtype.kind not in "iuf":
-        raise GenplanError(f"--input {path}: q holds {q.dtype} values, expected numbers")
+        raise GenplanError(f"{option} {path}: q holds {q.dtype} values, expected numbers")
     q = q.astype(np.float64)
     if q.ndim == 2 and len(q) != cfg.K and "t" in arrays:  # a timed trajectory: onto the model's K samples
         if not np.all(np.isfinite(q)):
-            raise NonFiniteError(f"--input {path}: q contains NaN or inf (first at index "
+            raise NonFiniteError(f"{option} {path}: q contains NaN or inf (first at index "
                                  f"{tuple(int(i) for i in np.argwhere(~np.isfinite(q))[0])})")
-        q = resample(np.asarray(arrays["t"], dtype=np.float64), q, cfg.K, f"--input {path}")
+        q = resample(np.asarray(arrays["t"], dtype=np.float64), q, cfg.K, f"{option} {path}")
     try:
-        x = check_trajectories(q, cfg.K, cfg.dim, name=f"--input {path}: q")
+        x = check_trajectories(q, cfg.K, cfg.dim, name=f"{option} {path}: q")
     except GenplanError as exc:
         raise type(exc)(str(exc)) from None
     return x, {"file": str(path)}
@@ -192,6 +199,7 @@ def main(args: argparse.Namespace) -> int:
     x, source = _inputs(args.input, model, args.model)
     objective = load_objective(args.objective, allow_python=args.allow_python)
     targets = _targets(args.targets, objective, len(x))
+    pool = None if args.pool is None else _inputs(args.pool, model, args.model, "--pool")[0]
     scene: Any = args.scene
     if scene is None and source.get("scene") is not None:  # an input data set's scene
         from genplan.scene import Scene
@@ -200,7 +208,8 @@ def main(args: argparse.Namespace) -> int:
     try:  # every argument is checked before any update: errors name the files
         result = adjust(model, x, objective, targets=targets, method=args.method, updates=args.updates, lr=args.lr,
                         step=args.step, seed=args.seed, scene=scene, allow_python=args.allow_python,
-                        progress=not args.no_progress, threads=args.threads, starts=args.starts)
+                        progress=not args.no_progress, threads=args.threads, starts=args.starts,
+                        pool=pool)
     except GenplanError as exc:
         if isinstance(exc, A.UsageError):
             raise

@@ -39,7 +39,11 @@ where that trajectory starts. Rows:
   none found), ``clear_ends_ms_per_problem`` its time over all problems, inside
   ``ms_per_problem``. The trajectory is still the latent adjustment's. ``success_percent`` counts
   every problem (those starting inside the sphere as failures); ``free_success_percent`` counts
-  only the problems whose input starts and ends clear of it (``free_problems`` of them).
+  only the problems whose input starts and ends clear of it (``free_problems`` of them). A problem
+  its first start leaves inside the sphere runs ``--obstacle-starts`` starts in all; with
+  ``--obstacle-pool data`` (the default) half of its restarts start from the ``--data``
+  trajectories near its input that score best on the objective (``genplan.adjust``'s ``pool``),
+  the others from the random spread (``restarted_problems``, ``success_from_restart``).
 """
 
 from __future__ import annotations
@@ -92,6 +96,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--obstacle-start-spread", type=A.positive_float, default=None,
                    help="the spread of the obstacle case's other starts around the first (latent units; default "
                         "genplan.adjust's start_spread)")
+    p.add_argument("--obstacle-pool", choices=("data", "none"), default="data",
+                   help="what the obstacle case's restarts may start from besides the random spread: 'data' the "
+                        "--data trajectories (genplan.adjust's pool), 'none' the spread alone")
     p.add_argument("--no-promp", action="store_true", help="skip the ProMP row")
     p.add_argument("--rows", type=_rows, default=ROWS,
                    help=f"the rows to run, comma-separated, of {','.join(ROWS)} (default: all; replanning and ProMP "
@@ -221,6 +228,7 @@ def main(args: argparse.Namespace) -> int:
         obs = adjust(model, aim_inputs(x_in, ends.q), objective(frame, obstacle=True),
                      targets={"end_position": own_end, "avoid_spheres": spheres},
                      updates=args.obstacle_updates, step="adam", lr=OBSTACLE_LR, scene=scene, starts=args.obstacle_starts,
+                     pool=data.positions if args.obstacle_pool == "data" and args.obstacle_starts > 1 else None,
                      **({} if args.obstacle_start_spread is None else {"start_spread": args.obstacle_start_spread}))
         t_obs_adjust = time.perf_counter() - t0 - t_clear_ends
         obs_spread = START_SPREAD if args.obstacle_start_spread is None else args.obstacle_start_spread
@@ -242,7 +250,8 @@ def main(args: argparse.Namespace) -> int:
                                                          else float("nan")),
                                 median_end_move_rad=float(np.median(ends.moved[ends.found])) if ends.found.any() else float("nan"),
                                 clear_ends_ms_per_problem=1e3 * t_clear_ends / args.problems,
-                                starts=args.obstacle_starts, start_spread=obs_spread, restarted_problems=int((obs.starts_run > 1).sum()),
+                                starts=args.obstacle_starts, start_spread=obs_spread, pool=args.obstacle_pool,
+                                restarted_problems=int((obs.starts_run > 1).sum()),
                                 success_from_restart=int((fin_obs.success & (fin_obs.start_index > 0)).sum()),
                                 starts_run_mean=float(obs.starts_run.mean()),
                                 adjust_ms_per_problem=1e3 * t_obs_adjust / args.problems, finish_stages_s=fin_obs.seconds,
