@@ -87,8 +87,9 @@ def main() -> None:
     avoid = Objective([EndPosition(1e4, frame="hand"), JointLimits(100.0, margin=0.01), StayNear(0.1), Constraint(10.0),
                        AvoidSpheres(1e4, margin=0.04), Clearance(1e4, margin=0.03), SelfClearance(1e4, margin=0.01)])
     own_end = robot.frame_positions(x_in[:, -1], "hand")
+    # left in the ball, it is adjusted again from the family's members near it (the pool)
     obs = genplan.adjust(model, x_in, avoid, targets={"end_position": own_end, "avoid_spheres": ball}, updates=400,
-                         step="adam", lr=0.02, scene=scene)
+                         step="adam", lr=0.02, scene=scene, pool=data.positions)
     fin_obs = obs.finish(world=world)
     hit = bool(np.any(world.in_collision(x_in[0])))
     print(f"obstacle: the original motion {'hits' if hit else 'misses'} the ball; adjusted: "
