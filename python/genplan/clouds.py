@@ -39,13 +39,14 @@ def check_points(points: Any, what: str = "points") -> NDArray[np.float64]:
         raise ShapeError(f"{what}: expected an array of shape (n, 3), got shape {arr.shape}")
     if arr.shape[0] == 0:
         raise ShapeError(f"{what}: the cloud is empty (a cloud needs at least one point)")
-    finite = np.isfinite(arr)
-    if not finite.all():
-        row, col = (int(i) for i in np.argwhere(~finite)[0])
-        raise NonFiniteError(f"{what}: row {row} (column {col}) is not finite ({arr[row, col]})")
-    far = np.abs(arr) > _MAX_COORDINATE
-    if far.any():
-        row = int(np.argwhere(far)[0][0])
+    # two reductions without a temporary (NaN propagates through min and max); the rows are
+    # searched only when one fails (a frame is checked at the sensor's rate)
+    if not (-_MAX_COORDINATE <= arr.min() and arr.max() <= _MAX_COORDINATE):
+        finite = np.isfinite(arr)
+        if not finite.all():
+            row, col = (int(i) for i in np.argwhere(~finite)[0])
+            raise NonFiniteError(f"{what}: row {row} (column {col}) is not finite ({arr[row, col]})")
+        row = int(np.argwhere(np.abs(arr) > _MAX_COORDINATE)[0][0])
         raise ShapeError(f"{what}: row {row} {arr[row].tolist()} lies beyond {_MAX_COORDINATE:g} m of the origin")
     return np.ascontiguousarray(arr)
 

@@ -118,7 +118,25 @@ fn a_new_frame_replaces_the_old_in_place() {
     w.replace_points("cam", &[5.0, 5.0, 5.0]).unwrap();
     let far = w.min_distance(&q).unwrap();
     w.replace_points("cam", &[0.3, 0.0, 0.6]).unwrap();
-    assert!(w.min_distance(&q).unwrap() < far);
+    let near = w.min_distance(&q).unwrap();
+    assert!(near < far);
+    // a new frame is built in the old one's memory, except while a clone of the world shares
+    // it: the clone keeps its frame, each world then answers for its own, and the next frame
+    // (the grid no longer shared) matches a cloud added with it
+    let snapshot = w.clone();
+    w.replace_points("cam", &[5.0, 5.0, 5.0]).unwrap();
+    assert_eq!(snapshot.min_distance(&q).unwrap(), near);
+    assert_eq!(w.min_distance(&q).unwrap(), far);
+    w.replace_points("cam", &pts).unwrap();
+    let mut fresh = w.clone();
+    fresh.remove_obstacle("cam").unwrap();
+    fresh.add_points("cam", &pts, 0.01, Some(0.05)).unwrap();
+    assert_eq!(w.obstacles.last().unwrap().cloud, fresh.obstacles.last().unwrap().cloud);
+    for _ in 0..50 {
+        let q = draw(&model, &mut rng);
+        assert_eq!(w.min_distance(&q).unwrap(), fresh.min_distance(&q).unwrap());
+        assert_eq!(w.in_collision(&q).unwrap(), fresh.in_collision(&q).unwrap());
+    }
 }
 
 #[test]

@@ -11,6 +11,8 @@
 //! margins) and `cloud_distance` (`min_distance`, `close_pairs`); `point_distances` asks [`CloudGrid::nearest`] and the sphere
 //! checker [`CloudGrid::any_within`]. Space the sensor did not see is free.
 
+use std::sync::Arc;
+
 use nalgebra::{Isometry3, Point3};
 use parry3d_f64::shape::SharedShape;
 
@@ -35,44 +37,120 @@ pub struct Cloud {
 /// of every point it stands for. Voxels in the order of their integer coordinates (x, then y,
 /// then z), so the output depends only on the set of input points and their order within a
 /// voxel (rows of x, y, z, finite: checked by the caller). The voxels are found by sorting the
-/// points' voxel coordinates (no hash table), each as one `u64` (its rank in the voxel box of the
-/// cloud, x slowest) beside the point's index when the box's voxels fit one, else as three `i64`.
+/// points' voxel coordinates (no hash table): each as its rank in the voxel box of the cloud (x
+/// slowest) packed with the point's index into one `u64` when both fit (a radix sort, linear in
+/// the points), else as that rank beside the index or, when the box's voxels do
+/// not fit a `u64`, as three `i64` (a comparison sort).
 pub fn voxel_downsample(points: &[f64], voxel: f64) -> Vec<f64> {
+    let mut out = Vec::new();
+    voxel_downsample_into(points, voxel, &mut VoxelBuffers::default(), &mut out);
+    out
+}
+
+/// The sort keys [`voxel_downsample_into`] keeps between frames.
+#[derive(Debug, Default)]
+pub(super) struct VoxelBuffers {
+    keys: Vec<u64>,
+    other: Vec<u64>,
+}
+
+/// [`voxel_downsample`] into `out` (cleared first), its keys sorted in `buffers`.
+pub(super) fn voxel_downsample_into(points: &[f64], voxel: f64, buffers: &mut VoxelBuffers, out: &mut Vec<f64>) {
+    out.clear();
     let inv = 1.0 / voxel;
-    // a coordinate within MAX_OBSTACLE_EXTENT over a voxel >= MIN_VOXEL fits an i64
-    let key = |p: &[f64]| [(p[0] * inv).floor() as i64, (p[1] * inv).floor() as i64, (p[2] * inv).floor() as i64];
-    let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+    // the voxel coordinates' box: floor is monotone, so the floors of the extreme coordinates
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in points.chunks_exact(3) {
-        let k = key(p);
-        for i in 0..3 {
-            lo[i] = lo[i].min(k[i]);
-            hi[i] = hi[i].max(k[i]);
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
         }
     }
+    let (lo, hi) = (lo.map(|x| floor(x * inv)), hi.map(|x| floor(x * inv)));
+    // a coordinate within MAX_OBSTACLE_EXTENT over a voxel >= MIN_VOXEL fits an i64
+    let key = |p: &[f64]| [floor(p[0] * inv), floor(p[1] * inv), floor(p[2] * inv)];
     let dims = [0, 1, 2].map(|i| (hi[i] - lo[i]) as u128 + 1);
-    if points.len() / 3 <= u32::MAX as usize && dims[0] * dims[1] * dims[2] <= u64::MAX as u128 {
-        let (dy, dz) = (dims[1] as u64, dims[2] as u64);
-        let mut keys: Vec<(u64, u32)> = points
-            .chunks_exact(3)
-            .enumerate()
-            .map(|(i, p)| {
-                let k = key(p);
-                let d = [0, 1, 2].map(|j| (k[j] - lo[j]) as u64);
-                ((d[0] * dy + d[1]) * dz + d[2], i as u32)
-            })
-            .collect();
-        keys.sort_unstable();
-        centroids(points, &keys, |k| k.0, |k| k.1 as usize)
-    } else {
+    let n = points.len() / 3;
+    let voxels = dims[0] * dims[1] * dims[2];
+    if voxels > u64::MAX as u128 || n > u32::MAX as usize {
         let mut keys: Vec<([i64; 3], usize)> = points.chunks_exact(3).enumerate().map(|(i, p)| (key(p), i)).collect();
         keys.sort_unstable();
-        centroids(points, &keys, |k| k.0, |k| k.1)
+        return centroids(points, &keys, |k| k.0, |k| k.1, out);
+    }
+    let (dy, dz) = (dims[1] as u64, dims[2] as u64);
+    let rank = |p: &[f64]| {
+        let k = key(p);
+        let d = [0, 1, 2].map(|j| (k[j] - lo[j]) as u64);
+        (d[0] * dy + d[1]) * dz + d[2]
+    };
+    let max_rank = (voxels - 1) as u64;
+    let index_bits = u64::BITS - (n as u64).saturating_sub(1).leading_zeros();
+    let rank_bits = u64::BITS - max_rank.leading_zeros();
+    if index_bits + rank_bits <= u64::BITS {
+        // rank above the index: the sort on the rank's bits keeps each voxel's points in order
+        let keys = &mut buffers.keys;
+        keys.clear();
+        keys.extend(points.chunks_exact(3).enumerate().map(|(i, p)| (rank(p) << index_bits) | i as u64));
+        radix_sort(keys, &mut buffers.other, index_bits, rank_bits);
+        let mask = (1u64 << index_bits) - 1;
+        centroids(points, keys, |k| k >> index_bits, |k| (k & mask) as usize, out);
+    } else {
+        let mut keys: Vec<(u64, u32)> = points.chunks_exact(3).enumerate().map(|(i, p)| (rank(p), i as u32)).collect();
+        keys.sort_unstable();
+        centroids(points, &keys, |k| k.0, |k| k.1 as usize, out);
     }
 }
 
-/// The centroid of each run of equal keys of `keys` (sorted), in their order.
-fn centroids<K, V: PartialEq>(points: &[f64], keys: &[K], voxel: impl Fn(&K) -> V, index: impl Fn(&K) -> usize) -> Vec<f64> {
-    let mut out = Vec::new();
+/// `x.floor()` as an `i64` for `|x| < 2^53` without a call into libm (which `f64::floor` is
+/// without SSE4.1): truncation, one less for a negative non-integer.
+#[inline(always)]
+fn floor(x: f64) -> i64 {
+    let t = x as i64;
+    t - i64::from((t as f64) > x)
+}
+
+/// The bits of a key [`radix_sort`] sorts by in one pass, at most (a pass's counts, 2^12 of
+/// them, stay in the first-level cache).
+const RADIX_BITS: u32 = 12;
+
+/// Sort `keys` by their bits `shift..shift + bits` (the bits below `shift` kept in their order:
+/// a stable sort; `other`: scratch), least significant digit first: as many passes of at most [`RADIX_BITS`] bits
+/// as `bits` needs (two for a cloud in a box of 16 million voxels), each a count and a scatter,
+/// linear in the keys where a comparison sort is n log n.
+fn radix_sort(keys: &mut Vec<u64>, other: &mut Vec<u64>, shift: u32, bits: u32) {
+    let passes = bits.div_ceil(RADIX_BITS);
+    if passes == 0 || keys.len() < 2 {
+        return;
+    }
+    let width = bits.div_ceil(passes);
+    let mask = (1u64 << width) - 1;
+    other.clear();
+    other.resize(keys.len(), 0);
+    let mut count = vec![0usize; 1 << width];
+    for pass in 0..passes {
+        let s = shift + pass * width;
+        count.fill(0);
+        for k in keys.iter() {
+            count[((k >> s) & mask) as usize] += 1;
+        }
+        let mut sum = 0;
+        for c in count.iter_mut() {
+            (*c, sum) = (sum, sum + *c);
+        }
+        for &k in keys.iter() {
+            let d = &mut count[((k >> s) & mask) as usize];
+            other[*d] = k;
+            *d += 1;
+        }
+        std::mem::swap(keys, other);
+    }
+}
+
+/// Into `out` (empty), the centroid of each run of equal voxels (`voxel`) of `keys` (sorted), in
+/// their order, the points read through `index`.
+fn centroids<K, V: PartialEq>(points: &[f64], keys: &[K], voxel: impl Fn(&K) -> V, index: impl Fn(&K) -> usize, out: &mut Vec<f64>) {
+    let runs = 1 + keys.windows(2).filter(|w| voxel(&w[0]) != voxel(&w[1])).count();
+    out.reserve(3 * runs);
     let mut k = 0;
     while k < keys.len() {
         let (key, mut sum, mut n) = (voxel(&keys[k]), [0.0; 3], 0.0);
@@ -86,7 +164,6 @@ fn centroids<K, V: PartialEq>(points: &[f64], keys: &[K], voxel: impl Fn(&K) -> 
         }
         out.extend(sum.iter().map(|s| s / n));
     }
-    out
 }
 
 /// The smallest voxel edge [`voxel_downsample`] takes (m): finer than any depth sensor resolves.
@@ -127,10 +204,8 @@ fn check_cloud_settings(what: &str, radius: f64, voxel: Option<f64>) -> Result<(
 
 /// The balls of a checked cloud (down-sampled when `voxel` is given), as one [`CloudGrid`].
 fn cloud_shape(points: &[f64], radius: f64, voxel: Option<f64>) -> (SharedShape, usize) {
-    let grid = match voxel {
-        Some(v) => CloudGrid::new(&voxel_downsample(points, v), radius),
-        None => CloudGrid::new(points, radius),
-    };
+    let mut grid = CloudGrid::new(&[0.0; 3], radius);
+    grid.rebuild(points, radius, voxel);
     let n = grid.len();
     (SharedShape::new(grid), n)
 }
@@ -169,11 +244,21 @@ impl CollisionWorld {
             return Err(Error::Invalid(format!("obstacle '{name}' is not a point cloud: only a cloud's points can be replaced")));
         };
         check_points(&format!("points '{name}'"), points)?;
-        let (shape, n) = cloud_shape(points, cloud.radius, cloud.voxel);
+        let old = self.obstacles.get_mut(i);
+        // the new frame in the old one's memory when no one else holds the grid (a clone of the
+        // world shares it until then), else in a new grid
+        let shape = match Arc::get_mut(&mut old.shape.0).and_then(|s| s.downcast_mut::<CloudGrid>()) {
+            Some(grid) => {
+                grid.rebuild(points, cloud.radius, cloud.voxel);
+                old.shape.clone()
+            }
+            None => cloud_shape(points, cloud.radius, cloud.voxel).0,
+        };
+        let n = shape.as_shape::<CloudGrid>().map_or(0, CloudGrid::len);
         let mut o = Self::make_obstacle(name, Isometry3::identity(), shape);
         o.cloud = Some(Cloud { points: n, ..cloud });
-        o.padding = self.obstacles[i].padding; // the cloud's own clearance margin stays
-        self.obstacles.replace(i, o);
+        o.padding = old.padding; // the cloud's own clearance margin stays
+        *old = o;
         Ok(())
     }
 
@@ -184,6 +269,15 @@ impl CollisionWorld {
             Target::Obstacle(k) if self.obstacles[k].cloud.is_some() => self.obstacles[k].shape.as_shape::<CloudGrid>(),
             _ => None,
         }
+    }
+
+    /// Is the sphere of radius `r` about `c` farther than `margin` (>= 0) from every ball of
+    /// obstacle `k` by its cloud's clearance field ([`CloudGrid::clearance`]: one lookup)? The
+    /// link volumes' test before any of a link's geometries is posed; false when `k` is not a
+    /// cloud or the field cannot tell.
+    #[inline]
+    pub(super) fn cloud_clears(&self, k: usize, c: &Point3<f64>, r: f64, margin: f64) -> bool {
+        self.cloud_of(Target::Obstacle(k)).is_some_and(|g| g.clearance(c) > r + g.radius() + margin)
     }
 
     /// For a cloud target `t`: is robot geometry `i` (posed in `s`) within `margin` (>= 0) of one
@@ -249,6 +343,25 @@ mod tests {
         assert_eq!(out.len(), want.len());
         for (a, b) in out.iter().zip(want) {
             assert!((a - b).abs() < 1e-12, "{out:?}");
+        }
+    }
+
+    #[test]
+    fn the_radix_sort_sorts_its_bits_as_a_stable_comparison_sort() {
+        let mut state = 7u64;
+        for (n, shift, bits) in [(1000usize, 10u32, 3u32), (5000, 13, 20), (3000, 17, 40), (200, 0, 64), (1, 0, 9), (0, 0, 0), (700, 20, 0)] {
+            let mask = if bits == 64 { u64::MAX } else { (1u64 << bits) - 1 };
+            let low = if shift == 0 { 0 } else { (1u64 << shift) - 1 };
+            let mut keys: Vec<u64> = (0..n)
+                .map(|i| {
+                    state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    (((state >> 5) & mask) << shift) | (i as u64 & low)
+                })
+                .collect();
+            let mut want = keys.clone();
+            want.sort_by_key(|k| k >> shift); // stable: the low bits keep their order
+            radix_sort(&mut keys, &mut Vec::new(), shift, bits);
+            assert_eq!(keys, want, "{n} keys, bits {shift}..{}", shift + bits);
         }
     }
 }

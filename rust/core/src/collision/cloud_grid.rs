@@ -42,6 +42,8 @@ use parry3d_f64::query::gjk::{self, CSOPoint, ConstantOrigin, GJKResult, Voronoi
 use parry3d_f64::query::{PointProjection, PointQuery, Ray, RayCast, RayIntersection};
 use parry3d_f64::shape::{FeatureId, Shape, ShapeType, TypedShape};
 
+use super::cloud::{voxel_downsample_into, VoxelBuffers};
+
 /// The cell edge in ball radii, before [`MAX_CELLS_PER_BALL`] widens it: measured on the Panda
 /// shelf cloud (benches/point_clouds.py; docs/ARCHITECTURE.md "Point clouds").
 pub const CELL_RADII: f64 = 4.0;
@@ -105,6 +107,32 @@ pub struct CloudGrid {
     finv: f64,
     fdims: [usize; 3],
     field: Vec<f32>,
+    /// Memory a new frame reuses ([`CloudGrid::rebuild`]).
+    buffers: Buffers,
+}
+
+/// The working memory of a grid's build, kept for the next frame ([`CloudGrid::rebuild`]); a
+/// clone of the grid starts without it.
+#[derive(Debug, Default)]
+struct Buffers {
+    /// Per centre its cell.
+    keys: Vec<u32>,
+    /// Per clearance-field cell: does it hold a centre?
+    occupied: Vec<bool>,
+    /// The distance transform's squared distances, and its lines' scratch.
+    dist: Vec<f64>,
+    line: Vec<f64>,
+    parabolas: Vec<usize>,
+    bounds: Vec<f64>,
+    /// The down-sampled points and the voxel sort's keys ([`voxel_downsample_into`]).
+    points: Vec<f64>,
+    voxel: VoxelBuffers,
+}
+
+impl Clone for Buffers {
+    fn clone(&self) -> Self {
+        Buffers::default()
+    }
 }
 
 /// Cell ranges (inclusive) along each axis.
@@ -114,6 +142,48 @@ impl CloudGrid {
     /// The balls of radius `radius` (> 0) centred at `points` (rows of x, y, z, at least one,
     /// finite: checked by the caller).
     pub fn new(points: &[f64], radius: f64) -> CloudGrid {
+        let mut grid = CloudGrid {
+            radius,
+            origin: Vector3::zeros(),
+            cell: 1.0,
+            inv: 1.0,
+            dims: [1; 3],
+            start: Vec::new(),
+            blocks: Vec::new(),
+            block_dims: [1; 3],
+            centers: Vec::new(),
+            lo: Point3::origin(),
+            hi: Point3::origin(),
+            fcell: 1.0,
+            finv: 1.0,
+            fdims: [1; 3],
+            field: Vec::new(),
+            buffers: Buffers::default(),
+        };
+        grid.rebuild(points, radius, None);
+        grid
+    }
+
+    /// Make this grid the balls of radius `radius` (> 0) centred at `points` (rows of x, y, z,
+    /// at least one, finite: checked by the caller), down-sampled first to one point per
+    /// `voxel` when given ([`voxel_downsample`](super::voxel_downsample)): a new frame, built
+    /// in the memory of the previous one (no allocation once the frames' sizes settle).
+    pub fn rebuild(&mut self, points: &[f64], radius: f64, voxel: Option<f64>) {
+        let mut buffers = std::mem::take(&mut self.buffers);
+        match voxel {
+            Some(v) => {
+                let mut kept = std::mem::take(&mut buffers.points);
+                voxel_downsample_into(points, v, &mut buffers.voxel, &mut kept);
+                self.build(&kept, radius, &mut buffers);
+                buffers.points = kept;
+            }
+            None => self.build(points, radius, &mut buffers),
+        }
+        self.buffers = buffers;
+    }
+
+    /// [`rebuild`](Self::rebuild) without the down-sampling, in `b`'s memory.
+    fn build(&mut self, points: &[f64], radius: f64, b: &mut Buffers) {
         let n = points.len() / 3;
         let (mut lo, mut hi) = (Point3::from([f64::INFINITY; 3]), Point3::from([f64::NEG_INFINITY; 3]));
         for p in points.chunks_exact(3) {
@@ -142,36 +212,65 @@ impl CloudGrid {
             let i = |k: usize| (((p[k] - lo[k]) * inv) as usize).min(dims[k] - 1);
             i(0) + dims[0] * (i(1) + dims[1] * i(2))
         };
-        // counting sort of the centres by cell
-        let keys: Vec<u32> = points.chunks_exact(3).map(|p| key(p) as u32).collect();
-        let mut start = vec![0u32; ncells + 1];
-        for &k in &keys {
+        // counting sort of the centres by cell: counts at c + 1, their prefix sums, then each
+        // centre placed at its cell's running offset, which ends at the next cell's start
+        b.keys.clear();
+        b.keys.extend(points.chunks_exact(3).map(|p| key(p) as u32));
+        let start = &mut self.start;
+        start.clear();
+        start.resize(ncells + 1, 0);
+        for &k in &b.keys {
             start[k as usize + 1] += 1;
         }
         for c in 0..ncells {
             start[c + 1] += start[c];
         }
-        let mut fill = start.clone();
-        let mut centers = vec![Point3::origin(); n];
-        for (p, &k) in points.chunks_exact(3).zip(&keys) {
-            let slot = &mut fill[k as usize];
-            centers[*slot as usize] = Point3::new(p[0], p[1], p[2]);
+        self.centers.clear();
+        self.centers.resize(n, Point3::origin());
+        for (p, &k) in points.chunks_exact(3).zip(&b.keys) {
+            let slot = &mut start[k as usize];
+            self.centers[*slot as usize] = Point3::new(p[0], p[1], p[2]);
             *slot += 1;
         }
+        // the offsets moved one cell on: shift them back
+        start.copy_within(0..ncells, 1);
+        start[0] = 0;
+        // the occupied cells, read off the offsets (one pass over the cells, no division)
         let block_dims = dims.map(|d| d.div_ceil(BLOCK));
-        let mut blocks = vec![false; block_dims[0] * block_dims[1] * block_dims[2]];
-        for &k in &keys {
-            let k = k as usize;
-            let (x, y, z) = (k % dims[0], (k / dims[0]) % dims[1], k / (dims[0] * dims[1]));
-            blocks[x / BLOCK + block_dims[0] * (y / BLOCK + block_dims[1] * (z / BLOCK))] = true;
-        }
+        self.blocks.clear();
+        self.blocks.resize(block_dims[0] * block_dims[1] * block_dims[2], false);
         let split = if dims.iter().map(|&d| d * FIELD_SPLIT).product::<usize>() <= FIELD_CELLS_PER_BALL * n + MIN_CELLS { FIELD_SPLIT } else { 1 };
         let fdims = dims.map(|d| d * split);
         let fcell = cell / split as f64;
-        let field = clearance_field(&centers, &lo.coords, 1.0 / fcell, fcell, fdims);
-        CloudGrid { radius, origin: lo.coords, cell, inv, dims, start, blocks, block_dims, centers, lo, hi, fcell, finv: 1.0 / fcell, fdims, field }
+        let occupied = &mut b.occupied;
+        occupied.clear();
+        occupied.resize(fdims[0] * fdims[1] * fdims[2], false);
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                let base = dims[0] * (y + dims[1] * z);
+                let block = block_dims[0] * (y / BLOCK + block_dims[1] * (z / BLOCK));
+                for x in 0..dims[0] {
+                    if start[base + x + 1] > start[base + x] {
+                        if split == 1 {
+                            occupied[base + x] = true;
+                        }
+                        self.blocks[block + x / BLOCK] = true;
+                    }
+                }
+            }
+        }
+        if split != 1 {
+            // the field's own cells: those holding a centre
+            let finv = 1.0 / fcell;
+            for c in &self.centers {
+                let i = |k: usize| (((c[k] - lo[k]) * finv).max(0.0) as usize).min(fdims[k] - 1);
+                occupied[i(0) + fdims[0] * (i(1) + fdims[1] * i(2))] = true;
+            }
+        }
+        clearance_field(b, fcell, fdims, &mut self.field);
+        (self.radius, self.origin, self.cell, self.inv, self.dims, self.block_dims) = (radius, lo.coords, cell, inv, dims, block_dims);
+        (self.lo, self.hi, self.fcell, self.finv, self.fdims) = (lo, hi, fcell, 1.0 / fcell, fdims);
     }
-
     /// A lower bound on the distance from the world point `p` to every ball centre (possibly
     /// negative: no bound). For `p` in the centres' box: the field's value at the cell holding
     /// `p` less the distance from `p` to that cell's centre. Outside: `q`, `p` clamped to the
@@ -542,42 +641,64 @@ impl CloudGrid {
 /// or linear cloud (an extent of zero) still gets a finite cell.
 const MIN_CUBE_ROOT_EDGE: f64 = 1e-3;
 
-/// The clearance field of `centers` (see [`CloudGrid::clearance`]): the squared distance in
-/// cells from each cell to the nearest cell holding a centre, by three passes of the exact
-/// separable Euclidean distance transform (Felzenszwalb and Huttenlocher's lower envelope of
-/// parabolas, one axis at a time), then per cell `cell * (sqrt(that) - half a diagonal)`: a
-/// centre lies within half a diagonal of its own cell's centre. Rounded down to `f32`.
-fn clearance_field(centers: &[Point3<f64>], origin: &Vector3<f64>, inv: f64, cell: f64, dims: [usize; 3]) -> Vec<f32> {
-    let n = dims[0] * dims[1] * dims[2];
-    let mut d = vec![FAR; n];
-    for c in centers {
-        let i = |k: usize| (((c[k] - origin[k]) * inv).max(0.0) as usize).min(dims[k] - 1);
-        d[i(0) + dims[0] * (i(1) + dims[1] * i(2))] = 0.0;
-    }
-    let longest = dims.iter().copied().max().unwrap_or(1);
-    let (mut f, mut v, mut z) = (vec![0.0; longest], vec![0usize; longest], vec![0.0; longest + 1]);
-    let strides = [1, dims[0], dims[0] * dims[1]];
-    for axis in 0..3 {
-        let (len, step) = (dims[axis], strides[axis]);
-        // every line along `axis`: its first cell's index runs over the other two axes
-        let (a, b) = ([1, 0, 0][axis], [2, 2, 1][axis]);
-        for j in 0..dims[b] {
-            for i in 0..dims[a] {
-                let first = i * strides[a] + j * strides[b];
-                for (q, fq) in f[..len].iter_mut().enumerate() {
-                    *fq = d[first + q * step];
-                }
-                envelope(&f[..len], &mut v, &mut z, |q, x| d[first + q * step] = x);
+/// The clearance field of the cells `b.occupied` (those holding a ball centre; see
+/// [`CloudGrid::clearance`]) into `field`: the squared distance in cells from each cell to the
+/// nearest occupied one, by the exact separable Euclidean distance transform, one axis at a
+/// time: along x (the rows, contiguous) the distance to the nearest occupied cell of the row by a
+/// scan each way, along y and z Felzenszwalb and Huttenlocher's lower envelope of parabolas; then
+/// per cell `cell * (sqrt(that) - half a diagonal)`: a centre lies within half a diagonal of its
+/// own cell's centre. Rounded down to `f32`.
+fn clearance_field(b: &mut Buffers, cell: f64, dims: [usize; 3], field: &mut Vec<f32>) {
+    let d = &mut b.dist;
+    d.clear();
+    d.resize(b.occupied.len(), FAR);
+    for (row, out) in b.occupied.chunks_exact(dims[0]).zip(d.chunks_exact_mut(dims[0])) {
+        // the distance to the last occupied cell at or before each cell, then after it
+        let mut last = None;
+        for (x, (&o, e)) in row.iter().zip(out.iter_mut()).enumerate() {
+            if o {
+                last = Some(x);
+            }
+            if let Some(l) = last {
+                *e = ((x - l) * (x - l)) as f64;
+            }
+        }
+        let mut next = None;
+        for (x, (&o, e)) in row.iter().zip(out.iter_mut()).enumerate().rev() {
+            if o {
+                next = Some(x);
+            }
+            if let Some(l) = next {
+                *e = e.min(((l - x) * (l - x)) as f64);
             }
         }
     }
-    d.iter()
-        .map(|&e| {
-            let bound = cell * (e.sqrt() - HALF_DIAGONAL);
-            // rounded to f32 (relative error below 1e-7), then down by more than that
-            (bound - 1e-6 * (1.0 + bound.abs())) as f32
-        })
-        .collect()
+    let longest = dims.iter().copied().max().unwrap_or(1);
+    let (f, v, z) = (&mut b.line, &mut b.parabolas, &mut b.bounds);
+    f.resize(longest, 0.0);
+    v.resize(longest, 0);
+    z.resize(longest + 1, 0.0);
+    let strides = [1, dims[0], dims[0] * dims[1]];
+    for axis in 1..3 {
+        let (len, step) = (dims[axis], strides[axis]);
+        // every line along `axis`: its first cell's index runs over the other two axes
+        let (a, c) = ([1, 0, 0][axis], [2, 2, 1][axis]);
+        for j in 0..dims[c] {
+            for i in 0..dims[a] {
+                let first = i * strides[a] + j * strides[c];
+                for (q, fq) in f[..len].iter_mut().enumerate() {
+                    *fq = d[first + q * step];
+                }
+                envelope(&f[..len], v, z, |q, x| d[first + q * step] = x);
+            }
+        }
+    }
+    field.clear();
+    field.extend(d.iter().map(|&e| {
+        let bound = cell * (e.sqrt() - HALF_DIAGONAL);
+        // rounded to f32 (relative error below 1e-7), then down by more than that
+        (bound - 1e-6 * (1.0 + bound.abs())) as f32
+    }));
 }
 
 /// A squared distance larger than any in a field (no centre on the line yet).

@@ -62,6 +62,13 @@ impl Obstacles {
         self.index = OnceLock::new();
     }
 
+    /// Obstacle `i` to change in place (its index then rebuilt on the next query, as after
+    /// [`replace`](Self::replace)).
+    pub(super) fn get_mut(&mut self, i: usize) -> &mut Obstacle {
+        self.index = OnceLock::new();
+        &mut self.list[i]
+    }
+
     pub(super) fn clear(&mut self) {
         self.list.clear();
         self.index = OnceLock::new();

@@ -583,6 +583,10 @@ impl CollisionWorld {
                     } else if obstacle.plane_clearance(&c, r).is_some_and(|h| h > 0.0) {
                         continue;
                     }
+                    // a cloud: the link's sphere against the cloud's clearance field
+                    if obstacle.cloud.is_some() && self.cloud_clears(o, &c, r, 0.0) {
+                        continue;
+                    }
                     if let Some(ob) = &obstacle.obb {
                         self.group_obb(k, s);
                         if s.group_obbs[k].separated(ob) {
@@ -872,6 +876,9 @@ impl CollisionWorld {
                     continue;
                 }
                 if obstacle.plane_clearance(&c, g.radius).is_some_and(|h| h > mk) {
+                    continue;
+                }
+                if obstacle.cloud.is_some() && self.cloud_clears(o, &c, g.radius, mk) {
                     continue;
                 }
                 for &i in &g.geometries {
