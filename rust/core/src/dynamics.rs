@@ -100,12 +100,12 @@ impl SpatialInertia {
     }
 
     /// Spatial momentum `[f; n]` of the motion `[v; w]`.
-    #[inline]
+    #[inline(always)]
     pub fn apply(&self, v: &Vector3<f64>, w: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
         (v * self.mass - self.h.cross(w), self.i_o * w + self.h.cross(v))
     }
 
-    #[inline]
+    #[inline(always)]
     fn add(&mut self, o: &SpatialInertia) {
         self.mass += o.mass;
         self.h += o.h;
@@ -169,7 +169,7 @@ impl Body {
     }
 
     /// The joint axis in world axes, given the body's world rotation `rw`.
-    #[inline]
+    #[inline(always)]
     fn world_axis(&self, rw: &Matrix3<f64>) -> Vector3<f64> {
         match self.principal {
             Some((k, sign)) => Vector3::new(rw[(0, k)], rw[(1, k)], rw[(2, k)]) * sign,
@@ -253,7 +253,7 @@ struct ArticulatedInertia {
 
 impl ArticulatedInertia {
     /// The rigid body's own inertia: `a = m I`, `b = -[h]x`, `c = i_o`.
-    #[inline]
+    #[inline(always)]
     fn rigid(i: &SpatialInertia) -> Self {
         ArticulatedInertia { a: Matrix3::from_diagonal_element(i.mass), b: -skew(&i.h), c: i.i_o }
     }
@@ -331,7 +331,7 @@ struct WorldMotion {
 /// `(sin x, cos x)` for the small angle of one integration step: their Taylor series (to
 /// `x^11`, `x^12`) for `|x| <= 1/16`, whose first omitted terms are below 1e-22 there; the
 /// library's `sin_cos` beyond.
-#[inline]
+#[inline(always)]
 fn small_sin_cos(x: f64) -> (f64, f64) {
     if x.abs() > 0.0625 {
         return x.sin_cos();
@@ -343,7 +343,7 @@ fn small_sin_cos(x: f64) -> (f64, f64) {
 }
 
 /// Rotation about the unit `axis` with cosine `c` and sine `s` (Rodrigues).
-#[inline]
+#[inline(always)]
 fn axis_rotation(a: &Vector3<f64>, c: f64, s: f64) -> Matrix3<f64> {
     let t = 1.0 - c;
     let (x, y, z) = (a.x, a.y, a.z);
@@ -588,8 +588,9 @@ impl Dynamics {
     }
 
     /// Placements and velocities of every body for (q, v) (v = None: at rest).
+    #[inline(always)]
     pub fn update_kinematics_unchecked(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace) {
-        self.kinematics_pass(q, None, v, ws, Pass::Full, |_, _, _, _| {});
+        self.kinematics_pass(q, None, v, ws, Pass::Full, false);
     }
 
     /// The kinematics at `q (+) factor dq` (see [`integrate_scaled`](Self::integrate_scaled))
@@ -603,7 +604,7 @@ impl Dynamics {
     /// Jacobians; the body-frame velocities (`v`, `w`) are left stale (not for RNEA). The RK
     /// stages of the 1 kHz plant take their kinematics this way from the period's start.
     pub fn update_kinematics_moved_unchecked(&self, angles: &[[f64; 2]], q: &[f64], dq: &[f64], factor: f64, v: &[f64], ws: &mut DynWorkspace) {
-        self.kinematics_pass(q, Some((angles, dq, factor)), Some(v), ws, Pass::World, |_, _, _, _| {});
+        self.kinematics_pass(q, Some((angles, dq, factor)), Some(v), ws, Pass::World, false);
     }
 
     /// [`update_kinematics_moved_unchecked`](Self::update_kinematics_moved_unchecked) followed
@@ -612,9 +613,10 @@ impl Dynamics {
     /// arithmetic (the same bits in `qdd` and the workspace) without writing and re-reading each
     /// body's world placement and velocity or taking its joint axis twice. The RK stages of the
     /// 1 kHz plant after the first.
+    #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     pub fn aba_moved_unchecked(&self, angles: &[[f64; 2]], q: &[f64], dq: &[f64], factor: f64, v: &[f64], tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
-        self.kinematics_pass(q, Some((angles, dq, factor)), Some(v), ws, Pass::World, |i, b, m, ws| self.aba_first_pass_body(i, b, m, ws));
+        self.kinematics_pass(q, Some((angles, dq, factor)), Some(v), ws, Pass::World, true);
         self.aba_inward_outward(tau, ws, qdd)
     }
 
@@ -625,16 +627,15 @@ impl Dynamics {
     /// [`forward_dynamics_from_kinematics`](Self::forward_dynamics_from_kinematics), not for
     /// frames and Jacobians.
     pub fn update_local_kinematics_unchecked(&self, q: &[f64], v: Option<&[f64]>, ws: &mut DynWorkspace) {
-        self.kinematics_pass(q, None, v, ws, Pass::Local, |_, _, _, _| {});
+        self.kinematics_pass(q, None, v, ws, Pass::Local, false);
     }
 
     /// The kinematics at q, or with `moved` = (angles at q, dq, factor) at `q (+) factor dq`.
-    /// A `World` pass hands each body's world motion to `then` once it is written.
-    #[inline]
-    fn kinematics_pass<F>(&self, q: &[f64], moved: Option<(&[[f64; 2]], &[f64], f64)>, v: Option<&[f64]>, ws: &mut DynWorkspace, pass: Pass, mut then: F)
-    where
-        F: FnMut(usize, &Body, &WorldMotion, &mut DynWorkspace),
-    {
+    /// A `World` pass with `aba_first_pass` runs the articulated-body algorithm's first pass on
+    /// each body's world motion once it is written (a flag, not a closure: a closure would be
+    /// compiled apart from the tick's AVX2 build instead of inlined into it).
+    #[inline(always)]
+    fn kinematics_pass(&self, q: &[f64], moved: Option<(&[[f64; 2]], &[f64], f64)>, v: Option<&[f64]>, ws: &mut DynWorkspace, pass: Pass, aba_first_pass: bool) {
         for (i, b) in self.bodies.iter().enumerate() {
             let qd = v.map_or(0.0, |v| v[b.v_index]);
             ws.qd[b.v_index] = qd;
@@ -689,7 +690,9 @@ impl Dynamics {
                 ws.pw[i] = pw;
                 ws.vw[i] = vw;
                 ws.ww[i] = ww;
-                then(i, b, &WorldMotion { rw, pw, vw, ww, axis }, ws);
+                if aba_first_pass {
+                    self.aba_first_pass_body(i, b, &WorldMotion { rw, pw, vw, ww, axis }, ws);
+                }
                 continue;
             }
             let rt = r.transpose();
@@ -721,6 +724,7 @@ impl Dynamics {
     /// They depend on the joints only, not on the inertias: `from` may come from another model
     /// of the same robot with other payloads (e.g. the controller's nominal model and the
     /// plant's true one). Both workspaces must be this model's size.
+    #[inline(always)]
     pub fn copy_kinematics(&self, from: &DynWorkspace, to: &mut DynWorkspace) {
         to.r.copy_from_slice(&from.r);
         to.p.copy_from_slice(&from.p);
@@ -754,6 +758,7 @@ impl Dynamics {
 
     /// RNEA on the kinematics in `ws`: `tau = M qdd + C v + g` (qdd None: zero; with
     /// `gravity` false the gravity term is left out). Writes `tau` (nv).
+    #[inline(always)]
     pub fn rnea_from_kinematics(&self, qdd: Option<&[f64]>, gravity: bool, ws: &mut DynWorkspace, tau: &mut [f64]) {
         let g0 = if gravity { -self.gravity } else { Vector3::zeros() };
         for (i, b) in self.bodies.iter().enumerate() {
@@ -799,6 +804,7 @@ impl Dynamics {
     }
 
     /// CRBA on the placements in `ws`: fills `ws.mass` (both triangles).
+    #[inline(always)]
     pub fn mass_matrix_from_kinematics(&self, ws: &mut DynWorkspace) {
         let nb = self.bodies.len();
         // entries between bodies on different branches of a tree stay zero
@@ -917,6 +923,7 @@ impl Dynamics {
     /// accelerations (root to leaves, gravity as the base's acceleration). Fails only if a
     /// joint's articulated inertia `S^T IA S` is not positive (a moving body without inertia), as
     /// the mass matrix's Cholesky factor fails.
+    #[inline(always)]
     pub fn aba_from_kinematics(&self, tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
         for (i, b) in self.bodies.iter().enumerate() {
             let rw = ws.rw[i];
@@ -953,6 +960,7 @@ impl Dynamics {
 
     /// The articulated-body algorithm's last two passes on the first pass's results in `ws`
     /// (see [`aba_from_kinematics`](Self::aba_from_kinematics)).
+    #[inline(always)]
     fn aba_inward_outward(&self, tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
         let nb = self.bodies.len();
         for i in (0..nb).rev() {
@@ -1013,6 +1021,7 @@ impl Dynamics {
     }
 
     /// World placement of `frame` on the kinematics in `ws`.
+    #[inline(always)]
     pub fn frame_placement(&self, frame: &Frame, ws: &DynWorkspace) -> (Matrix3<f64>, Vector3<f64>) {
         match frame.body {
             Some(b) => (ws.rw[b] * frame.r, ws.pw[b] + ws.rw[b] * frame.p),
@@ -1042,6 +1051,7 @@ impl Dynamics {
 
     /// Jacobian (6 x nv, `LOCAL_WORLD_ALIGNED`) of `frame` and, if `djac` is given, its time
     /// derivative, from the kinematics (with velocity) in `ws`. Both outputs must be 6 x nv.
+    #[inline(always)]
     pub fn frame_jacobians_from_kinematics(&self, frame: &Frame, ws: &DynWorkspace, jac: &mut DMatrix<f64>, mut djac: Option<&mut DMatrix<f64>>) {
         jac.fill(0.0);
         if let Some(d) = djac.as_deref_mut() {
@@ -1144,6 +1154,7 @@ fn check_len(what: &str, out: &[f64], n: usize) -> Result<()> {
 
 /// Cholesky factor L (lower triangle of `l`) of the symmetric `a`; Err(k) when pivot k is not
 /// positive. `l` must have the shape of `a` (square).
+#[inline(always)]
 pub fn cholesky_in_place(a: &DMatrix<f64>, l: &mut DMatrix<f64>) -> std::result::Result<(), usize> {
     let n = a.nrows();
     if a.ncols() != n || l.shape() != (n, n) {
@@ -1176,6 +1187,7 @@ pub fn cholesky_in_place(a: &DMatrix<f64>, l: &mut DMatrix<f64>) -> std::result:
 }
 
 /// Solve `L L^T x = b` in place (`l` from [`cholesky_in_place`], `b` of length n).
+#[inline(always)]
 pub fn cholesky_solve(l: &DMatrix<f64>, b: &mut [f64]) {
     let n = l.nrows().min(b.len());
     let l = l.as_slice();
@@ -1212,6 +1224,7 @@ impl Dynamics {
 
     /// `out = q (+) factor v`: each joint moved by `factor v` (a continuous joint's `[cos, sin]`
     /// rotated by that angle). `out` of length nq; the inputs are not checked.
+    #[inline(always)]
     pub fn integrate_scaled(&self, q: &[f64], v: &[f64], factor: f64, out: &mut [f64]) {
         for b in &self.bodies {
             let (i, k) = (b.q_index, b.v_index);
@@ -1229,6 +1242,7 @@ impl Dynamics {
 
     /// `out = q1 (-) q0`: per joint the motion from `q0` to `q1` (a continuous joint's angle
     /// from one to the other, in (-pi, pi]). `out` of length nv; the inputs are not checked.
+    #[inline(always)]
     pub fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
         for b in &self.bodies {
             let (i, k) = (b.q_index, b.v_index);
@@ -1244,6 +1258,7 @@ impl Dynamics {
 
     /// Every continuous joint's `[cos, sin]` scaled to unit length (against the drift of many
     /// integration steps); a zero pair becomes `[1, 0]`.
+    #[inline(always)]
     pub fn normalize_circles(&self, q: &mut [f64]) {
         for b in &self.bodies {
             if b.kind == JointKind::Continuous {

@@ -25,6 +25,7 @@
 pub mod collision;
 pub mod codec;
 pub mod control;
+mod cpu;
 pub mod dynamics;
 pub mod flow;
 pub mod error;

@@ -783,6 +783,85 @@ fn the_plant_steps_the_same_from_the_controllers_kinematics() {
 
 #[test]
 #[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn a_payload_on_the_frames_body_steps_the_plant_from_the_controllers_dynamics_as_its_own() {
+    // the plant is the nominal model plus an unknown payload on the controller frame's body (its
+    // centre of mass off the frame, an inertia of its own): the first RK stage from the
+    // controller's mass matrix and bias plus the payload's terms equals the plant's own
+    // articulated-body algorithm up to rounding (a redundant arm, a square one, continuous joints)
+    let inertia = [[0.004, 0.0005, 0.0], [0.0005, 0.003, 0.0002], [0.0, 0.0002, 0.002]];
+    for (robot, frame, link) in [("panda", "panda_hand", Some("panda_link7")), ("ur10", "tool0", None), ("kinova", "j2s6s200_end_effector", None)] {
+        let arm = Dynamics::from_description(&preset(robot).unwrap()).unwrap();
+        let nv = arm.nv;
+        let payload = Payload { link: link.map(str::to_string), mass: 0.8, com: [0.02, -0.03, 0.12], inertia };
+        let disturbances = Disturbances { payload: Some(payload), coulomb: vec![1.0; nv], viscous: vec![0.5; nv], offset: vec![0.3; nv], ..Default::default() };
+        let controller = ControllerSettings { space: ControlSpace::Task, frame: Some(frame.into()), frame_offset: [0.0, 0.0, 0.05], ..Default::default() };
+        let mut sim = Simulation::new(&arm, SimConfig { controller, disturbances: disturbances.clone(), ..Default::default() }).unwrap();
+        assert!(sim.first_stage_from_controller(), "{robot}");
+        let mut own = genplan_core::control::Plant::new(sim.plant.model().clone(), &disturbances, 1).unwrap();
+        let mut rng = StdRng::seed_from_u64(11);
+        let mut worst: f64 = 0.0;
+        for k in 0..50 {
+            let dq: Vec<f64> = (0..nv).map(|_| rng.random_range(-1.0..1.0)).collect();
+            let mut q = arm.neutral();
+            arm.integrate_scaled(&arm.neutral(), &dq, 1.0, &mut q);
+            let v: Vec<f64> = (0..nv).map(|_| rng.random_range(-1.5..1.5)).collect();
+            sim.reset(&q).unwrap();
+            sim.plant.v.copy_from_slice(&v);
+            sim.controller.measure(&q, &v);
+            let cmd = TaskCommand::hold(sim.controller.pos + Vector3::new(0.01, -0.02, 0.01), sim.controller.rot);
+            sim.tick(&cmd, None).unwrap();
+            own.reset(&q).unwrap();
+            own.v.copy_from_slice(&v);
+            let mut qdd = vec![0.0; nv];
+            own.step(&sim.tau, 1e-3, k, None, &mut qdd).unwrap();
+            for (a, b) in sim.plant.q.iter().chain(&sim.plant.v).zip(own.q.iter().chain(&own.v)) {
+                worst = worst.max((a - b).abs() / (1.0 + b.abs()));
+            }
+        }
+        println!("{robot}: largest difference of a step's state {worst:.1e}");
+        assert!(worst < 1e-12, "{robot}: largest difference {worst:e}");
+    }
+    // a payload elsewhere, or none: the plant's own first stage
+    let arm = panda();
+    for payload in [Some(Payload { link: Some("panda_link5".into()), ..Payload::point(0.5, [0.0; 3]) }), None] {
+        let disturbances = Disturbances { payload, ..Default::default() };
+        let sim = Simulation::new(&arm, SimConfig { controller: hand(ControlSpace::Task), disturbances, ..Default::default() }).unwrap();
+        assert!(!sim.first_stage_from_controller());
+    }
+}
+
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
+fn the_avx2_build_of_the_tick_equals_the_baseline_build_bit_for_bit() {
+    // the tick compiled for AVX2 and FMA (chosen where the processor has them) and the baseline
+    // build run the same arithmetic: Rust never fuses a multiply and an add on its own (no
+    // floating-point contraction) nor reorders a sum, so wider registers change the
+    // instructions, not the results
+    let arm = panda();
+    for space in [ControlSpace::Task, ControlSpace::Joint] {
+        let disturbances = Disturbances { payload: Some(Payload::point(0.6, [0.0, 0.0, 0.1])), coulomb: vec![1.0; 7], viscous: vec![0.5; 7], ..Default::default() };
+        let config = SimConfig { controller: hand(space), disturbances, ..Default::default() };
+        let (q, qd, qdd) = quintic(&PANDA_A, &PANDA_B, 1.0, 1e-3);
+        let mut runs = vec![];
+        for avx2 in [false, true] {
+            let mut sim = Simulation::new(&arm, config.clone()).unwrap();
+            let used = sim.set_avx2(avx2);
+            assert!(avx2 || !used, "the baseline build is always available");
+            let (reference, _) =
+                Reference::from_joints(&sim.controller.nominal, &sim.controller.frame, &sim.limits, q.clone(), qd.clone(), qdd.clone(), 1e-3).unwrap();
+            runs.push(sim.run_with(&reference, &PANDA_A, 200, None, false, false, &mut || false).unwrap());
+        }
+        let (a, b) = (&runs[0].log, &runs[1].log);
+        assert_eq!(a.n, 1201);
+        for (name, x, y) in [("q", &a.q, &b.q), ("v", &a.v, &b.v), ("tau", &a.tau, &b.tau), ("tau_dis_hat", &a.tau_dis_hat, &b.tau_dis_hat), ("pos", &a.pos, &b.pos), ("acc", &a.acc, &b.acc)] {
+            assert_eq!(x, y, "{space:?} space: {name}");
+        }
+        assert_eq!(runs[0].summary.max_error_position, runs[1].summary.max_error_position);
+    }
+}
+
+#[test]
+#[ignore = "needs example-robot-data (scripts/test runs it)"]
 fn continuous_joints_are_integrated_on_their_circle() {
     let arm = Dynamics::from_description(&preset("kinova").unwrap()).unwrap();
     assert!(arm.nq > arm.nv, "the Kinova has continuous joints");

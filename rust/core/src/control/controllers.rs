@@ -68,6 +68,7 @@ pub struct JointCommand<'a> {
 
 /// `y = M x` with the summation order of nalgebra's `gemv` (column by column), so that a
 /// dynamically sized product gives the same bits as a fixed-size one. `m` is `y.len() x x.len()`.
+#[inline(always)]
 pub(crate) fn gemv(m: &DMatrix<f64>, x: &[f64], y: &mut [f64]) {
     let (r, c) = m.shape();
     let y = &mut y[..r];
@@ -92,6 +93,7 @@ pub(crate) fn gemv(m: &DMatrix<f64>, x: &[f64], y: &mut [f64]) {
 }
 
 /// `y = M^T x` (`m` is `x.len() x y.len()`), each entry summed in row order.
+#[inline(always)]
 fn gemv_transposed(m: &DMatrix<f64>, x: &[f64], y: &mut [f64]) {
     let (r, c) = m.shape();
     let y = &mut y[..c];
@@ -107,6 +109,7 @@ fn gemv_transposed(m: &DMatrix<f64>, x: &[f64], y: &mut [f64]) {
 
 /// The paper's solve of a square task Jacobian: `J^-1 b`, damped near a singularity. Returns
 /// (x, det J, damped).
+#[inline(always)]
 fn damped_solve(j: &Matrix6<f64>, b: &Vector6<f64>, singular_det: f64, max_damping: f64) -> (Vector6<f64>, f64, bool) {
     let lu = j.lu();
     let det = lu.determinant();
@@ -231,6 +234,7 @@ impl Controller {
 
     /// The nominal model at the measured state (q, v): mass matrix, bias torque, the frame's
     /// pose, Jacobian, velocity and `dJ/dt v`. The inputs are not checked (the loop checks once).
+    #[inline(always)]
     pub fn measure(&mut self, q: &[f64], v: &[f64]) {
         let n = &self.nominal;
         n.update_kinematics_unchecked(q, Some(v), &mut self.ws);
@@ -245,6 +249,7 @@ impl Controller {
     }
 
     /// The tracking error of the frame: `(p_cmd - p, log3(R_cmd R^T))` at the measured state.
+    #[inline(always)]
     pub fn frame_error(&self, cmd: &TaskCommand) -> (Vector3<f64>, Vector3<f64>) {
         let (er, _) = log3(&(cmd.rot * self.rot.transpose()));
         (cmd.pos - self.pos, er)
@@ -257,6 +262,7 @@ impl Controller {
     /// motion (required in joint space; the posture target of a redundant task). Returns the
     /// singularity measure (`det J` or `sqrt(det(J_s J_s^T))`; NaN in joint space) and whether
     /// the inverse was damped.
+    #[inline(always)]
     pub fn control(&mut self, cmd: &TaskCommand, joint: Option<JointCommand<'_>>, q: &[f64], v: &[f64], dob_estimate: Option<&[f64]>) -> Result<(f64, bool)> {
         (self.err_pos, self.err_rot) = self.frame_error(cmd);
         let c = &self.settings;
@@ -292,6 +298,7 @@ impl Controller {
         Ok((det, damped))
     }
 
+    #[inline(always)]
     fn task_law(&mut self, cmd: &TaskCommand, joint: Option<JointCommand<'_>>, q: &[f64], v: &[f64]) -> (f64, bool) {
         let c = &self.settings;
         let (ep, er) = (self.err_pos, self.err_rot);

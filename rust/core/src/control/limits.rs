@@ -122,6 +122,7 @@ impl Limits {
     }
 
     /// Clip `tau` to the torque limits; true if it clipped any joint.
+    #[inline(always)]
     pub fn saturate(&self, tau: &mut [f64]) -> bool {
         let mut clipped = false;
         for (t, &l) in tau.iter_mut().zip(&self.torque) {
@@ -134,6 +135,7 @@ impl Limits {
     }
 
     /// The largest |torque| / limit and |speed| / limit over the joints.
+    #[inline(always)]
     pub fn ratios(&self, tau: &[f64], v: &[f64]) -> (f64, f64) {
         let r = |x: &[f64], l: &[f64]| x.iter().zip(l).map(|(x, l)| x.abs() / l).fold(0.0, f64::max);
         (r(tau, &self.torque), r(v, &self.velocity))

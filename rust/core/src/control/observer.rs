@@ -49,6 +49,7 @@ impl DisturbanceObserver {
     }
 
     /// Update the estimate with the speed `v` measured at the start of this period.
+    #[inline(always)]
     pub fn update(&mut self, v: &[f64], dt: f64) {
         if !self.has_prev {
             return;
@@ -66,6 +67,7 @@ impl DisturbanceObserver {
 
     /// Remember this period's applied torque, the bias the controller added (`h`, or None:
     /// none), the mass matrix and the speed, for the next update.
+    #[inline(always)]
     pub fn remember(&mut self, tau: &[f64], h: Option<&[f64]>, m: &DMatrix<f64>, v: &[f64]) {
         self.prev_tau.copy_from_slice(tau);
         match h {
@@ -79,6 +81,7 @@ impl DisturbanceObserver {
 
     /// The torque of a period that the nominal model does not explain, `tau - M_n qdd - h`
     /// with the bias last remembered (what the observer filters), into `out`.
+    #[inline(always)]
     pub fn unexplained(&self, tau: &[f64], m: &DMatrix<f64>, qdd: &[f64], scratch: &mut [f64], out: &mut [f64]) {
         gemv(m, qdd, scratch);
         for i in 0..tau.len() {

@@ -5,9 +5,10 @@
 //!
 //! Each RK stage's joint acceleration comes from the articulated-body algorithm
 //! ([`Dynamics::aba_from_kinematics`]); the first stage takes the kinematics the controller has
-//! just measured at the same state, the three others rotate each joint from the step's start by
-//! angle addition (no `sin_cos` of the whole angle). Both give the CRBA + Cholesky solve and
-//! the kinematics at the integrated q up to rounding.
+//! just measured at the same state (or its acceleration, given: [`Plant::step_from_acceleration`]),
+//! the three others rotate each joint from the step's start by angle addition (no `sin_cos` of
+//! the whole angle). Both give the CRBA + Cholesky solve and the kinematics at the integrated q
+//! up to rounding.
 
 use crate::dynamics::{DynWorkspace, Dynamics};
 use crate::error::{Error, Result};
@@ -30,6 +31,7 @@ impl Forces {
     /// included) `self.ws` holds (speed `v`) under the applied torque `tau` plus the offset minus
     /// the friction `coulomb tanh(v / friction_velocity) + viscous v`, by the articulated-body
     /// algorithm (the result of CRBA + RNEA + Cholesky up to rounding).
+    #[inline(always)]
     fn accel_from_kinematics(&mut self, tau: &[f64], v: &[f64], out: &mut [f64]) -> Result<()> {
         self.set_torque(tau, v);
         self.model.aba_from_kinematics(&self.torque, &mut self.ws, out)
@@ -39,6 +41,7 @@ impl Forces {
     /// (speed `v`), its kinematics taken from `angles` (each joint's `[cos, sin]` at `q`) in the
     /// articulated-body algorithm's first pass
     /// ([`Dynamics::aba_moved_unchecked`]).
+    #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn accel_moved(&mut self, angles: &[[f64; 2]], q: &[f64], dq: &[f64], factor: f64, tau: &[f64], v: &[f64], out: &mut [f64]) -> Result<()> {
         self.set_torque(tau, v);
@@ -46,11 +49,19 @@ impl Forces {
     }
 
     /// `self.torque`: the applied torque `tau` plus the offset minus the friction at speed `v`.
-    #[inline]
+    #[inline(always)]
     fn set_torque(&mut self, tau: &[f64], v: &[f64]) {
+        let mut torque = std::mem::take(&mut self.torque);
+        self.net_torque(tau, v, &mut torque);
+        self.torque = torque;
+    }
+
+    /// The applied torque `tau` plus the offset minus the friction at speed `v`, into `out`.
+    #[inline(always)]
+    fn net_torque(&self, tau: &[f64], v: &[f64], out: &mut [f64]) {
         for i in 0..tau.len() {
             let fr = self.coulomb[i] * tanh(v[i] / self.friction_velocity) + self.viscous[i] * v[i];
-            self.torque[i] = tau[i] + self.offset[i] - fr;
+            out[i] = tau[i] + self.offset[i] - fr;
         }
     }
 }
@@ -60,7 +71,7 @@ impl Forces {
 /// one per RK stage): `(1 - e) / (1 + e)` with `e = exp(-2 |x|)` for
 /// `|x| >= 1/32`, where `1 - e > 0.06` keeps the cancellation below 2e-15 relative; below, the
 /// odd Taylor series to `x^9`, whose first omitted term is under 1e-17 relative there.
-#[inline]
+#[inline(always)]
 pub(crate) fn tanh(x: f64) -> f64 {
     let a = x.abs();
     if a < 0.03125 {
@@ -75,6 +86,17 @@ pub(crate) fn tanh(x: f64) -> f64 {
     } else {
         1.0f64.copysign(x)
     }
+}
+
+/// Where an RK4 step's first stage comes from.
+#[derive(Clone, Copy)]
+enum First<'a> {
+    /// The plant's own kinematics and articulated-body algorithm.
+    Compute,
+    /// The kinematics of the current state (another model's, the same joints), then the ABA.
+    Kinematics(&'a DynWorkspace),
+    /// The kinematics of the current state and the joint acceleration, both known.
+    Acceleration(&'a DynWorkspace, &'a [f64]),
 }
 
 /// The simulated robot: its model (the controller's nominal model plus the unknown payloads),
@@ -166,6 +188,13 @@ impl Plant {
         self.forces.model.same_kinematics(model)
     }
 
+    /// The joint torque the plant's dynamics see under the applied torque `tau` at speed `v`:
+    /// `tau` plus the offset minus the friction, into `out` (nv).
+    #[inline(always)]
+    pub fn net_torque(&self, tau: &[f64], v: &[f64], out: &mut [f64]) {
+        self.forces.net_torque(tau, v, out);
+    }
+
     /// Advance by one period `dt` under the held torque `tau` (RK4, `substeps`); `qdd0` gets the
     /// joint acceleration at the period's start. `start`: the kinematics of the current state
     /// (q, v) already computed on a model for which
@@ -173,7 +202,23 @@ impl Plant {
     /// has just measured this state), copied instead of recomputed; None: computed here. The
     /// state changes only when the whole period succeeds; `tick` names the tick in the error of
     /// a non-finite state (the plant diverged).
+    #[inline(always)]
     pub fn step(&mut self, tau: &[f64], dt: f64, tick: u64, start: Option<&DynWorkspace>, qdd0: &mut [f64]) -> Result<()> {
+        self.rk4(tau, dt, tick, start.map_or(First::Compute, First::Kinematics), Some(qdd0))
+    }
+
+    /// As [`step`](Self::step) with the joint acceleration at the period's start already known
+    /// (`k1`: the plant's dynamics at the current state under `tau`, e.g. from the controller's
+    /// mass matrix and bias plus the terms of what the plant has more), so that the first RK
+    /// stage only takes each joint's `[cos, sin]` from `start` (the current state's kinematics,
+    /// as for `step`). With `substeps` > 1 the later substeps' first stages are computed.
+    #[inline(always)]
+    pub fn step_from_acceleration(&mut self, tau: &[f64], dt: f64, tick: u64, start: &DynWorkspace, k1: &[f64]) -> Result<()> {
+        self.rk4(tau, dt, tick, First::Acceleration(start, k1), None)
+    }
+
+    #[inline(always)]
+    fn rk4(&mut self, tau: &[f64], dt: f64, tick: u64, first: First<'_>, mut qdd0: Option<&mut [f64]>) -> Result<()> {
         let h = dt / self.substeps as f64;
         let nv = self.v.len();
         let f = &mut self.forces;
@@ -181,16 +226,26 @@ impl Plant {
         self.v_step.copy_from_slice(&self.v);
         let (q, v) = (&mut self.q_step, &mut self.v_step);
         for sub in 0..self.substeps {
-            match start {
-                Some(ws) if sub == 0 => f.model.copy_kinematics(ws, &mut f.ws),
-                _ => f.model.update_kinematics_unchecked(q, Some(v), &mut f.ws),
+            match first {
+                First::Acceleration(ws, k1) if sub == 0 => {
+                    self.k1.copy_from_slice(k1);
+                    self.angles.copy_from_slice(&ws.angles);
+                }
+                First::Kinematics(ws) if sub == 0 => {
+                    f.model.copy_kinematics(ws, &mut f.ws);
+                    f.accel_from_kinematics(tau, v, &mut self.k1)?;
+                    self.angles.copy_from_slice(&f.ws.angles);
+                }
+                _ => {
+                    f.model.update_kinematics_unchecked(q, Some(v), &mut f.ws);
+                    f.accel_from_kinematics(tau, v, &mut self.k1)?;
+                    self.angles.copy_from_slice(&f.ws.angles);
+                }
             }
-            f.accel_from_kinematics(tau, v, &mut self.k1)?;
-            if sub == 0 {
-                qdd0.copy_from_slice(&self.k1);
+            if let Some(out) = qdd0.take() {
+                out.copy_from_slice(&self.k1);
             }
             // the later stages' joint rotations from this state's by angle addition
-            self.angles.copy_from_slice(&f.ws.angles);
             for i in 0..nv {
                 self.vt[i] = v[i] + 0.5 * h * self.k1[i];
             }

@@ -7,9 +7,9 @@
 
 use std::time::{Duration, Instant};
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{DMatrix, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6};
 
-use crate::dynamics::{Dynamics, Frame};
+use crate::dynamics::{cholesky_in_place, cholesky_solve, Dynamics, Frame};
 use crate::error::{Error, Result};
 
 use super::controllers::{gemv, Controller, JointCommand, TaskCommand};
@@ -251,6 +251,92 @@ pub struct Simulation {
     /// The plant's robot has the controller's kinematics (payloads change inertias only): the
     /// plant's first stage takes the kinematics the controller measured.
     share_kinematics: bool,
+    /// Tick with the build compiled for AVX2 and FMA (chosen once, where the processor has them).
+    avx2: bool,
+    /// The plant is the nominal model plus one rigid payload on the controller frame's body: its
+    /// first RK stage from the controller's mass matrix and bias plus the payload's terms.
+    first_stage: Option<PayloadStage>,
+}
+
+/// The plant's joint acceleration at the state the controller has just measured, when the plant
+/// is the controller's nominal model plus one rigid payload on the controller frame's body:
+/// `(M_n + M_p) qdd = tau_net - h_n - h_p`, the payload's terms through the Jacobian of its
+/// centre of mass (the frame's, its linear rows moved to the centre of mass):
+/// `M_p = m J_c^T J_c + J_w^T I J_w` and `h_p = m J_c^T (b_c - g) + J_w^T (I b_w + w x I w)`,
+/// `b` the accelerations at zero joint acceleration (`dJ/dt v` moved to the centre of mass), `I`
+/// the payload's inertia about its centre of mass in world axes. One Cholesky solve of nv x nv
+/// instead of the articulated-body algorithm; equal to it up to rounding.
+struct PayloadStage {
+    /// The body the payload and the controller's frame move with.
+    body: usize,
+    mass: f64,
+    /// Centre of mass in the body's frame.
+    com: Vector3<f64>,
+    /// Rotational inertia about the centre of mass, the body's axes.
+    inertia: Matrix3<f64>,
+    /// Per joint: the centre of mass's linear Jacobian column, the angular one and `I` times it.
+    cols: Vec<[Vector3<f64>; 3]>,
+    a: DMatrix<f64>,
+    l: DMatrix<f64>,
+    rhs: Vec<f64>,
+}
+
+impl PayloadStage {
+    /// The stage for `payload` (the plant's unknown one) when it rides on the controller frame's
+    /// body and carries mass or inertia; else None (the plant computes its first stage).
+    fn new(robot: &Dynamics, payload: &Payload, frame: &Frame) -> Result<Option<PayloadStage>> {
+        if payload.mass == 0.0 && payload.inertia.iter().flatten().all(|&x| x == 0.0) {
+            return Ok(None);
+        }
+        let at = payload_frame(robot, payload, frame)?;
+        let (Some(body), true) = (at.body, at.body == frame.body) else { return Ok(None) };
+        let nv = robot.nv;
+        Ok(Some(PayloadStage {
+            body,
+            mass: payload.mass,
+            com: at.r * Vector3::from(payload.com) + at.p,
+            inertia: at.r * payload.inertia_matrix() * at.r.transpose(),
+            cols: vec![[Vector3::zeros(); 3]; nv],
+            a: DMatrix::zeros(nv, nv),
+            l: DMatrix::zeros(nv, nv),
+            rhs: vec![0.0; nv],
+        }))
+    }
+
+    /// The plant's joint acceleration under the net joint torque `torque` (applied plus offset
+    /// minus friction) at the state `c` measured, into `out`.
+    #[inline(always)]
+    fn acceleration(&mut self, c: &Controller, gravity: &Vector3<f64>, torque: &[f64], out: &mut [f64]) -> Result<()> {
+        let ws = c.workspace();
+        let (rw, pw) = (ws.rw[self.body], ws.pw[self.body]);
+        // from the frame's origin to the centre of mass; the inertia in world axes
+        let rc = pw + rw * self.com - c.pos;
+        let iw = rw * self.inertia * rw.transpose();
+        let w = Vector3::new(c.xd[3], c.xd[4], c.xd[5]);
+        let bw = Vector3::new(c.djv[3], c.djv[4], c.djv[5]);
+        let bc = Vector3::new(c.djv[0], c.djv[1], c.djv[2]) + bw.cross(&rc) + w.cross(&w.cross(&rc));
+        let f = (bc - gravity) * self.mass;
+        let n = iw * bw + w.cross(&(iw * w));
+        let m = c.mass();
+        for (k, col) in self.cols.iter_mut().enumerate() {
+            let jw = Vector3::new(c.jac[(3, k)], c.jac[(4, k)], c.jac[(5, k)]);
+            let jc = Vector3::new(c.jac[(0, k)], c.jac[(1, k)], c.jac[(2, k)]) + jw.cross(&rc);
+            *col = [jc, jw, iw * jw];
+            self.rhs[k] = torque[k] - c.h[k] - jc.dot(&f) - jw.dot(&n);
+        }
+        // the lower triangle (what the factorisation reads)
+        for (i, ci) in self.cols.iter().enumerate() {
+            for (k, ck) in self.cols.iter().enumerate().skip(i) {
+                self.a[(k, i)] = m[(k, i)] + self.mass * ck[0].dot(&ci[0]) + ck[1].dot(&ci[2]);
+            }
+        }
+        cholesky_in_place(&self.a, &mut self.l).map_err(|k| {
+            Error::Invalid(format!("dynamics: the plant's mass matrix is not positive definite (pivot {k})"))
+        })?;
+        cholesky_solve(&self.l, &mut self.rhs);
+        out.copy_from_slice(&self.rhs);
+        Ok(())
+    }
 }
 
 /// The frame a payload is attached to: its link's frame, or the controller's frame.
@@ -300,6 +386,10 @@ impl Simulation {
         let controller = Controller::new(c.clone(), nominal, frame)?;
         let observer = DisturbanceObserver::new(nv, c.dob_cutoff_hz, c.dt);
         let share_kinematics = plant.shares_kinematics_with(&controller.nominal);
+        let first_stage = match (&config.disturbances.payload, share_kinematics) {
+            (Some(p), true) => PayloadStage::new(robot, p, &controller.frame)?,
+            _ => None,
+        };
         Ok(Simulation {
             share_kinematics,
             controller,
@@ -314,6 +404,8 @@ impl Simulation {
             payload_state: vec![],
             qdd0: vec![0.0; nv],
             scratch: vec![0.0; nv],
+            avx2: crate::cpu::avx2_fma(),
+            first_stage,
             config,
         })
     }
@@ -341,10 +433,45 @@ impl Simulation {
         Ok(())
     }
 
+    /// Whether ticks run the build compiled for AVX2 and FMA: asked for (`on`, the default) and
+    /// the processor has them; else the baseline build. The two give the same bits: Rust neither
+    /// fuses a multiply and an add on its own nor reorders a sum, so the wider registers change
+    /// the instructions, not the arithmetic. Returns the choice in force.
+    pub fn set_avx2(&mut self, on: bool) -> bool {
+        self.avx2 = on && crate::cpu::avx2_fma();
+        self.avx2
+    }
+
+    /// Whether the plant's first RK stage comes from the controller's mass matrix and bias plus
+    /// the unknown payload's terms (the plant is the nominal model plus one rigid payload on the
+    /// controller frame's body) instead of the plant's own articulated-body algorithm.
+    pub fn first_stage_from_controller(&self) -> bool {
+        self.first_stage.is_some()
+    }
+
     /// One control period: measure, control (limits by the policy), let the plant run `dt`
     /// under the held torque, step the payload. The frame's state at the tick's start is in
-    /// `self.controller` (`pos`, `rot`, `xd`), the applied torque in `self.tau`.
+    /// `self.controller` (`pos`, `rot`, `xd`), the applied torque in `self.tau`. The whole
+    /// tick (controller, observer and plant, inlined into one function) is compiled twice, for
+    /// the baseline processor and with AVX2 and FMA; the second runs where the processor has them
+    /// (see [`set_avx2`](Self::set_avx2)).
     pub fn tick(&mut self, cmd: &TaskCommand, joint: Option<JointCommand<'_>>) -> Result<TickOutput> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            #[target_feature(enable = "avx2,fma")]
+            fn tick_avx2(s: &mut Simulation, cmd: &TaskCommand, joint: Option<JointCommand<'_>>) -> Result<TickOutput> {
+                s.tick_inlined(cmd, joint)
+            }
+            // SAFETY: `avx2` is true only where the processor has AVX2 and FMA (crate::cpu)
+            return unsafe { tick_avx2(self, cmd, joint) };
+        }
+        self.tick_inlined(cmd, joint)
+    }
+
+    /// The body of [`tick`](Self::tick), inlined (with everything it calls in the core) into
+    /// each of its two builds.
+    #[inline(always)]
+    fn tick_inlined(&mut self, cmd: &TaskCommand, joint: Option<JointCommand<'_>>) -> Result<TickOutput> {
         let dt = self.controller.settings.dt;
         let (dob, mc) = (self.controller.settings.dob, self.controller.settings.model_compensation);
         let (q, v) = (&self.plant.q, &self.plant.v);
@@ -361,9 +488,20 @@ impl Simulation {
         let h = if mc { Some(self.controller.h.as_slice()) } else { None };
         self.observer.remember(&self.tau, h, self.controller.mass(), v);
         let (ep, er) = (self.controller.err_pos.norm(), self.controller.err_rot.norm());
-        // the plant: RK4 under the held torque, from the kinematics the controller measured
-        let start = if self.share_kinematics { Some(self.controller.workspace()) } else { None };
-        self.plant.step(&self.tau, dt, self.ticks, start, &mut self.qdd0)?;
+        // the plant: RK4 under the held torque, from the kinematics the controller measured (and
+        // the first stage from its mass matrix and bias when only a payload on its frame's body
+        // tells the plant from the nominal model)
+        match &mut self.first_stage {
+            Some(stage) => {
+                self.plant.net_torque(&self.tau, v, &mut self.scratch);
+                stage.acceleration(&self.controller, &self.plant.model().gravity, &self.scratch, &mut self.qdd0)?;
+                self.plant.step_from_acceleration(&self.tau, dt, self.ticks, self.controller.workspace(), &self.qdd0)?;
+            }
+            None => {
+                let start = if self.share_kinematics { Some(self.controller.workspace()) } else { None };
+                self.plant.step(&self.tau, dt, self.ticks, start, &mut self.qdd0)?;
+            }
+        }
         // the frame's achieved motion at the tick's start, the unexplained torque, the payload
         let c = &self.controller;
         gemv(&c.jac, &self.qdd0, self.acc.as_mut_slice());
