@@ -72,11 +72,40 @@ def generic_deviations(robot: Any) -> Any:
                         offset=(0.005 * effort).tolist(), payload=Payload(mass=0.5))
 
 
+#: candidate centres of a bench motion besides the default configuration (seeded)
+CENTRE_CANDIDATES = 64
+#: the smallest singular value of the tool frame's Jacobian below which the default
+#: configuration is too near a singularity to swing about
+SINGULAR = 0.05
+
+
+def centre(robot: Any, seed: int = 0) -> np.ndarray:
+    """The configuration a bench motion swings about: the default configuration, unless its tool
+    frame's Jacobian has a smallest singular value below SINGULAR; then, of CENTRE_CANDIDATES
+    seeded random ones, the one whose smallest singular value is largest. A default at a singularity (a stretched UR or xArm arm) would have
+    the task-space controller's damped solve and its rounding-sensitive branch run on every tick,
+    which is not the tick a user's motion costs."""
+    import pinocchio as pin
+
+    frame = robot.frame_id(control.tool_frame(robot))
+    data = robot.model.createData()
+    qs = np.vstack([np.asarray(robot.normalize(robot.q_default))[None, :],
+                    robot.random_configurations(CENTRE_CANDIDATES, seed)])
+
+    def sigma_min(q: np.ndarray) -> float:
+        j = pin.computeFrameJacobian(robot.model, data, q, frame, pin.LOCAL_WORLD_ALIGNED)
+        return float(np.linalg.svd(j, compute_uv=False)[-1])
+
+    if sigma_min(qs[0]) >= SINGULAR:
+        return qs[0]
+    return qs[int(np.argmax([sigma_min(q) for q in qs]))]
+
+
 def motion(robot: Any, seconds: float = 2.0, rate: float = 1000.0) -> tuple[np.ndarray, np.ndarray]:
-    """(t, q): a smooth motion about the robot's default configuration (a joint whose default is
-    outside its range: about the range's middle), each joint swinging up to a quarter of what its
-    speed limit reaches in the period, and within its limits."""
-    x0 = control.joint_values(robot, np.asarray(robot.normalize(robot.q_default))[None, :])[0]
+    """(t, q): a smooth motion about :func:`centre` (a joint whose centre is outside its range:
+    about the range's middle), each joint swinging up to a quarter of what its speed limit reaches
+    in the period, and within its limits."""
+    x0 = control.joint_values(robot, centre(robot)[None, :])[0]
     vmax = np.asarray(robot.model.velocityLimit, dtype=np.float64)
     w = 2.0 * np.pi / seconds
     amplitude = 0.25 * vmax / w

@@ -279,3 +279,29 @@ def test_gan_training_refuses_a_folder_without_a_package(tmp_path, monkeypatch, 
     with pytest.raises(SystemExit):
         _run("gan_training.py", ["--baseline", str(tmp_path), "--rounds", "1"], monkeypatch)
     assert "--baseline: expected a folder holding a genplan package" in capsys.readouterr().err
+
+
+def test_execute_motions_swing_about_a_configuration_away_from_singularities() -> None:
+    """The Panda's default configuration is kept; a UR5's (stretched: its tool Jacobian singular)
+    is replaced by the best-conditioned of the seeded candidates, the same each call."""
+    import numpy as np
+    import pinocchio as pin
+
+    import genplan
+    from genplan import control
+
+    bench = runpy.run_path(str(BENCHES / "execute.py"))
+    centre, singular = bench["centre"], bench["SINGULAR"]
+
+    def sigma_min(robot, q) -> float:
+        j = pin.computeFrameJacobian(robot.model, robot.model.createData(), q, robot.frame_id(control.tool_frame(robot)),
+                                     pin.LOCAL_WORLD_ALIGNED)
+        return float(np.linalg.svd(j, compute_uv=False)[-1])
+
+    panda, ur5 = genplan.load("panda"), genplan.load("ur5")
+    np.testing.assert_array_equal(centre(panda), panda.normalize(panda.q_default))
+    assert sigma_min(ur5, ur5.normalize(ur5.q_default)) < singular
+    q = centre(ur5)
+    assert sigma_min(ur5, q) >= 2 * singular
+    np.testing.assert_array_equal(centre(ur5), q)
+    assert np.all((q >= ur5.lower) & (q <= ur5.upper))
