@@ -1,7 +1,9 @@
 """The sphere checker (``genplan._core.SphereChecker``, ``genplan.planning.sphere_checker``,
 ``Planner(..., checker="spheres")``): conservative against the exact world on the shelf scene,
 one configuration and a batch alike, motions checked state by state, plans whose paths are valid
-by the exact geometry, and the refusals (unknown checker, the certified edge check, bad spheres)."""
+by the exact geometry, a link fixed to the world inside an obstacle (every configuration in
+collision, the start refused), and the refusals (unknown checker, the certified edge check, bad
+spheres)."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import pytest
 
 import genplan
 from genplan import _core
-from genplan.errors import GenplanError, ShapeError, SettingsError, UnknownNameError
+from genplan.errors import GenplanError, InvalidStartError, ShapeError, SettingsError, UnknownNameError
 from genplan.planning import CHECKERS, Planner, PlannerSettings, environment, plan, sphere_checker
 from genplan.spheres import robot_spheres
 
@@ -88,6 +90,22 @@ def test_plan_takes_the_checker_by_name(panda: genplan.Robot, shelf) -> None:
         plan(panda, checker="voxels")
     with pytest.raises(UnknownNameError, match="spheres"):
         Planner(panda, task="free", checker="boxes")
+
+
+def test_a_fixed_link_inside_an_obstacle_collides_in_every_configuration(panda: genplan.Robot, shelf) -> None:
+    _, free = shelf
+    world = panda.collision_world()
+    world.add_sphere("ball", 0.03, [0.0, 0.0, 0.05])  # inside the base, which no joint moves
+    sc = sphere_checker(panda, world)
+    q = panda.random_configurations(50, np.random.default_rng(4))
+    assert np.asarray(sc.in_collision(q), dtype=bool).all()
+    assert np.asarray(world.in_collision(q), dtype=bool).all()
+    assert sc.motion_free(q[0].tolist(), q[1].tolist(), 0.05) is False
+    # the moving links are checked as before: the shelf alone leaves some of them free
+    assert not np.asarray(free.in_collision(q), dtype=bool).all()
+    planner = Planner(panda, world=world, task="free", checker="spheres", algorithm="rrt_connect")
+    with pytest.raises(InvalidStartError):
+        planner.plan(q[0], q[1])
 
 
 def test_certified_edges_need_the_exact_checker(panda: genplan.Robot) -> None:

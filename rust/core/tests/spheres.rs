@@ -1,12 +1,14 @@
 //! The sphere check (src/collision/spheres.rs) and its planner checker
 //! (`planning::SphereChecker`): each obstacle shape's closed-form test against the exact world
 //! on a robot that is one sphere, conservativeness on the Panda against the exact world, the
-//! batch and motion forms against the one-configuration form, and the input checks.
+//! batch and motion forms against the one-configuration form, the links fixed to the world
+//! (checked once, their self pairs through a tree) against every sphere pair, and the input
+//! checks.
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld, LANES};
+use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld, FIXED_LEAF, LANES};
 use genplan_core::collision::CollisionWorld;
 use genplan_core::error::Error;
 use genplan_core::kinematics::KinematicModel;
@@ -95,12 +97,18 @@ fn every_shape_is_tested_exactly_on_a_one_sphere_robot() {
 /// A cover of the Panda's collision geometry: each shape's local box cut into cells of at most
 /// 4 cm, each cell in the sphere through its corners (so every point of every shape is covered).
 fn box_cover(w: &CollisionWorld) -> SphereModel {
+    box_cover_cells(w, |_| 0.04)
+}
+
+/// As [`box_cover`] with cells of at most `cell(link name)` metres.
+fn box_cover_cells(w: &CollisionWorld, cell: impl Fn(&str) -> f64) -> SphereModel {
     let model = &w.model;
     let (mut links, mut centers, mut radii) = (Vec::new(), Vec::new(), Vec::new());
     for g in w.geometries() {
         let b = g.shape.compute_local_aabb();
         let ext = b.maxs - b.mins;
-        let n: Vec<usize> = (0..3).map(|i| ((ext[i] / 0.04).ceil() as usize).max(1)).collect();
+        let edge = cell(&model.link_names[g.link]);
+        let n: Vec<usize> = (0..3).map(|i| ((ext[i] / edge).ceil() as usize).max(1)).collect();
         let cell = Vector3::new(ext[0] / n[0] as f64, ext[1] / n[1] as f64, ext[2] / n[2] as f64);
         let r = 0.5 * cell.norm() * (1.0 + 1e-9) + 1e-9;
         for i in 0..n[0] {
@@ -269,4 +277,100 @@ fn bad_spheres_are_refused_by_name() {
     assert!(e.to_string().contains("radii"), "{e}");
     let e = SphereModel::new(&model, &["panda_link1"], &[[f64::NAN, 0.0, 0.0]], &[0.1]).unwrap_err();
     assert!(matches!(e, Error::NonFinite { .. }), "{e}");
+}
+
+#[test]
+fn a_fixed_link_meeting_an_obstacle_makes_every_configuration_collide() {
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    let spheres = box_cover(&w);
+    let base = model.link_index("panda_link0").unwrap();
+    let first = model.link_index("panda_link1").unwrap();
+    let free_world = SphereWorld::new(Arc::new(w.clone()), spheres.clone()).unwrap();
+    assert!(free_world.fixed_links().contains(&base) && !free_world.fixed_links().contains(&first));
+    // a ball inside the base: nothing the arm does moves the base out of it
+    w.add_sphere("ball", 0.03, [0.0, 0.0, 0.05]).unwrap();
+    let sw = SphereWorld::new(Arc::new(w.clone()), spheres).unwrap();
+    let mut rng = StdRng::seed_from_u64(21);
+    let n = 40;
+    let qs: Vec<f64> = (0..n).flat_map(|_| draw(&model, &mut rng)).collect();
+    let (mut s8, mut s1) = (SphereScratch::<LANES>::default(), SphereScratch::default());
+    let mut batch = vec![false; n];
+    sw.in_collision_batch(&qs, &mut batch, &mut s8);
+    assert!(batch.iter().all(|&b| b));
+    for q in qs.chunks(model.nq) {
+        assert!(w.in_collision(q).unwrap(), "the exact geometry: the base meets the ball");
+        assert!(sw.in_collision_unchecked(q, &mut s1));
+    }
+    assert!(sw.any_in_collision(&qs[..model.nq], &mut s8).0);
+    assert!(!sw.motion_free(&qs[..model.nq], &qs[model.nq..2 * model.nq], 0.05, &mut s8));
+    // the same configurations without the ball: not all in collision
+    let mut without = vec![false; n];
+    free_world.in_collision_batch(&qs, &mut without, &mut s8);
+    assert!(without.iter().any(|&b| !b));
+}
+
+#[test]
+fn a_fixed_link_of_many_spheres_answers_as_every_sphere_pair() {
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    let mut rng = StdRng::seed_from_u64(23);
+    let mut balls = Vec::new();
+    for k in 0..12 {
+        let c = [rng.random_range(-0.7..0.7), rng.random_range(-0.7..0.7), rng.random_range(0.0..1.0)];
+        let r = rng.random_range(0.03..0.12);
+        // none touching the base, whose spheres are checked once
+        if (c[0] as f64).hypot(c[1]) < 0.3 && c[2] < 0.4 {
+            continue;
+        }
+        w.add_sphere(&format!("b{k}"), r, c).unwrap();
+        balls.push((c, r));
+    }
+    // the base (a fixed link) in cells of 2.5 cm, hundreds: its tree has several levels (the
+    // moving links in 6 cm cells: the pairs below are compared one by one in a debug build)
+    let spheres = box_cover_cells(&w, |name| if name == "panda_link0" { 0.025 } else { 0.06 });
+    let base = model.link_index("panda_link0").unwrap();
+    let on_base = spheres.link.iter().filter(|&&l| l == base).count();
+    assert!(on_base > 16 * FIXED_LEAF, "{on_base} spheres on the base");
+    let sw = SphereWorld::new(Arc::new(w.clone()), spheres.clone()).unwrap();
+    let pairs = sw.self_link_pairs();
+    assert!(pairs.iter().any(|&(a, b)| a == base || b == base), "a self pair with the base");
+    let n = 300;
+    let qs: Vec<f64> = (0..n).flat_map(|_| draw(&model, &mut rng)).collect();
+    let mut batch = vec![false; n];
+    sw.in_collision_batch(&qs, &mut batch, &mut SphereScratch::default());
+    let mut one = SphereScratch::default();
+    let of_link = |l: usize| (0..spheres.len()).filter(|&i| spheres.link[i] == l).collect::<Vec<_>>();
+    let pair_spheres: Vec<(bool, Vec<usize>, Vec<usize>)> = pairs.iter().map(|&(a, b)| (a == base || b == base, of_link(a), of_link(b))).collect();
+    let (mut poses, mut compared, mut by_base) = (Vec::new(), 0, 0);
+    for (row, q) in qs.chunks(model.nq).enumerate() {
+        // every sphere in the world frame (f64), every obstacle and self pair of spheres
+        model.forward_kinematics(q, &mut poses).unwrap();
+        let at: Vec<Vector3<f64>> = (0..spheres.len())
+            .map(|i| (poses[spheres.link[i]] * nalgebra::Point3::new(spheres.x[i], spheres.y[i], spheres.z[i])).coords)
+            .collect();
+        // the least gap (distance less the radii) of any tested pair, and of the base's
+        let (mut gap, mut base_gap) = (f64::INFINITY, f64::INFINITY);
+        for i in 0..spheres.len() {
+            for (c, r) in &balls {
+                gap = gap.min((at[i] - Vector3::from(*c)).norm() - spheres.radius[i] - r);
+            }
+        }
+        for (with_base, ia, ib) in &pair_spheres {
+            for &i in ia {
+                for &j in ib {
+                    let g = (at[i] - at[j]).norm() - spheres.radius[i] - spheres.radius[j];
+                    gap = gap.min(g);
+                    if *with_base {
+                        base_gap = base_gap.min(g);
+                    }
+                }
+            }
+        }
+        assert_eq!(sw.in_collision_unchecked(q, &mut one), batch[row], "row {row}: batch and single differ");
+        if gap.abs() > 1e-4 {
+            assert_eq!(batch[row], gap < 0.0, "row {row}: least gap {gap}");
+            compared += 1;
+            by_base += (base_gap < 0.0) as usize;
+        }
+    }
+    assert!(compared > n * 9 / 10 && by_base > 5, "{compared} rows compared, {by_base} met by the base");
 }

@@ -34,6 +34,16 @@
 //! after the same test on the two links' bounding spheres. A batch stops when every lane is in
 //! collision; a motion at its first state in collision.
 //!
+//! Links fixed to the world (a fixed base's links that no joint moves: a pedestal, a torso) are
+//! in the same place in every configuration, so their spheres are placed once, in the world
+//! frame, when the checker is built, and checked then against the obstacles and against the
+//! other fixed links of their self pairs: any contact there makes every configuration collide
+//! (a start inside it stays refused). Per configuration only the moving links are placed; a
+//! self pair of a moving link and a fixed one walks a tree of bounding spheres over the fixed
+//! link's spheres (halved at the median of the longest side of their centres' box, leaves of
+//! up to [`FIXED_LEAF`] spheres) with the moving link's bounding sphere, then its spheres, so
+//! that a fixed link of thousands of spheres costs the few leaves near the moving link.
+//!
 //! The `f32` rounding (of the link poses, the obstacles and the arithmetic: relative 6e-8, so
 //! below 1 um within 10 m of the origin) is covered by [`F32_SLACK`], added to every radius.
 
@@ -54,6 +64,9 @@ pub const SHORT_BLOCK: usize = 3;
 
 /// Added to every sphere radius (m) in the `f32` tests, so that rounding never hides a contact.
 pub const F32_SLACK: f32 = 1e-5;
+
+/// The most spheres of a fixed link in one leaf of its tree of bounding spheres.
+pub const FIXED_LEAF: usize = 8;
 
 /// Per-link spheres as struct-of-arrays: sphere i belongs to link `link[i]` (an index into the
 /// kinematic model's links) with centre (`x[i]`, `y[i]`, `z[i]`) in that link's frame and radius
@@ -117,6 +130,7 @@ impl SphereModel {
 }
 
 /// The spheres of one link, `start..end` of the model's, with a sphere bounding them (link frame).
+/// `fixed`: the link is fixed to the world (no joint moves it).
 #[derive(Clone, Debug)]
 struct LinkSpheres {
     link: usize,
@@ -124,6 +138,93 @@ struct LinkSpheres {
     end: usize,
     center: [f32; 3],
     radius: f32,
+    fixed: bool,
+}
+
+/// A node of a fixed link's tree: the sphere bounding the fixed spheres `start..end` (world
+/// frame, [`FixedSpheres`]' order, its radius with [`F32_SLACK`]); a leaf when it holds at most
+/// [`FIXED_LEAF`] spheres, else its children are the next node and node `right`.
+#[derive(Clone, Debug)]
+struct FixedNode {
+    center: [f32; 3],
+    radius: f32,
+    start: usize,
+    end: usize,
+    right: usize,
+}
+
+/// The spheres of the fixed links in the world frame (`f32`, struct of arrays), each link's a
+/// contiguous run ordered by its tree, and the trees' nodes.
+#[derive(Clone, Debug, Default)]
+struct FixedSpheres {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    radius: Vec<f32>,
+    nodes: Vec<FixedNode>,
+    /// Per fixed link (an index into the world's `links`): its tree's root node.
+    root: Vec<(usize, usize)>,
+}
+
+impl FixedSpheres {
+    /// Adds the spheres of the fixed link `ls` at its world pose `pose` and their tree.
+    fn add_link(&mut self, spheres: &SphereModel, ls: &LinkSpheres, pose: &Isometry3<f64>) {
+        let world: Vec<(Point3<f64>, f64)> = (ls.start..ls.end)
+            .map(|i| (pose * Point3::new(spheres.x[i], spheres.y[i], spheres.z[i]), spheres.radius[i]))
+            .collect();
+        let mut order: Vec<usize> = (0..world.len()).collect();
+        let base = self.x.len();
+        self.build(&world, &mut order, base);
+        for &i in &order {
+            let (c, r) = world[i];
+            self.x.push(c.x as f32);
+            self.y.push(c.y as f32);
+            self.z.push(c.z as f32);
+            self.radius.push(r as f32);
+        }
+    }
+
+    /// The node of the spheres `order` (indices into `world`, which it reorders: each half
+    /// after the split contiguous) whose run starts at `start` of the fixed spheres, and the
+    /// nodes below it (pre-order); returns its index.
+    fn build(&mut self, world: &[(Point3<f64>, f64)], order: &mut [usize], start: usize) -> usize {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for &i in order.iter() {
+            let (c, r) = world[i];
+            for k in 0..3 {
+                lo[k] = lo[k].min(c[k] - r);
+                hi[k] = hi[k].max(c[k] + r);
+            }
+        }
+        let center = Point3::new(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]));
+        let reach = order.iter().map(|&i| (world[i].0 - center).norm() + world[i].1).fold(0.0, f64::max);
+        let index = self.nodes.len();
+        self.nodes.push(FixedNode {
+            center: f3(&center.coords),
+            radius: (reach * (1.0 + 1e-6)) as f32 + F32_SLACK,
+            start,
+            end: start + order.len(),
+            right: 0,
+        });
+        if order.len() > FIXED_LEAF {
+            // halve at the median of the centres along the longest side of their box
+            let (mut clo, mut chi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for &i in order.iter() {
+                for k in 0..3 {
+                    clo[k] = clo[k].min(world[i].0[k]);
+                    chi[k] = chi[k].max(world[i].0[k]);
+                }
+            }
+            let axis = (0..3).max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b]))).unwrap_or(0);
+            let mid = order.len() / 2;
+            order.select_nth_unstable_by(mid, |&a, &b| world[a].0[axis].total_cmp(&world[b].0[axis]));
+            let (left, right) = order.split_at_mut(mid);
+            self.build(world, left, start);
+            let r = self.build(world, right, start + mid);
+            self.nodes[index].right = r;
+        }
+        index
+    }
 }
 
 /// An obstacle in the form the kernel tests (world frame, `f32`).
@@ -162,6 +263,15 @@ pub struct SphereWorld {
     links: Vec<LinkSpheres>,
     /// Self pairs as indices into `links`.
     pairs: Vec<(usize, usize)>,
+    /// The self pairs of two moving links.
+    moving_pairs: Vec<(usize, usize)>,
+    /// The self pairs of a moving link and a fixed one: the moving link (index into `links`)
+    /// and the fixed one's root node.
+    fixed_pairs: Vec<(usize, usize)>,
+    fixed: FixedSpheres,
+    /// A fixed link meets an obstacle or another fixed link of its self pairs: every
+    /// configuration is in collision.
+    fixed_hit: bool,
     obstacles: Vec<Compiled>,
     /// The joints that place every link with spheres (the kinematics' order, parents first),
     /// in `f32`.
@@ -235,7 +345,7 @@ impl SphereWorld {
         for i in 0..spheres.len() {
             match links.last_mut() {
                 Some(ls) if ls.link == spheres.link[i] => ls.end = i + 1,
-                _ => links.push(LinkSpheres { link: spheres.link[i], start: i, end: i + 1, center: [0.0; 3], radius: 0.0 }),
+                _ => links.push(LinkSpheres { link: spheres.link[i], start: i, end: i + 1, center: [0.0; 3], radius: 0.0, fixed: false }),
             }
         }
         if links.windows(2).any(|w| w[0].link >= w[1].link) {
@@ -298,7 +408,72 @@ impl SphereWorld {
         let link_ids: Vec<usize> = links.iter().map(|l| l.link).collect();
         let joints = lane_joints(model, model.joints_placing(&link_ids));
         let local = [&spheres.x, &spheres.y, &spheres.z, &spheres.radius].map(|v| v.iter().map(|&a| a as f32).collect());
-        Ok(SphereWorld { world, spheres, local, links, pairs, obstacles, joints })
+        // the links no joint moves (none on a floating base): their poses at any configuration
+        let mut moves = vec![model.floating_base; model.n_links()];
+        for j in &model.joints {
+            moves[j.child] = moves[j.parent] || !matches!(j.motion, crate::kinematics::Motion::Fixed) || j.mimic.is_some();
+        }
+        let mut poses = Vec::new();
+        model.forward_kinematics_prefix(&vec![0.0; model.nq], &mut poses, joints.len());
+        let mut fixed = FixedSpheres::default();
+        for (k, ls) in links.iter_mut().enumerate() {
+            if !moves[ls.link] {
+                ls.fixed = true;
+                fixed.root.push((k, fixed.nodes.len()));
+                fixed.add_link(&spheres, ls, &poses[ls.link]);
+            }
+        }
+        let root_of = |k: usize| fixed.root.iter().find(|&&(l, _)| l == k).map(|&(_, r)| r);
+        let mut moving_pairs = Vec::new();
+        let mut fixed_pairs = Vec::new();
+        let mut fixed_fixed = Vec::new();
+        for &(a, b) in &pairs {
+            match (root_of(a), root_of(b)) {
+                (None, None) => moving_pairs.push((a, b)),
+                (Some(r), None) => fixed_pairs.push((b, r)),
+                (None, Some(r)) => fixed_pairs.push((a, r)),
+                (Some(ra), Some(rb)) => fixed_fixed.push((ra, rb)),
+            }
+        }
+        let mut sw = SphereWorld { world, spheres, local, links, pairs, moving_pairs, fixed_pairs, fixed, fixed_hit: false, obstacles, joints };
+        sw.fixed_hit = sw.fixed_collides(&fixed_fixed);
+        Ok(sw)
+    }
+
+    /// The links fixed to the world (link indices of the model) that have spheres: placed once,
+    /// checked against the obstacles when this was built (see the module text).
+    pub fn fixed_links(&self) -> Vec<usize> {
+        self.links.iter().filter(|ls| ls.fixed).map(|ls| ls.link).collect()
+    }
+
+    /// Does a fixed link's sphere meet an obstacle, or a sphere of another fixed link of a self
+    /// pair (`fixed_fixed`: the pairs' root nodes)? The same closed-form tests as a
+    /// configuration's, one sphere at a time.
+    fn fixed_collides(&self, fixed_fixed: &[(usize, usize)]) -> bool {
+        let f = &self.fixed;
+        for i in 0..f.x.len() {
+            let c = [[f.x[i]], [f.y[i]], [f.z[i]]];
+            let r = f.radius[i] + F32_SLACK;
+            for o in &self.obstacles {
+                let near = match &o.aabb {
+                    Some((lo, hi)) => box_near(lo, hi, &c, r * r, &[true]),
+                    None => [true],
+                };
+                if near[0] && self.sphere_hits(o, &c, r, &near)[0] {
+                    return true;
+                }
+            }
+        }
+        fixed_fixed.iter().any(|&(ra, rb)| {
+            let (na, nb) = (&f.nodes[ra], &f.nodes[rb]);
+            (na.start..na.end).any(|i| {
+                (nb.start..nb.end).any(|j| {
+                    let d2 = (f.x[i] - f.x[j]).powi(2) + (f.y[i] - f.y[j]).powi(2) + (f.z[i] - f.z[j]).powi(2);
+                    let rr = f.radius[i] + f.radius[j] + 2.0 * F32_SLACK;
+                    d2 <= rr * rr
+                })
+            })
+        })
     }
 
     /// The spheres.
@@ -498,7 +673,7 @@ impl SphereWorld {
         s.centers.resize(self.spheres.len(), [[0.0; N]; 3]);
         s.bounds.resize(self.links.len(), [[0.0; N]; 3]);
         let [x, y, z, _] = &self.local;
-        for (k, ls) in self.links.iter().enumerate() {
+        for (k, ls) in self.links.iter().enumerate().filter(|(_, ls)| !ls.fixed) {
             let f = &s.frames[ls.link];
             let put = |p: [f32; 3], out: &mut [[f32; N]; 3]| {
                 for i in 0..3 {
@@ -522,12 +697,15 @@ impl SphereWorld {
 
     #[inline(always)]
     fn collide_kernel<const N: usize>(&self, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+        if self.fixed_hit {
+            return live;
+        }
         let mut hit = [false; N];
         let done = |hit: &[bool; N]| if any { hit.iter().any(|&h| h) } else { (0..N).all(|l| hit[l] || !live[l]) };
         let radius = &self.local[3];
         // the lane masks combine with `&` and `|` (no short circuit), so that each lane loop
         // stays one vector instruction per operation
-        for (k, ls) in self.links.iter().enumerate() {
+        for (k, ls) in self.links.iter().enumerate().filter(|(_, ls)| !ls.fixed) {
             let bc = &s.bounds[k];
             let reach2 = ls.radius * ls.radius;
             // lanes still to decide: live and not yet in collision
@@ -555,7 +733,17 @@ impl SphereWorld {
                 }
             }
         }
-        for &(a, b) in &self.pairs {
+        for &(k, root) in &self.fixed_pairs {
+            let open: [bool; N] = std::array::from_fn(|l| live[l] & !hit[l]);
+            if !open.iter().fold(false, |a, &n| a | n) {
+                break;
+            }
+            self.against_fixed(s, k, root, open, &mut hit);
+            if done(&hit) {
+                return hit;
+            }
+        }
+        for &(a, b) in &self.moving_pairs {
             let (la, lb) = (&self.links[a], &self.links[b]);
             let (ca, cb) = (&s.bounds[a], &s.bounds[b]);
             let reach = la.radius + lb.radius;
@@ -589,6 +777,63 @@ impl SphereWorld {
             }
         }
         hit
+    }
+
+    /// Sets `hit` in the lanes of `open` where a sphere of the moving link `k` (index into
+    /// `links`) meets a sphere of the fixed link whose tree starts at node `root`: the nodes
+    /// whose bounding sphere meets the link's, then per leaf each of the link's spheres against
+    /// the leaf's bounding sphere and, where it reaches it, the leaf's spheres.
+    #[inline(always)]
+    fn against_fixed<const N: usize>(&self, s: &SphereScratch<N>, k: usize, root: usize, open: [bool; N], hit: &mut [bool; N]) {
+        let ls = &self.links[k];
+        let f = &self.fixed;
+        let bc = &s.bounds[k];
+        let radius = &self.local[3];
+        let within = |c: &[[f32; N]; 3], p: [f32; 3], reach: f32, mask: &[bool; N]| -> [bool; N] {
+            let mut d2 = [0.0f32; N];
+            for i in 0..3 {
+                for l in 0..N {
+                    let e = c[i][l] - p[i];
+                    d2[l] += e * e;
+                }
+            }
+            std::array::from_fn(|l| mask[l] & (d2[l] <= reach * reach))
+        };
+        let mut stack = [0usize; 64];
+        stack[0] = root;
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let ni = stack[top];
+            let node = &f.nodes[ni];
+            let mask: [bool; N] = std::array::from_fn(|l| open[l] & !hit[l]);
+            let near = within(bc, node.center, ls.radius + node.radius, &mask);
+            if !near.iter().fold(false, |a, &n| a | n) {
+                continue;
+            }
+            if node.end - node.start > FIXED_LEAF {
+                // children: the next node and `right`; the tree is halved at the median, so the
+                // stack holds at most one node per level (its depth is log2 of the spheres)
+                stack[top] = node.right;
+                stack[top + 1] = ni + 1;
+                top += 2;
+                continue;
+            }
+            for i in ls.start..ls.end {
+                let c = &s.centers[i];
+                let reach = within(c, node.center, radius[i] + node.radius, &near);
+                if !reach.iter().fold(false, |a, &n| a | n) {
+                    continue;
+                }
+                for j in node.start..node.end {
+                    let rr = radius[i] + f.radius[j] + 2.0 * F32_SLACK;
+                    let h = within(c, [f.x[j], f.y[j], f.z[j]], rr, &reach);
+                    for l in 0..N {
+                        hit[l] |= h[l];
+                    }
+                }
+            }
+        }
     }
 
     /// Does the sphere (world centre per lane `c`, radius `r`) meet obstacle `o`, per lane?
@@ -841,12 +1086,8 @@ fn dispatch_collide<const N: usize>(w: &SphereWorld, s: &SphereScratch<N>, live:
     w.collide_kernel(s, live, any)
 }
 
-/// Does the processor have AVX2 and FMA (detected once)?
 #[cfg(target_arch = "x86_64")]
-fn avx2() -> bool {
-    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *HAS.get_or_init(|| is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"))
-}
+use crate::cpu::avx2_fma as avx2;
 
 #[cfg(test)]
 mod tests {
