@@ -102,6 +102,11 @@ def test_other_robots_get_the_scenes_placed_for_them() -> None:
     ur5 = bench.ROBOTS["ur5"]
     _, back = bench.placed(ur5, obstacles, grasps)
     assert np.allclose(grasps[0][:3, 3] - back[0][:3, 3], ur5.tool_back * grasps[0][:3, 2])
+    # the Kinova's end effector approaches along its x, its fingers closing along its y
+    kinova = bench.ROBOTS["kinova"]
+    _, turned = bench.placed(kinova, obstacles, grasps)
+    assert np.allclose(turned[0][:3, 0], grasps[0][:3, 2]) and np.allclose(turned[0][:3, 1], grasps[0][:3, 1])
+    assert np.allclose(np.linalg.det(turned[0][:3, :3]), 1.0)
 
 
 def test_ur5_problems_are_valid_for_vamp_in_its_own_frame() -> None:

@@ -102,7 +102,9 @@ class RobotSetup:
     its reach 0.85 m). ``vamp_base``: VAMP's world frame in genplan's (4 x 4), when VAMP's model
     stands elsewhere (the obstacles are handed to VAMP in its frame). ``tool_back``: how far
     behind a grasp point (along the tool's z) the ``tool`` frame goes, for a tool frame at the
-    flange of an arm without a gripper (m)."""
+    flange of an arm without a gripper (m). ``tool_axes``: the rotation from a grasp's frame to the
+    ``tool`` frame (3 x 3, row by row: its columns are the tool's axes in the grasp's frame), when the tool does not approach along its z with its
+    fingers closing along its y as the grasps are written (None: it does)."""
 
     load: Callable[[], genplan.Robot]
     ready: tuple[float, ...]
@@ -113,6 +115,7 @@ class RobotSetup:
     jitter: float = 0.15
     vamp_base: tuple[tuple[float, ...], ...] | None = None
     tool_back: float = 0.0
+    tool_axes: tuple[tuple[float, float, float], ...] | None = None
 
 
 #: the robots ``--robot`` takes: the Panda (VAMP's and genplan's), the UR5 (VAMP ships its UR5
@@ -121,7 +124,8 @@ class RobotSetup:
 #: lengths differ from example-robot-data's by centimetres; genplan's UR5 has no gripper: its
 #: flange stops 0.15 m short of the grasps, as long as VAMP's gripper), Baxter (the same kinematics in both;
 #: the scenes in front of its left arm, lowered to its shoulders' height) and the Kinova Jaco2,
-#: which VAMP does not ship (genplan only, its spheres generated from its meshes)
+#: which VAMP does not ship (genplan only, its spheres generated from its meshes; its end
+#: effector frame approaches along its x, the fingers closing along its y)
 ROBOTS: dict[str, RobotSetup] = {
     "panda": RobotSetup(load=load_panda, ready=tuple(READY), tool=TOOL, vamp="panda"),
     "ur5": RobotSetup(load=lambda: genplan.load("ur5"), ready=(0.0, -2.2, 1.6, -1.0, -1.57, 0.0), tool="tool0",
@@ -131,7 +135,7 @@ ROBOTS: dict[str, RobotSetup] = {
     "baxter": RobotSetup(load=_load_baxter, ready=(0.0, -0.55, 0.0, 0.75, 0.0, 1.26, 0.0) * 2, tool="left_gripper",
                          vamp="baxter", scale=1.15, offset=(0.1, 0.3, -0.55)),
     "kinova": RobotSetup(load=lambda: genplan.load("kinova"), ready=(0.0, 3.4, 1.2, 0.0, 2.0, 0.0), tool="ee",
-                         vamp=None, scale=0.9),
+                         vamp=None, scale=0.9, tool_axes=((0.0, 0.0, -1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0))),
 }
 
 
@@ -299,8 +303,8 @@ def placed(setup: RobotSetup, obstacles: Obstacles,
            grasps: list[NDArray[np.float64]]) -> tuple[Obstacles, list[NDArray[np.float64]]]:
     """A family's scene and grasps for ``setup``'s robot: positions and sizes scaled by
     ``setup.scale`` about the origin, then shifted by ``setup.offset``, the grasps' tool frame
-    ``setup.tool_back`` behind them (the Panda's unchanged)."""
-    if setup.scale == 1.0 and not any(setup.offset) and setup.tool_back == 0.0:
+    ``setup.tool_back`` behind them and turned to ``setup.tool_axes`` (the Panda's unchanged)."""
+    if setup.scale == 1.0 and not any(setup.offset) and setup.tool_back == 0.0 and setup.tool_axes is None:
         return obstacles, grasps
     k, off = setup.scale, np.asarray(setup.offset)
 
@@ -314,6 +318,8 @@ def placed(setup: RobotSetup, obstacles: Obstacles,
     for g in grasps:
         g = g.copy()
         g[:3, 3] = k * g[:3, 3] + off - setup.tool_back * g[:3, 2]
+        if setup.tool_axes is not None:
+            g[:3, :3] = g[:3, :3] @ np.asarray(setup.tool_axes)
         moved.append(g)
     return out, moved
 
