@@ -360,6 +360,20 @@ def baxter_tray_card(res: Results) -> str:
     return _card_evaluation(res["../../examples/baxter/tray_gan.json"], "Baxter, tray in both hands")
 
 
+def baxter_tray_quiet_training(res: Results) -> str:
+    """The Baxter tray GAN trained with the defaults on a quiet machine from an empty cache: the
+    data's, the training's and the whole run's seconds (its card), and the evaluation."""
+    c = res["baxter_tray_train_quiet.json"]
+    t, e = c["training"], c["evaluation"]
+    load = t["load_average_1min_start_end"]
+    row = [f"{c['data']['seconds']:.0f}", f"{t['seconds']:.0f}", f"**{t['total_seconds_including_data'] / 60:.1f} min**",
+           f"{load[0]:.1f} -> {load[1]:.1f}",
+           f"{e['gan']['projection']['success_rate']:.1f} %, {e['gan']['projection']['steps_star']:.2f}",
+           f"{e['uniform']['projection']['success_rate']:.1f} %, {e['uniform']['projection']['steps_star']:.2f}"]
+    return _md(["data s", "training s", "data + training + evaluation", "load (1 min) start -> end",
+                "GAN projection: success, steps*", "uniform: success, steps*"], [row])
+
+
 def scaling(res: Results) -> str:
     """Data generation on 1 and 2 local workers and Ray: wall time, throughput, speed-up."""
     s = res["scaling.json"]
@@ -426,31 +440,41 @@ def adapt(res: Results) -> str:
     return table + "\n\nThe ball: " + "; ".join(parts) + "."
 
 
+#: the motion bench's results, one a robot
+MOTION_FILES = ("motion.json", "motion_ur5.json", "motion_baxter.json", "motion_kinova.json")
+
+
 def motion(res: Results) -> str:
     """Free-space planning against VAMP on MotionBenchMaker-style families, per robot: success,
     median planning and simplification time, path length against VAMP's; the geometric mean of
-    the families' planning-time ratios."""
+    the families' planning-time ratios. A robot VAMP does not ship (the Kinova) has genplan's arms
+    only: their lengths in rad, no ratios."""
     rows = []
-    for name in ("motion.json", "motion_ur5.json"):
+    for name in MOTION_FILES:
         m = res[name]
         by = {(r["family"], r["arm"]): r for r in m["rows"]}
         families = list(dict.fromkeys(r["family"] for r in m["rows"]))
         arms = [a for a in ("genplan_spheres", "genplan_exact") if any(k[1] == a for k in by)]
+        vamp = any(k[1] == "vamp" for k in by)
         for fam in families:
-            v = by[(fam, "vamp")]
-            cells = [m["robot"], fam, f"{v['success_pct']:.0f} %, {v['plan_ms_median']:.2f} + {v['simplify_ms_median']:.2f}"]
+            if vamp:
+                v = by[(fam, "vamp")]
+                cells = [m["robot"], fam, f"{v['success_pct']:.0f} %, {v['plan_ms_median']:.2f} + {v['simplify_ms_median']:.2f}"]
+            else:
+                cells = [m["robot"], fam, "(not shipped)"]
             for arm in arms:
                 g = by[(fam, arm)]
-                cells.append(f"{g['success_pct']:.0f} %, {g['plan_ms_median']:.2f} + {g['simplify_ms_median']:.2f} "
-                             f"({_x(g['plan_ms_over_vamp'])}); length {g['length_over_vamp_median']:.2f}x")
+                timing = f"{g['success_pct']:.0f} %, {g['plan_ms_median']:.2f} + {g['simplify_ms_median']:.2f}"
+                cells.append(f"{timing} ({_x(g['plan_ms_over_vamp'])}); length {g['length_over_vamp_median']:.2f}x"
+                             if vamp else f"{timing}; length {g['length_median']:.2f} rad")
             rows.append(cells)
-        means = [geometric_mean([by[(f, arm)]["plan_ms_over_vamp"] for f in families]) for arm in arms]
-        rows.append([m["robot"], "**geometric mean of the planning-time ratios**", "1x",
-                     *[f"**{_x(x)}**" for x in means]])
+        if vamp:
+            means = [geometric_mean([by[(f, arm)]["plan_ms_over_vamp"] for f in families]) for arm in arms]
+            rows.append([m["robot"], "**geometric mean of the planning-time ratios**", "1x",
+                         *[f"**{_x(x)}**" for x in means]])
     return _md(["robot", "family", "VAMP: success, ms plan + simplify",
                 "genplan spheres: success, ms plan + simplify (plan / VAMP); length / VAMP",
                 "genplan exact: the same"], rows)
-
 
 
 def roboplan_box(res: Results) -> str:
@@ -642,9 +666,9 @@ TABLES: dict[str, Table] = {
     "control": Table(("control.json",), "genplan bench control --out benches/results/control.json", control),
     "adapt": Table(("adapt_panda.json",), "genplan bench adapt --model models/panda_shelf_seq2seq.safetensors --data "
                    "DATA --held-out HELD_OUT --problems 200 --out benches/results/adapt_panda.json", adapt),
-    "motion": Table(("motion.json", "motion_ur5.json"),
-                    "genplan bench motion --robot {panda,ur5} --problems 20 --seed 0 --out "
-                    "benches/results/motion[_ur5].json", motion),
+    "motion": Table(MOTION_FILES,
+                    "genplan bench motion --robot {panda,ur5,baxter,kinova} --problems 20 --seed 0 --out "
+                    "benches/results/motion[_ROBOT].json", motion),
     "roboplan_box": Table(("roboplan_box.json",), "python benches/roboplan_box.py --queries 50 --seed 0", roboplan_box),
     "gan_training": Table(("gan_training_baxter_tray.json",), "python benches/gan_training.py --iterations 300 "
                           "--data-rows 2000 --rounds 3 --baseline DIR", gan_training),
@@ -656,6 +680,10 @@ TABLES: dict[str, Table] = {
     "baxter_tray_card": Table(("../../examples/baxter/tray_gan.json",),
                               "genplan train gan --robot examples/baxter/baxter_tray.toml --task examples/baxter/tray.toml "
                               "--seed 0 --out examples/baxter/tray_gan.safetensors", baxter_tray_card),
+    "baxter_tray_quiet_training": Table(("baxter_tray_train_quiet.json",),
+                                        "GENPLAN_CACHE=EMPTY genplan train gan --robot examples/baxter/baxter_tray.toml "
+                                        "--task examples/baxter/tray.toml --seed 0 --out OUT (its card)",
+                                        baxter_tray_quiet_training),
     "execute_ticks": Table(("execute_ticks.json",), "python benches/execute.py --plans 0 --repeats 5 --out "
                            "benches/results/execute_ticks.json", execute_ticks),
     "execute_tracking": Table(("execute.json",), "python benches/execute.py --plans 20 --out benches/results/execute.json",
