@@ -219,7 +219,7 @@ def test_pool_restarts_start_from_the_best_scored_of_the_nearest_pool_trajectori
     near_a[1:-1, 3] += 0.9  # the elbow bent
     near_b[1:-1, 1] -= 0.5  # the shoulder lifted
     far = x[1] + 1.0  # start and end a radian away in every joint
-    pool = np.stack([far, near_a, near_b])
+    pool = np.stack([far, near_a, x[1], near_b])  # the input itself is not a restart
     monkeypatch.setattr(adj, "POOL_NEAREST", 2)
     calls: list[tuple[int, torch.Tensor | None, adj.AdjustResult]] = []
     run = adj._run
@@ -236,7 +236,7 @@ def test_pool_restarts_start_from_the_best_scored_of_the_nearest_pool_trajectori
     (_, first, _), (scored_updates, scored, scores), (_, restarts, _) = calls
     assert first is None and scored_updates == 0 and scored is not None and restarts is not None
     with torch.no_grad():
-        z = tiny_panda_model.encode(torch.as_tensor(np.concatenate([x[1:], pool]), dtype=torch.float32))
+        z = tiny_panda_model.encode(torch.as_tensor(np.concatenate([x[1:], pool[[0, 1, 3]]]), dtype=torch.float32))
     # the two near members scored (their offsets from the problem's own encoding), the far one not
     torch.testing.assert_close(scored, z[[2, 3]] - z[0], rtol=0, atol=1e-6)
     assert scores.batch == 2 and scores.objective_history.shape == (1, 2)

@@ -89,10 +89,9 @@ START_SPREAD = 0.5
 #: objective
 POOL_NEAREST = 32
 #: with a ``pool``: the share of a problem's restarts that start from pool trajectories (the
-#: best scored), the others from the random spread around the first start; on the Panda obstacle
-#: case (``genplan bench adapt --rows obstacle --skip 60 --problems 120``, tuning problems) all
-#: from the pool cleared more problems than half (90.0 % against 88.3 %, the spread alone 84.2 %;
-#: with ``--skip 180`` all from the pool 92.5 %, the spread alone 88.3 %)
+#: best scored), the others from the random spread around the first start; all from the pool:
+#: on the Panda obstacle case's tuning problems (``genplan bench adapt --rows obstacle
+#: --obstacle-pool data|none``) it clears more problems than half, and half more than none
 POOL_SHARE = 1.0
 
 
@@ -435,8 +434,9 @@ def _pool_offsets(model: Seq2SeqModel, xt: Tensor, x: NDArray[np.float64], todo:
     """(len(todo), c, latent) latent offsets from each problem's own encoding to the encodings of
     the c <= ``count`` pool trajectories (of the :data:`POOL_NEAREST` nearest its input by start
     and end samples) whose decodings from the problem's start score lowest on ``obj``, and
-    (len(todo), c) which of them are pool members of the problem's own mirror sign (the others
-    keep the random spread). Leaves ``obj`` bound to a scoring batch: the caller rebinds it."""
+    (len(todo), c) which of them are usable: pool members of the problem's own mirror sign that
+    are not its input itself (which the first start already ran); the others keep the random
+    spread. Leaves ``obj`` bound to a scoring batch: the caller rebinds it."""
     dev = xt.device
     pt = torch.as_tensor(pool, dtype=torch.float32, device=dev)
     with torch.no_grad():
@@ -448,21 +448,22 @@ def _pool_offsets(model: Seq2SeqModel, xt: Tensor, x: NDArray[np.float64], todo:
     ends = np.concatenate([pool[:, 0], pool[:, -1]], 1)
     near = min(POOL_NEAREST, len(pool))
     cand = np.empty((len(todo), near), dtype=np.int64)
-    other_sign = np.zeros((len(todo), near), dtype=bool)
+    unusable = np.zeros((len(todo), near), dtype=bool)
     for j, i in enumerate(todo):
         d = np.sum((ends - np.concatenate([x[i, 0], x[i, -1]])) ** 2, 1)
         d[sign_pool != sign_own[j]] = np.inf  # a mirrored member's latent means another motion
+        d[np.all(pool == x[i], axis=(1, 2))] = np.inf  # the input itself: the first start
         cand[j] = np.argsort(d, kind="stable")[:near]
-        other_sign[j] = np.isinf(d[cand[j]])
+        unusable[j] = np.isinf(d[cand[j]])
     rows = np.repeat(todo, near)
     perturb = z_pool[torch.as_tensor(cand.reshape(-1), device=dev)] - z_own.repeat_interleave(near, 0)
     _bind_rows(obj, ctx, base, rows)
     scored = _run(model, xt[torch.as_tensor(rows, device=dev)], obj, method, 0, lr, step, 0, set(), False, max_step,
                   obj._ctx, name, anchor, perturb=perturb)
     score = scored.objective_history[0].reshape(len(todo), near)
-    score[other_sign] = np.inf  # never picked while a member of the problem's own sign remains
+    score[unusable] = np.inf  # never picked while a usable member remains
     best = np.argsort(score, 1, kind="stable")[:, :count]
-    found = ~np.take_along_axis(other_sign, best, 1)
+    found = ~np.take_along_axis(unusable, best, 1)
     chosen = perturb.reshape(len(todo), near, -1)
     offsets = torch.stack([chosen[j, torch.as_tensor(best[j], device=dev)] for j in range(len(todo))])
     return offsets, found
