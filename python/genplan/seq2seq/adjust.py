@@ -410,21 +410,23 @@ def adjust(model: Seq2SeqModel, x_in: ArrayLike, objective: Any, *, targets: Map
                                            float(lr), float(max_step), name, use_anchor)
             per = noise.view(len(todo), starts - 1, -1)[:, :offsets.shape[1]]
             per[torch.as_tensor(found, device=dev)] = offsets[torch.as_tensor(found, device=dev)]
-        _bind_rows(obj, ctx, base, rows)
+        ctx_rows = _bind_rows(obj, ctx, base, rows)
         again = _run(model, xt[torch.as_tensor(rows, device=dev)], obj, method, updates, float(lr), step,
-                     (seed + 1) % 2**64, keep, progress, float(max_step), obj._ctx, name, use_anchor, perturb=noise)
+                     (seed + 1) % 2**64, keep, progress, float(max_step), ctx_rows, name, use_anchor, perturb=noise)
         blocked_again = _blocked(obj, again.p)
     finally:
         obj.bind(ctx)
     return _merge(first, again, todo, starts, blocked, blocked_again)
 
 
-def _bind_rows(obj: Objective, ctx: Context, base: Mapping[str, Tensor], rows: NDArray[np.int64]) -> None:
+def _bind_rows(obj: Objective, ctx: Context, base: Mapping[str, Tensor], rows: NDArray[np.int64]) -> Context:
     """Bind ``obj`` to the problems ``rows`` of ``ctx`` (repeats allowed): their inputs and the
-    targets ``base`` as bound for all the problems."""
+    targets ``base`` as bound for all the problems. Returns that context."""
     idx = torch.as_tensor(rows, device=ctx.device)
     bound = {k: v[idx] for k, v in base.items()}
-    obj.bind(dataclasses.replace(ctx, batch=len(rows), x_in=ctx.x_in[torch.as_tensor(rows)], targets=bound, _scope=None))
+    ctx_rows = dataclasses.replace(ctx, batch=len(rows), x_in=ctx.x_in[torch.as_tensor(rows)], targets=bound, _scope=None)
+    obj.bind(ctx_rows)
+    return ctx_rows
 
 
 def _pool_offsets(model: Seq2SeqModel, xt: Tensor, x: NDArray[np.float64], todo: NDArray[np.int64],
@@ -457,9 +459,9 @@ def _pool_offsets(model: Seq2SeqModel, xt: Tensor, x: NDArray[np.float64], todo:
         unusable[j] = np.isinf(d[cand[j]])
     rows = np.repeat(todo, near)
     perturb = z_pool[torch.as_tensor(cand.reshape(-1), device=dev)] - z_own.repeat_interleave(near, 0)
-    _bind_rows(obj, ctx, base, rows)
+    ctx_rows = _bind_rows(obj, ctx, base, rows)
     scored = _run(model, xt[torch.as_tensor(rows, device=dev)], obj, method, 0, lr, step, 0, set(), False, max_step,
-                  obj._ctx, name, anchor, perturb=perturb)
+                  ctx_rows, name, anchor, perturb=perturb)
     score = scored.objective_history[0].reshape(len(todo), near)
     score[unusable] = np.inf  # never picked while a usable member remains
     best = np.argsort(score, 1, kind="stable")[:, :count]
