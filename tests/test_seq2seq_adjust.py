@@ -187,13 +187,19 @@ def test_finish_falls_back_on_another_start_when_the_kept_one_collides(panda, ti
     assert fin.start_index.tolist() == [0, 0] and fin.starts_finished.tolist() == [1, 2]
 
 
-def test_starts_refuses_bad_values_before_any_work(panda, tiny_panda_model, monkeypatch) -> None:
+@pytest.fixture
+def no_updates(monkeypatch) -> None:
+    """Any update loop (genplan.seq2seq.adjust._run) fails the test: the arguments must be
+    refused before one starts."""
     import genplan.seq2seq.adjust as adj
 
     def started(*args, **kwargs):
         raise AssertionError("an update ran before the arguments were checked")
 
     monkeypatch.setattr(adj, "_run", started)
+
+
+def test_starts_refuses_bad_values_before_any_work(panda, tiny_panda_model, no_updates) -> None:
     x, balls = _ball_problems(panda)
     kw = dict(targets={"avoid_spheres": balls}, robot=panda)
     for bad in (0, -1, 2.0, True, "2", MAX_STARTS + 1):
@@ -250,14 +256,9 @@ def test_pool_restarts_start_from_the_best_scored_of_the_nearest_pool_trajectori
     np.testing.assert_array_equal(again.p, res.p)
 
 
-def test_pool_refuses_bad_values_before_any_work(panda, tiny_panda_model, monkeypatch) -> None:
-    import genplan.seq2seq.adjust as adj
+def test_pool_refuses_bad_values_before_any_work(panda, tiny_panda_model, no_updates) -> None:
     from genplan.errors import NonFiniteError
 
-    def started(*args, **kwargs):
-        raise AssertionError("an update ran before the arguments were checked")
-
-    monkeypatch.setattr(adj, "_run", started)
     x, balls = _ball_problems(panda)
     kw = dict(targets={"avoid_spheres": balls}, robot=panda)
     with pytest.raises(ShapeError, match="pool"):

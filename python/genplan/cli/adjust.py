@@ -20,8 +20,8 @@ Inputs, each checked (a typed error naming the file and the field, before any wo
 ``--starts K``: a problem whose first start leaves a clearance term of the objective positive is
 adjusted again from K - 1 other starts and finished from the first start that passes (see
 :func:`genplan.seq2seq.adjust.adjust`); default 8 for an objective with a clearance term, else 1.
-``--pool DIR``: trajectories of the family (the model's training data, say) half of those restarts
-start from: the pool's members near the problem's input that score best on the objective.
+``--pool DIR``: trajectories of the family (the model's training data, say) those restarts start
+from: the pool's members near the problem's input that score best on the objective.
 
 Writes to ``--out`` (a folder): ``adjusted.npz`` (the adjusted trajectories ``p``, ``v``, ``u`` of
 the start each problem kept, the latent ``z``, per problem ``success``, ``end_error_m``,

@@ -41,9 +41,9 @@ where that trajectory starts. Rows:
   every problem (those starting inside the sphere as failures); ``free_success_percent`` counts
   only the problems whose input starts and ends clear of it (``free_problems`` of them). A problem
   its first start leaves inside the sphere runs ``--obstacle-starts`` starts in all; with
-  ``--obstacle-pool data`` (the default) half of its restarts start from the ``--data``
-  trajectories near its input that score best on the objective (``genplan.adjust``'s ``pool``),
-  the others from the random spread (``restarted_problems``, ``success_from_restart``).
+  ``--obstacle-pool data`` (the default) its restarts start from the ``--data`` trajectories
+  near its input that score best on the objective (``genplan.adjust``'s ``pool``), with ``none``
+  from the random spread around the first start (``restarted_problems``, ``success_from_restart``).
 """
 
 from __future__ import annotations
