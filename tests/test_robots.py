@@ -258,6 +258,21 @@ def test_integrity_5_mimic_joints_follow_their_master(tmp_path) -> None:
         np.testing.assert_allclose(l3, robot.data.oMf[robot.model.getFrameId("l3")].homogeneous, atol=1e-12)
 
 
+def test_kinematic_hash_holds_a_mimics_multiplier_and_offset(tmp_path) -> None:
+    """Two robots whose mimic joint differs only in its multiplier or only in its offset move
+    their links differently, so a model learned on one must not load for the other; the same
+    file written twice hashes the same."""
+    def hashed(name: str, mimic: str) -> str:
+        path = tmp_path / f"{name}.urdf"
+        path.write_text(MIMIC.replace('multiplier="-2" offset="0.1"', mimic))
+        return robots.load(path).kinematic_hash
+
+    base = hashed("base", 'multiplier="-2" offset="0.1"')
+    assert hashed("again", 'multiplier="-2" offset="0.1"') == base
+    assert hashed("multiplier", 'multiplier="-2.5" offset="0.1"') != base
+    assert hashed("offset", 'multiplier="-2" offset="0.2"') != base
+
+
 def test_integrity_5_the_pandas_fingers_move_together(tmp_path) -> None:
     """example-robot-data's Panda: panda_finger_joint2 mimics panda_finger_joint1. Unlocked, the
     fingers are one coordinate; locking the master locks its mimic at the value it follows;

@@ -197,7 +197,8 @@ class Robot:
         """The sha256 (hex) of what a learned model of this robot depends on, which model cards
         record and loaders compare: the active joints in configuration order (name; type as its
         nq, nv and motion subspace at the neutral configuration, which holds the axis; position
-        limits) and the chain between them (each joint's parent joint and placement in it).
+        limits; a mimic joint's multiplier and offset) and the chain between them (each joint's
+        parent joint and placement in it).
         Not the robot's name, file paths, collision geometry, frames, or the values of locked
         joints outside that chain (a Panda's fingers, open or closed); a locked joint between
         two active ones shows in the placement of the next one. Every number is rounded to 1e-6
@@ -217,9 +218,15 @@ class Robot:
             data = joint.createData()
             joint.calc(data, q0)
             q = slice(joint.idx_q, joint.idx_q + joint.nq)
-            rows.append([m.names[jid], joint.nq, joint.nv, rounded(np.asarray(data.S)), m.names[int(m.parents[jid])],
-                         rounded(placement.translation), rounded(placement.rotation),
-                         rounded(self.lower[q]), rounded(self.upper[q])])
+            row = [m.names[jid], joint.nq, joint.nv, rounded(np.asarray(data.S)), m.names[int(m.parents[jid])],
+                   rounded(placement.translation), rounded(placement.rotation),
+                   rounded(self.lower[q]), rounded(self.upper[q])]
+            if joint.shortname() == "JointModelMimic":
+                # a mimic follows multiplier * master + offset: the motion subspace holds the
+                # multiplier, not the offset, which moves every link after it all the same
+                mimic = joint.extract()
+                row.append(["mimic", rounded([mimic.scaling, mimic.offset])])
+            rows.append(row)
         return hashlib.sha256(json.dumps(rows, separators=(",", ":")).encode()).hexdigest()
 
     @functools.cached_property
