@@ -315,3 +315,29 @@ def test_the_benchmark_script_writes_its_rows(small_urdf: Path, tmp_path, monkey
     assert row["robot"] == "small" and row["spheres"] > 0 and row["cover"]["covered"]
     assert row["coal"]["missed"] == 0 and row["coal"]["configurations"] == 40 and row["volume_ratio"] > 1
     assert "cover ok" in capsys.readouterr().out
+
+
+def test_the_benchmarks_mesh_solid_agrees_with_the_winding_number(small: genplan.Robot) -> None:
+    """benches/spheres.py's MeshSolid (crossings of a vertical line, triangles binned by cell)
+    finds the same solid as the winding number (LinkGeometry.contains) on a closed mesh, on lines
+    through its vertices (decided by the winding number) and on the UR5's meshes; an open plate
+    has no inside for either."""
+    octa, plate = (next(g for g in sph.link_geometries(small) if g.name == n) for n in ("l2_0", "l2_1"))
+    rng = np.random.default_rng(2)
+    p = rng.uniform(-0.06, 0.06, (20_000, 3)) * [1, 1, 2] + [0.05, 0, 0]
+    p[:200, :2] = [0.05, 0.0]  # on the line through the two apexes
+    solid = BENCH["MeshSolid"](octa)
+    np.testing.assert_array_equal(solid.contains(p), octa.contains(p))
+    assert 2000 < solid.contains(p).sum() < len(p) - 2000
+    q = rng.uniform(-0.02, 0.12, (5000, 3)) + [0.1, 0, 0.05]
+    assert not BENCH["MeshSolid"](plate).contains(q).any() and not plate.contains(q).any()
+    ur5 = [g for g in sph.link_geometries(genplan.load("ur5")) if g.kind == "mesh"]
+    agree = total = 0
+    for g in ur5:
+        v = g.vertices @ g.placement[:3, :3].T + g.placement[:3, 3]
+        x = rng.uniform(v.min(axis=0), v.max(axis=0), (2000, 3))
+        agree += int((BENCH["MeshSolid"](g).contains(x) == g.contains(x)).sum())
+        total += len(x)
+    # the few others lie where shells of one mesh overlap with opposite orientations, which the
+    # winding number sums to 0 and MeshSolid, with the generator, counts inside their union
+    assert agree >= 0.999 * total
