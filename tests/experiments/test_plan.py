@@ -149,3 +149,56 @@ def test_bench_plan_data_sampler_rows(tmp_path) -> None:
     ratios = data["ratios"]["panda_shelf"]
     assert ratios["uniform_over_data"] == rows["uniform"]["t_ave_s"] / row["t_ave_s"]
     assert ratios["uniform_over_adaptive"] == rows["uniform"]["t_ave_s"] / rows["adaptive"]["t_ave_s"]
+
+
+def test_bench_plan_checkers_alternate_and_list_the_queries_a_checker_refuses(monkeypatch) -> None:
+    """run_checkers: one row per checker on the same queries; a query whose start the second
+    checker refuses is listed in its row's refused_queries and counted as failed, its times are
+    over the queries it planned, and vs_exact compares both on the queries both planned."""
+    import numpy as np
+
+    import genplan
+    from genplan.experiments.benchmarks import plan as bench
+    from genplan.planning import PlannerSettings, environment
+
+    env = environment("panda_shelf")
+    robot = genplan.load(env.robot)
+    queries = env.queries(robot, n=3, seed=3)
+    refused_start = np.asarray(queries[1].start)
+
+    class RefusesOneStart:
+        """The world's own answer, but the second query's start invalid."""
+
+        def __init__(self, world) -> None:
+            self.world = world
+
+        def is_valid(self, qs):
+            qs = np.asarray(qs)
+            return ~np.asarray(self.world.in_collision(qs)) & ~np.all(np.abs(qs - refused_start) < 1e-12, axis=1)
+
+    monkeypatch.setattr(bench, "_checker", lambda robot, world, c, m: c if c == "exact" else RefusesOneStart(world))
+    exact, other = bench.run_checkers("panda_shelf", "gan", queries, 3, PlannerSettings(), False,
+                                      checkers=["exact", "spheres"])
+    assert (exact["checker"], other["checker"]) == ("exact", "spheres")
+    assert exact["queries"] == 3 and exact["success_rate"] == 100.0 and "refused_queries" not in exact
+    assert other["refused_queries"] == [1] and other["planned"] == 2 and other["queries"] == 3
+    assert other["failed_queries"] == [1] and other["success_rate"] == pytest.approx(200.0 / 3)
+    v = other["vs_exact"]
+    assert v["queries"] == 2 and v["exact_success_rate"] == v["success_rate"] == 100.0
+    assert v["exact_over_checker_t_ave"] == pytest.approx(v["exact_t_ave_s"] / v["t_ave_s"])
+    assert other["t_ave_s"] == pytest.approx(v["t_ave_s"])  # the planned queries are the common ones
+
+
+def test_bench_plan_sphere_checker_refusing_every_start_is_an_error(capsys) -> None:
+    """--checker spheres on the Panda shelf with the default cover (1 cm): every start lies within
+    a few millimetres of the table, inside the cover's reach, so each is refused, and the bench
+    says so (exit 2) instead of writing rows of nothing; --sphere-max-error without the sphere
+    checker, and certified edges with it, are usage errors before any query is made."""
+    assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "gan", "--queries", "2", "--seed", "3",
+                 "--checker", "spheres"]) == 2
+    assert "checker 'spheres': every query of panda_shelf refused (2)" in capsys.readouterr().err
+    assert main(["bench", "plan", "--env", "panda_shelf", "--queries", "2", "--sphere-max-error", "0.005"]) == 2
+    assert "--sphere-max-error" in capsys.readouterr().err
+    assert main(["bench", "plan", "--env", "panda_shelf", "--queries", "2", "--checker", "all",
+                 "--edge-check", "certified"]) == 2
+    assert "--edge-check certified: it needs the exact checker" in capsys.readouterr().err

@@ -30,6 +30,16 @@ times the paper's protocol (tree nodes checked, edges not validated); ``--edge-c
 certifies every motion between those states collision-free as well (conservative advancement,
 ``PlannerSettings.edge_check``; the settings go into the JSON).
 
+``--checker`` picks genplan's validity checker (``genplan.planning.CHECKERS``): ``exact`` (the
+world's geometry, default), ``spheres`` (the robot's covering spheres; ``--sphere-max-error M``
+for a cover other than ``genplan.spheres``' default) or ``all`` (both on the same queries, the
+checkers alternating query by query, the first of a query's plans taking turns). A query whose
+start, or every goal, a sphere checker refuses (the cover reaches up to ``max_error`` beyond the
+geometry, so a configuration millimetres from an obstacle collides) is not planned: the row lists
+it in ``refused_queries`` and counts it as failed; its times and counts are over the queries
+planned. With ``all``, each sphere row's ``vs_exact`` holds both checkers' mean and median times
+on the queries both planned and their ratios (exact over spheres).
+
 The peer (``--planner ompl``) is OMPL's ProjectedStateSpace with RRTConnect (PyPI ``ompl``),
 whose constraint and validity callbacks run in Python (genplan's Pinocchio terms and parry
 world): its time is reported in full and without the callbacks' share. Its "projections" are
@@ -71,6 +81,13 @@ EXTRA_SAMPLERS = ("adaptive", "data")
 PLANNERS = ("genplan", "ompl")
 
 
+def checkers(args: argparse.Namespace) -> list[str]:
+    """genplan's validity checkers of ``--checker``: one, or every one for ``all``."""
+    from genplan.planning import CHECKERS
+
+    return list(CHECKERS) if args.checker == "all" else [args.checker]
+
+
 def algorithms(args: argparse.Namespace) -> list[str]:
     """genplan's search algorithms of ``--algorithm``: one, or every one for ``all``."""
     from genplan.planning import ALGORITHMS
@@ -98,27 +115,96 @@ def _summary(times: list[float], success: list[bool], **extra: list[float]) -> d
 
 
 def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, settings: Any, progress: bool,
-                algorithm: str = "crrt", model: str | None = None) -> dict[str, Any]:
+                algorithm: str = "crrt", model: str | None = None, checker: str = "exact",
+                sphere_max_error: float | None = None) -> dict[str, Any]:
+    """One Table II row: ``sampler``'s plans of ``queries`` with ``checker``."""
+    return run_checkers(env_name, sampler, queries, seed, settings, progress, algorithm, model, [checker],
+                        sphere_max_error)[0]
+
+
+def _checker(robot: Any, world: Any, checker: str, sphere_max_error: float | None) -> Any:
+    """What ``Planner(checker=)`` takes for ``checker``: its name, or the sphere checker of a cover
+    at ``sphere_max_error``."""
+    if checker != "spheres" or sphere_max_error is None:
+        return checker
+    from genplan.planning import sphere_checker
+    from genplan.spheres import robot_spheres
+
+    return sphere_checker(robot, world, spheres=robot_spheres(robot, max_error=sphere_max_error))
+
+
+def run_checkers(env_name: str, sampler: str, queries: list[Any], seed: int, settings: Any, progress: bool,
+                 algorithm: str = "crrt", model: str | None = None, checkers: list[str] | None = None,
+                 sphere_max_error: float | None = None) -> list[dict[str, Any]]:
+    """One Table II row per checker of ``checkers`` (default exact): ``sampler``'s plans of
+    ``queries``, the checkers alternating query by query (each with its own planner and seed),
+    the first to plan a query taking turns, so that a change of the machine's load falls on every
+    checker alike. A query a non-exact checker refuses (its start, or every goal, invalid) is
+    listed in the row's ``refused_queries`` and counted as failed; the exact checker refusing one
+    is an error (the queries are made valid for it). GenplanError when a checker refuses them all."""
     import genplan
+    from genplan.errors import InvalidGoalError, InvalidStartError
     from genplan.planning import Planner, environment
     from genplan.samplers.loading import load_sampler_model
 
+    checkers = checkers or ["exact"]
     env = environment(env_name)
     robot = genplan.load(env.robot)
     learned = None if model is None or sampler in ("uniform", "data") else load_sampler_model(robot, model)
-    planner = Planner(robot, world=env.world(robot), sampler=sampler, settings=settings, seed=seed, algorithm=algorithm,
-                      gan_model=learned)
-    results = []
-    it = queries
+    planners = {}
+    for c in checkers:
+        world = env.world(robot)
+        planners[c] = Planner(robot, world=world, sampler=sampler, settings=settings, seed=seed, algorithm=algorithm,
+                              gan_model=learned, checker=_checker(robot, world, c, sphere_max_error))
+    results: dict[str, dict[int, Any]] = {c: {} for c in checkers}
+    refused: dict[str, list[int]] = {c: [] for c in checkers}
+    refusal: dict[str, Exception] = {}
+    it: Any = queries
     if progress:
         from tqdm import tqdm
 
-        it = tqdm(queries, desc=f"{env_name} {algorithm} {sampler}", unit="query", leave=False)
-    for q in it:
-        results.append(planner.plan(q.start, q.goals))
-    row = summarize_plans(results)
-    row.update(env=env_name, planner="genplan", sampler=sampler, algorithm=algorithm)
-    return row
+        it = tqdm(queries, desc=f"{env_name} {algorithm} {sampler} {'/'.join(checkers)}", unit="query", leave=False)
+    for i, q in enumerate(it):
+        turn = i % len(checkers)
+        for c in checkers[turn:] + checkers[:turn]:
+            try:
+                results[c][i] = planners[c].plan(q.start, q.goals)
+            except (InvalidStartError, InvalidGoalError) as e:
+                if c == "exact":
+                    raise
+                refused[c].append(i)
+                refusal[c] = e
+    rows = []
+    for c in checkers:
+        if not results[c]:
+            raise InvalidStartError(f"checker {c!r}: every query of {env_name} refused ({len(queries)}), "
+                                    f"the last: {refusal[c]}")
+        planned = sorted(results[c])
+        row = summarize_plans([results[c][i] for i in planned])
+        row.update(env=env_name, planner="genplan", sampler=sampler, algorithm=algorithm, checker=c)
+        if c != "exact":
+            row.update(queries=len(queries), planned=len(planned), refused_queries=refused[c],
+                       success_rate=100.0 * sum(results[c][i].success for i in planned) / len(queries),
+                       failed_queries=sorted([planned[j] for j in row["failed_queries"]] + refused[c]))
+            if c == "spheres" and sphere_max_error is not None:
+                row["sphere_max_error_m"] = sphere_max_error
+        rows.append(row)
+    if "exact" in checkers:
+        for row in rows:
+            if row["checker"] != "exact":
+                both = sorted(set(results["exact"]) & set(results[row["checker"]]))
+                te = np.array([results["exact"][i].time_s for i in both])
+                tc = np.array([results[row["checker"]][i].time_s for i in both])
+                row["vs_exact"] = {
+                    "queries": len(both),
+                    "exact_success_rate": 100.0 * float(np.mean([results["exact"][i].success for i in both])),
+                    "success_rate": 100.0 * float(np.mean([results[row["checker"]][i].success for i in both])),
+                    "exact_t_ave_s": float(te.mean()), "t_ave_s": float(tc.mean()),
+                    "exact_t_median_s": float(np.median(te)), "t_median_s": float(np.median(tc)),
+                    "exact_over_checker_t_ave": float(te.mean() / tc.mean()),
+                    "exact_over_checker_t_median": float(np.median(te) / np.median(tc)),
+                }
+    return rows
 
 
 def summarize_plans(results: list[Any]) -> dict[str, Any]:
@@ -171,13 +257,14 @@ def run_ompl(env_name: str, queries: list[Any], seed: int, time_limit: float, pr
     return row
 
 
-def _ratios(rows: list[dict[str, Any]], envs: list[str], algorithm: str) -> dict[str, Any]:
-    """Per environment: uniform / GAN, uniform / hybrid (and adaptive, data) of ``algorithm``'s rows,
-    OMPL over each sampler."""
+def _ratios(rows: list[dict[str, Any]], envs: list[str], algorithm: str, checker: str = "exact") -> dict[str, Any]:
+    """Per environment: uniform / GAN, uniform / hybrid (and adaptive, data) of ``algorithm``'s rows
+    with ``checker``, OMPL over each sampler."""
     ratios: dict[str, Any] = {}
     for env_name in envs:
         by = {(r["planner"], r["sampler"]): r for r in rows
-              if r["env"] == env_name and (r["planner"] == "ompl" or r.get("algorithm", "crrt") == algorithm)}
+              if r["env"] == env_name and (r["planner"] == "ompl" or (r.get("algorithm", "crrt") == algorithm
+                                                                     and r.get("checker", "exact") == checker))}
         u, g, h = (by.get(("genplan", s)) for s in SAMPLERS)
         o = next((r for r in rows if r["env"] == env_name and r["planner"] == "ompl"), None)
         ratios[env_name] = {
@@ -196,14 +283,17 @@ def _ratios(rows: list[dict[str, Any]], envs: list[str], algorithm: str) -> dict
 
 def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed: int, ompl_time_limit: float,
         settings: Any = None, progress: bool = True, algorithms: list[str] | None = None,
-        models: dict[str, str] | None = None) -> dict[str, Any]:
+        models: dict[str, str] | None = None, checkers: list[str] | None = None,
+        sphere_max_error: float | None = None) -> dict[str, Any]:
     """Table II's rows for ``envs``; ``models`` maps a robot's name to the learned sampler's file
-    its environments use (default: the shipped GAN)."""
+    its environments use (default: the shipped GAN); ``checkers``: genplan's validity checkers
+    (default exact; several: :func:`run_checkers`)."""
     import genplan
     from genplan.planning import PlannerSettings, environment
 
     settings = settings or PlannerSettings()
     algorithms = algorithms or [settings.algorithm]
+    checkers = checkers or ["exact"]
     rows = []
     query_s = {}
     for env_name in envs:
@@ -215,14 +305,14 @@ def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed:
         if "genplan" in planners:
             for alg in algorithms:
                 for s in samplers:
-                    rows.append(run_genplan(env_name, s, queries, seed, settings, progress, alg,
-                                            (models or {}).get(env.robot)))
+                    rows.extend(run_checkers(env_name, s, queries, seed, settings, progress, alg,
+                                             (models or {}).get(env.robot), checkers, sphere_max_error))
         if "ompl" in planners:
             rows.append(run_ompl(env_name, queries, seed, ompl_time_limit, progress))
     for r in rows:
         paper = PAPER_TABLE_II.get((r["env"], r["sampler"]))
         r["paper"] = None if paper is None else dict(zip(("success_rate", "t_ave_s", "projections", "extensions"), paper))
-    by_algorithm = {alg: _ratios(rows, envs, alg) for alg in algorithms}
+    by_algorithm = {alg: _ratios(rows, envs, alg, checkers[0]) for alg in algorithms}
     return {
         "benchmark": "plan",
         "queries": n,
@@ -230,6 +320,8 @@ def run(envs: list[str], samplers: list[str], planners: list[str], n: int, seed:
         "goals_per_query": 10,
         "settings": settings.to_dict(),
         "algorithms": algorithms,
+        "checkers": checkers,
+        "sphere_max_error_m": sphere_max_error,
         "models": model_files(models or {}),
         "ompl_time_limit_s": ompl_time_limit,
         "query_generation_s": query_s,
@@ -247,12 +339,19 @@ def print_table(payload: dict[str, Any]) -> None:
     out = []
     for r in payload["rows"]:
         p = r["paper"]
-        out.append([r["env"], r.get("algorithm", "-"), r["planner"] if r["planner"] == "ompl" else r["sampler"], f"{r['success_rate']:.1f}",
+        out.append([r["env"], r.get("algorithm", "-"), r.get("checker", "-"), r["planner"] if r["planner"] == "ompl" else r["sampler"], f"{r['success_rate']:.1f}",
                     f"{r['t_ave_s']:.3f} ± {r['t_std_s']:.3f}", f"{r['t_median_s']:.3f}", f"{r['projections']:.1f}",
                     "-" if r.get("extensions") is None else f"{r['extensions']:.1f}",
                     "-" if p is None else f"{p['success_rate']} / {p['t_ave_s']} / {p['projections']} / {p['extensions']}"])
-    print(table(["env", "algorithm", "sampler", "success %", "T_ave s", "T_median s", "Opt. steps", "E",
+    print(table(["env", "algorithm", "checker", "sampler", "success %", "T_ave s", "T_median s", "Opt. steps", "E",
                  "paper: success / T_ave / steps / E"], out))
+    for r in payload["rows"]:
+        v = r.get("vs_exact")
+        if v:
+            print(f"{r['env']} {r['sampler']} {r.get('algorithm', '-')}: {r['checker']} on the {v['queries']} queries "
+                  f"both planned: mean {v['exact_t_ave_s']:.4f} -> {v['t_ave_s']:.4f} s "
+                  f"({v['exact_over_checker_t_ave']:.2f}x), median {v['exact_t_median_s']:.4f} -> {v['t_median_s']:.4f} s "
+                  f"({v['exact_over_checker_t_median']:.2f}x); {len(r['refused_queries'])} refused")
     for alg, ratios in payload["ratios_by_algorithm"].items():
         for env, rat in ratios.items():
             parts = [f"{k} {v:.2f}x" for k, v in rat.items() if v is not None]
@@ -298,12 +397,13 @@ def sweep(envs: list[str], samplers: list[str], planners: list[str], args: argpa
 
     jobs = [dict(envs=envs, samplers=samplers, planners=planners, n=args.queries, seed=s,
                  ompl_time_limit=args.ompl_time_limit, settings=settings, algorithms=algorithms(args),
-                 models=dict(args.model or [])) for s in args.seeds]
+                 models=dict(args.model or []), checkers=checkers(args), sphere_max_error=args.sphere_max_error)
+            for s in args.seeds]
     # genplan's planner releases the GIL (threads); OMPL's callbacks run in Python (processes)
     runs, ex = run_seeds(run_seed, jobs, workers=args.workers, ray=args.ray,
                          kind="process" if "ompl" in planners else "thread", desc="bench plan")
-    def key_of(r: dict[str, Any]) -> tuple[str, str, str, str]:
-        return r["env"], r["planner"], r["sampler"], r.get("algorithm", "-")
+    def key_of(r: dict[str, Any]) -> tuple[str, str, str, str, str]:
+        return r["env"], r["planner"], r["sampler"], r.get("algorithm", "-"), r.get("checker", "-")
 
     keys = [key_of(r) for r in runs[0]["rows"]]
     aggregate = []
@@ -312,6 +412,8 @@ def sweep(envs: list[str], samplers: list[str], planners: list[str], args: argpa
         row = {**median_of(same), "env": key[0], "planner": key[1], "sampler": key[2], "paper": same[0]["paper"]}
         if key[3] != "-":
             row["algorithm"] = key[3]
+        if key[4] != "-":
+            row["checker"] = key[4]
         aggregate.append(row)
     shared = ("benchmark", "queries", "goals_per_query", "settings", "ompl_time_limit_s", "units", "machine")
     return {**{k: runs[0][k] for k in shared}, "seeds": list(args.seeds), "executor": ex,
@@ -331,7 +433,7 @@ def print_sweep(payload: dict[str, Any]) -> None:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from genplan.planning import ALGORITHMS, EDGE_CHECKS
+    from genplan.planning import ALGORITHMS, CHECKERS, EDGE_CHECKS
 
     p.add_argument("--env", default="all", choices=[*ENVS, "all"])
     p.add_argument("--sampler", default="all", choices=[*SAMPLERS, *EXTRA_SAMPLERS, "all", "all+"],
@@ -351,6 +453,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--edge-check", default="sampled", choices=EDGE_CHECKS,
                    help="genplan edges: states checked at the resolution (sampled, default) or every motion between "
                         "them certified collision-free (certified, PlannerSettings.edge_check)")
+    p.add_argument("--checker", default="exact", choices=[*CHECKERS, "all"],
+                   help="genplan's validity checker: exact (the world's geometry, default), spheres (the robot's "
+                        "covering spheres), or all (each on the same queries, alternating)")
+    p.add_argument("--sphere-max-error", type=A.positive_float, default=None, metavar="M",
+                   help="with --checker spheres or all: the sphere cover's max_error in m (default: genplan.spheres')")
     p.add_argument("--model", type=model_option, action="append", default=None, metavar="ROBOT=FILE",
                    help="the learned sampler's file (GAN or flow) for ROBOT's environments (repeatable; default: "
                         "the shipped GAN)")
@@ -363,6 +470,11 @@ def main(args: argparse.Namespace) -> int:
     envs = list(ENVS) if args.env == "all" else [args.env]
     samplers = {"all": list(SAMPLERS), "all+": [*SAMPLERS, *EXTRA_SAMPLERS]}.get(args.sampler, [args.sampler])
     planners = list(PLANNERS) if args.planner == "all" else [args.planner]
+    if args.sphere_max_error is not None and "spheres" not in checkers(args):
+        raise A.UsageError("--sphere-max-error: it sets the sphere checker's cover; give --checker spheres or all")
+    if args.edge_check == "certified" and "spheres" in checkers(args):
+        raise A.UsageError("--edge-check certified: it needs the exact checker (the spheres certify no motion); "
+                           "give --checker exact")
     settings = PlannerSettings(edge_check=args.edge_check)
     if args.edge_resolution is not None:
         settings = settings.replace(edge_resolution=args.edge_resolution)
@@ -374,7 +486,8 @@ def main(args: argparse.Namespace) -> int:
     if args.workers is not None or args.ray is not None:
         raise A.UsageError("--workers/--ray: they run the seeds of --seeds A..B; give --seeds")
     payload = run(envs, samplers, planners, args.queries, args.seed, args.ompl_time_limit, settings,
-                  algorithms=algorithms(args), models=dict(args.model or []))
+                  algorithms=algorithms(args), models=dict(args.model or []), checkers=checkers(args),
+                  sphere_max_error=args.sphere_max_error)
     print_table(payload)
     write_json(args.out, payload)
     return 0
