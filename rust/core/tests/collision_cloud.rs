@@ -357,6 +357,17 @@ fn the_grid_answers_as_every_ball_tested() {
     let flat: Vec<f64> = (0..800).flat_map(|_| [rng.random_range(-0.5..0.9), rng.random_range(-0.6..0.6), 0.3]).collect();
     let (met, _) = check_grid_against_every_ball(&flat, 0.01, 7);
     assert!(met > 5, "{met}");
+    // rows of more than 64 cells (several cells per occupancy bit), occupied in separate runs
+    let strip: Vec<f64> = (0..2400)
+        .flat_map(|k| {
+            let x = [-2.0, -0.5, 0.3, 1.5][k % 4] + rng.random_range(0.0..[0.8, 0.3, 0.3, 0.5][k % 4]);
+            [x, rng.random_range(-0.5..0.5), rng.random_range(0.0..1.0)]
+        })
+        .collect();
+    let cells = 4.0 / CloudGrid::new(&strip, 0.01).cell();
+    assert!(cells > 64.0, "{cells} cells a row");
+    let (met, missed) = check_grid_against_every_ball(&strip, 0.01, 10);
+    assert!(met > 20 && missed > 20, "{met} met, {missed} missed");
     check_grid_against_every_ball(&[0.4, 0.1, 0.5], 0.1, 8);
     check_grid_against_every_ball(&[0.4, 0.1, 0.5, 0.4, 0.1, 0.5, 0.4, 0.1, 0.5], 0.1, 9);
 }

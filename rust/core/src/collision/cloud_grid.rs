@@ -5,10 +5,13 @@
 //! The centres are sorted by cell, the cells numbered x fastest, so the cells of one row of a
 //! query box (its x range at one y and z) hold one contiguous run of centres: a query reads one
 //! pair of offsets per row, never one per cell. Blocks of 4 x 4 x 4 cells carry a flag (any
-//! centre in them?), so a query skips the empty inside of a cloud's box a block at a time, and a
-//! robot shape's rows are clipped to its oriented box. Building is two passes over the points and
-//! one over the cells (no hierarchy to build: a new frame costs the sort), the number of cells
-//! bounded by [`MAX_CELLS_PER_BALL`] per ball so that a sparse cloud spread over a room stays small.
+//! centre in them?), so a query skips the empty inside of a cloud's box a block at a time; each
+//! row carries 64 occupancy bits (a bit per cell while a row has at most 64 cells), so a query
+//! reads a row's offsets only where its range meets an occupied cell, and only between the
+//! first and the last such cell; a robot shape's rows are clipped to its oriented box. Building
+//! is two passes over the points and one over the cells (no hierarchy to build: a new frame
+//! costs the sort), the number of cells bounded by [`MAX_CELLS_PER_BALL`] per ball so that a
+//! sparse cloud spread over a room stays small.
 //!
 //! A clearance field rides on the grid ([`CloudGrid::clearance`]): on cells half the grid's edge
 //! (while that stays within `FIELD_CELLS_PER_BALL` cells per ball), a lower bound on the
@@ -95,6 +98,12 @@ pub struct CloudGrid {
     /// so that a query skips the empty space inside a cloud's box a block at a time.
     blocks: Vec<bool>,
     block_dims: [usize; 3],
+    /// Per row (y, z) of cells (`y + dims[1] * z`): bit `b` set when a cell `x` with
+    /// `x / row_bit == b` holds a centre, so that a query reads a row's offsets only where its
+    /// x range meets occupied cells, and only from the first such cell to the last.
+    rows: Vec<u64>,
+    /// Cells per bit of `rows` (at least 1: the row's cells spread over 64 bits).
+    row_bit: usize,
     centers: Vec<Point3<f64>>,
     /// The box of the centres.
     lo: Point3<f64>,
@@ -151,6 +160,8 @@ impl CloudGrid {
             start: Vec::new(),
             blocks: Vec::new(),
             block_dims: [1; 3],
+            rows: Vec::new(),
+            row_bit: 1,
             centers: Vec::new(),
             lo: Point3::origin(),
             hi: Point3::origin(),
@@ -239,6 +250,9 @@ impl CloudGrid {
         let block_dims = dims.map(|d| d.div_ceil(BLOCK));
         self.blocks.clear();
         self.blocks.resize(block_dims[0] * block_dims[1] * block_dims[2], false);
+        let row_bit = dims[0].div_ceil(64);
+        self.rows.clear();
+        self.rows.resize(dims[1] * dims[2], 0);
         let split = if dims.iter().map(|&d| d * FIELD_SPLIT).product::<usize>() <= FIELD_CELLS_PER_BALL * n + MIN_CELLS { FIELD_SPLIT } else { 1 };
         let fdims = dims.map(|d| d * split);
         let fcell = cell / split as f64;
@@ -249,8 +263,10 @@ impl CloudGrid {
             for y in 0..dims[1] {
                 let base = dims[0] * (y + dims[1] * z);
                 let block = block_dims[0] * (y / BLOCK + block_dims[1] * (z / BLOCK));
+                let bits = &mut self.rows[y + dims[1] * z];
                 for x in 0..dims[0] {
                     if start[base + x + 1] > start[base + x] {
+                        *bits |= 1 << (x / row_bit);
                         if split == 1 {
                             occupied[base + x] = true;
                         }
@@ -268,7 +284,7 @@ impl CloudGrid {
             }
         }
         clearance_field(b, fcell, fdims, &mut self.field);
-        (self.radius, self.origin, self.cell, self.inv, self.dims, self.block_dims) = (radius, lo.coords, cell, inv, dims, block_dims);
+        (self.radius, self.origin, self.cell, self.inv, self.dims, self.block_dims, self.row_bit) = (radius, lo.coords, cell, inv, dims, block_dims, row_bit);
         (self.lo, self.hi, self.fcell, self.finv, self.fdims) = (lo, hi, fcell, 1.0 / fcell, fdims);
     }
     /// A lower bound on the distance from the world point `p` to every ball centre (possibly
@@ -341,11 +357,21 @@ impl CloudGrid {
         Some((a, b))
     }
 
-    /// The centres of cells `x0..=x1` of row (y, z).
+    /// The centres of cells `x0..=x1` (`x0 <= x1`) of row (y, z): empty, without reading the
+    /// offsets, when the row's occupancy bits say no cell of the range holds one; else the run
+    /// from the range's first possibly occupied cell to its last.
     #[inline]
     fn row(&self, x0: usize, x1: usize, y: usize, z: usize) -> &[Point3<f64>] {
-        let base = self.dims[0] * (y + self.dims[1] * z);
-        &self.centers[self.start[base + x0] as usize..self.start[base + x1 + 1] as usize]
+        let r = y + self.dims[1] * z;
+        let bit = self.row_bit;
+        let bits = self.rows[r] & span_bits(x0 / bit, x1 / bit);
+        if bits == 0 {
+            return &[];
+        }
+        let a = x0.max(bits.trailing_zeros() as usize * bit);
+        let b = x1.min((63 - bits.leading_zeros() as usize) * bit + bit - 1);
+        let base = self.dims[0] * r;
+        &self.centers[self.start[base + a] as usize..self.start[base + b + 1] as usize]
     }
 
     /// Calls `f` on the centres of each row of `cells` until it returns true (then true).
@@ -449,8 +475,13 @@ impl CloudGrid {
                     }
                     let sub = |i: usize, k: usize| (a[i].max(k * BLOCK), b[i].min(k * BLOCK + BLOCK - 1));
                     let ((xa, xb), (ya, yb), (za, zb)) = (sub(0, bx), sub(1, by), sub(2, bz));
+                    let span = span_bits(xa / self.row_bit, xb / self.row_bit);
                     for z in za..=zb {
                         for y in ya..=yb {
+                            // no centre in the block's part of the row: no clip, no offsets read
+                            if self.rows[y + self.dims[1] * z] & span == 0 {
+                                continue;
+                            }
                             let Some((x0, x1)) = clip(y, z) else { continue };
                             let (i0, i1) = (cx(x0).max(xa), cx(x1).min(xb));
                             if i0 > i1 {
@@ -635,6 +666,12 @@ impl CloudGrid {
         let (d, g) = best.get();
         g.map(|g| (d, g))
     }
+}
+
+/// Bits `a..=b` (`a <= b < 64`) of a `u64`.
+#[inline]
+fn span_bits(a: usize, b: usize) -> u64 {
+    (u64::MAX >> (63 - b)) & (u64::MAX << a)
 }
 
 /// The least extent (m) counted in the volume whose cube root widens the cells, so that a flat
