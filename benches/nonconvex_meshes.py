@@ -15,6 +15,10 @@ agreement with coal on the raw meshes, check time and plans.
 (b) UR10 with its collision meshes as hulls (today's default) and decomposed by V-HACD:
     agreement with coal on the raw meshes (benches/results/robots.json's measure), the check time
     per configuration (interleaved rounds, medians, the ratio) and the world's build time.
+    ``--baseline DIR`` (DIR: a copy of the ``genplan`` package with another build's ``_core``,
+    e.g. made before a change): the UR10 check times of this build and DIR's, each in a worker
+    process of its own answering one round at a time, the order alternating per round; the JSON's
+    ``ur10.baseline`` holds both builds' medians, their ratios to the hulls and after / before.
 
 Every run is on one thread (rayon and torch).
 """
@@ -22,8 +26,10 @@ Every run is on one thread (rayon and torch).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -198,7 +204,8 @@ def shelf_part(samples: int, queries: int, rounds: int, seed: int, workdir: Path
             "samples": samples, "queries": queries, "rounds": rounds, "rows": rows}
 
 
-def ur10_part(samples: int, rounds: int, seed: int) -> dict[str, Any]:
+def ur10_worlds() -> tuple[Any, dict[str, CollisionWorld], dict[str, float]]:
+    """The UR10 and its worlds with the meshes as hulls and decomposed, and their build times (s)."""
     robot = genplan.load("ur10")
     pairs = robot.disabled_pairs if robot.srdf_path is None or robot.merge_computed_pairs else None
     worlds: dict[str, CollisionWorld] = {}
@@ -209,6 +216,58 @@ def ur10_part(samples: int, rounds: int, seed: int) -> dict[str, Any]:
                                       pairs, mesh_shape=shape)
         build_s[shape] = time.perf_counter() - t0
         worlds[shape] = CollisionWorld(native)
+    return robot, worlds, build_s
+
+
+def ur10_worker(samples: int, seed: int) -> None:
+    """Answer each line read with one round of the UR10 check times (s per configuration, JSON)."""
+    robot, worlds, _ = ur10_worlds()
+    qs = configurations(robot, samples, seed)
+    for w in worlds.values():
+        w.in_collision(qs[:100])  # warm up
+    print("ready", flush=True)
+    for _ in sys.stdin:
+        out = {}
+        for k, w in worlds.items():
+            t0 = time.perf_counter()
+            w.in_collision(qs)
+            out[k] = (time.perf_counter() - t0) / len(qs)
+        print(json.dumps(out), flush=True)
+
+
+def ur10_baseline(samples: int, rounds: int, seed: int, baseline: Path) -> dict[str, Any]:
+    """This build's and ``baseline``'s UR10 check times, rounds alternating (see the module text)."""
+    cmd = [sys.executable, __file__, "--ur10-worker", f"--samples={samples}", f"--seed={seed}"]
+    procs = {}
+    for name, path in (("after", None), ("before", baseline)):
+        env = dict(os.environ)
+        if path is not None:
+            env["PYTHONPATH"] = str(path) + os.pathsep + env.get("PYTHONPATH", "")
+        procs[name] = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+    for p in procs.values():
+        assert p.stdout is not None and p.stdout.readline().strip() == "ready"
+    times: dict[str, list[dict[str, float]]] = {k: [] for k in procs}
+    for r in range(rounds):
+        for name in (("before", "after") if r % 2 == 0 else ("after", "before")):
+            p = procs[name]
+            assert p.stdin is not None and p.stdout is not None
+            p.stdin.write("round\n")
+            p.stdin.flush()
+            times[name].append(json.loads(p.stdout.readline()))
+    for p in procs.values():
+        assert p.stdin is not None
+        p.stdin.close()
+        p.wait()
+    out: dict[str, Any] = {}
+    for name, rows in times.items():
+        med = {k: statistics.median(row[k] for row in rows) * 1e6 for k in rows[0]}
+        out[name] = {"check_us": med, "ratio_to_hulls": med["decomposed"] / med["hull"], "rounds_us": rows}
+    out["after_before"] = {k: out["after"]["check_us"][k] / out["before"]["check_us"][k] for k in out["after"]["check_us"]}
+    return out
+
+
+def ur10_part(samples: int, rounds: int, seed: int) -> dict[str, Any]:
+    robot, worlds, build_s = ur10_worlds()
     qs = configurations(robot, samples, seed)
     geom = coal_geometry(robot, hulls=False)
     rows: dict[str, dict[str, Any]] = {}
@@ -231,7 +290,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--parts", nargs="+", choices=("shelf", "ur10"), default=["shelf", "ur10"])
     p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--baseline", type=Path, default=None,
+                   help="a directory holding another build of the genplan package, its UR10 check timed against this one's")
+    p.add_argument("--ur10-worker", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
+    if args.ur10_worker:
+        ur10_worker(args.samples, args.seed)
+        return 0
     import torch
 
     torch.set_num_threads(1)
@@ -240,6 +305,11 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         if "ur10" in args.parts:
             payload["ur10"] = ur10_part(args.samples, args.rounds, args.seed)
+            if args.baseline is not None:
+                b = payload["ur10"]["baseline"] = ur10_baseline(args.samples, args.rounds, args.seed, args.baseline)
+                print("UR10 decomposed / hulls: after", f"{b['after']['ratio_to_hulls']:.3f},", "before",
+                      f"{b['before']['ratio_to_hulls']:.3f}; after / before:",
+                      {k: round(v, 3) for k, v in b["after_before"].items()})
             print(table(["UR10 meshes", "agreement", "missed", "false alarms", "check us", "ratio", "build s"],
                         [[k, f"{100 * r['agreement']:.2f} %", r["missed"], r["false_alarms"], f"{r['check_us']:.2f}",
                           f"{r['check_ratio_to_hulls']:.2f}", f"{r['build_s']:.2f}"]

@@ -305,3 +305,28 @@ def test_execute_motions_swing_about_a_configuration_away_from_singularities() -
     assert sigma_min(ur5, q) >= 2 * singular
     np.testing.assert_array_equal(centre(ur5), q)
     assert np.all((q >= ur5.lower) & (q <= ur5.upper))
+
+
+def test_nonconvex_meshes_times_the_ur10_against_a_baseline_build(tmp_path, monkeypatch, capsys) -> None:
+    import shutil
+
+    import genplan
+
+    # the baseline is a copy of the installed package: both workers answer every round
+    before = tmp_path / "before"
+    shutil.copytree(Path(genplan.__file__).parent, before / "genplan", ignore=shutil.ignore_patterns("__pycache__"))
+    out = tmp_path / "ur10.json"
+    monkeypatch.syspath_prepend(str(BENCHES))
+    script = runpy.run_path(str(BENCHES / "nonconvex_meshes.py"), run_name="nonconvex_meshes")
+    assert script["main"](["--parts", "ur10", "--samples", "40", "--rounds", "3", "--baseline", str(before),
+                           "--out", str(out)]) == 0
+    ur10 = json.loads(out.read_text())["ur10"]
+    b = ur10["baseline"]
+    for build in ("before", "after"):
+        assert set(b[build]["check_us"]) == {"hull", "decomposed"}
+        assert all(v > 0 for v in b[build]["check_us"].values())
+        assert len(b[build]["rounds_us"]) == 3
+        assert b[build]["ratio_to_hulls"] == b[build]["check_us"]["decomposed"] / b[build]["check_us"]["hull"]
+    assert b["after_before"]["decomposed"] == b["after"]["check_us"]["decomposed"] / b["before"]["check_us"]["decomposed"]
+    assert ur10["rows"]["decomposed"]["missed"] == 0
+    assert "UR10 decomposed / hulls: after" in capsys.readouterr().out

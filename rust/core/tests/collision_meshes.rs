@@ -296,3 +296,64 @@ fn decompositions_are_kept_in_the_cache_folder() {
     assert_eq!(std::fs::read(&files[0]).unwrap(), bytes);
     set_decomposition_cache(None);
 }
+
+/// Two decomposed links (a cup fixed at the origin, a cup a third its size moved by three
+/// prismatic joints): the world answers as parry's test of the two compounds does, for the self
+/// pair and for an obstacle, including where their hulls meet and the parts do not (the small
+/// cup in the big one's cavity), and the exhaustive check agrees.
+#[test]
+fn decomposed_links_answer_as_their_parts() {
+    use parry3d_f64::query;
+    use genplan_core::collision::Hull;
+    use parry3d_f64::shape::{Ball, ConvexPolyhedron, Shape};
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    let dir = TempDir::new("cup-pair");
+    let path = dir.write("cup.obj", &box_union_obj(&cup(), false, 0));
+    let mesh = |scale: &str| format!(r#"<collision><geometry><mesh filename="{}" scale="{scale}"/></geometry></collision>"#, path.display());
+    let urdf_text = XYZ
+        .replace(r#"<link name="base"/>"#, &format!(r#"<link name="base">{}</link>"#, mesh("1 1 1")))
+        .replace(r#"<sphere radius="0.1"/>"#, &mesh("0.3 0.3 0.3").replace("<collision><geometry>", "").replace("</geometry></collision>", ""));
+    let urdf = Urdf::parse(&urdf_text).unwrap();
+    let model = Arc::new(KinematicModel::from_urdf(&urdf, &ModelOptions::default()).unwrap());
+    let mut w = CollisionWorld::from_urdf_with(model.clone(), &urdf, &[], None, MeshShape::Decomposed).unwrap();
+    assert_eq!(w.self_pairs().len(), 1, "the two cups are a self pair");
+    let hull_of = |s: &dyn Shape| {
+        let c = s.as_compound().expect("a compound of convex parts");
+        assert!(c.shapes().len() >= 2, "{} parts", c.shapes().len());
+        let pts: Vec<_> = c.shapes().iter().flat_map(|(p, part)| part.as_shape::<Hull>().unwrap().polyhedron().points().iter().map(|v| p * v).collect::<Vec<_>>()).collect();
+        ConvexPolyhedron::from_convex_hull(&pts).unwrap()
+    };
+    let (ga, gb) = (&w.geometries()[0], &w.geometries()[1]);
+    let (sa, sb) = (ga.shape.clone(), gb.shape.clone());
+    let (ha, hb) = (hull_of(&*sa), hull_of(&*sb));
+    let (oa, ob, la, lb) = (ga.offset, gb.offset, ga.link, gb.link);
+    let ball = Ball::new(0.15);
+    let at_ball = Isometry3::translation(0.0, 0.0, 2.0);
+    w.add_sphere("ball", 0.15, [0.0, 0.0, 2.0]).unwrap();
+    let mut rng = StdRng::seed_from_u64(11);
+    let (mut links, mut hulls_only, mut hits) = (Vec::new(), 0, 0);
+    for k in 0..2000 {
+        // every other one in and around the big cup's cavity, where the hulls meet
+        let q = if k % 2 == 0 {
+            [rng.random_range(-0.4..0.4), rng.random_range(-0.4..0.4), rng.random_range(0.3..0.8)]
+        } else {
+            [rng.random_range(-1.4..1.4), rng.random_range(-1.4..1.4), rng.random_range(-0.5..2.2)]
+        };
+        model.forward_kinematics(&q, &mut links).unwrap();
+        let (pa, pb) = (links[la] * oa, links[lb] * ob);
+        let parts = query::intersection_test(&pa, &*sa, &pb, &*sb).unwrap();
+        let hulls = query::intersection_test(&pa, &ha, &pb, &hb).unwrap();
+        hulls_only += usize::from(hulls && !parts);
+        hits += usize::from(parts);
+        // the cups against a ball above the fixed one
+        let on_ball = query::intersection_test(&pb, &*sb, &at_ball, &ball).unwrap() || query::intersection_test(&pa, &*sa, &at_ball, &ball).unwrap();
+        w.check_self = true;
+        assert_eq!(w.in_collision(&q).unwrap(), parts || on_ball, "at {q:?}");
+        assert_eq!(w.in_collision_exhaustive(&q).unwrap(), parts || on_ball, "exhaustive at {q:?}");
+        w.check_self = false;
+        assert_eq!(w.in_collision(&q).unwrap(), on_ball, "the ball at {q:?}");
+    }
+    assert!(hits > 100 && hulls_only > 50, "{hits} in contact, {hulls_only} with the hulls alone meeting");
+}

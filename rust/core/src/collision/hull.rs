@@ -11,7 +11,9 @@
 //! cell stores the maximiser for the direction through its centre, which leaves zero to two
 //! steps for most directions. (Starting from the vertex extreme along the nearest coordinate
 //! axis took several steps on the large Talos hulls, and support points were 40 % of a Talos
-//! self-collision check: benches/collision.rs.) Every other query (point projection, ray casts, mass) is the inner
+//! self-collision check: benches/collision.rs.) The posed box of a hull of more than a few
+//! vertices comes from six climbs too (the extreme vertices along the world axes), not a scan of
+//! every vertex. Every other query (point projection, ray casts, mass) is the inner
 //! `ConvexPolyhedron`'s, and the support points are the same vertices (up to ties), so every
 //! answer matches parry's hull (tested against it in the module's tests).
 
@@ -35,6 +37,14 @@ pub struct Hull {
 
 /// Cube-map cells per face side: 6 x 8 x 8 = 384 start vertices per hull.
 const CELLS: usize = 8;
+
+/// Hulls of at most this many vertices get their posed box by a scan of every vertex; larger
+/// ones by six climbs ([`Hull::compute_aabb`]).
+const AABB_SCAN_MAX: usize = 24;
+
+/// The relative growth of a posed box built from support points, which covers the rounding by
+/// which a dot product may differ from the scan's transformed coordinate.
+const AABB_ROUNDING: f64 = 1e-12;
 
 /// The cube-map cell of a direction: the face of its largest component (+x, -x, +y, -y, +z,
 /// -z), then the square of the other two components divided by that one's magnitude. Any
@@ -167,8 +177,29 @@ impl Shape for Hull {
         self.inner.compute_local_bounding_sphere()
     }
 
+    /// The box of the hull at `position`: per world axis, the vertices extreme along it (the
+    /// axis in the hull's frame, by the climb), grown by `AABB_ROUNDING`: it contains the box
+    /// of every vertex transformed, and differs from it by rounding alone. parry asks for it
+    /// per part and query when a decomposed mesh (a compound of hulls) meets another shape,
+    /// where a scan of every vertex dominated the check.
     fn compute_aabb(&self, position: &Isometry<Real>) -> Aabb {
-        self.inner.compute_aabb(position)
+        let pts = self.inner.points();
+        if pts.len() <= AABB_SCAN_MAX {
+            return self.inner.compute_aabb(position);
+        }
+        let rot = position.rotation.to_rotation_matrix();
+        let (mut mins, mut maxs) = (Point::origin(), Point::origin());
+        for k in 0..3 {
+            // world coordinate k of R v + t is row k of R times v, plus t_k
+            let axis: Vector<Real> = rot.matrix().row(k).transpose();
+            let hi = pts[self.support_index(&axis)].coords.dot(&axis);
+            let lo = pts[self.support_index(&-axis)].coords.dot(&axis);
+            let t = position.translation.vector[k];
+            let pad = AABB_ROUNDING * (1.0 + hi.abs().max(lo.abs()) + t.abs());
+            mins[k] = lo + t - pad;
+            maxs[k] = hi + t + pad;
+        }
+        Aabb::new(mins, maxs)
     }
 
     fn clone_dyn(&self) -> Box<dyn Shape> {
@@ -244,6 +275,30 @@ mod tests {
         for d in [Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 1.0), Vector3::new(f64::INFINITY, 1.0, -f64::INFINITY), Vector3::new(1e-300, -1e-300, 0.0)] {
             assert!(cell(&d) < 6 * CELLS * CELLS, "{d:?}");
         }
+    }
+
+    /// The posed box from six climbs contains the box of every vertex transformed and is within
+    /// rounding of it, for small hulls (the scan itself) and large ones.
+    #[test]
+    fn posed_boxes_match_the_scan_of_every_vertex() {
+        let mut rng = StdRng::seed_from_u64(9);
+        let mut large = 0;
+        for trial in 0..30 {
+            let hull = Hull::from_points(&random_cloud(&mut rng, [8, 60, 400][trial % 3])).unwrap();
+            large += usize::from(hull.polyhedron().points().len() > AABB_SCAN_MAX);
+            for _ in 0..100 {
+                let p = Isometry3::new(
+                    Vector3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0)),
+                    Vector3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)),
+                );
+                let (mine, scan) = (hull.compute_aabb(&p), hull.polyhedron().compute_aabb(&p));
+                for k in 0..3 {
+                    assert!(mine.mins[k] <= scan.mins[k] && mine.maxs[k] >= scan.maxs[k], "{mine:?} inside {scan:?}");
+                    assert!(scan.mins[k] - mine.mins[k] < 1e-9 && mine.maxs[k] - scan.maxs[k] < 1e-9, "{mine:?} vs {scan:?}");
+                }
+            }
+        }
+        assert!(large > 10, "{large} hulls above the scan's size");
     }
 
     /// The climb finds the scan's maximum for every direction (the same dot product; ties may
