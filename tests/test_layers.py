@@ -221,10 +221,11 @@ def test_no_registry_repeats_another() -> None:
 
 
 #: the stub's Literal types of names -> the core's table (a tuple of ``genplan._core``) they spell
-LITERALS = {"_Algorithm": "ALGORITHMS", "_EdgeCheck": "EDGE_CHECKS", "_ControlSpace": "CONTROL_SPACES",
+LITERALS = {"_Algorithm": "ALGORITHMS", "_EdgeCheck": "EDGE_CHECKS", "_Sampling": "SAMPLINGS", "_ControlSpace": "CONTROL_SPACES",
             "_LimitPolicy": "LIMIT_POLICIES"}
 #: the settings of the stub typed by them: (class, field) -> Literal type
 TYPED_SETTINGS = {("PlannerSettings", "algorithm"): "_Algorithm", ("PlannerSettings", "edge_check"): "_EdgeCheck",
+                  ("PlannerSettings", "sampling"): "_Sampling",
                   ("ControllerSettings", "space"): "_ControlSpace", ("JointLimits", "policy"): "_LimitPolicy"}
 
 

@@ -23,7 +23,7 @@ __all__ = [
     "dense_paths",
     "GenplanError", "ShapeError", "NonFiniteError", "UnknownNameError", "SettingsError", "RobotFileError",
     "InvalidStartError", "InvalidGoalError", "InvalidTrajectoryError", "LimitExceededError", "CallbackError", "ERRORS",
-    "ALGORITHMS", "EDGE_CHECKS", "CONTROL_SPACES", "LIMIT_POLICIES",
+    "ALGORITHMS", "EDGE_CHECKS", "SAMPLINGS", "CONTROL_SPACES", "LIMIT_POLICIES",
 ]
 
 __version__: str
@@ -46,14 +46,16 @@ class CallbackError(GenplanError): ...
 ERRORS: tuple[type[GenplanError], ...]
 
 # The names the settings take, as the core's tables list them (ALGORITHMS, EDGE_CHECKS,
-# CONTROL_SPACES, LIMIT_POLICIES at runtime; tests/test_layers.py checks that each Literal holds
+# SAMPLINGS, CONTROL_SPACES, LIMIT_POLICIES at runtime; tests/test_layers.py checks that each Literal holds
 # the same names in the same order).
 _Algorithm: TypeAlias = Literal["crrt", "rrt_connect"]
 _EdgeCheck: TypeAlias = Literal["sampled", "certified"]
+_Sampling: TypeAlias = Literal["random", "halton"]
 _ControlSpace: TypeAlias = Literal["joint", "task"]
 _LimitPolicy: TypeAlias = Literal["log", "saturate", "stop"]
 ALGORITHMS: tuple[_Algorithm, ...]
 EDGE_CHECKS: tuple[_EdgeCheck, ...]
+SAMPLINGS: tuple[_Sampling, ...]
 CONTROL_SPACES: tuple[_ControlSpace, ...]
 LIMIT_POLICIES: tuple[_LimitPolicy, ...]
 
@@ -354,10 +356,11 @@ class JerkPath:
 @final
 class UniformSampler:
     """Uniform within the joint limits; a free-flyer base held at ``base``, its position drawn
-    uniformly in ``base_box`` ([lower, upper]) when given."""
+    uniformly in ``base_box`` ([lower, upper]) when given; ``sampling``: "random" (default) or
+    "halton" (a Halton sequence shifted by ``seed``)."""
 
     def __new__(cls, model: KinematicModel, base: list[float] | None = None, seed: int = 0,
-                 base_box: list[list[float]] | None = None) -> Self: ...
+                 base_box: list[list[float]] | None = None, sampling: _Sampling | None = None) -> Self: ...
     def sample(self, n: int) -> NDArray[np.float64]: ...
 
 @final
@@ -437,7 +440,8 @@ class MixtureSampler:
 @final
 class PlannerSettings:
     """Settings of the constrained planner (genplan_core::planning::Settings; ``algorithm``:
-    "crrt" or "rrt_connect"; ``edge_check``: "sampled" or "certified"); immutable."""
+    "crrt" or "rrt_connect"; ``edge_check``: "sampled" or "certified"; ``sampling``: "random" or
+    "halton"); immutable."""
 
     fields: ClassVar[list[str]]
     def __new__(
@@ -458,6 +462,7 @@ class PlannerSettings:
         max_empty_batches: int = 100,
         algorithm: _Algorithm = "crrt",
         edge_check: _EdgeCheck = "sampled",
+        sampling: _Sampling = "random",
     ) -> Self: ...
     @property
     def step(self) -> float: ...
@@ -489,6 +494,8 @@ class PlannerSettings:
     def algorithm(self) -> _Algorithm: ...
     @property
     def edge_check(self) -> _EdgeCheck: ...
+    @property
+    def sampling(self) -> _Sampling: ...
     def replace(self, **changes: Any) -> PlannerSettings: ...
     def to_dict(self) -> dict[str, Any]: ...
     def __eq__(self, value: object, /) -> bool: ...
@@ -573,8 +580,8 @@ class Planner:
     def __new__(cls, model: KinematicModel, settings: PlannerSettings | None = None) -> Self: ...
     def plan(
         self,
-        start: list[float],
-        goals: NDArray[np.float64],
+        start: ArrayLike,
+        goals: ArrayLike,
         sampler: _NativeSampler | protocols.Sampler,
         projector: Projector | protocols.Projector | None,
         checker: CollisionWorld | SphereChecker | protocols.ValidityChecker,

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use fixtures::{no_interrupt, panda_horizontal_gripper, Band, CubeSampler, SphereProjector, WithPosture};
 use genplan_core::planning::{
     Algorithm, Components, DataSampler, EuclideanSpace, GaussNewtonProjector, MixtureSampler, NeighborIndex, PlanError, PlanResult, Planner, Projection,
-    Projector, Sampler, Settings, Space, UniformSampler, ValidityChecker,
+    Projector, Sampler, Sampling, Settings, Space, UniformSampler, ValidityChecker,
 };
 use genplan_core::robot::preset;
 use rand::rngs::StdRng;
@@ -384,6 +384,77 @@ fn uniform_sampler_draws_a_free_flyer_base_in_its_box() {
     assert!(matches!(fixed_base, Err(PlanError::Input(m)) if m.contains("free-flyer")));
 }
 
+/// Halton sampling: the same points for the same seed and other points for another, the
+/// sequence continued across calls, every row within the joint limits (continuous joints on
+/// their circle, a free-flyer base's position in its box), and the box covered more evenly than
+/// by random draws (the squared deviations of 16 bins per coordinate, summed).
+#[test]
+fn halton_sampling_is_seeded_within_the_limits_and_covers_the_box() {
+    use genplan_core::kinematics::Motion;
+    let (kinova, _) = preset("kinova").unwrap().load().unwrap();
+    assert!(kinova.nq > kinova.nv, "the Kinova has continuous joints");
+    let nq = kinova.nq;
+    let n = 512;
+    let draw = |seed: u64, sampling: Sampling, calls: &[usize]| {
+        let mut s = UniformSampler::new(kinova.clone(), None, seed).unwrap().with_sampling(sampling);
+        assert_eq!(s.sampling(), sampling);
+        let mut q = vec![0.0; n * nq];
+        let mut at = 0;
+        for &m in calls {
+            s.sample(m, &mut q[at * nq..(at + m) * nq]).unwrap();
+            at += m;
+        }
+        q
+    };
+    let a = draw(3, Sampling::Halton, &[n]);
+    assert_eq!(a, draw(3, Sampling::Halton, &[100, 1, n - 101]), "the sequence continues across calls");
+    assert_ne!(a, draw(4, Sampling::Halton, &[n]), "another seed, other points");
+    let random = draw(3, Sampling::Random, &[n]);
+    assert_ne!(a, random);
+    // each coordinate's value in [0, 1) of its range (a continuous joint: its angle)
+    let units = |q: &[f64]| -> Vec<Vec<f64>> {
+        let mut cols = Vec::new();
+        for j in kinova.joints.iter().filter(|j| j.q_index != usize::MAX) {
+            let i = j.q_index;
+            let col: Vec<f64> = match j.motion {
+                Motion::Continuous { .. } => q.chunks(nq).map(|r| {
+                    assert!((r[i].hypot(r[i + 1]) - 1.0).abs() < 1e-12, "{}: off its circle", j.name);
+                    (r[i + 1].atan2(r[i]) + std::f64::consts::PI) / (2.0 * std::f64::consts::PI)
+                }).collect(),
+                Motion::Fixed => continue,
+                _ => q.chunks(nq).map(|r| {
+                    assert!(r[i] >= kinova.lower[i] && r[i] <= kinova.upper[i], "{}: {} outside its limits", j.name, r[i]);
+                    (r[i] - kinova.lower[i]) / (kinova.upper[i] - kinova.lower[i])
+                }).collect(),
+            };
+            cols.push(col);
+        }
+        cols
+    };
+    let deviation = |q: &[f64]| -> f64 {
+        units(q).iter().map(|col| {
+            let mut bins = [0usize; 16];
+            col.iter().for_each(|&u| bins[((u * 16.0) as usize).min(15)] += 1);
+            bins.iter().map(|&b| (b as f64 - n as f64 / 16.0).powi(2)).sum::<f64>()
+        }).sum()
+    };
+    let (dh, dr) = (deviation(&a), deviation(&random));
+    assert!(dh < dr / 4.0, "Halton's bins deviate by {dh}, random ones by {dr}");
+    // a free-flyer base's position drawn from the sequence, in its box
+    let (talos, _) = preset("talos").unwrap().load().unwrap();
+    let (lo, hi) = ([-0.1, -0.1, 0.6], [0.1, 0.1, 1.1]);
+    let base = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let mut s = UniformSampler::new(talos.clone(), Some(base), 5).unwrap().with_sampling(Sampling::Halton).with_base_box(lo, hi).unwrap();
+    assert_eq!(s.sampling(), Sampling::Halton);
+    let mut q = vec![0.0; 64 * talos.nq];
+    s.sample(64, &mut q).unwrap();
+    for row in q.chunks(talos.nq) {
+        assert!((0..3).all(|k| row[k] >= lo[k] && row[k] <= hi[k]), "{:?}", &row[..3]);
+        assert_eq!(&row[3..7], &base[3..7]);
+        assert!((7..talos.nq).all(|i| row[i] >= talos.lower[i] && row[i] <= talos.upper[i]));
+    }
+}
+
 /// The data sampler draws whole rows of its data, every row in time, the same stream for the same
 /// seed; bad data are refused with the reason.
 #[test]
@@ -658,6 +729,61 @@ fn free_space_plans_project_nothing_and_match_the_identity_projector() {
         assert_eq!(same.waypoints, sol.waypoints, "{algorithm:?}");
         assert_eq!(same.path, sol.path, "{algorithm:?}");
         assert_eq!((same.stats.extensions, same.stats.nodes, same.stats.samples), (s.extensions, s.nodes, s.samples));
+    }
+}
+
+/// [`Wall`] as a checker of 8 lanes: the free-space extension checks its steps 8 at a time.
+struct WideWall(usize);
+
+impl ValidityChecker for WideWall {
+    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+        self.0 += 1;
+        Wall.check(qs, valid)
+    }
+    fn lanes(&self) -> usize {
+        8
+    }
+}
+
+/// In free space a vector checker gets an extension's steps in batches of its lanes, and the
+/// search is the same as with a checker of one lane (the same trees, waypoints and path) in
+/// fewer checker calls; a goal in plain view is joined by the straight edge without a search.
+#[test]
+fn free_space_extensions_fill_the_checker_lanes_and_a_clear_goal_is_joined_directly() {
+    for algorithm in [Algorithm::Crrt, Algorithm::RrtConnect] {
+        let settings = Settings { algorithm, ..Settings::default() };
+        let planner = Planner::new(Arc::new(EuclideanSpace(2)), settings.clone()).unwrap();
+        let plan = |checker: &mut dyn ValidityChecker, start: [f64; 2], goal: [f64; 2]| {
+            let mut sampler = CubeSampler { dim: 2, half: 1.0, rng: StdRng::seed_from_u64(7) };
+            let mut interrupt = no_interrupt;
+            let mut c = Components { sampler: &mut sampler, projector: None, checker, interrupt: &mut interrupt };
+            planner.plan(&start, &goal, &mut c).unwrap()
+        };
+        let (start, goal) = ([-0.8, 0.0], [0.8, 0.0]);
+        let (mut wide, mut narrow) = (WideWall(0), CountingWall(0));
+        let (a, b) = (plan(&mut wide, start, goal), plan(&mut narrow, start, goal));
+        assert!(a.success && b.success, "{algorithm:?}");
+        assert_eq!((&a.waypoints, &a.path), (&b.waypoints, &b.path), "{algorithm:?}");
+        assert_eq!((a.stats.extensions, a.stats.nodes, a.stats.samples), (b.stats.extensions, b.stats.nodes, b.stats.samples));
+        assert!(wide.0 < narrow.0, "{algorithm:?}: {} calls of 8 lanes against {} of one", wide.0, narrow.0);
+        // the wall not in the way: the straight edge, no sample drawn, states at the resolution
+        let (start, goal) = ([-0.8, 0.7], [0.8, 0.7]);
+        let sol = plan(&mut WideWall(0), start, goal);
+        assert!(sol.success && sol.stats.samples == 0 && sol.stats.extensions == 1, "{algorithm:?}: {:?}", sol.stats);
+        assert_eq!(sol.waypoints, [start, goal].concat());
+        let path: Vec<&[f64]> = sol.path.chunks(2).collect();
+        assert!(path.iter().all(|q| (q[1] - 0.7).abs() < 1e-12));
+        assert!(path.windows(2).all(|w| EuclideanSpace(2).distance(w[0], w[1]) <= settings.edge_resolution + 1e-12));
+    }
+}
+
+/// [`Wall`], counting its calls.
+struct CountingWall(usize);
+
+impl ValidityChecker for CountingWall {
+    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+        self.0 += 1;
+        Wall.check(qs, valid)
     }
 }
 

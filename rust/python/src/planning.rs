@@ -26,11 +26,13 @@ use pyo3::types::{PyList, PyTuple};
 
 use genplan_core::planning::{
     self, Algorithm, CollisionChecker, SphereChecker, Components, EdgeCheck, Named, GaussNewtonProjector, MixtureSampler, PlanError, PlanResult, Planner,
-    Projection, Sampler, Settings, Space, Stats, ValidityChecker,
+    Projection, Sampler, Sampling, Settings, Space, Stats, ValidityChecker,
 };
 
+use genplan_core::kinematics::KinematicModel;
 use genplan_core::{codec, flow, gan};
 
+use crate::arrays::read_configurations;
 use crate::batch::for_chunks;
 use crate::collision::{PyCollisionWorld, PySphereChecker};
 use crate::errors::{err, to_py, Kind};
@@ -114,8 +116,13 @@ fn bools_from(py: Python<'_>, obj: &Bound<'_, PyAny>, n: usize, what: &str) -> P
 }
 
 fn to_array<'py>(py: Python<'py>, data: &[f64], nq: usize) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+    into_array(py, data.to_vec(), nq)
+}
+
+/// Rows of `nq` as an (n, nq) numpy array that takes over `data` (no copy).
+fn into_array(py: Python<'_>, data: Vec<f64>, nq: usize) -> PyResult<Bound<'_, numpy::PyArray2<f64>>> {
     let n = if nq == 0 { 0 } else { data.len() / nq };
-    Ok(Array2::from_shape_vec((n, nq), data.to_vec())
+    Ok(Array2::from_shape_vec((n, nq), data)
         .map_err(|e| PyValueError::new_err(e.to_string()))?
         .into_pyarray(py))
 }
@@ -199,7 +206,8 @@ impl ValidityChecker for PyChecker {
 // Native samplers exposed to Python
 // ---------------------------------------------------------------------------------------------
 
-/// Uniform within the joint limits; a free-flyer base held at `base` ([x, y, z, qx, qy, qz, qw]).
+/// Uniform within the joint limits; a free-flyer base held at `base` ([x, y, z, qx, qy, qz, qw]);
+/// `sampling`: "random" (default) or "halton" (a Halton sequence shifted by `seed`).
 #[pyclass(name = "UniformSampler", module = "genplan._core", frozen)]
 pub(crate) struct PyUniformSampler {
     inner: Arc<Mutex<planning::UniformSampler>>,
@@ -209,12 +217,20 @@ pub(crate) struct PyUniformSampler {
 #[pymethods]
 impl PyUniformSampler {
     #[new]
-    #[pyo3(signature = (model, base=None, seed=0, base_box=None))]
-    fn new(model: &PyKinematicModel, base: Option<[f64; 7]>, seed: u64, base_box: Option<[[f64; 3]; 2]>) -> PyResult<Self> {
+    #[pyo3(signature = (model, base=None, seed=0, base_box=None, sampling=None))]
+    fn new(
+        model: &PyKinematicModel,
+        base: Option<[f64; 7]>,
+        seed: u64,
+        base_box: Option<[[f64; 3]; 2]>,
+        sampling: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let sampling: Sampling = sampling.map_or(Ok(Sampling::default()), |v| named_from_py(v, "sampling"))?;
         let mut s = planning::UniformSampler::new(model.inner.clone(), base, seed).map_err(plan_error_to_py)?;
         if let Some([lo, hi]) = base_box {
             s = s.with_base_box(lo, hi).map_err(plan_error_to_py)?;
         }
+        let s = s.with_sampling(sampling);
         Ok(Self { inner: Arc::new(Mutex::new(s)), nq: model.inner.nq })
     }
 
@@ -587,7 +603,7 @@ macro_rules! named_field {
     )*};
 }
 
-named_field!(Algorithm, EdgeCheck);
+named_field!(Algorithm, EdgeCheck, Sampling);
 
 settings_class!(
     /// Settings of the constrained planner (defaults: the GAN paper's cRRT and its public code,
@@ -598,7 +614,7 @@ settings_class!(
     Settings,
     |s: &Settings| s.validate().map_err(plan_error_to_py),
     [step, max_increments, max_jump, goal_tolerance, max_extensions, retries, project_samples, sample_batch,
-     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm, edge_check]
+     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm, edge_check, sampling]
 );
 
 record_class!(
@@ -659,9 +675,9 @@ impl PyPlanResult {
     fn __repr__(&self, py: Python<'_>) -> String {
         let s = &self.stats.get().inner;
         format!(
-            "PlanResult(success={}, goal_index={:?}, path={:?}, waypoints={}, time_s={:.4}, extensions={}, projections={})",
+            "PlanResult(success={}, goal_index={}, path={:?}, waypoints={}, time_s={:.4}, extensions={}, projections={})",
             if self.success { "True" } else { "False" },
-            self.goal_index,
+            self.goal_index.map_or("None".to_string(), |g| g.to_string()),
             self.path.bind(py).shape(),
             self.waypoints.bind(py).shape()[0],
             s.time_s,
@@ -677,6 +693,8 @@ impl PyPlanResult {
 pub(crate) struct PyPlanner {
     inner: Planner,
     nq: usize,
+    /// The model the start and goals are read for (`arrays::read_configurations`).
+    model: Arc<KinematicModel>,
 }
 
 #[pymethods]
@@ -686,7 +704,7 @@ impl PyPlanner {
     fn new(model: &PyKinematicModel, settings: Option<PyRef<'_, PyPlannerSettings>>) -> PyResult<Self> {
         let st = settings.map(|s| s.inner.clone()).unwrap_or_default();
         let space: Arc<dyn Space> = model.inner.clone();
-        Ok(Self { inner: Planner::new(space, st).map_err(plan_error_to_py)?, nq: model.inner.nq })
+        Ok(Self { inner: Planner::new(space, st).map_err(plan_error_to_py)?, nq: model.inner.nq, model: model.inner.clone() })
     }
 
     /// Plan from `start` (nq,) to any row of `goals` (k, nq). `chord_tolerance`: with a native
@@ -699,8 +717,8 @@ impl PyPlanner {
     fn plan<'py>(
         &self,
         py: Python<'py>,
-        start: Vec<f64>,
-        goals: PyReadonlyArray2<'py, f64>,
+        start: &Bound<'py, PyAny>,
+        goals: &Bound<'py, PyAny>,
         sampler: &Bound<'py, PyAny>,
         projector: Option<&Bound<'py, PyAny>>,
         checker: &Bound<'py, PyAny>,
@@ -708,10 +726,18 @@ impl PyPlanner {
         chord_tolerance: Option<f64>,
     ) -> PyResult<PyPlanResult> {
         let nq = self.nq;
-        if goals.shape().len() != 2 || goals.shape()[1] != nq || goals.shape()[0] == 0 {
-            return Err(err(Kind::Shape, format!("goals: expected shape (k, {nq}) with k >= 1, got {:?}", goals.shape())));
+        // read and checked here, before any work, as `as_configurations` would (the errors name
+        // the argument); copied, since the plan runs without the GIL
+        let q0 = read_configurations(start, &self.model, "start").map_err(|e| refused(py, e, Kind::InvalidStart))?;
+        if let Some(n) = q0.rows {
+            return Err(err(Kind::Shape, format!("start: expected shape ({nq},), got ({n}, {nq})")));
         }
-        let goals: Vec<f64> = goals.as_array().iter().copied().collect();
+        let start = q0.data().to_vec();
+        let g = read_configurations(goals, &self.model, "goals").map_err(|e| refused(py, e, Kind::InvalidGoal))?;
+        if g.rows == Some(0) {
+            return Err(err(Kind::Shape, format!("goals: expected shape (k, {nq}) with k >= 1, got (0, {nq})")));
+        }
+        let goals = g.data().to_vec();
         let mut sampler = sampler_from(py, sampler, nq)?;
         let mut projector: Option<Box<dyn planning::Projector>> = match projector {
             None => None,
@@ -759,12 +785,23 @@ impl PyPlanner {
             .map_err(plan_error_to_py)?;
         Ok(PyPlanResult {
             success: solution.success,
-            path: to_array(py, &solution.path, nq)?.unbind(),
-            waypoints: to_array(py, &solution.waypoints, nq)?.unbind(),
+            path: into_array(py, solution.path, nq)?.unbind(),
+            waypoints: into_array(py, solution.waypoints, nq)?.unbind(),
             goal_index: solution.goal_index,
             stats: Py::new(py, PyPlanStats { inner: solution.stats })?,
         })
     }
+}
+
+/// An error of reading a start or goals: a configuration the model refuses (a plain
+/// GenplanError: a joint beyond its range of numbers, a zero base quaternion) is the plan's
+/// `kind` (InvalidStartError, InvalidGoalError), with the same message; a ShapeError or
+/// NonFiniteError (and anything else) as it is.
+fn refused(py: Python<'_>, e: PyErr, kind: Kind) -> PyErr {
+    if e.get_type(py).is(py.get_type::<crate::errors::GenplanError>()) {
+        return err(kind, e.value(py).to_string());
+    }
+    e
 }
 
 /// The planner's projector from `projector`: a native `Projector` (its chords held to
@@ -805,6 +842,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // checked against them)
     m.add("ALGORITHMS", PyTuple::new(m.py(), Algorithm::NAMES.iter().map(|(n, _)| *n))?)?;
     m.add("EDGE_CHECKS", PyTuple::new(m.py(), EdgeCheck::NAMES.iter().map(|(n, _)| *n))?)?;
+    m.add("SAMPLINGS", PyTuple::new(m.py(), Sampling::NAMES.iter().map(|(n, _)| *n))?)?;
     m.add_class::<PyPlanner>()?;
     m.add_class::<PyPlannerSettings>()?;
     m.add_class::<PyPlanStats>()?;

@@ -5,7 +5,7 @@
 //! robot's covering spheres instead of its exact geometry (`collision/spheres.rs`): faster and
 //! conservative (free by the spheres is free by the exact geometry).
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use rayon::prelude::*;
 
@@ -32,6 +32,12 @@ pub trait ValidityChecker: Send {
     /// Can [`certify_motion`](Self::certify_motion) answer (default: no)?
     fn certifies_motions(&self) -> bool {
         false
+    }
+
+    /// How many states one call checks for about the price of one (a vector checker's lanes):
+    /// callers that may check states beyond the first invalid one batch this many. Default 1.
+    fn lanes(&self) -> usize {
+        1
     }
 
     /// For two valid configurations `a` and `b`: true when every configuration of the straight
@@ -69,7 +75,9 @@ pub struct CollisionChecker {
     /// Check the configurations of a batch on rayon's threads.
     pub parallel: bool,
     scratch: Scratch,
-    bounds: Option<MotionBounds>,
+    /// The world's swept-motion bounds (None: it cannot certify motions), built when first
+    /// asked for: only certified edges need them, and a plan builds its checker per call.
+    bounds: OnceLock<Option<MotionBounds>>,
     dq: Vec<f64>,
     levers: Levers,
     sweep: Sweep,
@@ -78,12 +86,11 @@ pub struct CollisionChecker {
 impl CollisionChecker {
     /// A checker of the configurations against `world`.
     pub fn new(world: Arc<CollisionWorld>, parallel: bool) -> CollisionChecker {
-        let bounds = MotionBounds::new(&world);
         CollisionChecker {
             world,
             parallel,
             scratch: Scratch::default(),
-            bounds,
+            bounds: OnceLock::new(),
             dq: Vec::new(),
             levers: Levers::default(),
             sweep: Sweep::default(),
@@ -120,7 +127,7 @@ impl ValidityChecker for CollisionChecker {
 
     /// Yes, unless a prismatic joint without finite limits leaves the swept bounds unbounded.
     fn certifies_motions(&self) -> bool {
-        self.bounds.is_some()
+        self.bounds.get_or_init(|| MotionBounds::new(&self.world)).is_some()
     }
 
     /// Conservative advancement: from each end, the bound on how far the geometry moves over its
@@ -128,7 +135,7 @@ impl ValidityChecker for CollisionChecker {
     /// clearance margin there ([`CollisionWorld::clear_by_posed`]). Joint limits hold along the
     /// motion when they hold at its ends (each coordinate moves linearly).
     fn certify_motion(&mut self, a: &[f64], b: &[f64]) -> PlanResult<bool> {
-        let Some(bounds) = &self.bounds else {
+        let Some(bounds) = self.bounds.get_or_init(|| MotionBounds::new(&self.world)) else {
             return Ok(false);
         };
         let m: &KinematicModel = &self.world.model;
@@ -155,7 +162,7 @@ impl ValidityChecker for CollisionChecker {
     /// States are checked for the joint limits; a state a run covers is collision-free; any other
     /// is checked.
     fn certify_path(&mut self, path: &[f64], valid: &mut [bool], certified: &mut [bool]) -> PlanResult<usize> {
-        let Some(bounds) = &self.bounds else {
+        let Some(bounds) = self.bounds.get_or_init(|| MotionBounds::new(&self.world)) else {
             certified.fill(false);
             return self.check(path, valid).map(|_| 0);
         };
@@ -274,6 +281,11 @@ impl ValidityChecker for SphereChecker {
     /// The joint limits of every row first (no kinematics), then the spheres in blocks of
     /// [`LANES`] rows, stopping at the first lane in collision
     /// ([`SphereWorld::any_in_collision`]).
+    /// [`LANES`]: the spheres of 8 states are tested in one pass.
+    fn lanes(&self) -> usize {
+        LANES
+    }
+
     fn all_valid(&mut self, qs: &[f64], n: usize) -> PlanResult<(bool, usize)> {
         let m = &self.spheres.world.model;
         debug_assert_eq!(qs.len(), n * m.nq);

@@ -74,6 +74,11 @@ impl<'a> ConstrainedSpace<'a> {
         self.settings
     }
 
+    /// The checker's [`lanes`](ValidityChecker::lanes): states checked for about the price of one.
+    pub fn lanes(&self) -> usize {
+        self.checker.lanes().max(1)
+    }
+
     /// Check the rows of `qs` (counted in `validity_checks`, timed in `checker_s`).
     pub fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
         self.stats.validity_checks += valid.len();

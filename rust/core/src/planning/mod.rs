@@ -59,5 +59,5 @@ pub use nearest::{KdForest, LinearNearest, NearestNeighbors, NeighborIndex, KD_M
 pub use projector::{GaussNewtonProjector, Projection, Projector};
 pub use constrained::{ConstrainedSpace, Step};
 pub use rrt::{Algorithm, Components, EdgeCheck, Named, Planner, Settings, Solution, Stats, MAX_SPACING};
-pub use sampler::{standard_normal, uniform_in_box, valid_box, DataSampler, MixtureSampler, Sampler, UniformSampler};
+pub use sampler::{standard_normal, uniform_in_box, valid_box, DataSampler, Halton, MixtureSampler, Sampler, Sampling, UniformSampler};
 pub use space::{EuclideanSpace, Space};

@@ -4,13 +4,12 @@
 //! goal), lazy pruning, shortcutting. The constrained steps and edges are the
 //! [`ConstrainedSpace`]'s; [`Algorithm::RrtConnect`]'s attempt is in `rrt_connect.rs`.
 
-use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Instant;
 
 use super::constrained::ConstrainedSpace;
 use super::tree::{extract, flatten, Tree};
-use super::{NeighborIndex, PlanError, PlanResult, Projection, Projector, Sampler, Space, ValidityChecker};
+use super::{NeighborIndex, PlanError, PlanResult, Projection, Projector, Sampler, Sampling, Space, ValidityChecker};
 
 /// Consecutive states of a validated edge are at most this many edge resolutions apart.
 pub const MAX_SPACING: f64 = 1.25;
@@ -131,6 +130,11 @@ pub struct Settings {
     /// How edges are validated: states at `edge_resolution` (default) or certified chords
     /// (needs `edge_resolution` > 0 and a checker that certifies motions).
     pub edge_check: EdgeCheck,
+    /// How the uniform samples are drawn: random (default) or a seeded Halton sequence
+    /// ([`Sampling`]). The planner draws from whatever [`Sampler`] its [`Components`] hold; this
+    /// says how the front end (genplan.planning.Planner) makes its [`UniformSampler`](super::UniformSampler)
+    /// (`with_sampling`), alone or inside a mixture.
+    pub sampling: Sampling,
 }
 
 impl Default for Settings {
@@ -151,6 +155,7 @@ impl Default for Settings {
             max_empty_batches: 100,
             algorithm: Algorithm::Crrt,
             edge_check: EdgeCheck::Sampled,
+            sampling: Sampling::Random,
         }
     }
 }
@@ -183,7 +188,7 @@ impl Settings {
     ///   `sample_batch` at most [`MAX_SAMPLE_BATCH`](Self::MAX_SAMPLE_BATCH);
     /// * `edge_check`: certified needs `edge_resolution` > 0 (its finest spacing, times
     ///   [`CERTIFY_REFINEMENT`](Self::CERTIFY_REFINEMENT));
-    /// * `retries`, the flags, `neighbors` and `algorithm`: any value.
+    /// * `retries`, the flags, `neighbors`, `algorithm` and `sampling`: any value.
     pub fn validate(&self) -> PlanResult<()> {
         let bad = |field: &'static str, msg: String| Err(PlanError::Settings { field, msg });
         let max = Self::MAX_LENGTH;
@@ -336,7 +341,15 @@ pub(super) struct Run<'a> {
     pub(super) st: &'a Settings,
     sampler: &'a mut dyn Sampler,
     pub(super) interrupt: &'a mut dyn FnMut() -> PlanResult<()>,
-    samples: VecDeque<Vec<f64>>,
+    /// The buffered samples (rows of nq, projected when `project_samples`), the next one at
+    /// `next` (an offset into it); refilled a batch at a time into the same memory.
+    samples: Vec<f64>,
+    next: usize,
+    /// The sampler's raw batch (rows of nq).
+    raw: Vec<f64>,
+    /// A free-space extension's steps (rows of nq) and their validity ([`Run::extend_free`]).
+    line: Vec<f64>,
+    line_ok: Vec<bool>,
 }
 
 impl<'a> Run<'a> {
@@ -347,7 +360,11 @@ impl<'a> Run<'a> {
             st,
             sampler: &mut **sampler,
             interrupt: &mut **interrupt,
-            samples: VecDeque::new(),
+            samples: Vec::new(),
+            next: 0,
+            raw: Vec::new(),
+            line: Vec::new(),
+            line_ok: Vec::new(),
         }
     }
 
@@ -551,21 +568,22 @@ impl Run<'_> {
         let mut tree = Tree::new(nq, space.nv(), self.st.neighbors);
         tree.add(space, start, usize::MAX, Some(&[]));
         let mut found = None;
+        let mut q_rand = Vec::with_capacity(nq);
         for _ in 0..self.st.max_extensions {
             (self.interrupt)()?;
             self.space.stats.extensions += 1;
-            let q_rand = self.next_sample()?;
+            self.next_sample(&mut q_rand)?;
             let near = tree.nearest(space, &q_rand);
             let a = self.extend(&mut tree, near, &q_rand, self.st.project_samples)?;
             if a.added == 0 {
                 continue;
             }
-            let qa = tree.node(a.node).to_vec();
+            let qa = tree.node(a.node);
             let g = *valid_goals
                 .iter()
                 .min_by(|&&i, &&j| {
-                    let di = space.distance(&qa, &goals[i * nq..(i + 1) * nq]);
-                    let dj = space.distance(&qa, &goals[j * nq..(j + 1) * nq]);
+                    let di = space.distance(qa, &goals[i * nq..(i + 1) * nq]);
+                    let dj = space.distance(qa, &goals[j * nq..(j + 1) * nq]);
                     di.total_cmp(&dj)
                 })
                 .expect("at least one valid goal");
@@ -582,16 +600,32 @@ impl Run<'_> {
     }
 
     /// The direct edge from the start to its nearest valid goal (`nearest`: its row in the goals
-    /// and its distance), when that goal lies within one `step` and the edge is valid end to end
-    /// (projected and checked as every edge is); None otherwise, and for a goal farther away
-    /// (then the search decides).
+    /// and its distance), when the edge is valid end to end (projected and checked as every edge
+    /// is); None otherwise (then the search decides). On a manifold only a goal within one
+    /// `step` is tried. In free space the straight edge is tried whatever its length, as VAMP's
+    /// and OMPL's RRT-Connect try it: its states checked in rake order, so that a blocked edge is
+    /// refused after a few checks, and a clear one is the path without a tree.
     fn direct_attempt(&mut self, start: &[f64], goals: &[f64], nearest: Option<(usize, f64)>) -> PlanResult<Option<Found>> {
         let space = self.ambient();
         let nq = space.nq();
         let Some((g, d)) = nearest else {
             return Ok(None);
         };
-        if d.is_nan() || d > self.st.step {
+        if d.is_nan() {
+            return Ok(None);
+        }
+        if !self.space.constrained() {
+            let goal = &goals[g * nq..(g + 1) * nq];
+            // one edge checked, not an iteration of the search: counted as one only when it is
+            // the path
+            let Some(states) = self.space.geodesic(start, goal, false)? else {
+                return Ok(None);
+            };
+            self.space.stats.extensions += 1;
+            self.space.stats.nodes = 2;
+            return Ok(Some(Found { waypoints: vec![start.to_vec(), goal.to_vec()], edges: vec![Vec::new(), states], goal: g }));
+        }
+        if d > self.st.step {
             return Ok(None);
         }
         let goal = &goals[g * nq..(g + 1) * nq];
@@ -607,38 +641,43 @@ impl Run<'_> {
         Ok(None)
     }
 
-    /// The next (projected, when `project_samples`) sample, refilling the buffer in batches.
-    pub(super) fn next_sample(&mut self) -> PlanResult<Vec<f64>> {
+    /// The next (projected, when `project_samples`) sample into `q`, refilling the buffer in
+    /// batches (in the memory of the previous batch: nothing is allocated per sample).
+    pub(super) fn next_sample(&mut self, q: &mut Vec<f64>) -> PlanResult<()> {
         let nq = self.ambient().nq();
         let mut empty = 0;
-        while self.samples.is_empty() {
+        while self.next >= self.samples.len() {
             (self.interrupt)()?;
             let n = self.st.sample_batch;
-            let mut raw = vec![0.0; n * nq];
+            self.samples.clear();
+            self.next = 0;
+            self.raw.resize(n * nq, 0.0);
             let t = Instant::now();
-            self.sampler.sample(n, &mut raw)?;
+            self.sampler.sample(n, &mut self.raw)?;
             self.space.stats.sampler_s += t.elapsed().as_secs_f64();
-            for (i, q) in raw.chunks(nq).enumerate() {
-                self.ambient()
-                    .check(q, &format!("sampler output row {i}"))
-                    .map_err(|e| PlanError::Sampler(format!("the sampler returned a bad configuration: {e}")))?;
+            for (i, q) in self.raw.chunks(nq).enumerate() {
+                if self.ambient().check(q, "sampler output").is_err() {
+                    // named only when it fails (a message per row would allocate per sample)
+                    let e = self.ambient().check(q, &format!("sampler output row {i}")).unwrap_err();
+                    return Err(PlanError::Sampler(format!("the sampler returned a bad configuration: {e}")));
+                }
             }
             self.space.stats.samples += n;
             if self.st.project_samples && self.space.constrained() {
                 let mut out = vec![0.0; n * nq];
                 let mut reps = vec![Projection::default(); n];
-                self.space.project(&raw, &raw, &mut out, &mut reps)?;
+                self.space.project(&self.raw, &self.raw, &mut out, &mut reps)?;
                 self.space.stats.projection_calls += n;
                 for (q, r) in out.chunks(nq).zip(&reps) {
                     self.space.stats.projections += r.iterations;
                     if r.success && q.iter().all(|x| x.is_finite()) {
-                        self.samples.push_back(q.to_vec());
+                        self.samples.extend_from_slice(q);
                     } else {
                         self.space.stats.samples_rejected += 1;
                     }
                 }
             } else {
-                self.samples.extend(raw.chunks(nq).map(<[f64]>::to_vec));
+                std::mem::swap(&mut self.samples, &mut self.raw);
             }
             if self.samples.is_empty() {
                 empty += 1;
@@ -650,7 +689,10 @@ impl Run<'_> {
                 }
             }
         }
-        Ok(self.samples.pop_front().expect("refilled above"))
+        q.clear();
+        q.extend_from_slice(&self.samples[self.next..self.next + nq]);
+        self.next += nq;
+        Ok(())
     }
 
     /// ConstrainedExtend from tree node `from` towards `target` (on the manifold when
@@ -658,12 +700,14 @@ impl Run<'_> {
     /// ([`ConstrainedSpace::step`]), each added to the tree, until the target is reached or a
     /// step fails.
     pub(super) fn extend(&mut self, tree: &mut Tree, from: usize, target: &[f64], target_on_manifold: bool) -> PlanResult<Reach> {
+        if !self.space.constrained() && self.st.lazy_edges {
+            return self.extend_free(tree, from, target);
+        }
         let space = self.ambient();
         let mut cur = from;
         let mut added = 0;
         for _ in 0..self.st.max_increments {
-            let q_cur = tree.node(cur).to_vec();
-            let Some(step) = self.space.step(&q_cur, target, target_on_manifold)? else {
+            let Some(step) = self.space.step(tree.node(cur), target, target_on_manifold)? else {
                 break;
             };
             cur = tree.add(space, &step.q, cur, step.edge.as_deref());
@@ -673,6 +717,72 @@ impl Run<'_> {
             }
         }
         Ok(Reach { node: cur, reached: false, added })
+    }
+
+    /// [`extend`](Self::extend) in free space with lazy edges: the same steps (each
+    /// [`ConstrainedSpace::step`]'s candidate: `step` towards the target from the previous one,
+    /// the target itself within one step; stopped where a step would jump too far or not move),
+    /// all computed first, since nothing is projected, and checked the first alone, then a batch
+    /// of the checker's [`lanes`](super::ValidityChecker::lanes) at a time (the sphere checker:
+    /// 8 states per pass instead of a pass per state; a checker of one lane: state by state);
+    /// the nodes up to the first invalid state are added, as the step-by-step extension adds
+    /// them. The states after an invalid one in its batch are checked too (counted in
+    /// `validity_checks`): the tree and the search are the same as step by step.
+    fn extend_free(&mut self, tree: &mut Tree, from: usize, target: &[f64]) -> PlanResult<Reach> {
+        let space = self.ambient();
+        let nq = space.nq();
+        let st = self.st;
+        let mut line = std::mem::take(&mut self.line);
+        line.clear();
+        let mut reached = false;
+        for k in 0..st.max_increments {
+            // the candidate's row: the target, moved `step` towards it from the previous state
+            // unless within one step
+            let at = line.len();
+            line.extend_from_slice(target);
+            let (done, cand) = line.split_at_mut(at);
+            let prev: &[f64] = if k == 0 { tree.node(from) } else { &done[at - nq..] };
+            let dist = space.distance(prev, target);
+            let last = dist <= st.step;
+            if !last {
+                space.interpolate(prev, target, st.step / dist, cand);
+            }
+            let jump = space.distance(prev, cand);
+            if jump > st.max_jump * st.step || jump < 1e-12 {
+                line.truncate(at);
+                break;
+            }
+            if last {
+                reached = true;
+                break;
+            }
+        }
+        let n = line.len() / nq.max(1);
+        let mut ok = std::mem::take(&mut self.line_ok);
+        ok.clear();
+        ok.resize(n, false);
+        // the first state alone (an extension into an obstacle usually ends there, and a checker
+        // stops at a state's first hit), then a batch of the checker's lanes at a time, until a
+        // state is invalid
+        let lanes = self.space.lanes();
+        let (mut cur, mut added) = (from, 0);
+        let mut first = 0;
+        'batches: while first < n {
+            let last = if first == 0 { 1 } else { (first + lanes).min(n) };
+            self.space.check(&line[first * nq..last * nq], &mut ok[first..last])?;
+            for k in first..last {
+                if !ok[k] {
+                    break 'batches;
+                }
+                cur = tree.add(space, &line[k * nq..(k + 1) * nq], cur, None);
+                added += 1;
+            }
+            first = last;
+        }
+        let reached = reached && added == n;
+        self.line = line;
+        self.line_ok = ok;
+        Ok(Reach { node: cur, reached, added })
     }
 
     /// Shortcut a solution greedily: from each waypoint, connect to the farthest later waypoint

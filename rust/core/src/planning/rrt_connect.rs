@@ -27,15 +27,18 @@ impl Run<'_> {
         // the tree extended towards the samples (0: the start tree); the other connects
         let mut a = 0;
         let mut found = None;
+        // the sample and the state reached, in memory kept across iterations
+        let (mut q_rand, mut target) = (Vec::with_capacity(nq), Vec::with_capacity(nq));
         for _ in 0..self.st.max_extensions {
             (self.interrupt)()?;
             self.space.stats.extensions += 1;
-            let q_rand = self.next_sample()?;
+            self.next_sample(&mut q_rand)?;
             let (grow, other) = split(&mut trees, a);
             let near = grow.nearest(space, &q_rand);
             let ext = self.extend(grow, near, &q_rand, self.st.project_samples)?;
             if ext.added > 0 {
-                let target = grow.node(ext.node).to_vec();
+                target.clear();
+                target.extend_from_slice(grow.node(ext.node));
                 if let Some(met) = self.connect(other, &target)? {
                     let (s_node, g_node) = if a == 0 { (ext.node, met) } else { (met, ext.node) };
                     // both halves validated (lazy edges): a failing edge prunes its subtree

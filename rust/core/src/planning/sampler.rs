@@ -1,5 +1,6 @@
 //! Samplers: the [`Sampler`] trait and the native ones, uniform within the joint limits
-//! ([`UniformSampler`], optionally with a free-flyer base drawn in a box), rows of a data set
+//! ([`UniformSampler`], optionally with a free-flyer base drawn in a box, its numbers random or
+//! a seeded [`Halton`] sequence: [`Sampling`]), rows of a data set
 //! ([`DataSampler`]) and the paper's hybrid ([`MixtureSampler`]); [`valid_box`] checks the boxes
 //! they (and the GAN sampler) draw in.
 
@@ -8,7 +9,7 @@ use std::sync::Arc;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::{PlanError, PlanResult};
+use super::{Named, PlanError, PlanResult};
 use crate::kinematics::{KinematicModel, Motion};
 use crate::lie::unit_quaternion;
 
@@ -57,6 +58,88 @@ fn check_out(what: &str, n: usize, nq: usize, out: &[f64]) -> PlanResult<()> {
     }
 }
 
+/// How the uniform sampler draws its numbers ([`Settings::sampling`](super::Settings::sampling)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Sampling {
+    /// Independent pseudo-random numbers (a seeded `StdRng`).
+    #[default]
+    Random,
+    /// A low-discrepancy [`Halton`] sequence, shifted by the seed: the samples fill the box
+    /// evenly from the first ones on (no clusters, no holes), and runs of different seeds differ.
+    Halton,
+}
+
+impl Named for Sampling {
+    const NAMES: &'static [(&'static str, Sampling)] = &[("random", Sampling::Random), ("halton", Sampling::Halton)];
+    const WHAT: &'static str = "sampling";
+}
+
+/// The first `n` primes.
+fn primes(n: usize) -> Vec<u64> {
+    let mut out: Vec<u64> = Vec::with_capacity(n);
+    let mut k = 2u64;
+    while out.len() < n {
+        if out.iter().take_while(|&&p| p * p <= k).all(|&p| k % p != 0) {
+            out.push(k);
+        }
+        k += 1;
+    }
+    out
+}
+
+/// The radical inverse of `i` in `base`: its base-`base` digits mirrored about the point, in
+/// [0, 1).
+fn radical_inverse(base: u64, mut i: u64) -> f64 {
+    let inv = 1.0 / base as f64;
+    let (mut f, mut r) = (inv, 0.0);
+    while i > 0 {
+        r += f * (i % base) as f64;
+        i /= base;
+        f *= inv;
+    }
+    r
+}
+
+/// A Halton sequence in the unit cube of `dims` dimensions (coordinate k the radical inverse of
+/// the index in the k-th prime), randomised per seed by a Cranley-Patterson rotation: a shift
+/// drawn uniformly in the cube added to every point modulo 1 (which keeps the sequence's low
+/// discrepancy), and a seeded start index. Every coordinate is in [0, 1).
+#[derive(Debug, Clone)]
+pub struct Halton {
+    bases: Vec<u64>,
+    shift: Vec<f64>,
+    index: u64,
+}
+
+impl Halton {
+    /// The sequence of `dims` coordinates for `seed` (the same seed, the same points).
+    pub fn new(dims: usize, seed: u64) -> Halton {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let shift = (0..dims).map(|_| rng.random::<f64>()).collect();
+        // index 0 is the origin of every base: start past it, at a seeded place
+        Halton { bases: primes(dims), shift, index: 1 + rng.random_range(0..1024u64) }
+    }
+
+    /// The number of coordinates of a point.
+    pub fn dims(&self) -> usize {
+        self.bases.len()
+    }
+
+    /// Write the next point into `out` (its first [`dims`](Self::dims) numbers).
+    pub fn next_into(&mut self, out: &mut [f64]) {
+        for ((o, &b), &s) in out.iter_mut().zip(&self.bases).zip(&self.shift) {
+            let x = radical_inverse(b, self.index) + s;
+            *o = if x >= 1.0 { x - 1.0 } else { x };
+        }
+        self.index += 1;
+    }
+}
+
+/// `lo + u (hi - lo)` for u in [0, 1), held within `lo..=hi` against rounding.
+fn scale(u: f64, lo: f64, hi: f64) -> f64 {
+    (lo + u * (hi - lo)).clamp(lo, hi)
+}
+
 /// Uniform within the joint limits (continuous joints: any angle); a free-flyer base is set to
 /// a fixed placement (`base`, 7 numbers), or with [`UniformSampler::with_base_box`] keeps the
 /// placement's orientation and draws its position uniformly in a box (the paper's Talos sampler:
@@ -67,6 +150,10 @@ pub struct UniformSampler {
     base: [f64; 7],
     base_box: Option<([f64; 3], [f64; 3])>,
     rng: StdRng,
+    seed: u64,
+    /// With [`Sampling::Halton`]: the sequence, one coordinate per number a row draws (the base
+    /// box's three, then each joint's in the model's order), and its current point.
+    halton: Option<(Halton, Vec<f64>)>,
 }
 
 impl UniformSampler {
@@ -101,7 +188,7 @@ impl UniformSampler {
         };
         let r = rot.coords; // (x, y, z, w)
         base[3..7].copy_from_slice(&[r.x, r.y, r.z, r.w]);
-        Ok(UniformSampler { model, base, base_box: None, rng: StdRng::seed_from_u64(seed) })
+        Ok(UniformSampler { model, base, base_box: None, rng: StdRng::seed_from_u64(seed), seed, halton: None })
     }
 
     /// Draw the free-flyer base position uniformly in `lower..=upper` (orientation: the base
@@ -116,7 +203,41 @@ impl UniformSampler {
             ));
         }
         self.base_box = Some((lower, upper));
+        if let Some((h, _)) = &self.halton {
+            let dims = self.dims();
+            if h.dims() != dims {
+                return Ok(self.with_sampling(Sampling::Halton));
+            }
+        }
         Ok(self)
+    }
+
+    /// Draw with `sampling`: random numbers (the default) or the [`Halton`] sequence of the
+    /// sampler's seed, one coordinate per number a row draws.
+    pub fn with_sampling(mut self, sampling: Sampling) -> UniformSampler {
+        self.halton = match sampling {
+            Sampling::Random => None,
+            Sampling::Halton => {
+                let dims = self.dims();
+                Some((Halton::new(dims, self.seed), vec![0.0; dims]))
+            }
+        };
+        self
+    }
+
+    /// How it draws.
+    pub fn sampling(&self) -> Sampling {
+        if self.halton.is_some() {
+            Sampling::Halton
+        } else {
+            Sampling::Random
+        }
+    }
+
+    /// The numbers one row draws: three for a base box, one per joint that moves.
+    fn dims(&self) -> usize {
+        let joints = self.model.joints.iter().filter(|j| j.q_index != usize::MAX && !matches!(j.motion, Motion::Fixed)).count();
+        joints + if self.base_box.is_some() { 3 } else { 0 }
     }
 }
 
@@ -127,12 +248,27 @@ impl Sampler for UniformSampler {
         if m.nq == 0 {
             return Ok(()); // n empty rows
         }
+        use std::f64::consts::PI;
         for row in out.chunks_mut(m.nq).take(n) {
+            // the row's numbers in [0, 1) from the Halton sequence, or None: drawn from the rng
+            // (as they always were, so that a seed's random samples do not change)
+            let units = match &mut self.halton {
+                Some((h, point)) => {
+                    h.next_into(point);
+                    Some(&point[..])
+                }
+                None => None,
+            };
+            let mut k = 0;
             if m.floating_base {
                 row[..7].copy_from_slice(&self.base);
                 if let Some((lo, hi)) = self.base_box {
-                    for k in 0..3 {
-                        row[k] = self.rng.random_range(lo[k]..=hi[k]);
+                    for d in 0..3 {
+                        row[d] = match units {
+                            Some(u) => scale(u[k], lo[d], hi[d]),
+                            None => self.rng.random_range(lo[d]..=hi[d]),
+                        };
+                        k += 1;
                     }
                 }
             }
@@ -140,12 +276,22 @@ impl Sampler for UniformSampler {
                 let i = j.q_index;
                 match j.motion {
                     Motion::Continuous { .. } => {
-                        let a: f64 = self.rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+                        let a: f64 = match units {
+                            Some(u) => -PI + 2.0 * PI * u[k],
+                            None => self.rng.random_range(-PI..PI),
+                        };
+                        k += 1;
                         row[i] = a.cos();
                         row[i + 1] = a.sin();
                     }
                     Motion::Fixed => {}
-                    _ => row[i] = self.rng.random_range(m.lower[i]..=m.upper[i]),
+                    _ => {
+                        row[i] = match units {
+                            Some(u) => scale(u[k], m.lower[i], m.upper[i]),
+                            None => self.rng.random_range(m.lower[i]..=m.upper[i]),
+                        };
+                        k += 1;
+                    }
                 }
             }
         }

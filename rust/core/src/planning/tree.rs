@@ -10,7 +10,10 @@ pub(super) struct Tree {
     pub(super) nq: usize,
     pub(super) q: Vec<f64>,
     pub(super) parent: Vec<usize>,
-    children: Vec<Vec<usize>>,
+    /// Each node's children as a list: its first child and each child's next sibling
+    /// (`usize::MAX`: none), so that adding a node allocates nothing of its own.
+    first_child: Vec<usize>,
+    next_sibling: Vec<usize>,
     /// The edge from the parent has been validated (its states are stored).
     pub(super) validated: Vec<bool>,
     /// Pruned: an edge above it failed validation; never extended from again.
@@ -34,7 +37,8 @@ impl Tree {
             nq,
             q: Vec::new(),
             parent: Vec::new(),
-            children: Vec::new(),
+            first_child: Vec::new(),
+            next_sibling: Vec::new(),
             validated: Vec::new(),
             dead: Vec::new(),
             edge_start: Vec::new(),
@@ -50,9 +54,11 @@ impl Tree {
         let id = self.len();
         self.q.extend_from_slice(q);
         self.parent.push(parent);
-        self.children.push(Vec::new());
+        self.first_child.push(usize::MAX);
+        self.next_sibling.push(usize::MAX);
         if parent != usize::MAX {
-            self.children[parent].push(id);
+            self.next_sibling[id] = self.first_child[parent];
+            self.first_child[parent] = id;
         }
         self.dead.push(false);
         self.validated.push(false);
@@ -85,7 +91,11 @@ impl Tree {
                 self.dead[i] = true;
                 n += 1;
             }
-            stack.extend_from_slice(&self.children[i]);
+            let mut c = self.first_child[i];
+            while c != usize::MAX {
+                stack.push(c);
+                c = self.next_sibling[c];
+            }
         }
         n
     }
