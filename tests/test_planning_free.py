@@ -62,22 +62,92 @@ def test_free_plans_project_nothing_and_are_valid(panda, shelf, algorithm) -> No
             assert traj.q.shape[1] == panda.nq
 
 
+def straight_edge(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The states of the straight edge from a to b at the default edge resolution, as the
+    planner spaces them (ends included)."""
+    n = int(np.ceil(np.linalg.norm(b - a) / PlannerSettings().edge_resolution))
+    return a + np.linspace(0.0, 1.0, n + 1)[:, None] * (b - a)
+
+
 def test_free_plans_match_the_projector_that_has_nothing_to_do(panda, shelf) -> None:
     """The same samples, the same trees: the free plan's path is the one planned with the free
     task's projector in the loop (which leaves every state within the limits where it is), at a
-    cost the free plan does not pay."""
+    cost the free plan does not pay. (A goal whose straight edge is clear is joined by it in free
+    space, without a tree: test_a_goal_in_plain_view_is_joined_by_the_straight_edge; here the
+    edge is blocked.)"""
     world, qs = shelf
+    goal = next(q for q in qs[1:] if np.any(world.in_collision(straight_edge(qs[0], q))))
     free = P.load_task("free", panda)
     for algorithm in ("crrt", "rrt_connect"):
-        a = Planner(panda, world, task="free", algorithm=algorithm, seed=5).plan(qs[0], qs[1])
+        a = Planner(panda, world, task="free", algorithm=algorithm, seed=5).plan(qs[0], goal)
         projector = P.GaussNewtonProjector(panda, free.with_tolerances_scaled(0.1))
         through = Planner(panda, world, task=free, projector=projector, algorithm=algorithm, seed=5)
         assert not through.free
-        b = through.plan(qs[0], qs[1])
+        b = through.plan(qs[0], goal)
         assert a.success and b.success
         np.testing.assert_array_equal(a.path, b.path)
         assert b.stats.projection_calls > 0 and b.stats.projector_s > 0
         assert a.stats.projector_s == 0
+
+
+@pytest.mark.parametrize("checker", ["exact", "spheres"])
+def test_a_goal_in_plain_view_is_joined_by_the_straight_edge(panda, shelf, checker) -> None:
+    """In free space the straight edge from the start to a goal is tried first, whatever its
+    length: when it is clear the path is that edge (two waypoints, its states at the edge
+    resolution, no sample drawn); when it is blocked the search runs."""
+    world, qs = shelf
+    planner = Planner(panda, world, task="free", algorithm="rrt_connect", checker=checker)
+    clear = next(q for q in qs[1:] if np.linalg.norm(q - qs[0]) > 1.0 and not np.any(world.in_collision(straight_edge(qs[0], q))))
+    r = planner.plan(qs[0], clear)
+    assert_free_path(panda, world, r, qs[0], clear)
+    np.testing.assert_array_equal(r.waypoints, np.stack([qs[0], clear]))
+    np.testing.assert_allclose(r.path, straight_edge(qs[0], clear), atol=1e-12)
+    assert (r.stats.samples, r.stats.extensions, r.stats.nodes) == (0, 1, 2)
+    blocked = next(q for q in qs[1:] if np.any(world.in_collision(straight_edge(qs[0], q))))
+    r = planner.plan(qs[0], blocked)
+    assert_free_path(panda, world, r, qs[0], blocked)
+    assert r.stats.samples > 0 and len(r.waypoints) > 2
+
+
+@pytest.mark.parametrize("sampling", ["random", "halton"])
+def test_halton_sampling_is_seeded(panda, shelf, sampling) -> None:
+    """``PlannerSettings(sampling=...)``: the same seed plans the same path, another seed draws
+    other samples; the uniform sampler the planner makes draws within the joint limits."""
+    world, qs = shelf
+    goal = next(q for q in qs[1:] if np.any(world.in_collision(straight_edge(qs[0], q))))
+    settings = PlannerSettings(algorithm="rrt_connect", sampling=sampling)
+    plans = [Planner(panda, world, task="free", settings=settings, seed=s).plan(qs[0], goal) for s in (1, 1, 2)]
+    assert all(p.success for p in plans)
+    np.testing.assert_array_equal(plans[0].path, plans[1].path)
+    assert plans[0].path.shape != plans[2].path.shape or not np.array_equal(plans[0].path, plans[2].path)
+    for p in plans:  # every state (the default edge check samples states, not the chords between them)
+        np.testing.assert_array_equal(p.path[[0, -1]], np.stack([qs[0], goal]))
+        assert np.all(p.path >= panda.lower) and np.all(p.path <= panda.upper)
+        assert not np.any(world.in_collision(p.path))
+    samples = _core.UniformSampler(panda.kinematics, None, 3, None, sampling).sample(256)
+    assert np.all(samples >= panda.lower) and np.all(samples <= panda.upper)
+    np.testing.assert_array_equal(samples, _core.UniformSampler(panda.kinematics, None, 3, None, sampling).sample(256))
+    assert not np.array_equal(samples, _core.UniformSampler(panda.kinematics, None, 4, None, sampling).sample(256))
+
+
+def test_an_unknown_sampling_is_refused() -> None:
+    with pytest.raises(SettingsError, match="sampling: unknown sampling 'sobol' .*'random', 'halton'"):
+        PlannerSettings(sampling="sobol")
+
+
+def test_a_start_or_goal_the_model_refuses_is_an_invalid_start_or_goal(panda, shelf) -> None:
+    """Read by the native planner before any work: a joint beyond the model's range of numbers
+    is the plan's InvalidStartError / InvalidGoalError, naming it."""
+    world, qs = shelf
+    planner = Planner(panda, world, task="free")
+    far = qs[0].copy()
+    far[2] = 1e17
+    with pytest.raises(InvalidStartError, match=r"^start: configuration q: joint 'panda_joint3' \(q\[2\]\) is at 1e\+?17"):
+        planner.plan(far, qs[1])
+    with pytest.raises(InvalidGoalError, match=r"^goals: configuration q: joint 'panda_joint3'"):
+        planner.plan(qs[0], far)
+    with pytest.raises(InvalidGoalError, match=r"^goals\[1\]: configuration q: joint 'panda_joint3'"):
+        planner.plan(qs[0], np.stack([qs[1], far]))
 
 
 class OutOfLimits:

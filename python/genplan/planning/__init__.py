@@ -72,6 +72,7 @@ __all__ = [
     "ALGORITHMS",
     "CHECKERS",
     "EDGE_CHECKS",
+    "SAMPLINGS",
     "ENVIRONMENT_NAMES",
     "Environment",
     "Outcome",
@@ -96,6 +97,12 @@ ALGORITHMS: tuple[str, ...] = _core.ALGORITHMS
 #: Edge checks (``PlannerSettings.edge_check``): states checked at ``edge_resolution`` (default),
 #: or every motion between them certified collision-free as well. The core's table.
 EDGE_CHECKS: tuple[str, ...] = _core.EDGE_CHECKS
+#: How uniform samples are drawn (``PlannerSettings.sampling``): ``"random"`` (default) or
+#: ``"halton"``, a Halton sequence shifted by the planner's seed (low discrepancy: the box is
+#: covered evenly from the first samples on; different seeds, different points). It applies to
+#: the uniform sampler the :class:`Planner` makes (``sampler="uniform"``, and the uniform part of
+#: ``"hybrid"`` and ``"adaptive"``). The core's table.
+SAMPLINGS: tuple[str, ...] = _core.SAMPLINGS
 #: Validity checkers by name (``Planner(..., checker=)``, :func:`plan`): ``"exact"``, the
 #: world's exact geometry (parry); ``"spheres"``, the robot's covering spheres
 #: (:func:`genplan.spheres.robot_spheres`) against the world's obstacles in closed form, several
@@ -192,7 +199,7 @@ def uniform_base_box(robot: Robot, task: Task) -> NDArray[np.float64] | None:
 
 def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, gan_model: Any = None,
                  hybrid_p: float = 0.8, half_life: float = ADAPTIVE_HALF_LIFE, gan_box: ArrayLike | None = None,
-                 base_box: ArrayLike | None = None) -> Any:
+                 base_box: ArrayLike | None = None, sampling: str = "random") -> Any:
     """A sampler the planner understands: "uniform" (native), "gan", "hybrid" (the GAN with
     probability ``hybrid_p``, else uniform), "adaptive" (the GAN with probability 0.5^(k /
     ``half_life``) for the k-th sample of a plan, else uniform), "data" (:func:`data_sampler` of the
@@ -201,7 +208,8 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
     ``gan_box`` ([[x, y, z] min, max]; default: the model's task-space region of interest). Uniform
     samples hold a free-flyer base at the robot's default placement, its position drawn uniformly
     in ``base_box`` ([[x, y, z] min, max]) when given (the :class:`Planner` passes
-    :func:`uniform_base_box` of its task)."""
+    :func:`uniform_base_box` of its task); ``sampling`` (:data:`SAMPLINGS`) is how they are drawn:
+    random, or a Halton sequence shifted by ``seed``."""
     if not isinstance(kind, str):
         if not hasattr(kind, "sample") and not isinstance(kind, _core.MixtureSampler):  # native: no Python sample
             raise TypeError(f"sampler: expected one of {SAMPLERS} or an object with sample(n), got {type(kind).__name__}")
@@ -215,7 +223,7 @@ def make_sampler(robot: Robot, kind: str | Any = "uniform", *, seed: int = 0, ga
         if b.shape != (2, 3):
             raise ShapeError(f"base_box: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]], got shape {b.shape}")
         box = b.tolist()
-    uniform = _core.UniformSampler(robot.kinematics, base, seed, box)
+    uniform = _core.UniformSampler(robot.kinematics, base, seed, box, sampling)
     if kind == "uniform":
         return uniform
     if kind == "data":
@@ -352,7 +360,7 @@ class Planner:
         self.parallel = bool(parallel)
         self.base_box = uniform_base_box(robot, self.task)
         self.sampler = make_sampler(robot, sampler, seed=seed, gan_model=gan_model, hybrid_p=hybrid_p, half_life=half_life,
-                                    base_box=self.base_box)
+                                    base_box=self.base_box, sampling=self.settings.sampling)
         # the chords between the states are held to the task's own tolerances: 1 / tolerance_factor
         # times the projector's (unknown for a projector given by the caller: no chord check)
         self._chord_tolerance: float | None = None
@@ -377,6 +385,9 @@ class Planner:
         self._checker_arg = checker.native if isinstance(checker, CollisionWorld) else checker
         if self.free and not isinstance(checker, (CollisionWorld, _core.SphereChecker)):
             self._checker_arg = _WithinLimits(robot, checker)
+        # what a result's trajectory is checked in: a sphere checker's path against the exact
+        # geometry (which it implies), any other checker's against itself
+        self._result_world = self.world if isinstance(checker, _core.SphereChecker) else checker
         self._native = _core.Planner(robot.kinematics, self.settings)
 
     def plan(self, start: ArrayLike, goals: ArrayLike, sampler: str | Any | None = None) -> PlanResult:
@@ -400,7 +411,8 @@ class Planner:
           last states satisfy the constraint too (a configuration already on the manifold, such
           as the queries', is used exactly as given);
         * in free space (:attr:`free`) nothing is projected: the start and goals are used as
-          given;
+          given, and the straight edge from the start to the nearest valid goal is tried before
+          any search (its states checked at ``edge_resolution``; a clear one is the path);
         * valid (the checker): a start in collision or outside the joint limits is refused; goals
           that are not valid are dropped (IK solutions often collide), and refused only when
           none is left. ``result.goal_index`` says which goal was reached.
@@ -414,17 +426,13 @@ class Planner:
         within the task's tolerances (with the planner's own projector). A start within
         ``settings.goal_tolerance`` of a valid goal has reached it: ``result.path`` is the start
         alone (one state; its trajectory stands still)."""
-        q0 = self.robot.check_configuration(start, "start")
-        if q0.ndim != 1:
-            raise ShapeError(f"start: expected shape ({self.robot.nq},), got {q0.shape}")
-        g = self.robot.check_configuration(goals, "goals")
-        g = np.ascontiguousarray(g.reshape(-1, self.robot.nq))
-        smp = self.sampler if sampler is None else make_sampler(self.robot, sampler, base_box=self.base_box)
-        native = self._native.plan(list(map(float, q0)), g, smp, self._projector_arg, self._checker_arg, self.parallel,
+        smp = (self.sampler if sampler is None else
+               make_sampler(self.robot, sampler, base_box=self.base_box, sampling=self.settings.sampling))
+        # the native planner reads and checks start (nq,) and goals (nq,) or (k, nq) itself, with
+        # genplan._arrays.as_configurations' errors (ShapeError, NonFiniteError, naming them)
+        native = self._native.plan(start, goals, smp, self._projector_arg, self._checker_arg, self.parallel,
                                    self._chord_tolerance)
-        # a sphere checker's path is checked against the exact geometry (which it implies)
-        world = self.world if isinstance(self.checker, _core.SphereChecker) else self.checker
-        return PlanResult(native, self.robot, self.task, world)
+        return PlanResult(native, self.robot, self.task, self._result_world)
 
 
 @dataclass(frozen=True)
