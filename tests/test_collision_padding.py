@@ -145,12 +145,41 @@ def test_bad_margins_are_typed_errors_naming_the_field(panda: genplan.Robot, tmp
         Scene.from_file(path)
 
 
-def test_the_sphere_checker_refuses_a_padded_world(panda: genplan.Robot) -> None:
+def test_the_sphere_checker_keeps_the_paddings(panda: genplan.Robot) -> None:
+    """The sphere checker grows its spheres by each obstacle's padding (its own, else the
+    world's), as the exact check counts a pair closer than the padding: it stays conservative
+    (every configuration the exact padded check finds colliding is colliding by the spheres), and
+    a configuration whose robot passes 1-2 cm from the box is free without padding and colliding
+    with a 3 cm one, by both checkers."""
     world = panda.collision_world()
-    world.add_box("box", (0.1, 0.1, 0.1), (1, 0, 0))
-    world.set_obstacle_padding("box", 0.02)
-    with pytest.raises(GenplanError, match="obstacle 'box' has a padding.*exact checker"):
-        genplan.planning.sphere_checker(panda, world)
+    world.add_box("box", (0.1, 0.1, 0.1), (0.45, 0.0, 0.45))
+    world.add_sphere("ball", 0.05, (0.0, 0.5, 0.5))
+    q = panda.random_configurations(3000, 7)
+    # configurations 1-2 cm from the box, 5 cm from the ball and free of self-collision
+    only_box = panda.collision_world(self_collision=False)
+    only_box.add_box("box", (0.1, 0.1, 0.1), (0.45, 0.0, 0.45))
+    only_ball = panda.collision_world(self_collision=False)
+    only_ball.add_sphere("ball", 0.05, (0.0, 0.5, 0.5))
+    d_box = np.asarray(only_box.min_distance(q)).reshape(-1)
+    d_ball = np.asarray(only_ball.min_distance(q)).reshape(-1)
+    plain = genplan.planning.sphere_checker(panda, world)
+    near = q[(d_box > 0.01) & (d_box < 0.02) & (d_ball > 0.05) & ~np.asarray(plain.in_collision(q))]
+    assert len(near) >= 5
+    world.set_obstacle_padding("box", 0.03)
+    world.padding = 0.005
+    padded = genplan.planning.sphere_checker(panda, world)
+    exact = np.asarray(world.in_collision(q))
+    spheres = np.asarray(padded.in_collision(q))
+    assert exact.any() and not (exact & ~spheres).any()
+    assert np.asarray(world.in_collision(near)).all() and np.asarray(padded.in_collision(near)).all()
+    # the world's padding alone (the box's own set to 0): conservative still, and the ball's
+    # near misses (0-5 mm) collide by both
+    world.set_obstacle_padding("box", 0.0)
+    checker = genplan.planning.sphere_checker(panda, world)
+    exact = np.asarray(world.in_collision(q))
+    assert not (exact & ~np.asarray(checker.in_collision(q))).any()
+    grazing = q[(d_ball > 0.0) & (d_ball < 0.005)]
+    assert len(grazing) and np.asarray(world.in_collision(grazing)).all() and np.asarray(checker.in_collision(grazing)).all()
 
 
 def test_a_clouds_own_padding_survives_a_new_frame(panda: genplan.Robot) -> None:

@@ -121,3 +121,43 @@ def test_bad_spheres_are_refused_naming_the_argument(panda: genplan.Robot) -> No
         _core.SphereChecker(w, ["nowhere"], [[0.0, 0.0, 0.0]], [0.1])
     with pytest.raises(GenplanError, match="radii"):
         _core.SphereChecker(w, ["panda_link1"], [[0.0, 0.0, 0.0]], [-0.1])
+
+
+def test_an_attached_object_is_covered_by_spheres_of_its_own(panda: genplan.Robot) -> None:
+    """A block held 10 cm below the hand: the sphere checker covers it (conservative against the
+    exact world, which checks it as one more robot geometry), finds the configurations where
+    only the block collides (with the wall or a link), checks it against the links of its self pairs (not its
+    touch links), and refuses a world holding an object the robot does not."""
+    from genplan.scene import Box, Pose
+
+    held = panda.with_attached("block", Box("block", (0.03, 0.03, 0.08)), link="panda_hand",
+                               pose=Pose(position=(0.0, 0.0, 0.18)))
+    world = held.collision_world()
+    world.add_box("wall", (0.1, 0.3, 0.3), (0.7, 0.0, 0.5))
+    bare = panda.collision_world()
+    bare.add_box("wall", (0.1, 0.3, 0.3), (0.7, 0.0, 0.5))
+    sc = sphere_checker(held, world)
+    assert sc.n_spheres > len(robot_spheres(panda))
+    names = {n for pair in sc.self_pairs for n in pair}
+    touch = dict((name, t) for name, _link, t in world.attached)["block"]
+    assert "block" in names and not any("block" in p and set(p) & set(touch) for p in sc.self_pairs)
+    q = panda.random_configurations(3000, np.random.default_rng(4))
+    exact = np.asarray(world.in_collision(q), dtype=bool)
+    spheres = np.asarray(sc.in_collision(q), dtype=bool)
+    assert not np.any(exact & ~spheres), "the held block collides by the exact world, not by the spheres"
+    only_block = exact & ~np.asarray(bare.in_collision(q), dtype=bool)
+    assert only_block.sum() >= 50 and spheres[only_block].all()
+    assert (spheres & ~exact).sum() < 0.2 * (~exact).sum()
+    # the spheres without the block's are refused; a world holding an object the robot does not
+    with pytest.raises(GenplanError, match="attached object 'block' needs its spheres"):
+        _core.SphereChecker(world.native, list(robot_spheres(panda).links), robot_spheres(panda).centers.tolist(),
+                            robot_spheres(panda).radii.tolist())
+    with pytest.raises(SettingsError, match="attached object 'block' on link 'panda_hand'.*holds: none"):
+        sphere_checker(panda, world)
+    s = robot_spheres(panda)
+    with pytest.raises(UnknownNameError, match="ghost.*block"):
+        _core.SphereChecker(world.native, list(s.links), s.centers.tolist(), s.radii.tolist(),
+                            [("block", [[0.0, 0.0, 0.1]], [0.05]), ("ghost", [[0.0, 0.0, 0.0]], [0.1])])
+    with pytest.raises(GenplanError, match="block.*radii"):
+        _core.SphereChecker(world.native, list(s.links), s.centers.tolist(), s.radii.tolist(),
+                            [("block", [[0.0, 0.0, 0.1]], [-0.05])])

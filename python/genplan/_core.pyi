@@ -188,7 +188,8 @@ class SphereChecker:
     collision check and a planner checker (genplan_core::collision::spheres)."""
 
     def __new__(cls, world: CollisionWorld, links: list[str], centers: list[list[float]] | NDArray[np.float64],
-                radii: list[float] | NDArray[np.float64]) -> Self: ...
+                radii: list[float] | NDArray[np.float64],
+                attached: list[tuple[str, list[list[float]], list[float]]] | None = None) -> Self: ...
     @property
     def n_spheres(self) -> int: ...
     @property

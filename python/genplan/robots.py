@@ -416,7 +416,7 @@ class Robot:
         against the obstacles (with their padding) and the robot's links but its touch links:
         the holding link's rigid body, ``touch_links`` and the links it touches at the default
         configuration (:attr:`CollisionWorld.attached` lists them). ``checker="spheres"``
-        refuses a robot with an attached object (its spheres do not cover it).
+        covers it with spheres of its own (:func:`genplan.spheres.attached_spheres`).
 
         ``mass`` (kg), ``com`` (m, in the object's frame; default its shape's centre) and
         ``inertia`` (3x3 about the centre of mass in the object's axes, kg m^2; default the solid

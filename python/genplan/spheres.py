@@ -86,6 +86,8 @@ __all__ = [
     "DEFAULT_PADDING",
     "LinkGeometry",
     "RobotSpheres",
+    "attached_geometry",
+    "attached_spheres",
     "clear_cache",
     "link_geometries",
     "robot_spheres",
@@ -216,12 +218,7 @@ def link_geometries(robot: Robot) -> list[LinkGeometry]:
         elif isinstance(g, coal.Capsule):
             out.append(LinkGeometry(go.name, link, "capsule", (float(g.radius), float(g.halfLength)), placement))
         elif isinstance(g, coal.BVHModelBase):
-            vertices = np.array(g.vertices(), dtype=np.float64, copy=True).reshape(-1, 3)
-            tris = g.tri_indices
-            triangles = np.array([[t[0], t[1], t[2]] for t in (tris(i) for i in range(g.num_tris))],
-                                 dtype=np.int64).reshape(-1, 3)
-            if len(triangles) == 0 or not np.all(np.isfinite(vertices)):
-                raise RobotFileError(f"{where}: mesh {source} has no triangles or non-finite vertices")
+            vertices, triangles = _bvh_arrays(g, f"{where}: mesh {source}")
             out.append(LinkGeometry(go.name, link, "mesh", (), placement, vertices, triangles, source))
         else:
             raise RobotFileError(
@@ -233,6 +230,66 @@ def link_geometries(robot: Robot) -> list[LinkGeometry]:
                 a.setflags(write=False)
     _GEOMETRIES[robot] = tuple(out)
     return out
+
+
+def _bvh_arrays(g: Any, where: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The vertices (n, 3) and triangles (m, 3) of coal's mesh ``g``; RobotFileError (``where``
+    names it) when it has no triangles or a non-finite vertex."""
+    vertices = np.array(g.vertices(), dtype=np.float64, copy=True).reshape(-1, 3)
+    tris = g.tri_indices
+    triangles = np.array([[t[0], t[1], t[2]] for t in (tris(i) for i in range(g.num_tris))],
+                         dtype=np.int64).reshape(-1, 3)
+    if len(triangles) == 0 or not np.all(np.isfinite(vertices)):
+        raise RobotFileError(f"{where} has no triangles or non-finite vertices")
+    return vertices, triangles
+
+
+def attached_geometry(attached: Any) -> LinkGeometry:
+    """An attached object (:class:`genplan.robots.Attached`: its shape at its pose in the
+    holding link's frame) as a :class:`LinkGeometry` of that link; a mesh read by coal (as the
+    robot's own meshes), scaled as the shape says."""
+    from genplan.robots import _compose
+    from genplan.scene import Box, Capsule, Cylinder, Mesh, Sphere
+
+    shape = attached.shape
+    pose = _compose(attached.pose, shape.pose)
+    placement = np.eye(4)
+    placement[:3, :3] = pose.matrix()
+    placement[:3, 3] = pose.position
+    name = f"attached '{attached.name}'"
+    if isinstance(shape, Box):
+        return LinkGeometry(name, attached.link, "box", tuple(shape.half_extents), placement)
+    if isinstance(shape, Sphere):
+        return LinkGeometry(name, attached.link, "sphere", (float(shape.radius),), placement)
+    if isinstance(shape, (Cylinder, Capsule)):
+        return LinkGeometry(name, attached.link, shape.kind, (float(shape.radius), 0.5 * float(shape.length)), placement)
+    if isinstance(shape, Mesh):
+        import coal
+
+        mesh = coal.MeshLoader().load(str(shape.path), np.asarray(shape.scale, dtype=np.float64))
+        vertices, triangles = _bvh_arrays(mesh, f"{name}: mesh {shape.path}")
+        return LinkGeometry(name, attached.link, "mesh", (), placement, vertices, triangles, str(shape.path))
+    raise SettingsError(f"{name}: a {type(shape).__name__} cannot be covered by spheres")
+
+
+#: The attached objects' spheres, by their geometry's hash and the parameters.
+_ATTACHED_MEMO: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+
+
+def attached_spheres(attached: Any, *, max_error: float = DEFAULT_MAX_ERROR, padding: float = DEFAULT_PADDING
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Spheres covering an attached object (:class:`genplan.robots.Attached`) with the same
+    guarantee as :func:`robot_spheres`' (its solid covered, no sphere reaching more than about
+    ``max_error`` beyond it, radii padded by ``padding``): centres (n, 3) in the holding link's
+    frame and radii (n,). Generated once per geometry and parameters in this process."""
+    eps = _positive(max_error, "max_error", 1.0)
+    geometry = attached_geometry(attached)
+    key = geometry_hash([geometry], eps, eps / 2, float(padding))
+    if key not in _ATTACHED_MEMO:
+        centers, radii, _ = _cover_link(geometry.name, [geometry], eps, eps / 2)
+        _ATTACHED_MEMO[key] = (centers, radii + float(padding))
+    centers, radii = _ATTACHED_MEMO[key]
+    return centers.copy(), radii.copy()
 
 
 # --- the result --------------------------------------------------------------------------------

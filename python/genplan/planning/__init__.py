@@ -267,12 +267,26 @@ def sphere_checker(robot: Robot, world: CollisionWorld, spheres: Any = None) -> 
     planner's spheres to compare on the same geometry) against ``world``'s obstacles and self pairs
     as they are now: ``in_collision(q)`` ((nq,) -> bool, (n, nq) -> (n,) bool),
     ``motion_free(a, b, resolution)``, and a checker the planner takes. A point cloud in ``world``
-    is tested as its balls (each sphere against the balls in the grid cells around it)."""
-    from genplan.spheres import robot_spheres
+    is tested as its balls (each sphere against the balls in the grid cells around it); each
+    obstacle's padding grows the spheres tested against it. The objects ``robot`` holds
+    (:meth:`~genplan.robots.Robot.with_attached`) that ``world`` has are covered by spheres of
+    their own (:func:`~genplan.spheres.attached_spheres`, the same generator and guarantee),
+    checked against the obstacles and the links of their self pairs; an object attached in
+    ``world`` that ``robot`` does not hold is refused (a SettingsError naming it)."""
+    from genplan.spheres import attached_spheres, robot_spheres
 
     s = robot_spheres(robot) if spheres is None else spheres
+    objects = []
+    for name, link, _touch in world.attached:
+        held = robot.attached.get(name)
+        if held is None or held.link != link:
+            raise SettingsError(
+                f"checker 'spheres': attached object '{name}' on link '{link}' is not one robot '{robot.name}' holds "
+                f"(it holds: {', '.join(sorted(robot.attached)) or 'none'}): build the world with robot.collision_world()")
+        centers, radii = attached_spheres(held)
+        objects.append((name, centers.tolist(), radii.tolist()))
     return _core.SphereChecker(world.native, list(s.links), np.ascontiguousarray(s.centers).tolist(),
-                               np.ascontiguousarray(s.radii).tolist())
+                               np.ascontiguousarray(s.radii).tolist(), objects)
 
 
 def _check_algorithm(algorithm: str) -> str:

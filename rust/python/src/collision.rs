@@ -9,7 +9,7 @@ use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
-use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld};
+use genplan_core::collision::spheres::{AttachedSpheres, SphereModel, SphereScratch, SphereWorld};
 use genplan_core::collision::{allowed, CollisionWorld, MeshShape};
 use genplan_core::srdf::Srdf;
 use genplan_core::urdf::Urdf;
@@ -387,25 +387,28 @@ pub(crate) struct PySphereChecker {
 #[pymethods]
 impl PySphereChecker {
     /// Sphere i on link `links[i]` (a link name), centre `centers[i]` in that link's frame,
-    /// radius `radii[i]`; the obstacles and self pairs of `world` as they are now. A point cloud
-    /// in the world is refused (naming it).
+    /// radius `radii[i]`; the obstacles (point clouds included, each sphere against the balls
+    /// near it), their paddings and the self pairs of `world` as they are now. `attached`: per
+    /// object attached to the robot in `world`, (its name, its spheres' centres in the holding
+    /// link's frame, their radii), each object exactly once (refused otherwise, naming it).
     #[new]
-    fn new(world: &PyCollisionWorld, links: Vec<String>, centers: Vec<[f64; 3]>, radii: Vec<f64>) -> PyResult<Self> {
+    #[pyo3(signature = (world, links, centers, radii, attached=None))]
+    fn new(
+        world: &PyCollisionWorld,
+        links: Vec<String>,
+        centers: Vec<[f64; 3]>,
+        radii: Vec<f64>,
+        attached: Option<Vec<(String, Vec<[f64; 3]>, Vec<f64>)>>,
+    ) -> PyResult<Self> {
         let w = &world.inner;
-        // the spheres cover the links' own geometry, and the closed forms have no margin
-        if let Some(a) = w.attached().first() {
-            return Err(err(Kind::Generic, format!(
-                "checker=\"spheres\": the robot holds attached object '{}', which the spheres do not cover: use the exact checker", a.name
-            )));
-        }
-        if let Some(o) = w.obstacles.iter().find(|o| o.padding.unwrap_or(w.padding()) > 0.0) {
-            return Err(err(Kind::Generic, format!(
-                "checker=\"spheres\": obstacle '{}' has a padding, which the sphere checker does not keep: use the exact checker", o.name
-            )));
-        }
         let names: Vec<&str> = links.iter().map(String::as_str).collect();
         let spheres = SphereModel::new(&w.model, &names, &centers, &radii).map_err(to_py)?;
-        let inner = SphereWorld::new(std::sync::Arc::new(w.clone()), spheres).map_err(to_py)?;
+        let objects: Vec<AttachedSpheres> = attached
+            .unwrap_or_default()
+            .into_iter()
+            .map(|(name, centers, radii)| AttachedSpheres { name, centers, radii })
+            .collect();
+        let inner = SphereWorld::with_attached(std::sync::Arc::new(w.clone()), spheres, &objects).map_err(to_py)?;
         Ok(Self { inner: std::sync::Arc::new(inner) })
     }
 
@@ -415,11 +418,11 @@ impl PySphereChecker {
         self.inner.spheres().len()
     }
 
-    /// The link pairs checked for self-collision (link names).
+    /// The pairs checked for self-collision (link names; an attached object's name for its
+    /// spheres).
     #[getter]
     fn self_pairs(&self) -> Vec<(String, String)> {
-        let names = &self.inner.world.model.link_names;
-        self.inner.self_link_pairs().into_iter().map(|(a, b)| (names[a].clone(), names[b].clone())).collect()
+        self.inner.self_pair_names()
     }
 
     /// True where the spheres collide: q (nq,) -> bool; q (n, nq) -> bool array (n,), checked

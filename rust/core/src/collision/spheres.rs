@@ -34,6 +34,11 @@
 //! after the same test on the two links' bounding spheres. A batch stops when every lane is in
 //! collision; a motion at its first state in collision.
 //!
+//! An obstacle's padding (its own, else the world's: [`CollisionWorld::padding`]) grows every
+//! sphere and bounding sphere tested against it, so a configuration is in collision when a
+//! sphere comes closer to the obstacle than the padding, as in the exact check; self pairs are
+//! not padded.
+//!
 //! Links fixed to the world (a fixed base's links that no joint moves: a pedestal, a torso) are
 //! in the same place in every configuration, so their spheres are placed once, in the world
 //! frame, when the checker is built, and checked then against the obstacles and against the
@@ -53,7 +58,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d_f64::shape::Ball;
 
 use super::CollisionWorld;
-use crate::error::{check_finite, Error, Result};
+use crate::error::{check_finite, unknown, Error, Result};
 use crate::kinematics::KinematicModel;
 
 /// Lanes of the batch kernel: configurations checked together.
@@ -139,6 +144,9 @@ struct LinkSpheres {
     center: [f32; 3],
     radius: f32,
     fixed: bool,
+    /// The attached object (index into the world's [`CollisionWorld::attached`]) these spheres
+    /// cover, on its holding link; None for the link's own.
+    object: Option<usize>,
 }
 
 /// A node of a fixed link's tree: the sphere bounding the fixed spheres `start..end` (world
@@ -250,6 +258,9 @@ struct Compiled {
     shape: Shape,
     /// World box (none for a half-space).
     aabb: Option<([f32; 3], [f32; 3])>,
+    /// The clearance the robot keeps from it (its padding, else the world's; m): every sphere
+    /// and bounding sphere is grown by it against this obstacle.
+    pad: f32,
 }
 
 /// The robot's spheres against the obstacles of a [`CollisionWorld`] (as it was when this was
@@ -333,10 +344,33 @@ fn inverse_rows(pose: &Isometry3<f64>) -> ([[f32; 3]; 3], [f32; 3]) {
     (rt, f3(&pose.translation.vector))
 }
 
+/// The spheres of an object attached to the robot ([`CollisionWorld::attach`]), covering it:
+/// centres in the frame of the link that holds it, and radii (m).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AttachedSpheres {
+    /// The attached object's name.
+    pub name: String,
+    /// Centres in the holding link's frame.
+    pub centers: Vec<[f64; 3]>,
+    /// Radii (positive).
+    pub radii: Vec<f64>,
+}
+
 impl SphereWorld {
-    /// The spheres against `world`'s obstacles and self pairs. Spheres on a link of another
-    /// model are refused ([`Error::Invalid`]).
+    /// The spheres against `world`'s obstacles and self pairs, for a world without attached
+    /// objects: [`with_attached`](Self::with_attached) with none.
     pub fn new(world: Arc<CollisionWorld>, spheres: SphereModel) -> Result<SphereWorld> {
+        Self::with_attached(world, spheres, &[])
+    }
+
+    /// The robot's spheres and those of each object attached to it (`objects`: one entry per
+    /// attached object of `world`, by name) against `world`'s obstacles and self pairs. An
+    /// attached object's spheres move with its link and are checked like a link's: against the
+    /// obstacles and against the links of its self pairs (every link but its touch links).
+    /// Refused ([`Error::Invalid`]): spheres on a link of another model, an attached object
+    /// without spheres, spheres of an object the world does not hold (the known ones listed),
+    /// non-finite centres or radii that are not positive.
+    pub fn with_attached(world: Arc<CollisionWorld>, mut spheres: SphereModel, objects: &[AttachedSpheres]) -> Result<SphereWorld> {
         let model = &world.model;
         if let Some(&l) = spheres.link.iter().find(|&&l| l >= model.n_links()) {
             return Err(Error::Invalid(format!("spheres: link index {l} out of range (the model has {} links)", model.n_links())));
@@ -345,11 +379,40 @@ impl SphereWorld {
         for i in 0..spheres.len() {
             match links.last_mut() {
                 Some(ls) if ls.link == spheres.link[i] => ls.end = i + 1,
-                _ => links.push(LinkSpheres { link: spheres.link[i], start: i, end: i + 1, center: [0.0; 3], radius: 0.0, fixed: false }),
+                _ => links.push(LinkSpheres { link: spheres.link[i], start: i, end: i + 1, center: [0.0; 3], radius: 0.0, fixed: false, object: None }),
             }
         }
         if links.windows(2).any(|w| w[0].link >= w[1].link) {
             return Err(Error::Invalid("spheres: not sorted by link (build them with SphereModel::new)".into()));
+        }
+        // each attached object: its spheres after the robot's, one more entry of `links` on its
+        // holding link; `attached_slot`: (its geometry in the world, its entry)
+        let held: Vec<&str> = world.attached.iter().map(|a| a.name.as_str()).collect();
+        if let Some(o) = objects.iter().find(|o| !held.contains(&o.name.as_str())) {
+            return Err(unknown("attached object", &o.name, &held));
+        }
+        let mut attached_slot: Vec<(usize, usize)> = Vec::new();
+        for (ai, a) in world.attached.iter().enumerate() {
+            let mut given = objects.iter().filter(|o| o.name == a.name);
+            let (Some(o), None) = (given.next(), given.next()) else {
+                return Err(Error::Invalid(format!(
+                    "spheres: attached object '{}' needs its spheres exactly once (the spheres cover the links alone)", a.name
+                )));
+            };
+            if o.radii.is_empty() {
+                return Err(Error::Invalid(format!("spheres: attached object '{}': no spheres", a.name)));
+            }
+            let link = model.link_names[a.link].as_str();
+            let own = SphereModel::new(model, &vec![link; o.radii.len()], &o.centers, &o.radii)
+                .map_err(|e| Error::Invalid(format!("attached object '{}': {e}", a.name)))?;
+            let start = spheres.len();
+            spheres.link.extend(own.link);
+            spheres.x.extend(own.x);
+            spheres.y.extend(own.y);
+            spheres.z.extend(own.z);
+            spheres.radius.extend(own.radius);
+            attached_slot.push((a.geometry, links.len()));
+            links.push(LinkSpheres { link: a.link, start, end: spheres.len(), center: [0.0; 3], radius: 0.0, fixed: false, object: Some(ai) });
         }
         for ls in &mut links {
             // the centre of the spheres' box, the radius reaching the farthest sphere
@@ -367,13 +430,17 @@ impl SphereWorld {
             ls.center = f3(&c.coords);
             ls.radius = (r * (1.0 + 1e-6)) as f32 + F32_SLACK;
         }
-        // the link pairs the world checks for self-collision, among the links with spheres
-        let slot = |l: usize| links.iter().position(|ls| ls.link == l);
+        // the link pairs the world checks for self-collision, among the entries with spheres: a
+        // geometry's entry is its attached object's, else its link's (the robot's entries come
+        // first, so `position` finds the link's own)
+        let slot = |g: usize| match attached_slot.iter().find(|&&(geometry, _)| geometry == g) {
+            Some(&(_, k)) => Some(k),
+            None => links.iter().position(|ls| ls.link == world.geometries[g].link),
+        };
         let mut pairs: Vec<(usize, usize)> = Vec::new();
         if world.check_self {
-            for gp in &world.groups.group_pairs {
-                let (la, lb) = (world.groups.groups[gp.a as usize].link, world.groups.groups[gp.b as usize].link);
-                if let (Some(a), Some(b)) = (slot(la), slot(lb)) {
+            for &(ga, gb) in &world.self_pairs {
+                if let (Some(a), Some(b)) = (slot(ga), slot(gb)) {
                     let p = (a.min(b), a.max(b));
                     if a != b && !pairs.contains(&p) {
                         pairs.push(p);
@@ -403,7 +470,10 @@ impl SphereWorld {
                 Shape::Other { index }
             };
             let aabb = o.aabb.map(|b| (f3(&b.mins.coords), f3(&b.maxs.coords)));
-            obstacles.push(Compiled { shape, aabb });
+            // rounded up, so that the f32 padding is never below the f64 one
+            let pad = world.obstacle_padding(index);
+            let pad = (pad * (1.0 + 1e-6)) as f32;
+            obstacles.push(Compiled { shape, aabb, pad });
         }
         let link_ids: Vec<usize> = links.iter().map(|l| l.link).collect();
         let joints = lane_joints(model, model.joints_placing(&link_ids));
@@ -455,6 +525,7 @@ impl SphereWorld {
             let c = [[f.x[i]], [f.y[i]], [f.z[i]]];
             let r = f.radius[i] + F32_SLACK;
             for o in &self.obstacles {
+                let r = r + o.pad;
                 let near = match &o.aabb {
                     Some((lo, hi)) => box_near(lo, hi, &c, r * r, &[true]),
                     None => [true],
@@ -484,6 +555,16 @@ impl SphereWorld {
     /// The link pairs tested for self-collision, as link indices of the model.
     pub fn self_link_pairs(&self) -> Vec<(usize, usize)> {
         self.pairs.iter().map(|&(a, b)| (self.links[a].link, self.links[b].link)).collect()
+    }
+
+    /// The pairs checked for self-collision by name: a link's, or an attached object's for its
+    /// spheres.
+    pub fn self_pair_names(&self) -> Vec<(String, String)> {
+        let name = |k: usize| match self.links[k].object {
+            Some(a) => self.world.attached[a].name.clone(),
+            None => self.world.model.link_names[self.links[k].link].clone(),
+        };
+        self.pairs.iter().map(|&(a, b)| (name(a), name(b))).collect()
     }
 
     /// Is the checked configuration `q` in collision by the spheres (input checked: length,
@@ -707,20 +788,24 @@ impl SphereWorld {
         // stays one vector instruction per operation
         for (k, ls) in self.links.iter().enumerate().filter(|(_, ls)| !ls.fixed) {
             let bc = &s.bounds[k];
-            let reach2 = ls.radius * ls.radius;
             // lanes still to decide: live and not yet in collision
             let mut open: [bool; N] = std::array::from_fn(|l| live[l] & !hit[l]);
             for o in &self.obstacles {
-                // lanes where the link's bounding sphere meets the obstacle's box (or plane)
-                let near = match &o.aabb {
-                    Some((lo, hi)) => box_near(lo, hi, bc, reach2, &open),
+                // lanes where the link's bounding sphere (grown by the obstacle's padding)
+                // meets the obstacle's box (or plane)
+                let reach = ls.radius + o.pad;
+                let mut near = match &o.aabb {
+                    Some((lo, hi)) => box_near(lo, hi, bc, reach * reach, &open),
                     None => open,
                 };
+                if let Shape::Cloud { index } = &o.shape {
+                    near = self.cloud_near(*index, bc, reach, near);
+                }
                 if !near.iter().fold(false, |a, &n| a | n) {
                     continue;
                 }
                 for i in ls.start..ls.end {
-                    let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK, &near);
+                    let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK + o.pad, &near);
                     for l in 0..N {
                         hit[l] |= h[l] & near[l];
                     }
@@ -821,7 +906,9 @@ impl SphereWorld {
             }
             for i in ls.start..ls.end {
                 let c = &s.centers[i];
-                let reach = within(c, node.center, radius[i] + node.radius, &near);
+                // the sphere's own slack too, as in the pair test below: a prune may not be
+                // tighter than the test it spares
+                let reach = within(c, node.center, radius[i] + F32_SLACK + node.radius, &near);
                 if !reach.iter().fold(false, |a, &n| a | n) {
                     continue;
                 }
@@ -837,6 +924,17 @@ impl SphereWorld {
     }
 
     /// Does the sphere (world centre per lane `c`, radius `r`) meet obstacle `o`, per lane?
+    /// The lanes of `near` where the link's bounding sphere (centres `bc`, radius `r`) is not
+    /// cleared by cloud obstacle `index`'s clearance field ([`CloudGrid::clearance`](super::CloudGrid::clearance):
+    /// one lookup per lane instead of one per sphere of the link). The radius gets a second
+    /// [`F32_SLACK`]: the link's centre and its spheres' are rounded to `f32` separately.
+    #[inline(always)]
+    fn cloud_near<const N: usize>(&self, index: usize, bc: &[[f32; N]; 3], r: f32, near: [bool; N]) -> [bool; N] {
+        let Some(grid) = self.world.obstacles[index].shape.as_shape::<super::CloudGrid>() else { return near };
+        let reach = f64::from(r + F32_SLACK) + grid.radius();
+        std::array::from_fn(|l| near[l] && grid.clearance(&Point3::new(f64::from(bc[0][l]), f64::from(bc[1][l]), f64::from(bc[2][l]))) <= reach)
+    }
+
     #[inline(always)]
     fn sphere_hits<const N: usize>(&self, o: &Compiled, c: &[[f32; N]; 3], r: f32, near: &[bool; N]) -> [bool; N] {
         let mut out = [false; N];
