@@ -241,21 +241,83 @@ pub struct Dynamics {
     link_frames: Vec<Frame>,
 }
 
+/// A 3-vector in four lanes, the last zero: the articulated-body algorithm's vectors and the
+/// columns of its matrices, so that a matrix-vector product is three lane-wise multiply-adds of
+/// whole columns (one 256-bit register each in the AVX2 build of the tick, two 128-bit ones in
+/// the baseline build, the same arithmetic lane by lane: the same bits).
+type Lanes = [f64; 4];
+
+/// `[v; 0]`.
+#[inline(always)]
+fn lanes(v: &Vector3<f64>) -> Lanes {
+    [v.x, v.y, v.z, 0.0]
+}
+
+/// `a + b`, lane by lane.
+#[inline(always)]
+fn add(a: &Lanes, b: &Lanes) -> Lanes {
+    let mut out = [0.0; 4];
+    for l in 0..4 {
+        out[l] = a[l] + b[l];
+    }
+    out
+}
+
+/// `a + b x`, lane by lane.
+#[inline(always)]
+fn add_scaled(a: &Lanes, b: &Lanes, x: f64) -> Lanes {
+    let mut out = [0.0; 4];
+    for l in 0..4 {
+        out[l] = a[l] + b[l] * x;
+    }
+    out
+}
+
+/// The dot product of the first three lanes.
+#[inline(always)]
+fn dot(a: &Lanes, b: &Lanes) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// `M x + N y` for the matrices of columns `m`, `n`.
+#[inline(always)]
+fn mat_vec2(m: &[Lanes; 3], x: &Lanes, n: &[Lanes; 3], y: &Lanes) -> Lanes {
+    let mut out = [0.0; 4];
+    for l in 0..4 {
+        out[l] = (m[0][l] * x[0] + m[1][l] * x[1] + m[2][l] * x[2]) + (n[0][l] * y[0] + n[1][l] * y[1] + n[2][l] * y[2]);
+    }
+    out
+}
+
+/// The columns of `m`.
+#[inline(always)]
+fn columns(m: &Matrix3<f64>) -> [Lanes; 3] {
+    [[m[(0, 0)], m[(1, 0)], m[(2, 0)], 0.0], [m[(0, 1)], m[(1, 1)], m[(2, 1)], 0.0], [m[(0, 2)], m[(1, 2)], m[(2, 2)], 0.0]]
+}
+
 /// Articulated-body inertia (world axes, about the world origin): the force
 /// `[f; n] = [[a, b], [b^T, c]] [v; w]` needed to accelerate a body and the subtree it carries
-/// (`a`, `c` symmetric).
+/// (`a`, `c` symmetric), each block by its columns, `b^T` kept beside `b` (`bt`) so that
+/// `b^T x` is a sum of columns too.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct ArticulatedInertia {
-    a: Matrix3<f64>,
-    b: Matrix3<f64>,
-    c: Matrix3<f64>,
+    a: [Lanes; 3],
+    b: [Lanes; 3],
+    bt: [Lanes; 3],
+    c: [Lanes; 3],
 }
 
 impl ArticulatedInertia {
     /// The rigid body's own inertia: `a = m I`, `b = -[h]x`, `c = i_o`.
     #[inline(always)]
     fn rigid(i: &SpatialInertia) -> Self {
-        ArticulatedInertia { a: Matrix3::from_diagonal_element(i.mass), b: -skew(&i.h), c: i.i_o }
+        let (m, h) = (i.mass, &i.h);
+        ArticulatedInertia {
+            a: [[m, 0.0, 0.0, 0.0], [0.0, m, 0.0, 0.0], [0.0, 0.0, m, 0.0]],
+            b: [[0.0, -h.z, h.y, 0.0], [h.z, 0.0, -h.x, 0.0], [-h.y, h.x, 0.0, 0.0]],
+            bt: [[0.0, h.z, -h.y, 0.0], [-h.z, 0.0, h.x, 0.0], [h.y, -h.x, 0.0, 0.0]],
+            c: columns(&i.i_o),
+        }
     }
 }
 
@@ -294,17 +356,28 @@ pub struct DynWorkspace {
     chol: DMatrix<f64>,
     tmp: Vec<f64>,
     // the articulated-body algorithm, per body in world axes: its articulated inertia, the
-    // velocity-product acceleration `c`, the joint's motion subspace `S`, `U = IA S`,
-    // `D = S^T U` and `u = tau - S^T p`
+    // velocity-product acceleration `c`, the joint's motion subspace `S`, the bias force `p`,
+    // `U = IA S`, `D = S^T U`, `u = tau - S^T p` and the acceleration
     ia: Vec<ArticulatedInertia>,
-    s_v: Vec<Vector3<f64>>,
-    s_w: Vec<Vector3<f64>>,
-    c_v: Vec<Vector3<f64>>,
-    c_w: Vec<Vector3<f64>>,
-    u_f: Vec<Vector3<f64>>,
-    u_n: Vec<Vector3<f64>>,
-    d: Vec<f64>,
-    u: Vec<f64>,
+    aba: Vec<AbaBody>,
+}
+
+/// The articulated-body algorithm's vectors of one body (see [`DynWorkspace`]), linear then
+/// angular parts.
+#[derive(Debug, Clone, Copy, Default)]
+struct AbaBody {
+    s_v: Lanes,
+    s_w: Lanes,
+    c_v: Lanes,
+    c_w: Lanes,
+    p_f: Lanes,
+    p_n: Lanes,
+    u_f: Lanes,
+    u_n: Lanes,
+    a_v: Lanes,
+    a_w: Lanes,
+    d: f64,
+    u: f64,
 }
 
 /// What a kinematics pass writes: the body-relative placements and the body-frame velocities
@@ -529,7 +602,7 @@ impl Dynamics {
             acc_v: z.clone(),
             acc_w: z.clone(),
             f: z.clone(),
-            n: z.clone(),
+            n: z,
             ic: vec![SpatialInertia::zero(); n],
             qd: vec![0.0; self.nv],
             angles: vec![[1.0, 0.0]; n],
@@ -537,14 +610,7 @@ impl Dynamics {
             chol: DMatrix::zeros(self.nv, self.nv),
             tmp: vec![0.0; self.nv],
             ia: vec![ArticulatedInertia::rigid(&SpatialInertia::zero()); n],
-            s_v: z.clone(),
-            s_w: z.clone(),
-            c_v: z.clone(),
-            c_w: z.clone(),
-            u_f: z.clone(),
-            u_n: z,
-            d: vec![0.0; n],
-            u: vec![0.0; n],
+            aba: vec![AbaBody::default(); n],
         }
     }
 
@@ -947,75 +1013,72 @@ impl Dynamics {
         };
         let qd = ws.qd[b.v_index];
         let (jv, jw) = (sv * qd, sw * qd);
-        ws.c_v[i] = w.cross(&jv) + v.cross(&jw);
-        ws.c_w[i] = w.cross(&jw);
-        ws.s_v[i] = sv;
-        ws.s_w[i] = sw;
         let inertia = b.inertia.transformed(rw, pw);
         let (f, n) = inertia.apply(&v, &w);
-        ws.f[i] = w.cross(&f);
-        ws.n[i] = w.cross(&n) + v.cross(&f);
+        let body = &mut ws.aba[i];
+        body.c_v = lanes(&(w.cross(&jv) + v.cross(&jw)));
+        body.c_w = lanes(&w.cross(&jw));
+        body.s_v = lanes(&sv);
+        body.s_w = lanes(&sw);
+        body.p_f = lanes(&w.cross(&f));
+        body.p_n = lanes(&(w.cross(&n) + v.cross(&f)));
         ws.ia[i] = ArticulatedInertia::rigid(&inertia);
     }
 
     /// The articulated-body algorithm's last two passes on the first pass's results in `ws`
-    /// (see [`aba_from_kinematics`](Self::aba_from_kinematics)).
+    /// (see [`aba_from_kinematics`](Self::aba_from_kinematics)). The articulated inertias are
+    /// reduced in place, each handed to its parent (which precedes it) as column sums; the
+    /// outer products `U U^T / D` are taken as `(U_r U_c) / D`, exactly symmetric.
     #[inline(always)]
     fn aba_inward_outward(&self, tau: &[f64], ws: &mut DynWorkspace, qdd: &mut [f64]) -> Result<()> {
         let nb = self.bodies.len();
-        for i in (0..nb).rev() {
-            let b = &self.bodies[i];
-            let ia = ws.ia[i];
-            let (sv, sw) = (ws.s_v[i], ws.s_w[i]);
-            let uf = ia.a * sv + ia.b * sw;
-            let un = ia.b.tr_mul(&sv) + ia.c * sw;
-            let d = sv.dot(&uf) + sw.dot(&un);
-            let u = tau[b.v_index] - sv.dot(&ws.f[i]) - sw.dot(&ws.n[i]);
+        let (ias, abas) = (&mut ws.ia[..nb], &mut ws.aba[..nb]);
+        for (i, b) in self.bodies.iter().enumerate().rev() {
+            let (ia_head, ia_tail) = ias.split_at_mut(i);
+            let (aba_head, aba_tail) = abas.split_at_mut(i);
+            let (ia, x) = (&ia_tail[0], &mut aba_tail[0]);
+            let uf = mat_vec2(&ia.a, &x.s_v, &ia.b, &x.s_w);
+            let un = mat_vec2(&ia.bt, &x.s_v, &ia.c, &x.s_w);
+            let d = dot(&x.s_v, &uf) + dot(&x.s_w, &un);
+            let u = tau[b.v_index] - dot(&x.s_v, &x.p_f) - dot(&x.s_w, &x.p_n);
             if !(d > 0.0 && d.is_finite()) {
                 return Err(Error::Invalid(format!(
                     "dynamics: the mass matrix is not positive definite (joint '{}' moves no inertia): a moving body without inertia?",
                     b.joint
                 )));
             }
-            (ws.u_f[i], ws.u_n[i], ws.d[i], ws.u[i]) = (uf, un, d, u);
+            (x.u_f, x.u_n, x.d, x.u) = (uf, un, d, u);
             let Some(pi) = b.parent else { continue };
             // the parent carries IA - U U^T / D and p + IA c + U (u - U^T c) / D
-            let (cv, cw) = (ws.c_v[i], ws.c_w[i]);
-            let k = (u - uf.dot(&cv) - un.dot(&cw)) / d;
-            let (ufd, und) = (uf / d, un / d);
-            let pf = ws.f[i] + ia.a * cv + ia.b * cw + uf * k;
-            let pn = ws.n[i] + ia.b.tr_mul(&cv) + ia.c * cw + un * k;
-            ws.f[pi] += pf;
-            ws.n[pi] += pn;
-            // a and c symmetric: one triangle computed, mirrored
-            let parent = &mut ws.ia[pi];
-            for r in 0..3 {
-                for c in r..3 {
-                    let xa = ia.a[(r, c)] - ufd[r] * uf[c];
-                    let xc = ia.c[(r, c)] - und[r] * un[c];
-                    parent.a[(r, c)] += xa;
-                    parent.c[(r, c)] += xc;
-                    if c != r {
-                        parent.a[(c, r)] += xa;
-                        parent.c[(c, r)] += xc;
-                    }
+            let k = (u - dot(&uf, &x.c_v) - dot(&un, &x.c_w)) / d;
+            let pf = add_scaled(&add(&x.p_f, &mat_vec2(&ia.a, &x.c_v, &ia.b, &x.c_w)), &uf, k);
+            let pn = add_scaled(&add(&x.p_n, &mat_vec2(&ia.bt, &x.c_v, &ia.c, &x.c_w)), &un, k);
+            let parent = &mut aba_head[pi];
+            parent.p_f = add(&parent.p_f, &pf);
+            parent.p_n = add(&parent.p_n, &pn);
+            let inv = 1.0 / d;
+            let pa = &mut ia_head[pi];
+            for c in 0..3 {
+                for l in 0..4 {
+                    pa.a[c][l] += ia.a[c][l] - uf[l] * uf[c] * inv;
+                    pa.b[c][l] += ia.b[c][l] - uf[l] * un[c] * inv;
+                    pa.bt[c][l] += ia.bt[c][l] - un[l] * uf[c] * inv;
+                    pa.c[c][l] += ia.c[c][l] - un[l] * un[c] * inv;
                 }
             }
-            parent.b += ia.b - ufd * un.transpose();
         }
-        let g0 = -self.gravity;
-        for i in 0..nb {
-            let b = &self.bodies[i];
-            let (mut av, mut aw) = match b.parent {
-                Some(pi) => (ws.acc_v[pi], ws.acc_w[pi]),
-                None => (g0, Vector3::zeros()),
+        let g0 = lanes(&-self.gravity);
+        for (i, b) in self.bodies.iter().enumerate() {
+            let (head, tail) = abas.split_at_mut(i);
+            let x = &mut tail[0];
+            let (av, aw) = match b.parent {
+                Some(pi) => (add(&head[pi].a_v, &x.c_v), add(&head[pi].a_w, &x.c_w)),
+                None => (add(&g0, &x.c_v), x.c_w),
             };
-            av += ws.c_v[i];
-            aw += ws.c_w[i];
-            let x = (ws.u[i] - ws.u_f[i].dot(&av) - ws.u_n[i].dot(&aw)) / ws.d[i];
-            ws.acc_v[i] = av + ws.s_v[i] * x;
-            ws.acc_w[i] = aw + ws.s_w[i] * x;
-            qdd[b.v_index] = x;
+            let a = (x.u - dot(&x.u_f, &av) - dot(&x.u_n, &aw)) / x.d;
+            x.a_v = add_scaled(&av, &x.s_v, a);
+            x.a_w = add_scaled(&aw, &x.s_w, a);
+            qdd[b.v_index] = a;
         }
         Ok(())
     }
@@ -1283,7 +1346,7 @@ impl Dynamics {
 
 #[cfg(test)]
 mod tests {
-    use super::{axis_rotation, principal_axis, Body, JointKind, SpatialInertia};
+    use super::{axis_rotation, lanes, mat_vec2, principal_axis, ArticulatedInertia, Body, JointKind, SpatialInertia};
     use nalgebra::{Matrix3, Rotation3, Vector3};
 
     /// A body on `axis` under the placement rotation `r_parent`.
@@ -1346,5 +1409,27 @@ mod tests {
         let want = SpatialInertia::from_com(2.5, com, r * si.inertia_about_com() * r.transpose());
         assert!((t.i_o - want.i_o).amax() < 1e-14 && (t.h - want.h).amax() < 1e-15);
         assert_eq!(t.i_o, t.i_o.transpose());
+    }
+
+    #[test]
+    fn rigid_articulated_inertia_maps_a_motion_to_the_rigid_momentum() {
+        let i_com = Matrix3::new(0.02, -0.003, 0.001, -0.003, 0.05, 0.002, 0.001, 0.002, 0.03);
+        let si = SpatialInertia::from_com(1.7, Vector3::new(0.03, -0.05, 0.12), i_com);
+        let ia = ArticulatedInertia::rigid(&si);
+        let (v, w) = (Vector3::new(0.3, -1.1, 0.4), Vector3::new(-0.6, 0.2, 0.9));
+        let (f, n) = si.apply(&v, &w);
+        let (vl, wl) = (lanes(&v), lanes(&w));
+        let got_f = mat_vec2(&ia.a, &vl, &ia.b, &wl);
+        let got_n = mat_vec2(&ia.bt, &vl, &ia.c, &wl);
+        for k in 0..3 {
+            assert!((got_f[k] - f[k]).abs() < 1e-15 && (got_n[k] - n[k]).abs() < 1e-15);
+        }
+        assert_eq!((got_f[3], got_n[3]), (0.0, 0.0));
+        // b^T kept beside b is its transpose
+        for r in 0..3 {
+            for c in 0..3 {
+                assert_eq!(ia.b[c][r], ia.bt[r][c]);
+            }
+        }
     }
 }

@@ -107,17 +107,79 @@ fn gemv_transposed(m: &DMatrix<f64>, x: &[f64], y: &mut [f64]) {
     }
 }
 
+/// LU factorisation with partial pivoting (the largest |entry| of each column below the
+/// diagonal, as nalgebra's `LU`) of a 6 x 6 matrix, on fixed-size rows: `P J = L U` with the unit
+/// lower `L` below the diagonal of the returned rows and `U` on and above it, the row order `P`,
+/// and `det J`. A zero pivot leaves its column as it is (the determinant is then zero).
+#[inline(always)]
+fn lu6(j: &Matrix6<f64>) -> ([[f64; 6]; 6], [usize; 6], f64) {
+    let mut a = [[0.0; 6]; 6];
+    for (r, row) in a.iter_mut().enumerate() {
+        for (c, x) in row.iter_mut().enumerate() {
+            *x = j[(r, c)];
+        }
+    }
+    let mut perm = [0, 1, 2, 3, 4, 5];
+    let mut det = 1.0;
+    for k in 0..6 {
+        let mut p = k;
+        for r in k + 1..6 {
+            if a[r][k].abs() > a[p][k].abs() {
+                p = r;
+            }
+        }
+        if p != k {
+            a.swap(p, k);
+            perm.swap(p, k);
+            det = -det;
+        }
+        let pivot = a[k][k];
+        det *= pivot;
+        if pivot == 0.0 {
+            continue;
+        }
+        let (top, below) = a.split_at_mut(k + 1);
+        let row_k = &top[k];
+        for row in below.iter_mut() {
+            let f = row[k] / pivot;
+            row[k] = f;
+            for c in k + 1..6 {
+                row[c] -= f * row_k[c];
+            }
+        }
+    }
+    (a, perm, det)
+}
+
+/// `J^-1 b` from [`lu6`]'s factors of `J` (every pivot non-zero).
+#[inline(always)]
+fn lu6_solve(lu: &[[f64; 6]; 6], perm: &[usize; 6], b: &Vector6<f64>) -> Vector6<f64> {
+    let mut x = [0.0; 6];
+    for (xr, &p) in x.iter_mut().zip(perm) {
+        *xr = b[p];
+    }
+    for r in 1..6 {
+        for c in 0..r {
+            x[r] -= lu[r][c] * x[c];
+        }
+    }
+    for r in (0..6).rev() {
+        for c in r + 1..6 {
+            x[r] -= lu[r][c] * x[c];
+        }
+        x[r] /= lu[r][r];
+    }
+    Vector6::from(x)
+}
+
 /// The paper's solve of a square task Jacobian: `J^-1 b`, damped near a singularity. Returns
 /// (x, det J, damped).
 #[inline(always)]
 fn damped_solve(j: &Matrix6<f64>, b: &Vector6<f64>, singular_det: f64, max_damping: f64) -> (Vector6<f64>, f64, bool) {
-    let lu = j.lu();
-    let det = lu.determinant();
+    let (lu, perm, det) = lu6(j);
     let w = det.abs();
     if w >= singular_det && w > 0.0 {
-        if let Some(x) = lu.solve(b) {
-            return (x, det, false);
-        }
+        return (lu6_solve(&lu, &perm, b), det, false);
     }
     let ratio = if singular_det > 0.0 { (w / singular_det).min(1.0) } else { 0.0 };
     let lambda2 = (max_damping * (1.0 - ratio)).powi(2).max(1e-12);
@@ -389,5 +451,36 @@ impl Controller {
             }
         }
         (w, damped)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{lu6, lu6_solve};
+    use nalgebra::{Matrix6, Vector6};
+
+    #[test]
+    fn lu6_solves_and_gives_the_determinant_of_nalgebras_lu() {
+        // a well-conditioned matrix, its rows permuted (pivoting), one with a zero leading entry
+        let base = Matrix6::from_fn(|r, c| ((r * 7 + c * 3) % 11) as f64 * 0.1 + if r == c { 2.0 } else { 0.0 });
+        let mut permuted = base;
+        permuted.swap_rows(0, 4);
+        permuted.swap_rows(2, 5);
+        let mut zero_lead = base;
+        zero_lead[(0, 0)] = 0.0;
+        let b = Vector6::new(0.3, -1.2, 0.7, 2.0, -0.4, 0.9);
+        for j in [base, permuted, zero_lead] {
+            let (lu, perm, det) = lu6(&j);
+            let want = j.lu();
+            assert!((det - want.determinant()).abs() <= 1e-12 * det.abs(), "{det} {}", want.determinant());
+            let x = lu6_solve(&lu, &perm, &b);
+            assert!((x - want.solve(&b).unwrap()).amax() < 1e-12);
+            assert!((j * x - b).amax() < 1e-12);
+        }
+        // singular: determinant zero
+        let mut singular = base;
+        let row = singular.row(1).into_owned();
+        singular.set_row(3, &row);
+        assert_eq!(lu6(&singular).2, 0.0);
     }
 }
