@@ -168,9 +168,20 @@ pub struct Log {
     pub payload: Vec<f64>,
 }
 
-/// Reserve `n` more elements, or an error naming the log (no abort on a failed allocation).
-fn reserve<T>(v: &mut Vec<T>, n: usize) -> Result<()> {
-    v.try_reserve_exact(n).map_err(|_| Error::Invalid(format!("cannot allocate the run's log ({n} values)")))
+/// Reserve `n` more elements, or an error naming the log (no abort on a failed allocation), and
+/// touch each page of the reserved memory once: the loop then writes its log without a page
+/// fault (a first touch of fresh memory costs microseconds on a virtual machine, the compute of
+/// a tick, and in a paced run would show as a late tick).
+fn reserve<T: Copy + Default>(v: &mut Vec<T>, n: usize) -> Result<()> {
+    v.try_reserve_exact(n).map_err(|_| Error::Invalid(format!("cannot allocate the run's log ({n} values)")))?;
+    let per_page = (4096 / std::mem::size_of::<T>().max(1)).max(1);
+    let spare = v.spare_capacity_mut();
+    for slot in spare.iter_mut().step_by(per_page) {
+        slot.write(T::default());
+    }
+    // the writes must happen although nothing reads them before the log's own
+    std::hint::black_box(spare.as_mut_ptr());
+    Ok(())
 }
 
 impl Log {
