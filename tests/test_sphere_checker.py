@@ -61,7 +61,7 @@ def test_a_motion_is_free_when_its_states_are(panda: genplan.Robot, shelf) -> No
 
 def test_planner_with_spheres_plans_paths_valid_by_the_exact_geometry(panda: genplan.Robot, shelf) -> None:
     world, sc = shelf
-    assert CHECKERS == ("exact", "spheres")
+    assert CHECKERS == ("exact", "spheres", "hybrid")
     rng = np.random.default_rng(2)
     q = panda.random_configurations(200, rng)
     q = q[~np.asarray(sc.in_collision(q), dtype=bool)]
@@ -90,6 +90,35 @@ def test_plan_takes_the_checker_by_name(panda: genplan.Robot, shelf) -> None:
         plan(panda, checker="voxels")
     with pytest.raises(UnknownNameError, match="spheres"):
         Planner(panda, task="free", checker="boxes")
+
+
+def test_the_hybrid_checker_answers_as_the_exact_geometry(panda: genplan.Robot, shelf) -> None:
+    """checker="hybrid": the spheres, each collision they find confirmed by the exact geometry.
+    A start 2-6 mm from an obstacle, which the spheres (reaching up to 1 cm beyond the links)
+    refuse, is planned from, and every state of the path is free by the exact geometry."""
+    world, sc = shelf
+    q = panda.random_configurations(4000, np.random.default_rng(8))
+    d = np.asarray(world.min_distance(q)).reshape(-1)
+    close = q[(d > 0.002) & (d < 0.006) & ~np.asarray(world.in_collision(q), dtype=bool)]
+    close = close[np.asarray(sc.in_collision(close), dtype=bool)]  # the spheres' false positives
+    free = q[~np.asarray(sc.in_collision(q), dtype=bool)]
+    assert len(close) >= 2 and len(free) >= 2
+    hybrid = Planner(panda, world=world, task="free", checker="hybrid", algorithm="rrt_connect", seed=1)
+    assert isinstance(hybrid.checker, _core.SphereChecker) and hybrid.checker.confirm
+    assert not sphere_checker(panda, world).confirm
+    with pytest.raises(InvalidStartError):
+        Planner(panda, world=world, task="free", checker="spheres", algorithm="rrt_connect").plan(close[0], free[0])
+    solved = 0
+    for start, goal in zip(close[:3], free[:3]):
+        res = hybrid.plan(start, goal)
+        if res.success:
+            solved += 1
+            assert not np.asarray(world.in_collision(res.path)).any()
+    assert solved >= 1
+    with pytest.raises(SettingsError, match="hybrid.*certified"):
+        Planner(panda, task="free", checker="hybrid", settings=PlannerSettings(edge_check="certified"))
+    with pytest.raises(SettingsError, match="confirm"):
+        sphere_checker(panda, world, confirm=1)
 
 
 def test_a_fixed_link_inside_an_obstacle_collides_in_every_configuration(panda: genplan.Robot, shelf) -> None:

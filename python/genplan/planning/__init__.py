@@ -109,7 +109,11 @@ SAMPLINGS: tuple[str, ...] = _core.SAMPLINGS
 #: states at once (rust/core/src/collision/spheres.rs). The spheres cover the links, so a state
 #: valid by them is valid by the exact geometry (the converse fails near contact: a path may be
 #: missed, never one in collision returned); a point cloud is met through its grid of balls.
-CHECKERS: tuple[str, ...] = ("exact", "spheres")
+#: ``"hybrid"``: the spheres first, each collision they find checked again by the exact geometry,
+#: whose answer stands (the exact checker's answers; the spheres' cost where the robot is free,
+#: both where the spheres touch: their false positives near contact and between the covers of
+#: close links refuse nothing).
+CHECKERS: tuple[str, ...] = ("exact", "spheres", "hybrid")
 #: The adaptive sampler's half-life: the rows drawn within a plan after which the learned
 #: sampler's share has halved (about 100 extensions of 16 samples; ``half_life=`` overrides it,
 #: see :func:`make_sampler`). Long enough for the queries the learned sampler covers to be solved
@@ -261,7 +265,7 @@ def data_sampler(robot: Robot, data: ArrayLike | None = None, *, task: "str | os
     return _core.DataSampler(np.ascontiguousarray(rows.in_box(box) if in_box else rows.rows), seed)
 
 
-def sphere_checker(robot: Robot, world: CollisionWorld, spheres: Any = None) -> Any:
+def sphere_checker(robot: Robot, world: CollisionWorld, spheres: Any = None, confirm: bool = False) -> Any:
     """The native sphere checker of ``robot`` (its :func:`~genplan.spheres.robot_spheres`, cached
     on disk, or ``spheres``: a :class:`~genplan.spheres.RobotSpheres` of the caller's, e.g. another
     planner's spheres to compare on the same geometry) against ``world``'s obstacles and self pairs
@@ -272,8 +276,13 @@ def sphere_checker(robot: Robot, world: CollisionWorld, spheres: Any = None) -> 
     (:meth:`~genplan.robots.Robot.with_attached`) that ``world`` has are covered by spheres of
     their own (:func:`~genplan.spheres.attached_spheres`, the same generator and guarantee),
     checked against the obstacles and the links of their self pairs; an object attached in
-    ``world`` that ``robot`` does not hold is refused (a SettingsError naming it)."""
+    ``world`` that ``robot`` does not hold is refused (a SettingsError naming it). ``confirm``:
+    a planner given this checker checks each collision the spheres find again by ``world``'s
+    exact geometry, whose answer stands (the ``"hybrid"`` of :data:`CHECKERS`)."""
     from genplan.spheres import attached_spheres, robot_spheres
+
+    if not isinstance(confirm, bool):
+        raise SettingsError(f"confirm: expected True or False, got {confirm!r}")
 
     s = robot_spheres(robot) if spheres is None else spheres
     objects = []
@@ -286,7 +295,7 @@ def sphere_checker(robot: Robot, world: CollisionWorld, spheres: Any = None) -> 
         centers, radii = attached_spheres(held)
         objects.append((name, centers.tolist(), radii.tolist()))
     return _core.SphereChecker(world.native, list(s.links), np.ascontiguousarray(s.centers).tolist(),
-                               np.ascontiguousarray(s.radii).tolist(), objects)
+                               np.ascontiguousarray(s.radii).tolist(), objects, confirm)
 
 
 def _check_algorithm(algorithm: str) -> str:
@@ -391,10 +400,10 @@ class Planner:
         if isinstance(checker, str):
             if checker not in CHECKERS:
                 raise UnknownNameError(f"checker: unknown checker {checker!r} (known: {', '.join(CHECKERS)})")
-            if checker == "spheres" and self.settings.edge_check == "certified":
-                raise SettingsError("checker 'spheres': edge_check 'certified' needs the exact checker "
+            if checker != "exact" and self.settings.edge_check == "certified":
+                raise SettingsError(f"checker '{checker}': edge_check 'certified' needs the exact checker "
                                     "(the spheres certify no motion); use edge_check 'sampled'")
-            checker = self.world if checker == "exact" else sphere_checker(robot, self.world)
+            checker = self.world if checker == "exact" else sphere_checker(robot, self.world, confirm=checker == "hybrid")
         self.checker = checker
         self._checker_arg = checker.native if isinstance(checker, CollisionWorld) else checker
         if self.free and not isinstance(checker, (CollisionWorld, _core.SphereChecker)):
@@ -514,7 +523,8 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
     must be trained for this robot and task), or "data" (:func:`data_sampler` of this task: no
     model, no training), the last four for a task with a [condition] only; ``algorithm``: one of
     :data:`ALGORITHMS` (default: ``settings.algorithm``, "crrt"); ``checker``: one of
-    :data:`CHECKERS` ("exact", or "spheres": the robot's covering spheres).
+    :data:`CHECKERS` ("exact"; "spheres": the robot's covering spheres; "hybrid": the spheres,
+    their collisions confirmed by the exact geometry).
 
     Not finding a path within the settings' budget is ``outcome.result.success == False``."""
     from genplan.robots import load

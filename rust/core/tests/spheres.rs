@@ -217,7 +217,7 @@ fn the_sphere_checker_is_the_limits_and_the_spheres() {
     CollisionChecker::new(Arc::new(w), false).check(&qs, &mut exact).unwrap();
     for parallel in [false, true] {
         let mut valid = vec![false; n];
-        SphereChecker::new(sw.clone(), parallel).check(&qs, &mut valid).unwrap();
+        SphereChecker::new(sw.clone(), parallel, false).check(&qs, &mut valid).unwrap();
         assert_eq!(valid, want, "parallel {parallel}");
         // conservative: valid by the spheres is valid by the exact checker
         assert!(valid.iter().zip(&exact).all(|(&v, &e)| !v || e));
@@ -232,7 +232,7 @@ fn all_valid_stops_early_and_agrees_with_check() {
     let spheres = box_cover(&w);
     let sw = Arc::new(SphereWorld::new(Arc::new(w), spheres).unwrap());
     let mut rng = StdRng::seed_from_u64(11);
-    let mut checker = SphereChecker::new(sw.clone(), false);
+    let mut checker = SphereChecker::new(sw.clone(), false, false);
     let mut s8 = SphereScratch::default();
     let (mut all_free, mut some_hit) = (0, 0);
     for trial in 0..60 {
@@ -264,6 +264,49 @@ fn all_valid_stops_early_and_agrees_with_check() {
         some_hit += !want as usize;
     }
     assert!(all_free > 5 && some_hit > 5, "{all_free} free and {some_hit} blocked batches: both must be met");
+}
+
+#[test]
+fn a_confirmed_sphere_checker_answers_as_the_exact_checker() {
+    // the boxes' cover reaches well beyond the links: many of its collisions are false
+    // positives, which the exact geometry overrules; check and all_valid agree with the exact
+    // checker on every row, for every batch length (several blocks, a hit in a later block)
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    w.add_box("table", [0.3, 0.3, 0.02], Isometry3::translation(0.5, 0.0, 0.3)).unwrap();
+    let spheres = box_cover(&w);
+    let sw = Arc::new(SphereWorld::new(Arc::new(w.clone()), spheres).unwrap());
+    let mut exact = CollisionChecker::new(Arc::new(w), false);
+    let mut rng = StdRng::seed_from_u64(23);
+    let (mut overruled, mut blocked, mut free) = (0, 0, 0);
+    for parallel in [false, true] {
+        let mut checker = SphereChecker::new(sw.clone(), parallel, true);
+        let mut spheres_only = SphereChecker::new(sw.clone(), parallel, false);
+        for trial in 0..80 {
+            let n = 1 + trial % 27;
+            let base = draw(&model, &mut rng);
+            let qs: Vec<f64> = (0..n)
+                .flat_map(|_| base.iter().zip(model.lower.iter().zip(&model.upper)).map(|(&x, (&l, &u))| (x + rng.random_range(-0.3..0.3)).clamp(l, u)).collect::<Vec<_>>())
+                .collect();
+            let (mut want, mut got, mut by_spheres) = (vec![false; n], vec![false; n], vec![false; n]);
+            exact.check(&qs, &mut want).unwrap();
+            checker.check(&qs, &mut got).unwrap();
+            spheres_only.check(&qs, &mut by_spheres).unwrap();
+            assert_eq!(got, want, "trial {trial}: {n} rows, parallel {parallel}");
+            overruled += by_spheres.iter().zip(&want).filter(|(&s, &e)| !s && e).count();
+            let all = want.iter().all(|&v| v);
+            let (valid, checked) = checker.all_valid(&qs, n).unwrap();
+            assert_eq!(valid, all, "trial {trial}: {n} rows");
+            if all {
+                free += 1;
+                assert_eq!(checked, n);
+            } else {
+                blocked += 1;
+                let first = want.iter().position(|&v| !v).unwrap();
+                assert_eq!(checked, first + 1, "trial {trial}: the first row in collision is {first}");
+            }
+        }
+    }
+    assert!(overruled > 20 && blocked > 10 && free > 10, "{overruled} overruled rows, {blocked} blocked and {free} free batches");
 }
 
 #[test]

@@ -382,6 +382,8 @@ fn cloud_rows(points: &PyReadonlyArrayDyn<'_, f64>, what: &str) -> PyResult<Vec<
 #[pyclass(name = "SphereChecker", module = "genplan._core", frozen)]
 pub(crate) struct PySphereChecker {
     pub(crate) inner: std::sync::Arc<SphereWorld>,
+    /// A planner checks each collision the spheres find again by the exact geometry.
+    pub(crate) confirm: bool,
 }
 
 #[pymethods]
@@ -391,14 +393,17 @@ impl PySphereChecker {
     /// near it), their paddings and the self pairs of `world` as they are now. `attached`: per
     /// object attached to the robot in `world`, (its name, its spheres' centres in the holding
     /// link's frame, their radii), each object exactly once (refused otherwise, naming it).
+    /// `confirm`: a planner given this checker checks each collision the spheres find again by
+    /// the exact geometry of `world`, whose answer stands (`in_collision` stays the spheres').
     #[new]
-    #[pyo3(signature = (world, links, centers, radii, attached=None))]
+    #[pyo3(signature = (world, links, centers, radii, attached=None, confirm=false))]
     fn new(
         world: &PyCollisionWorld,
         links: Vec<String>,
         centers: Vec<[f64; 3]>,
         radii: Vec<f64>,
         attached: Option<Vec<(String, Vec<[f64; 3]>, Vec<f64>)>>,
+        confirm: bool,
     ) -> PyResult<Self> {
         let w = &world.inner;
         let names: Vec<&str> = links.iter().map(String::as_str).collect();
@@ -409,7 +414,13 @@ impl PySphereChecker {
             .map(|(name, centers, radii)| AttachedSpheres { name, centers, radii })
             .collect();
         let inner = SphereWorld::with_attached(std::sync::Arc::new(w.clone()), spheres, &objects).map_err(to_py)?;
-        Ok(Self { inner: std::sync::Arc::new(inner) })
+        Ok(Self { inner: std::sync::Arc::new(inner), confirm })
+    }
+
+    /// Whether a planner confirms the spheres' collisions by the exact geometry.
+    #[getter]
+    fn confirm(&self) -> bool {
+        self.confirm
     }
 
     /// The number of spheres.

@@ -754,7 +754,7 @@ impl PyPlanner {
             if spheres.world.model.nq != nq {
                 return Err(err(Kind::Generic, "checker: sphere checker built for another model"));
             }
-            Box::new(SphereChecker::new(spheres.clone(), parallel))
+            Box::new(SphereChecker::new(spheres.clone(), parallel, c.get().confirm))
         } else if checker.hasattr("is_valid")? {
             Box::new(PyChecker { obj: checker.clone().unbind(), nq })
         } else {

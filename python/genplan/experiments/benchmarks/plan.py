@@ -32,7 +32,8 @@ certifies every motion between those states collision-free as well (conservative
 
 ``--checker`` picks genplan's validity checker (``genplan.planning.CHECKERS``): ``exact`` (the
 world's geometry, default), ``spheres`` (the robot's covering spheres; ``--sphere-max-error M``
-for a cover other than ``genplan.spheres``' default) or ``all`` (both on the same queries, the
+for a cover other than ``genplan.spheres``' default), ``hybrid`` (the spheres, each collision
+they find confirmed by the exact geometry) or ``all`` (every one on the same queries, the
 checkers alternating query by query, the first of a query's plans taking turns). A query whose
 start, or every goal, a sphere checker refuses (the cover reaches up to ``max_error`` beyond the
 geometry, so a configuration millimetres from an obstacle collides) is not planned: the row lists
@@ -125,12 +126,12 @@ def run_genplan(env_name: str, sampler: str, queries: list[Any], seed: int, sett
 def _checker(robot: Any, world: Any, checker: str, sphere_max_error: float | None) -> Any:
     """What ``Planner(checker=)`` takes for ``checker``: its name, or the sphere checker of a cover
     at ``sphere_max_error``."""
-    if checker != "spheres" or sphere_max_error is None:
+    if checker == "exact" or sphere_max_error is None:
         return checker
     from genplan.planning import sphere_checker
     from genplan.spheres import robot_spheres
 
-    return sphere_checker(robot, world, spheres=robot_spheres(robot, max_error=sphere_max_error))
+    return sphere_checker(robot, world, spheres=robot_spheres(robot, max_error=sphere_max_error), confirm=checker == "hybrid")
 
 
 def run_checkers(env_name: str, sampler: str, queries: list[Any], seed: int, settings: Any, progress: bool,
@@ -186,7 +187,7 @@ def run_checkers(env_name: str, sampler: str, queries: list[Any], seed: int, set
             row.update(queries=len(queries), planned=len(planned), refused_queries=refused[c],
                        success_rate=100.0 * sum(results[c][i].success for i in planned) / len(queries),
                        failed_queries=sorted([planned[j] for j in row["failed_queries"]] + refused[c]))
-            if c == "spheres" and sphere_max_error is not None:
+            if c != "exact" and sphere_max_error is not None:
                 row["sphere_max_error_m"] = sphere_max_error
         rows.append(row)
     if "exact" in checkers:
@@ -470,9 +471,9 @@ def main(args: argparse.Namespace) -> int:
     envs = list(ENVS) if args.env == "all" else [args.env]
     samplers = {"all": list(SAMPLERS), "all+": [*SAMPLERS, *EXTRA_SAMPLERS]}.get(args.sampler, [args.sampler])
     planners = list(PLANNERS) if args.planner == "all" else [args.planner]
-    if args.sphere_max_error is not None and "spheres" not in checkers(args):
-        raise A.UsageError("--sphere-max-error: it sets the sphere checker's cover; give --checker spheres or all")
-    if args.edge_check == "certified" and "spheres" in checkers(args):
+    if args.sphere_max_error is not None and checkers(args) == ["exact"]:
+        raise A.UsageError("--sphere-max-error: it sets the sphere checker's cover; give --checker spheres, hybrid or all")
+    if args.edge_check == "certified" and checkers(args) != ["exact"]:
         raise A.UsageError("--edge-check certified: it needs the exact checker (the spheres certify no motion); "
                            "give --checker exact")
     settings = PlannerSettings(edge_check=args.edge_check)

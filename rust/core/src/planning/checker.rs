@@ -237,20 +237,27 @@ impl ValidityChecker for CollisionChecker {
 
 /// Valid = within the joint limits and free by the robot's spheres
 /// ([`SphereWorld`]: a conservative check, so a valid state is free by the exact geometry too).
-/// A batch is checked [`LANES`] configurations at a time; with `parallel`, blocks of them on
-/// rayon's threads. Motions are not certified (the planner checks their states).
+/// With `confirm`, a state the spheres find in collision is checked again by the exact geometry
+/// of the spheres' world ([`CollisionWorld::in_collision_unchecked`](crate::collision::CollisionWorld::in_collision_unchecked)),
+/// whose answer stands: the exact check's answers, at the spheres' cost where the robot is
+/// free (the spheres' false positives, near contact or between the covers of close links,
+/// refuse nothing). A batch is checked [`LANES`] configurations at a time; with `parallel`,
+/// blocks of them on rayon's threads. Motions are not certified (the planner checks their states).
 pub struct SphereChecker {
     /// The spheres and the world.
     pub spheres: Arc<SphereWorld>,
     /// Check the blocks of a batch on rayon's threads.
     pub parallel: bool,
+    /// Confirm each collision the spheres find with the exact geometry.
+    pub confirm: bool,
     scratch: SphereScratch<LANES>,
+    exact: crate::collision::Scratch,
 }
 
 impl SphereChecker {
-    /// A checker of the configurations against `spheres`.
-    pub fn new(spheres: Arc<SphereWorld>, parallel: bool) -> SphereChecker {
-        SphereChecker { spheres, parallel, scratch: SphereScratch::default() }
+    /// A checker of the configurations against `spheres` (`confirm`: see the type).
+    pub fn new(spheres: Arc<SphereWorld>, parallel: bool, confirm: bool) -> SphereChecker {
+        SphereChecker { spheres, parallel, confirm, scratch: SphereScratch::default(), exact: Default::default() }
     }
 }
 
@@ -261,39 +268,66 @@ impl ValidityChecker for SphereChecker {
         // rows outside the limits are answered without the spheres
         let block = nq * LANES;
         let sw = &self.spheres;
-        let run = |rows: &[f64], out: &mut [bool], s: &mut SphereScratch<LANES>| {
+        let confirm = self.confirm;
+        let run = |rows: &[f64], out: &mut [bool], s: &mut SphereScratch<LANES>, exact: &mut crate::collision::Scratch| {
             sw.in_collision_batch(rows, out, s);
             for (q, v) in rows.chunks(nq).zip(out.iter_mut()) {
-                *v = !*v && CollisionChecker::in_limits(m, q);
+                let within = CollisionChecker::in_limits(m, q);
+                *v = within && (!*v || (confirm && !sw.world.in_collision_unchecked(q, exact)));
             }
         };
         if self.parallel && valid.len() > 2 * LANES {
             valid
                 .par_chunks_mut(4 * LANES)
                 .zip(qs.par_chunks(4 * block))
-                .for_each_init(SphereScratch::default, |s, (out, rows)| run(rows, out, s));
+                .for_each_init(<(SphereScratch<LANES>, crate::collision::Scratch)>::default, |(s, e), (out, rows)| run(rows, out, s, e));
         } else {
-            run(qs, valid, &mut self.scratch);
+            run(qs, valid, &mut self.scratch, &mut self.exact);
         }
         Ok(())
     }
 
-    /// The joint limits of every row first (no kinematics), then the spheres in blocks of
-    /// [`LANES`] rows, stopping at the first lane in collision
-    /// ([`SphereWorld::any_in_collision`]).
     /// [`LANES`]: the spheres of 8 states are tested in one pass.
     fn lanes(&self) -> usize {
         LANES
     }
 
+    /// The joint limits of every row first (no kinematics), then the spheres in blocks of
+    /// [`LANES`] rows, stopping at the first lane in collision
+    /// ([`SphereWorld::any_in_collision`]); with `confirm`, the rows of that block the spheres
+    /// find in collision are checked by the exact geometry in order, and the rows after it
+    /// go on when none is.
     fn all_valid(&mut self, qs: &[f64], n: usize) -> PlanResult<(bool, usize)> {
         let m = &self.spheres.world.model;
-        debug_assert_eq!(qs.len(), n * m.nq);
-        if let Some(i) = qs.chunks(m.nq).position(|q| !CollisionChecker::in_limits(m, q)) {
+        let nq = m.nq;
+        debug_assert_eq!(qs.len(), n * nq);
+        if let Some(i) = qs.chunks(nq).position(|q| !CollisionChecker::in_limits(m, q)) {
             return Ok((false, i + 1));
         }
-        let (hit, checked) = self.spheres.any_in_collision(qs, &mut self.scratch);
-        Ok((!hit, checked))
+        let mut start = 0;
+        while start < n {
+            let (hit, checked) = self.spheres.any_in_collision(&qs[start * nq..], &mut self.scratch);
+            if !hit {
+                return Ok((true, n));
+            }
+            if !self.confirm {
+                return Ok((false, start + checked));
+            }
+            // the block that hit: the blocks start every LANES rows from `start`, and the
+            // hitting one ends the rows checked
+            let first = start + (checked - 1) / LANES * LANES;
+            let end = start + checked;
+            let mut flags = [false; LANES];
+            let rows = &qs[first * nq..end * nq];
+            self.spheres.in_collision_batch(rows, &mut flags[..end - first], &mut self.scratch);
+            for (k, q) in rows.chunks(nq).enumerate() {
+                if flags[k] && self.spheres.world.in_collision_unchecked(q, &mut self.exact) {
+                    return Ok((false, first + k + 1));
+                }
+            }
+            start = end;
+        }
+        Ok((true, n))
     }
 }
 
