@@ -202,3 +202,19 @@ def test_bench_plan_sphere_checker_refusing_every_start_is_an_error(capsys) -> N
     assert main(["bench", "plan", "--env", "panda_shelf", "--queries", "2", "--checker", "all",
                  "--edge-check", "certified"]) == 2
     assert "--edge-check certified: it needs the exact checker" in capsys.readouterr().err
+
+
+def test_bench_plan_checker_takes_one_several_or_all() -> None:
+    """--checker: one name, several joined by commas (each once), or all; anything else is
+    argparse's error naming the known checkers."""
+    import argparse
+
+    from genplan.experiments.benchmarks import plan as bench
+    from genplan.planning import CHECKERS
+
+    assert bench.checker_list("hybrid") == ["hybrid"]
+    assert bench.checker_list("exact,hybrid") == ["exact", "hybrid"]
+    assert bench.checker_list("all") == list(CHECKERS)
+    for bad in ("voxels", "exact,exact", "exact,", ""):
+        with pytest.raises(argparse.ArgumentTypeError, match="exact, spheres, hybrid"):
+            bench.checker_list(bad)

@@ -33,7 +33,8 @@ certifies every motion between those states collision-free as well (conservative
 ``--checker`` picks genplan's validity checker (``genplan.planning.CHECKERS``): ``exact`` (the
 world's geometry, default), ``spheres`` (the robot's covering spheres; ``--sphere-max-error M``
 for a cover other than ``genplan.spheres``' default), ``hybrid`` (the spheres, each collision
-they find confirmed by the exact geometry) or ``all`` (every one on the same queries, the
+they find confirmed by the exact geometry), several joined by commas (``exact,hybrid``) or
+``all`` (every one on the same queries, the
 checkers alternating query by query, the first of a query's plans taking turns). A query whose
 start, or every goal, a sphere checker refuses (the cover reaches up to ``max_error`` beyond the
 geometry, so a configuration millimetres from an obstacle collides) is not planned: the row lists
@@ -82,11 +83,24 @@ EXTRA_SAMPLERS = ("adaptive", "data")
 PLANNERS = ("genplan", "ompl")
 
 
-def checkers(args: argparse.Namespace) -> list[str]:
-    """genplan's validity checkers of ``--checker``: one, or every one for ``all``."""
+def checker_list(value: str) -> list[str]:
+    """``--checker``: one of ``genplan.planning.CHECKERS``, several joined by commas (taking turns
+    on the same queries), or ``all``; argparse's error names an unknown one with the known ones."""
     from genplan.planning import CHECKERS
 
-    return list(CHECKERS) if args.checker == "all" else [args.checker]
+    if value == "all":
+        return list(CHECKERS)
+    names = value.split(",")
+    unknown = [n for n in names if n not in CHECKERS]
+    if unknown or len(set(names)) != len(names) or not names:
+        raise argparse.ArgumentTypeError(
+            f"{value!r}: expected one of {', '.join(CHECKERS)}, several joined by commas (each once), or all")
+    return names
+
+
+def checkers(args: argparse.Namespace) -> list[str]:
+    """genplan's validity checkers of ``--checker``."""
+    return list(args.checker)
 
 
 def algorithms(args: argparse.Namespace) -> list[str]:
@@ -454,9 +468,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--edge-check", default="sampled", choices=EDGE_CHECKS,
                    help="genplan edges: states checked at the resolution (sampled, default) or every motion between "
                         "them certified collision-free (certified, PlannerSettings.edge_check)")
-    p.add_argument("--checker", default="exact", choices=[*CHECKERS, "all"],
+    p.add_argument("--checker", default=["exact"], type=checker_list, metavar="|".join([*CHECKERS, "all"]),
                    help="genplan's validity checker: exact (the world's geometry, default), spheres (the robot's "
-                        "covering spheres), or all (each on the same queries, alternating)")
+                        "covering spheres), hybrid (the spheres, their collisions confirmed by the exact geometry), "
+                        "several joined by commas, or all (each on the same queries, alternating)")
     p.add_argument("--sphere-max-error", type=A.positive_float, default=None, metavar="M",
                    help="with --checker spheres or all: the sphere cover's max_error in m (default: genplan.spheres')")
     p.add_argument("--model", type=model_option, action="append", default=None, metavar="ROBOT=FILE",
