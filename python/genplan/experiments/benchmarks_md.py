@@ -488,6 +488,31 @@ def motion(res: Results) -> str:
     return table + "".join("\n\n" + n for n in notes)
 
 
+#: Table II's queries with each checker: the sphere cover at 5 mm, and the hybrid at the default
+TABLE2_CHECKER_FILES = ("table2_checkers.json", "table2_hybrid_panda_shelf.json", "table2_hybrid_talos_task1.json",
+                        "table2_hybrid_talos_task2.json", "table2_hybrid_talos_task3.json")
+
+
+def table2_checkers(res: Results) -> str:
+    """Table II's constrained plans (GAN sampler) with the exact checker against the spheres
+    (a 5 mm cover) and the hybrid (the default 1 cm cover, its collisions confirmed by the exact
+    geometry), each pair on the same queries, taking turns."""
+    rows = []
+    for name in TABLE2_CHECKER_FILES:
+        for r in res[name]["rows"]:
+            v = r.get("vs_exact")
+            if v is None:
+                continue
+            cover = f" ({r['sphere_max_error_m'] * 1000:g} mm cover)" if r.get("sphere_max_error_m") else " (1 cm cover)"
+            rows.append([r["env"], r["checker"] + cover, f"{v['exact_success_rate']:.0f} % / {v['success_rate']:.0f} %",
+                         str(len(r.get("refused_queries") or [])),
+                         f"{v['exact_t_ave_s'] * 1e3:.1f} / {v['t_ave_s'] * 1e3:.1f}",
+                         f"{v['exact_t_median_s'] * 1e3:.1f} / {v['t_median_s'] * 1e3:.1f}",
+                         f"**{_x(v['exact_over_checker_t_ave'])}**", _x(v["exact_over_checker_t_median"])])
+    return _md(["environment", "checker", "success: exact / checker", "queries refused", "mean ms: exact / checker",
+                "median ms: exact / checker", "speed-up (exact's mean over the checker's)", "on the medians"], rows)
+
+
 def roboplan_box(res: Results) -> str:
     """roboplan's own UR5 example scene: its RRT-Connect + shortcutting against genplan's
     RRT-Connect + simplification on the same queries."""
@@ -681,6 +706,11 @@ TABLES: dict[str, Table] = {
                     "genplan bench motion --robot {panda,ur5,baxter,kinova} --problems 20 --seed 0 --out "
                     "benches/results/motion[_ROBOT].json", motion),
     "roboplan_box": Table(("roboplan_box.json",), "python benches/roboplan_box.py --queries 50 --seed 0", roboplan_box),
+    "table2_checkers": Table(TABLE2_CHECKER_FILES,
+                             "genplan bench plan --env panda_shelf --sampler gan --queries 100 --seed 0 --checker all "
+                             "--sphere-max-error 0.005 --out benches/results/table2_checkers.json (exact and spheres; "
+                             "hybrid not yet a checker then); genplan bench plan --env ENV --sampler gan --queries 100 "
+                             "--seed 0 --checker exact,hybrid --out benches/results/table2_hybrid_ENV.json", table2_checkers),
     "gan_training": Table(("gan_training_baxter_tray.json",), "python benches/gan_training.py --iterations 300 "
                           "--data-rows 2000 --rounds 3 --baseline DIR", gan_training),
     "jerk_timing": Table(("jerk_timing.json",), "python benches/jerk_timing.py --moves 1000 --seed 0 --out "
