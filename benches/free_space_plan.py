@@ -7,7 +7,7 @@ alternating rounds so that both see the same load.
     python benches/free_space_plan.py --queries 40 --rounds 5 --seed 0 --out benches/results/free_space_plan.json
 
 Queries: pairs of collision-free uniform configurations of the Panda in the shelf environment
-(seeded). Both arms call the native planner (``genplan._core.Planner.plan``) with the same
+(seeded) whose straight edge is blocked (a clear one is joined directly in free space). Both arms call the native planner (``genplan._core.Planner.plan``) with the same
 sampler seed per query, so they grow the same trees: a projector that has nothing to project
 leaves every sample, step and edge state where it is (``same_path`` counts the queries whose
 paths are equal to the last bit). Per algorithm: success, the median plan time of each arm
@@ -37,14 +37,20 @@ ARMS = ("free", "projected")
 
 def queries(robot: genplan.Robot, world: Any, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """``n`` pairs (start, goal) of collision-free uniform configurations, the goal at least 1 rad
-    from the start."""
+    from the start and the straight edge between them blocked: free space joins a goal in plain
+    view by that edge before any search (the projected arm would grow a tree), so only blocked
+    edges give both arms the same search to compare."""
     rng = np.random.default_rng(seed)
     out: list[tuple[np.ndarray, np.ndarray]] = []
+    step = PlannerSettings().edge_resolution
     while len(out) < n:
         q = robot.random_configurations(64, rng)
         q = q[~np.asarray(world.in_collision(q), dtype=bool)]
         for a, b in zip(q[0::2], q[1::2]):
-            if len(out) < n and np.linalg.norm(a - b) >= 1.0:
+            if len(out) >= n or np.linalg.norm(a - b) < 1.0:
+                continue
+            t = np.linspace(0.0, 1.0, int(np.ceil(np.max(np.abs(b - a)) / step)) + 1)[:, None]
+            if np.asarray(world.in_collision(a + t * (b - a)), dtype=bool).any():
                 out.append((a, b))
     return out
 

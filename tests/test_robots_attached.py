@@ -162,7 +162,13 @@ def test_bad_attachments_are_typed_errors_naming_the_field(panda: genplan.Robot)
         panda.with_attached(taken, ROD, "panda_hand", ROD_POSE)
 
 
-def test_the_sphere_checker_refuses_an_attached_object(panda: genplan.Robot) -> None:
+def test_the_sphere_checker_covers_an_attached_object(panda: genplan.Robot) -> None:
+    """The held rod gets spheres of its own (genplan.spheres.attached_spheres) and is one more
+    entry of the sphere checker's self pairs; a world holding an object the robot does not is
+    refused, naming it (test_sphere_checker checks the cover against the exact world)."""
     held = _rod(panda)
-    with pytest.raises(GenplanError, match="attached object 'rod'.*exact checker"):
-        genplan.planning.sphere_checker(held, held.collision_world())
+    sc = genplan.planning.sphere_checker(held, held.collision_world())
+    assert sc.n_spheres > genplan.planning.sphere_checker(panda, panda.collision_world()).n_spheres
+    assert any("rod" in pair for pair in sc.self_pairs)
+    with pytest.raises(GenplanError, match="attached object 'rod'"):
+        genplan.planning.sphere_checker(panda, held.collision_world())
