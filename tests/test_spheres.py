@@ -341,3 +341,18 @@ def test_the_benchmarks_mesh_solid_agrees_with_the_winding_number(small: genplan
     # the few others lie where shells of one mesh overlap with opposite orientations, which the
     # winding number sums to 0 and MeshSolid, with the generator, counts inside their union
     assert agree >= 0.999 * total
+
+
+def test_attached_spheres_refuse_a_bad_padding_or_max_error(panda) -> None:
+    """attached_spheres checks its parameters as robot_spheres does, naming them."""
+    from genplan.scene import Box
+    from genplan.spheres import attached_spheres
+
+    held = panda.with_attached("block", Box("block", (0.02, 0.02, 0.02)), link="panda_hand")
+    for bad in (float("nan"), -1e-3, 0.5, True):
+        with pytest.raises(SettingsError, match="padding"):
+            attached_spheres(held.attached["block"], padding=bad)
+    with pytest.raises(SettingsError, match="max_error"):
+        attached_spheres(held.attached["block"], max_error=0.0)
+    centers, radii = attached_spheres(held.attached["block"])
+    assert centers.shape == (len(radii), 3) and np.all(radii > 0)

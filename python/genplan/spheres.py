@@ -281,13 +281,15 @@ def attached_spheres(attached: Any, *, max_error: float = DEFAULT_MAX_ERROR, pad
     """Spheres covering an attached object (:class:`genplan.robots.Attached`) with the same
     guarantee as :func:`robot_spheres`' (its solid covered, no sphere reaching more than about
     ``max_error`` beyond it, radii padded by ``padding``): centres (n, 3) in the holding link's
-    frame and radii (n,). Generated once per geometry and parameters in this process."""
+    frame and radii (n,). Generated once per geometry and parameters in this process.
+    SettingsError names a bad ``max_error`` or ``padding`` before any work."""
     eps = _positive(max_error, "max_error", 1.0)
+    pad = _padding(padding)
     geometry = attached_geometry(attached)
-    key = geometry_hash([geometry], eps, eps / 2, float(padding))
+    key = geometry_hash([geometry], eps, eps / 2, pad)
     if key not in _ATTACHED_MEMO:
         centers, radii, _ = _cover_link(geometry.name, [geometry], eps, eps / 2)
-        _ATTACHED_MEMO[key] = (centers, radii + float(padding))
+        _ATTACHED_MEMO[key] = (centers, radii + pad)
     centers, radii = _ATTACHED_MEMO[key]
     return centers.copy(), radii.copy()
 
@@ -454,6 +456,14 @@ def _positive(value: Any, what: str, upper: float) -> float:
     return v
 
 
+def _padding(value: Any) -> float:
+    """``padding`` (m) as a float in [0, 0.01], else SettingsError naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(float(value)) and 0.0 <= float(value) <= 0.01):
+        raise SettingsError(f"padding: expected a number in [0, 0.01] m, got {value!r}")
+    return float(value)
+
+
 def geometry_hash(geometries: Sequence[LinkGeometry], max_error: float, resolution: float, padding: float) -> str:
     """The sha256 (hex) of the geometry and the parameters: the cache key."""
     h = hashlib.sha256()
@@ -511,10 +521,7 @@ def robot_spheres(
         raise SettingsError(f"robot: expected a genplan Robot (genplan.load(...)), got {type(robot).__name__}")
     eps = _positive(max_error, "max_error", 1.0)
     res = eps / 2 if resolution is None else _positive(resolution, "resolution", 1.0)
-    if isinstance(padding, bool) or not isinstance(padding, (int, float, np.integer, np.floating)) \
-            or not (math.isfinite(float(padding)) and 0.0 <= float(padding) <= 0.01):
-        raise SettingsError(f"padding: expected a number in [0, 0.01] m, got {padding!r}")
-    pad = float(padding)
+    pad = _padding(padding)
     if not isinstance(cache, bool):
         raise SettingsError(f"cache: expected True or False, got {cache!r}")
 
