@@ -2,6 +2,7 @@
 //! collision and distance queries for one configuration or a batch.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use numpy::ndarray::{Array, IxDyn};
@@ -47,10 +48,17 @@ fn pose_from(center: [f64; 3], rotation: Option<[[f64; 3]; 3]>, what: &str) -> P
 /// The robot's collision geometry and environment obstacles (parry).
 #[pyclass(name = "CollisionWorld", module = "genplan._core")]
 pub(crate) struct PyCollisionWorld {
-    pub(crate) inner: CollisionWorld,
+    /// Shared with the planners and sphere checkers built from it, so a plan call does not copy
+    /// the world; a change after that copies it once (`Arc::make_mut`) and leaves theirs as it was.
+    pub(crate) inner: Arc<CollisionWorld>,
 }
 
 impl PyCollisionWorld {
+    /// The world to change (copied first if a planner or checker still holds it).
+    fn world_mut(&mut self) -> &mut CollisionWorld {
+        Arc::make_mut(&mut self.inner)
+    }
+
     /// Read and check q (one row or a batch: [`arrays::read_configurations`]), run `f` per row
     /// without the GIL (in parallel for a batch), return a scalar for one row and a numpy array
     /// for a batch.
@@ -121,7 +129,7 @@ impl PyCollisionWorld {
         let inner = py
             .detach(|| CollisionWorld::from_urdf_with(model, &urdf, &package_dirs, srdf.as_ref(), meshes))
             .map_err(to_py)?;
-        Ok(Self { inner })
+        Ok(Self { inner: Arc::new(inner) })
     }
 
     /// The link pairs to skip in self-collision checks, computed as MoveIt's setup assistant
@@ -181,31 +189,31 @@ impl PyCollisionWorld {
     }
     #[setter]
     fn set_check_self(&mut self, value: bool) {
-        self.inner.check_self = value;
+        self.world_mut().check_self = value;
     }
 
     /// Add a box obstacle (half extents, centre, optional 3x3 rotation).
     #[pyo3(signature = (name, half_extents, center, rotation=None))]
     fn add_box(&mut self, name: &str, half_extents: [f64; 3], center: [f64; 3], rotation: Option<[[f64; 3]; 3]>) -> PyResult<()> {
         let pose = pose_from(center, rotation, &format!("box '{name}'"))?;
-        self.inner.add_box(name, half_extents, pose).map_err(to_py)
+        self.world_mut().add_box(name, half_extents, pose).map_err(to_py)
     }
     fn add_sphere(&mut self, name: &str, radius: f64, center: [f64; 3]) -> PyResult<()> {
-        self.inner.add_sphere(name, radius, center).map_err(to_py)
+        self.world_mut().add_sphere(name, radius, center).map_err(to_py)
     }
     /// Add a cylinder obstacle whose axis is its local z (radius, half height, centre, optional
     /// 3x3 rotation).
     #[pyo3(signature = (name, radius, half_height, center, rotation=None))]
     fn add_cylinder(&mut self, name: &str, radius: f64, half_height: f64, center: [f64; 3], rotation: Option<[[f64; 3]; 3]>) -> PyResult<()> {
         let pose = pose_from(center, rotation, &format!("cylinder '{name}'"))?;
-        self.inner.add_cylinder(name, radius, half_height, pose).map_err(to_py)
+        self.world_mut().add_cylinder(name, radius, half_height, pose).map_err(to_py)
     }
     /// Add a capsule obstacle whose segment runs along its local z (radius, half length of the
     /// segment, centre, optional 3x3 rotation).
     #[pyo3(signature = (name, radius, half_length, center, rotation=None))]
     fn add_capsule(&mut self, name: &str, radius: f64, half_length: f64, center: [f64; 3], rotation: Option<[[f64; 3]; 3]>) -> PyResult<()> {
         let pose = pose_from(center, rotation, &format!("capsule '{name}'"))?;
-        self.inner.add_capsule(name, radius, half_length, pose).map_err(to_py)
+        self.world_mut().add_capsule(name, radius, half_length, pose).map_err(to_py)
     }
     /// Add a mesh file (STL, OBJ, DAE) scaled per axis, at centre and optional 3x3 rotation, as
     /// `shape` says (`MESH_SHAPES`: its convex hull, the triangles, or convex parts). The file
@@ -224,12 +232,12 @@ impl PyCollisionWorld {
     ) -> PyResult<()> {
         let kind = MeshShape::from_name(shape).map_err(|e| to_py_in(&format!("mesh '{name}' shape"), e))?;
         let pose = pose_from(center, rotation, &format!("mesh '{name}'"))?;
-        let inner = &mut self.inner;
+        let inner = self.world_mut();
         py.detach(|| inner.add_mesh_as(name, &path, scale, pose, kind)).map_err(to_py)
     }
     /// Add the half-space below the plane normal . x = offset.
     fn add_halfspace(&mut self, name: &str, normal: [f64; 3], offset: f64) -> PyResult<()> {
-        self.inner.add_halfspace(name, normal, offset).map_err(to_py)
+        self.world_mut().add_halfspace(name, normal, offset).map_err(to_py)
     }
     /// The clearance (m) the robot keeps from every obstacle without a padding of its own.
     #[getter]
@@ -239,13 +247,13 @@ impl PyCollisionWorld {
 
     #[setter]
     fn set_padding(&mut self, value: f64) -> PyResult<()> {
-        self.inner.set_padding(value).map_err(to_py)
+        self.world_mut().set_padding(value).map_err(to_py)
     }
 
     /// Set obstacle `name`'s own padding (m; None: the world's).
     #[pyo3(signature = (name, padding=None))]
     fn set_obstacle_padding(&mut self, name: &str, padding: Option<f64>) -> PyResult<()> {
-        self.inner.set_obstacle_padding(name, padding).map_err(to_py)
+        self.world_mut().set_obstacle_padding(name, padding).map_err(to_py)
     }
 
     /// The obstacles' own paddings: {name: padding or None (the world's)}.
@@ -258,7 +266,7 @@ impl PyCollisionWorld {
     /// (`genplan_core::collision::CollisionWorld::attach`); returns its touch links.
     #[pyo3(signature = (name, link, touch_links=Vec::new(), q=None))]
     fn attach(&mut self, name: &str, link: &str, touch_links: Vec<String>, q: Option<Vec<f64>>) -> PyResult<Vec<String>> {
-        self.inner.attach(name, link, &touch_links, q.as_deref()).map_err(to_py)
+        self.world_mut().attach(name, link, &touch_links, q.as_deref()).map_err(to_py)
     }
 
     /// The attached objects: (name, link, touch links), in the order attached.
@@ -273,10 +281,10 @@ impl PyCollisionWorld {
     }
 
     fn remove_obstacle(&mut self, name: &str) -> PyResult<()> {
-        self.inner.remove_obstacle(name).map_err(to_py)
+        self.world_mut().remove_obstacle(name).map_err(to_py)
     }
     fn clear_obstacles(&mut self) {
-        self.inner.clear_obstacles();
+        self.world_mut().clear_obstacles();
     }
 
     /// True where a configuration collides: q (nq,) -> bool; q (n, nq) -> bool array (n,).
@@ -325,7 +333,7 @@ impl PyCollisionWorld {
     #[pyo3(signature = (name, points, radius, voxel=None))]
     fn add_points(&mut self, py: Python<'_>, name: &str, points: PyReadonlyArrayDyn<'_, f64>, radius: f64, voxel: Option<f64>) -> PyResult<()> {
         let flat = cloud_rows(&points, &format!("points '{name}'"))?;
-        let inner = &mut self.inner;
+        let inner = self.world_mut();
         py.detach(|| inner.add_points(name, &flat, radius, voxel)).map_err(to_py)
     }
 
@@ -333,7 +341,7 @@ impl PyCollisionWorld {
     /// radius, voxel and place. The GIL is released.
     fn replace_points(&mut self, py: Python<'_>, name: &str, points: PyReadonlyArrayDyn<'_, f64>) -> PyResult<()> {
         let flat = cloud_rows(&points, &format!("points '{name}'"))?;
-        let inner = &mut self.inner;
+        let inner = self.world_mut();
         py.detach(|| inner.replace_points(name, &flat)).map_err(to_py)
     }
 
@@ -381,7 +389,7 @@ fn cloud_rows(points: &PyReadonlyArrayDyn<'_, f64>, what: &str) -> PyResult<Vec<
 /// spheres is free by the exact geometry), and a validity checker for `Planner.plan`.
 #[pyclass(name = "SphereChecker", module = "genplan._core", frozen)]
 pub(crate) struct PySphereChecker {
-    pub(crate) inner: std::sync::Arc<SphereWorld>,
+    pub(crate) inner: Arc<SphereWorld>,
     /// A planner checks each collision the spheres find again by the exact geometry.
     pub(crate) confirm: bool,
 }
@@ -413,8 +421,8 @@ impl PySphereChecker {
             .into_iter()
             .map(|(name, centers, radii)| AttachedSpheres { name, centers, radii })
             .collect();
-        let inner = SphereWorld::with_attached(std::sync::Arc::new(w.clone()), spheres, &objects).map_err(to_py)?;
-        Ok(Self { inner: std::sync::Arc::new(inner), confirm })
+        let inner = SphereWorld::with_attached(Arc::clone(w), spheres, &objects).map_err(to_py)?;
+        Ok(Self { inner: Arc::new(inner), confirm })
     }
 
     /// Whether a planner confirms the spheres' collisions by the exact geometry.

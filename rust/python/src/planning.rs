@@ -748,7 +748,7 @@ impl PyPlanner {
             if world.model.nq != nq {
                 return Err(err(Kind::Generic, "checker: collision world built for another model"));
             }
-            Box::new(CollisionChecker::new(Arc::new(world.clone()), parallel))
+            Box::new(CollisionChecker::new(Arc::clone(world), parallel))
         } else if let Ok(c) = checker.cast::<PySphereChecker>() {
             let spheres = &c.get().inner;
             if spheres.world.model.nq != nq {

@@ -214,7 +214,7 @@ fn load_robot(py: Python<'_>, path: PathBuf, package_dirs: Vec<PathBuf>) -> PyRe
     let (model, world) = py
         .detach(|| RobotDescription::from_file(&path, &package_dirs).and_then(|r| r.load()))
         .map_err(to_py)?;
-    Ok((PyKinematicModel { inner: model }, PyCollisionWorld { inner: world }))
+    Ok((PyKinematicModel { inner: model }, PyCollisionWorld { inner: std::sync::Arc::new(world) }))
 }
 
 /// Register the robot-file functions on `genplan._core`.
