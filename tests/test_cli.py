@@ -515,3 +515,26 @@ def test_a_plan_that_fails_exits_3_not_1_and_writes_no_trajectory(tmp_path, caps
     assert main(argv) == FAILED == 3
     assert "no path: no trajectory written" in capsys.readouterr().out
     assert not traj.exists() and json.loads(out.read_text())["success"] is False
+    # without --trajectory, the same failure exits FAILED too
+    assert main(argv[:-2]) == FAILED
+
+
+def test_plan_time_limit_stops_the_search(tmp_path, capsys) -> None:
+    """``genplan plan --time-limit S``: a search still running after S seconds ends unsuccessful,
+    says so, exits FAILED (3) and records ``timed_out`` in the plan's JSON; a bad value is refused."""
+    import json
+
+    from genplan.cli.args import FAILED
+
+    start, goal = "0 -0.5 0 -2.4 0 1.9 0.8", "1.77 1.09 0.09 -2.21 -2.58 1.43 -0.53"
+    out = tmp_path / "plan.json"
+    argv = ["plan", "--robot", "panda", "--scene", "panda_shelf", "--start", start, "--goal", goal, "--out", str(out),
+            "--algorithm", "rrt_connect"]
+    assert main([*argv, "--time-limit", "1e-6"]) == FAILED
+    assert "no path found within --time-limit" in capsys.readouterr().out
+    d = json.loads(out.read_text())
+    assert d["success"] is False and d["stats"]["timed_out"] is True
+    assert main([*argv, "--time-limit", "600"]) == 0
+    assert json.loads(out.read_text())["stats"]["timed_out"] is False
+    assert main([*argv, "--time-limit", "-1"]) == 2
+    assert "--time-limit" in capsys.readouterr().err

@@ -135,6 +135,28 @@ def test_an_unknown_sampling_is_refused() -> None:
         PlannerSettings(sampling="sobol")
 
 
+@pytest.mark.parametrize("algorithm", ["rrt_connect", "crrt"])
+def test_a_search_out_of_its_time_limit_is_an_unsuccessful_plan(panda, shelf, algorithm) -> None:
+    """``PlannerSettings(time_limit=...)``: a search still running when the limit passes stops,
+    unsuccessful, with ``stats.timed_out``; a generous limit changes nothing (the same path)."""
+    world, qs = shelf
+    goal = next(q for q in qs[1:] if np.any(world.in_collision(straight_edge(qs[0], q))))
+    settings = PlannerSettings(algorithm=algorithm, max_extensions=10**9, time_limit=1e-6)
+    r = Planner(panda, world, task="free", settings=settings, seed=1).plan(qs[0], goal)
+    assert not r.success and r.stats.timed_out and len(r.path) == 0
+    assert r.stats.time_s >= 1e-6 and r.stats.extensions < 10**9
+    plain = Planner(panda, world, task="free", settings=settings.replace(time_limit=0.0), seed=1).plan(qs[0], goal)
+    timed = Planner(panda, world, task="free", settings=settings.replace(time_limit=600.0), seed=1).plan(qs[0], goal)
+    assert plain.success and timed.success and not plain.stats.timed_out and not timed.stats.timed_out
+    np.testing.assert_array_equal(plain.path, timed.path)
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), 2e6])
+def test_a_bad_time_limit_is_refused_naming_it(bad) -> None:
+    with pytest.raises(SettingsError, match=r"time_limit must be 0 \(no limit\) or in \(0, 1e6\] seconds"):
+        PlannerSettings(time_limit=bad)
+
+
 def test_a_start_or_goal_the_model_refuses_is_an_invalid_start_or_goal(panda, shelf) -> None:
     """Read by the native planner before any work: a joint beyond the model's range of numbers
     is the plan's InvalidStartError / InvalidGoalError, naming it."""

@@ -86,6 +86,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", type=A.existing_file, default=None, help="the learned sampler's file (a GAN or a flow) for --sampler gan, hybrid or adaptive")
     p.add_argument("--simplify", action="store_true",
                    help="shorten the path: shortcuts (and, in free space, B-spline smoothing) between checked states")
+    p.add_argument("--time-limit", type=A.non_negative_float, default=0.0, metavar="S",
+                   help="seconds the search may take (PlannerSettings.time_limit; default 0: no limit but the "
+                        "iteration budget); a plan out of time is reported as not found (exit status 3)")
     p.add_argument("--seed", type=A.seed, default=0)
     p.add_argument("--out", type=A.output_file, required=True, help="the plan as JSON")
     p.add_argument("--html", type=A.output_file, default=None,
@@ -112,10 +115,12 @@ def main(args: argparse.Namespace) -> int:
     outcome = plan(robot, task, args.scene, start=args.start,
                    goal=args.goal, target=args.target, frame=args.frame, sampler=args.sampler, model=args.model,
                    k=args.goals, seed=args.seed, algorithm=args.algorithm,
-                   settings=PlannerSettings(edge_check=args.edge_check, simplify=args.simplify), start_target=args.start_target)
+                   settings=PlannerSettings(edge_check=args.edge_check, simplify=args.simplify, time_limit=args.time_limit),
+                   start_target=args.start_target)
     r = outcome.result
     write_text(args.out, json.dumps(outcome.to_dict(), indent=1) + "\n")
-    print(f"{'found' if r.success else 'no path found'}: {len(r.path)} states, {r.stats.extensions} extensions, "
+    found = "found" if r.success else "no path found within --time-limit" if r.stats.timed_out else "no path found"
+    print(f"{found}: {len(r.path)} states, {r.stats.extensions} extensions, "
           f"{r.time_s * 1e3:.1f} ms ({args.algorithm}, {args.sampler} sampler, {args.edge_check} edges); wrote {args.out}")
     traj = None
     if args.trajectory is not None:
@@ -141,4 +146,4 @@ def main(args: argparse.Namespace) -> int:
                     trail_frame=outcome.trail_frame,
                     title=f"genplan plan: {outcome.robot.name}, task {outcome.task.name}, {args.sampler} sampler")
         print(f"wrote {args.html}")
-    return 0 if r.success else 1
+    return 0 if r.success else A.FAILED

@@ -886,3 +886,64 @@ fn panda_plans_in_free_space_around_a_box() {
         }
     }
 }
+
+/// The band with its door shut: no path from the south pole to the north pole.
+struct ShutBand;
+impl ValidityChecker for ShutBand {
+    fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+        for (q, v) in qs.chunks(3).zip(valid.iter_mut()) {
+            *v = q[2].abs() >= 0.2;
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn a_search_out_of_its_time_limit_is_an_unsuccessful_plan() {
+    for algorithm in [Algorithm::Crrt, Algorithm::RrtConnect] {
+        let plan = |time_limit: f64, max_extensions: usize| {
+            let settings = Settings { algorithm, time_limit, max_extensions, retries: 1_000, ..Settings::default() };
+            let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
+            let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(1) };
+            let mut projector = SphereProjector { radius: 1.0 };
+            let mut checker = ShutBand;
+            let mut interrupt = no_interrupt;
+            let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
+            planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap()
+        };
+        // a budget of 10^9 iterations a try and 1,000 retries: only the clock ends the search
+        let sol = plan(0.05, 1_000_000_000);
+        assert!(!sol.success && sol.path.is_empty(), "{algorithm:?}");
+        assert!(sol.stats.timed_out, "{algorithm:?}: {:?}", sol.stats);
+        assert!(sol.stats.time_s >= 0.05, "{algorithm:?} stopped before its limit: {:?}", sol.stats);
+        assert!(sol.stats.extensions < 1_000_000_000);
+        // without a limit, the budget ends it: not a time-out
+        let sol = plan(0.0, 50);
+        assert!(!sol.success && !sol.stats.timed_out, "{algorithm:?}: {:?}", sol.stats);
+        assert_eq!(sol.stats.retries, 1_000);
+    }
+    // a path found within the limit is returned and simplified as without one
+    let settings = Settings { time_limit: 60.0, simplify: true, ..Settings::default() };
+    let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
+    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(1) };
+    let mut projector = SphereProjector { radius: 1.0 };
+    let mut checker = Band;
+    let mut interrupt = no_interrupt;
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
+    let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
+    assert!(sol.success && !sol.stats.timed_out);
+    let plain = sphere_plan(Algorithm::Crrt, NeighborIndex::Auto, true, true, 1);
+    assert_eq!((&sol.path, &sol.waypoints, sol.stats.shortcuts), (&plain.path, &plain.waypoints, plain.stats.shortcuts));
+}
+
+#[test]
+fn a_time_limit_is_zero_or_a_positive_finite_number_of_seconds() {
+    for bad in [-1.0, f64::NAN, f64::INFINITY, 2e6] {
+        let e = Settings { time_limit: bad, ..Settings::default() }.validate().unwrap_err();
+        assert!(matches!(e, PlanError::Settings { field: "time_limit", .. }), "{bad}: {e}");
+        assert!(e.to_string().contains("time_limit must be 0 (no limit) or in (0, 1e6] seconds"), "{e}");
+    }
+    for good in [0.0, 1e-9, 1e6] {
+        Settings { time_limit: good, ..Settings::default() }.validate().unwrap();
+    }
+}

@@ -60,7 +60,7 @@ fn plan_error_to_py(e: PlanError) -> PyErr {
         PlanError::InvalidStart(_) => Kind::InvalidStart,
         PlanError::InvalidGoal(_) => Kind::InvalidGoal,
         PlanError::Sampler(_) => Kind::Callback,
-        PlanError::Input(_) | PlanError::NoProjectableSample(_) => Kind::Generic,
+        PlanError::Input(_) | PlanError::NoProjectableSample(_) | PlanError::TimeLimit => Kind::Generic,
         PlanError::Internal(m) => return PyRuntimeError::new_err(m),
     };
     err(kind, e.to_string())
@@ -614,7 +614,7 @@ settings_class!(
     Settings,
     |s: &Settings| s.validate().map_err(plan_error_to_py),
     [step, max_increments, max_jump, goal_tolerance, max_extensions, retries, project_samples, sample_batch,
-     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm, edge_check, sampling]
+     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm, edge_check, sampling, time_limit]
 );
 
 record_class!(
@@ -623,7 +623,7 @@ record_class!(
     "PlanStats",
     Stats,
     [success, retries, extensions, projections, projection_calls, edge_projections, samples, samples_rejected,
-     validity_checks, motion_certificates, chord_checks, nodes, pruned, shortcuts, time_s, sampler_s, projector_s,
+     validity_checks, motion_certificates, chord_checks, nodes, pruned, shortcuts, timed_out, time_s, sampler_s, projector_s,
      checker_s, simplify_s]
 );
 

@@ -40,6 +40,11 @@ pub enum PlanError {
     /// A component (sampler, projector, validity checker, interrupt check) failed.
     #[error("{0}")]
     Component(ComponentError),
+    /// The search ran out of [`Settings::time_limit`](super::Settings::time_limit):
+    /// [`Planner::plan`](super::Planner::plan) returns an unsuccessful plan
+    /// ([`Stats::timed_out`](super::Stats::timed_out)), never this error.
+    #[error("the search ran out of its time limit")]
+    TimeLimit,
     /// A result failed the planner's own final check: a bug in the planner, never returned as
     /// a success.
     #[error("{0}")]

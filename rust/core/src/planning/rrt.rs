@@ -5,7 +5,7 @@
 //! [`ConstrainedSpace`]'s; [`Algorithm::RrtConnect`]'s attempt is in `rrt_connect.rs`.
 
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use super::constrained::ConstrainedSpace;
 use super::tree::{extract, flatten, Tree};
@@ -135,6 +135,11 @@ pub struct Settings {
     /// says how the front end (genplan.planning.Planner) makes its [`UniformSampler`](super::UniformSampler)
     /// (`with_sampling`), alone or inside a mixture.
     pub sampling: Sampling,
+    /// Seconds the search may take (its attempts together, from the start of the plan call;
+    /// simplifying a path found within it is not cut short); 0 (the default): no limit, only the
+    /// iteration budgets. A plan out of time is unsuccessful with `Stats::timed_out` set. At
+    /// most [`MAX_TIME_LIMIT`](Self::MAX_TIME_LIMIT).
+    pub time_limit: f64,
 }
 
 impl Default for Settings {
@@ -156,6 +161,7 @@ impl Default for Settings {
             algorithm: Algorithm::Crrt,
             edge_check: EdgeCheck::Sampled,
             sampling: Sampling::Random,
+            time_limit: 0.0,
         }
     }
 }
@@ -175,6 +181,8 @@ impl Settings {
     pub const MAX_SAMPLE_BATCH: usize = 1 << 16;
     /// With [`EdgeCheck::Certified`], chords are split down to `edge_resolution / 8` at most.
     pub const CERTIFY_REFINEMENT: f64 = 8.0;
+    /// The largest `time_limit`: 1e6 s (11.6 days).
+    pub const MAX_TIME_LIMIT: f64 = 1e6;
 
     /// Check every value ([`PlanError::Settings`] names the first bad one, its value and the
     /// bound it breaks):
@@ -188,6 +196,7 @@ impl Settings {
     ///   `sample_batch` at most [`MAX_SAMPLE_BATCH`](Self::MAX_SAMPLE_BATCH);
     /// * `edge_check`: certified needs `edge_resolution` > 0 (its finest spacing, times
     ///   [`CERTIFY_REFINEMENT`](Self::CERTIFY_REFINEMENT));
+    /// * `time_limit`: 0 (none) or positive, finite, at most [`MAX_TIME_LIMIT`](Self::MAX_TIME_LIMIT);
     /// * `retries`, the flags, `neighbors`, `algorithm` and `sampling`: any value.
     pub fn validate(&self) -> PlanResult<()> {
         let bad = |field: &'static str, msg: String| Err(PlanError::Settings { field, msg });
@@ -247,6 +256,13 @@ impl Settings {
                 format!("sample_batch must be in [1, {}], got {}", Self::MAX_SAMPLE_BATCH, self.sample_batch),
             );
         }
+        let tl = self.time_limit;
+        if !(tl.is_finite() && (0.0..=Self::MAX_TIME_LIMIT).contains(&tl)) {
+            return bad(
+                "time_limit",
+                format!("time_limit must be 0 (no limit) or in (0, {:e}] seconds, got {tl}", Self::MAX_TIME_LIMIT),
+            );
+        }
         Ok(())
     }
 }
@@ -284,6 +300,8 @@ pub struct Stats {
     pub pruned: usize,
     /// Shortcuts taken when simplifying the solution.
     pub shortcuts: usize,
+    /// The search ran out of `time_limit` (the plan is then unsuccessful).
+    pub timed_out: bool,
     /// Wall time of the whole plan, in seconds.
     pub time_s: f64,
     /// Seconds spent in the sampler (the rest of `time_s`, beyond the sampler, projector and
@@ -341,6 +359,8 @@ pub(super) struct Run<'a> {
     pub(super) st: &'a Settings,
     sampler: &'a mut dyn Sampler,
     pub(super) interrupt: &'a mut dyn FnMut() -> PlanResult<()>,
+    /// When the search must stop (`time_limit`; None: no limit, or the search is over).
+    deadline: Option<Instant>,
     /// The buffered samples (rows of nq, projected when `project_samples`), the next one at
     /// `next` (an offset into it); refilled a batch at a time into the same memory.
     samples: Vec<f64>,
@@ -360,11 +380,23 @@ impl<'a> Run<'a> {
             st,
             sampler: &mut **sampler,
             interrupt: &mut **interrupt,
+            deadline: None,
             samples: Vec::new(),
             next: 0,
             raw: Vec::new(),
             line: Vec::new(),
             line_ok: Vec::new(),
+        }
+    }
+
+    /// Asked at every iteration of a loop: the caller's interrupt check (Ctrl-C), then the time
+    /// limit while one is set ([`PlanError::TimeLimit`], which [`Planner::plan`] turns into an
+    /// unsuccessful plan).
+    pub(super) fn poll(&mut self) -> PlanResult<()> {
+        (self.interrupt)()?;
+        match self.deadline {
+            Some(d) if Instant::now() >= d => Err(PlanError::TimeLimit),
+            _ => Ok(()),
         }
     }
 
@@ -418,6 +450,9 @@ impl Planner {
             });
         }
         let mut run = Run::new(space, &self.settings, c);
+        if self.settings.time_limit > 0.0 {
+            run.deadline = Some(t0 + Duration::from_secs_f64(self.settings.time_limit));
+        }
         let (start, goals) = run.space.onto_manifold(start, goals)?;
         let (start, goals) = (&start[..], &goals[..]);
         let mut start_ok = [false];
@@ -452,17 +487,33 @@ impl Planner {
         let mut solution = None;
         // a goal within one step: the direct edge first (a tree grown from the start would wander
         // away and back before it connects)
-        let mut direct = run.direct_attempt(start, goals, nearest)?;
+        let (mut direct, mut timed_out) = match out_of_time(run.direct_attempt(start, goals, nearest))? {
+            Some(direct) => (direct, false),
+            None => (None, true),
+        };
         for attempt in 0..=self.settings.retries {
+            if timed_out {
+                break;
+            }
             run.space.stats.retries = attempt;
             let found = match direct.take() {
-                Some(found) => Some(found),
-                None => match self.settings.algorithm {
-                    Algorithm::Crrt => run.crrt_attempt(start, goals, &valid_goals)?,
-                    Algorithm::RrtConnect => run.connect_attempt(start, goals, &valid_goals)?,
-                },
+                Some(found) => Some(Some(found)),
+                None => out_of_time(match self.settings.algorithm {
+                    Algorithm::Crrt => run.crrt_attempt(start, goals, &valid_goals),
+                    Algorithm::RrtConnect => run.connect_attempt(start, goals, &valid_goals),
+                })?,
+            };
+            let found = match found {
+                Some(Some(found)) => Some(found),
+                Some(None) => None,
+                None => {
+                    timed_out = true;
+                    None
+                }
             };
             if let Some(Found { mut waypoints, mut edges, goal }) = found {
+                // a path found in time is simplified whatever the clock says
+                run.deadline = None;
                 if self.settings.simplify {
                     let t = Instant::now();
                     (waypoints, edges) = if run.space.constrained() {
@@ -479,6 +530,7 @@ impl Planner {
         }
         let mut stats = run.space.stats;
         stats.success = solution.is_some();
+        stats.timed_out = solution.is_none() && timed_out;
         stats.time_s = t0.elapsed().as_secs_f64();
         Ok(match solution {
             Some((waypoints, path, g)) => {
@@ -506,6 +558,16 @@ impl Planner {
             return fail(&format!("it ends {} from the goal (goal_tolerance {})", short(d), self.settings.goal_tolerance));
         }
         Ok(())
+    }
+}
+
+/// An attempt's outcome with the time limit read: `Some(found)` when it ended on its own,
+/// `None` when it ran out of time; any other error as it is.
+fn out_of_time<T>(r: PlanResult<T>) -> PlanResult<Option<T>> {
+    match r {
+        Ok(v) => Ok(Some(v)),
+        Err(PlanError::TimeLimit) => Ok(None),
+        Err(e) => Err(e),
     }
 }
 
@@ -570,7 +632,7 @@ impl Run<'_> {
         let mut found = None;
         let mut q_rand = Vec::with_capacity(nq);
         for _ in 0..self.st.max_extensions {
-            (self.interrupt)()?;
+            self.poll()?;
             self.space.stats.extensions += 1;
             self.next_sample(&mut q_rand)?;
             let near = tree.nearest(space, &q_rand);
@@ -647,7 +709,7 @@ impl Run<'_> {
         let nq = self.ambient().nq();
         let mut empty = 0;
         while self.next >= self.samples.len() {
-            (self.interrupt)()?;
+            self.poll()?;
             let n = self.st.sample_batch;
             self.samples.clear();
             self.next = 0;
@@ -800,7 +862,7 @@ impl Run<'_> {
                     out_e.push(edges[j].clone());
                     break;
                 }
-                (self.interrupt)()?;
+                self.poll()?;
                 if let Some(states) = self.space.geodesic(&waypoints[i], &waypoints[j], false)? {
                     self.space.stats.shortcuts += 1;
                     out_w.push(waypoints[j].clone());

@@ -30,7 +30,7 @@ impl Run<'_> {
         // the sample and the state reached, in memory kept across iterations
         let (mut q_rand, mut target) = (Vec::with_capacity(nq), Vec::with_capacity(nq));
         for _ in 0..self.st.max_extensions {
-            (self.interrupt)()?;
+            self.poll()?;
             self.space.stats.extensions += 1;
             self.next_sample(&mut q_rand)?;
             let (grow, other) = split(&mut trees, a);
@@ -70,7 +70,7 @@ impl Run<'_> {
             if r.added == 0 || !(d < dist) {
                 return Ok(None);
             }
-            (self.interrupt)()?;
+            self.poll()?;
             (from, dist) = (r.node, d);
         }
     }

@@ -84,7 +84,7 @@ impl Run<'_> {
         if resolution == 0.0 || settings.edge_check == EdgeCheck::Certified {
             return self.space.geodesic(a, b, check_end);
         }
-        (self.interrupt)()?;
+        self.poll()?;
         let space = self.ambient();
         let nq = space.nq();
         let intervals = (space.distance(a, b) / resolution).ceil();
