@@ -9,6 +9,7 @@ Per robot (``xarm7`` is example-robot-data's xArm7 URDF, loaded with ``genplan.l
 ``baxter`` is examples/baxter/baxter.toml, both arms active):
 
 * ``spheres``, ``generation_s``: :func:`genplan.spheres.robot_spheres` in an empty cache folder
+  (``link_max_error_m``: the links it covered with a max_error of their own, by default)
   (a temporary ``$GENPLAN_CACHE``; with ``--cache`` the user's, ``cached_from_disk`` true when the
   spheres were read from it, not generated); ``cached_load_s``: the same call again in a fresh process's
   state (the in-memory copy dropped), read from the cache file;
@@ -355,6 +356,7 @@ def main() -> None:
                 row = {
                     "robot": robot.name, "spheres": len(spheres), "per_link": spheres.counts(),
                     "max_error_m": spheres.max_error, "resolution_m": spheres.resolution,
+                    "link_max_error_m": dict(spheres.link_max_error),
                     "padding_m": spheres.padding, "generation_s": round(generation, 2),
                     "cached_from_disk": spheres.generation_s == 0.0,
                     "cached_load_s": round(cached, 4),

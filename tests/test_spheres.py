@@ -298,10 +298,54 @@ def test_the_cache_is_used_validated_and_regenerated(small: genplan.Robot, tmp_p
     ({"padding": -1e-4}, r"padding: expected a number in \[0, 0.01\]"),
     ({"cache": "yes"}, "cache: expected True or False"),
     ({"resolution": 1e-5}, "resolution: 1e-05 m is too fine for link 'base'"),
+    ({"link_max_error": 0.01}, "link_max_error: expected a table of link names"),
+    ({"link_max_error": {"tip": 0.01}}, "link_max_error: 'tip' is no link with collision geometry of 'small' "
+                                        r"\(those: base, l1, l2\)"),
+    ({"link_max_error": {"l1": 0.0}}, r"link_max_error\['l1'\]: must be positive"),
+    ({"link_max_error": {"l1": "5mm"}}, r"link_max_error\['l1'\]: expected a number"),
 ])
 def test_bad_parameters_are_refused_naming_them(small: genplan.Robot, kwargs, match) -> None:
     with pytest.raises(SettingsError, match=match):
         sph.robot_spheres(small, **{"cache": False, **kwargs})
+
+
+def test_a_link_gets_a_max_error_of_its_own(small: genplan.Robot) -> None:
+    """``link_max_error``: that link covered tighter (its spheres reaching at most its own
+    max_error out, the cover still whole), the others as without it; a cache key of its own, and
+    the same key as before for a cover without one (``{}``)."""
+    plain = sph.robot_spheres(small, max_error=0.04, cache=False)
+    tight = sph.robot_spheres(small, max_error=0.04, cache=False, link_max_error={"l1": 0.01})
+    _assert_covered(small, tight, 5_000)
+    assert plain.link_max_error == {} and tight.link_max_error == {"l1": 0.01}
+    l1 = np.array(tight.links) == "l1"
+    assert tight.excess[l1].max() <= 0.01 + tight.padding + 1e-9 < plain.excess[np.array(plain.links) == "l1"].max()
+    assert tight.counts()["l1"] > plain.counts()["l1"]
+    for link in ("base", "l2"):  # the other links as they were
+        m, n = np.array(tight.links) == link, np.array(plain.links) == link
+        np.testing.assert_array_equal(tight.centers[m], plain.centers[n])
+        np.testing.assert_array_equal(tight.radii[m], plain.radii[n])
+    geoms = sph.link_geometries(small)
+    assert plain.geometry_hash == sph.geometry_hash(geoms, 0.04, 0.02, plain.padding)
+    assert sph.robot_spheres(small, max_error=0.04, cache=False, link_max_error={}) == plain
+    assert tight.geometry_hash not in (plain.geometry_hash, sph.geometry_hash(geoms, 0.04, 0.02, plain.padding, {"l1": 0.02}))
+    back = sph.RobotSpheres.from_dict(json.loads(json.dumps(tight.to_dict())))
+    assert back == tight and back.link_max_error == {"l1": 0.01}
+    assert "link_max_error" not in plain.to_dict()
+    bad = dict(tight.to_dict(), link_max_error={"l1": -1.0})
+    with pytest.raises(RobotFileError, match="^spheres: link_max_error: expected a table"):
+        sph.RobotSpheres.from_dict(bad)
+
+
+def test_the_panda_covers_its_wrist_tighter_by_default(panda: genplan.Robot, panda_spheres: sph.RobotSpheres) -> None:
+    """DEFAULT_LINK_MAX_ERROR: the Panda's link7 at 5 mm (the cage of the motion bench), the
+    rest at max_error, all in the cache key."""
+    assert panda_spheres.link_max_error == sph.DEFAULT_LINK_MAX_ERROR["panda"] == {"panda_link7": 0.005}
+    link7 = np.array(panda_spheres.links) == "panda_link7"
+    assert panda_spheres.excess[link7].max() <= 0.005 + panda_spheres.padding + 1e-9
+    assert panda_spheres.excess[~link7].max() > 0.005 + panda_spheres.padding
+    geoms = sph.link_geometries(panda)
+    assert panda_spheres.geometry_hash == sph.geometry_hash(geoms, 0.01, 0.005, panda_spheres.padding,
+                                                           {"panda_link7": 0.005})
 
 
 def test_the_benchmark_script_writes_its_rows(small_urdf: Path, tmp_path, monkeypatch, capsys) -> None:

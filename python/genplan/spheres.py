@@ -50,8 +50,10 @@ A link whose geometry is spheres alone is covered by those spheres.
 solid (:attr:`RobotSpheres.excess` holds each sphere's estimate, the depth measured to the
 boundary pieces at the grid's resolution; spheres of cells no candidate holds may exceed it).
 A sharp edge costs spheres: one reaching at most ``max_error`` past a right-angled edge covers
-at most ``2.8 max_error`` of it. Measured (benches/results/spheres.json): the Panda preset, whose
-collision model is capsules, 43 spheres at the default 1 cm; the UR5's meshes (sharp-edged
+at most ``2.8 max_error`` of it. A link may have a max_error of its own (``link_max_error``;
+:data:`DEFAULT_LINK_MAX_ERROR`: the Panda's wrist at 5 mm). Measured (benches/results/spheres.json):
+the Panda preset, whose collision model is capsules, 42 spheres at the default 1 cm (43 with its
+wrist at 5 mm); the UR5's meshes (sharp-edged
 cylinders) several hundred at 1 cm, about a hundred at 2 cm.
 
 **The cache.** The result is written under ``$GENPLAN_CACHE/spheres`` (:func:`genplan.cache.cache_dir`)
@@ -82,6 +84,7 @@ if TYPE_CHECKING:
     from genplan.robots import Robot
 
 __all__ = [
+    "DEFAULT_LINK_MAX_ERROR",
     "DEFAULT_MAX_ERROR",
     "DEFAULT_PADDING",
     "LinkGeometry",
@@ -99,6 +102,13 @@ DEFAULT_MAX_ERROR = 0.01
 #: within 10 m of the origin (a chain of ~10 transforms, each off by a few float32 ulps of its
 #: coordinates, about 1e-6 m each), and the float32 rounding of the sphere data itself.
 DEFAULT_PADDING = 1e-4
+#: Links covered tighter than ``max_error`` by default, per robot name: where a tighter cover of
+#: one link pays. The Panda's link7 (the wrist, with the flange's capsule) at 5 mm: one sphere more
+#: (43), and on the motion bench's cage (python/genplan/experiments/benchmarks/motion.py: the
+#: hand passes two bars into a cage) the planning time with the spheres about halves, the other
+#: families unchanged; the same at 5 mm on link5, link6 or the hand and fingers did not pay.
+#: ``robot_spheres(..., link_max_error={})`` turns it off; a value above ``max_error`` is not used.
+DEFAULT_LINK_MAX_ERROR: dict[str, dict[str, float]] = {"panda": {"panda_link7": 0.005}}
 #: The version of the generator; part of the cache key (a new version generates again).
 ALGORITHM_VERSION = 2
 #: The ``format`` field of :meth:`RobotSpheres.to_dict`.
@@ -326,6 +336,8 @@ class RobotSpheres:
     padding: float
     geometry_hash: str
     algorithm: int = ALGORITHM_VERSION
+    #: the links generated with a max_error of their own (:func:`robot_spheres`'s ``link_max_error``)
+    link_max_error: Mapping[str, float] = field(default_factory=dict)
     #: seconds spent generating (0 when read from the cache; not part of the file)
     generation_s: float = field(default=0.0, compare=False)
 
@@ -340,6 +352,7 @@ class RobotSpheres:
         if s and float(self.radii.min()) <= 0:
             raise RobotFileError(f"spheres of '{self.robot}': radii: must be positive")
         object.__setattr__(self, "links", tuple(str(x) for x in self.links))
+        object.__setattr__(self, "link_max_error", {str(k): float(v) for k, v in dict(self.link_max_error).items()})
 
     def __len__(self) -> int:
         return len(self.links)
@@ -379,8 +392,9 @@ class RobotSpheres:
                 + sel[..., :3, 3])
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data (JSON's types) that :meth:`from_dict` reads back to an equal object."""
-        return {
+        """Plain data (JSON's types) that :meth:`from_dict` reads back to an equal object
+        (``link_max_error`` only when a link has a max_error of its own)."""
+        out = {
             "format": FORMAT,
             "algorithm": int(self.algorithm),
             "robot": self.robot,
@@ -393,6 +407,9 @@ class RobotSpheres:
             "radii": [float(x) for x in self.radii],
             "excess": [float(x) for x in self.excess],
         }
+        if self.link_max_error:
+            out["link_max_error"] = dict(sorted(self.link_max_error.items()))
+        return out
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], origin: str = "spheres") -> RobotSpheres:
@@ -404,8 +421,8 @@ class RobotSpheres:
         keys = ("format", "algorithm", "robot", "geometry_hash", "max_error", "resolution", "padding",
                 "links", "centers", "radii", "excess")
         for k in data:
-            if k not in keys:
-                raise RobotFileError(f"{origin}: unknown field '{k}' (known: {', '.join(keys)})")
+            if k not in keys and k != "link_max_error":
+                raise RobotFileError(f"{origin}: unknown field '{k}' (known: {', '.join(keys)}, link_max_error)")
         for k in keys:
             if k not in data:
                 raise RobotFileError(f"{origin}: missing field '{k}'")
@@ -432,8 +449,14 @@ class RobotSpheres:
         excess = _array(data["excess"], (s,), "excess", origin)
         if s and radii.min() <= 0:
             raise RobotFileError(f"{origin}: radii[{int(np.argmin(radii))}]: must be positive, got {radii.min()}")
+        per_link = data.get("link_max_error", {})
+        if not isinstance(per_link, Mapping) or not all(
+                isinstance(k, str) and not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) and v > 0
+                for k, v in per_link.items()):
+            raise RobotFileError(f"{origin}: link_max_error: expected a table of link names to positive numbers, "
+                                 f"got {per_link!r}")
         return cls(robot=data["robot"], links=tuple(links), centers=centers, radii=radii, excess=excess,
-                   geometry_hash=data["geometry_hash"], algorithm=algorithm, **params)
+                   geometry_hash=data["geometry_hash"], algorithm=algorithm, link_max_error=dict(per_link), **params)
 
 
 # --- entry point -------------------------------------------------------------------------------
@@ -464,11 +487,16 @@ def _padding(value: Any) -> float:
     return float(value)
 
 
-def geometry_hash(geometries: Sequence[LinkGeometry], max_error: float, resolution: float, padding: float) -> str:
-    """The sha256 (hex) of the geometry and the parameters: the cache key."""
+def geometry_hash(geometries: Sequence[LinkGeometry], max_error: float, resolution: float, padding: float,
+                  link_max_error: Mapping[str, float] | None = None) -> str:
+    """The sha256 (hex) of the geometry and the parameters: the cache key (``link_max_error``, the
+    links with a max_error of their own, only when there are any: a cover without them keeps its key)."""
     h = hashlib.sha256()
-    h.update(json.dumps({"format": FORMAT, "algorithm": ALGORITHM_VERSION, "max_error": max_error,
-                         "resolution": resolution, "padding": padding}, sort_keys=True).encode())
+    params: dict[str, Any] = {"format": FORMAT, "algorithm": ALGORITHM_VERSION, "max_error": max_error,
+                              "resolution": resolution, "padding": padding}
+    if link_max_error:
+        params["link_max_error"] = {str(k): float(v) for k, v in link_max_error.items()}
+    h.update(json.dumps(params, sort_keys=True).encode())
     for g in geometries:
         g.digest(h)
     return h.hexdigest()
@@ -505,6 +533,7 @@ def robot_spheres(
     resolution: float | None = None,
     padding: float = DEFAULT_PADDING,
     cache: bool = True,
+    link_max_error: Mapping[str, float] | None = None,
 ) -> RobotSpheres:
     """Spheres covering every link's collision solid of ``robot`` (the module's docstring: the
     guarantee, the method, the cache).
@@ -513,6 +542,9 @@ def robot_spheres(
     and more spheres). ``resolution`` (m): the grid spacing, default ``max_error / 2`` (finer:
     slower, the same guarantee, slightly fewer or tighter spheres). ``padding`` (m) is added to
     every radius (float32 kinematics). ``cache``: read and write ``$GENPLAN_CACHE/spheres``.
+    ``link_max_error``: links (by name) covered with a max_error of their own (m; their grid
+    ``resolution`` is half of it unless ``resolution`` is given), the same guarantee; None (default):
+    :data:`DEFAULT_LINK_MAX_ERROR`'s for the robot's name, where below ``max_error``; ``{}``: none.
     SettingsError names a bad parameter before any work; links without collision geometry get
     no sphere."""
     from genplan.robots import Robot
@@ -526,7 +558,20 @@ def robot_spheres(
         raise SettingsError(f"cache: expected True or False, got {cache!r}")
 
     geometries = link_geometries(robot)
-    key = geometry_hash(geometries, eps, res, pad)
+    with_geometry = list(dict.fromkeys(g.link for g in geometries))
+    if link_max_error is None:
+        per_link = {k: v for k, v in DEFAULT_LINK_MAX_ERROR.get(robot.name, {}).items()
+                    if k in with_geometry and v < eps}
+    else:
+        if not isinstance(link_max_error, Mapping):
+            raise SettingsError(f"link_max_error: expected a table of link names to max_errors (m), got {link_max_error!r}")
+        per_link = {}
+        for name, value in link_max_error.items():
+            if name not in with_geometry:
+                raise SettingsError(f"link_max_error: {name!r} is no link with collision geometry of '{robot.name}' "
+                                    f"(those: {', '.join(with_geometry)})")
+            per_link[name] = _positive(value, f"link_max_error[{name!r}]", 1.0)
+    key = geometry_hash(geometries, eps, res, pad, per_link)
     if cache and key in _MEMO:
         return _MEMO[key]
     path = _cache_path(robot.name, key)
@@ -547,7 +592,8 @@ def robot_spheres(
     for g in geometries:
         by_link.setdefault(g.link, []).append(g)
     for link, geoms in by_link.items():
-        c, r, x = _cover_link(link, geoms, eps, res)
+        e = per_link.get(link, eps)
+        c, r, x = _cover_link(link, geoms, e, e / 2 if resolution is None else res)
         links += [link] * len(r)
         centers.append(c)
         radii.append(r + pad)
@@ -557,7 +603,7 @@ def robot_spheres(
         centers=np.concatenate(centers) if centers else np.zeros((0, 3)),
         radii=np.concatenate(radii) if radii else np.zeros(0),
         excess=np.concatenate(excess) if excess else np.zeros(0),
-        max_error=eps, resolution=res, padding=pad, geometry_hash=key,
+        max_error=eps, resolution=res, padding=pad, geometry_hash=key, link_max_error=per_link,
         generation_s=time.perf_counter() - t0,
     )
     if cache:

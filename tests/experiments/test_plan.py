@@ -189,11 +189,15 @@ def test_bench_plan_checkers_alternate_and_list_the_queries_a_checker_refuses(mo
     assert other["t_ave_s"] == pytest.approx(v["t_ave_s"])  # the planned queries are the common ones
 
 
-def test_bench_plan_sphere_checker_refusing_every_start_is_an_error(capsys) -> None:
-    """--checker spheres on the Panda shelf with the default cover (1 cm): every start lies within
-    a few millimetres of the table, inside the cover's reach, so each is refused, and the bench
+def test_bench_plan_sphere_checker_refusing_every_start_is_an_error(capsys, monkeypatch) -> None:
+    """--checker spheres on the Panda shelf with a cover of 1 cm on every link (the default's
+    wrist at 5 mm turned off: with it these starts are accepted): every start lies within a few
+    millimetres of the table, inside the cover's reach, so each is refused, and the bench
     says so (exit 2) instead of writing rows of nothing; --sphere-max-error without the sphere
     checker, and certified edges with it, are usage errors before any query is made."""
+    from genplan import spheres as sph
+
+    monkeypatch.setitem(sph.DEFAULT_LINK_MAX_ERROR, "panda", {})
     assert main(["bench", "plan", "--env", "panda_shelf", "--sampler", "gan", "--queries", "2", "--seed", "3",
                  "--checker", "spheres"]) == 2
     assert "checker 'spheres': every query of panda_shelf refused (2)" in capsys.readouterr().err
