@@ -99,3 +99,30 @@ def test_benchmarks_and_out_are_one_or_the_other(tmp_path: Path, capsys: pytest.
     assert main(["report", str(RESULTS), "--benchmarks", str(tmp_path / "B.md"), "--out", str(tmp_path / "r.md")]) == 2
     assert "--benchmarks writes the benchmarks page instead" in capsys.readouterr().err
     assert not (tmp_path / "B.md").exists() and not (tmp_path / "r.md").exists()
+
+
+def test_the_motion_table_has_a_hybrid_column_when_a_robot_ran_it() -> None:
+    """The motion table's columns are the genplan arms the robots' results hold: the committed
+    results as they are, and with the Panda's spheres rows copied as a hybrid arm (another time),
+    a hybrid column whose Panda cells and geometric mean are read from those rows and a dash for
+    the robots that did not run it."""
+    res = {name: json.loads((RESULTS / name).read_text()) for name in B.MOTION_FILES}
+    before = B.motion(res)
+    panda = res["motion.json"]
+    hybrid = [dict(r, arm="genplan_hybrid", plan_ms_over_vamp=3.0, plan_ms_median=4.56) for r in panda["rows"]
+              if r["arm"] == "genplan_spheres"]
+    if not hybrid or any(r["arm"] == "genplan_hybrid" for name in B.MOTION_FILES for r in res[name]["rows"]):
+        pytest.skip("the committed results already hold a hybrid arm, or the Panda's no spheres arm")
+    assert B.MOTION_ARMS["genplan_hybrid"] not in before
+    panda["rows"] = panda["rows"] + hybrid
+    after = B.motion(res)
+    header = after.splitlines()[0]
+    assert header.index(B.MOTION_ARMS["genplan_spheres"]) < header.index(B.MOTION_ARMS["genplan_hybrid"]) \
+        < header.index(B.MOTION_ARMS["genplan_exact"])
+    lines = after.splitlines()
+    assert all(ln.count("|") == header.count("|") for ln in lines if ln.startswith("|"))
+    panda_rows = [ln for ln in lines if ln.startswith(f"| {panda['robot']} |")]
+    assert panda_rows and all("4.56 + " in ln for ln in panda_rows[:-1])
+    assert "**3.00x**" in panda_rows[-1]
+    other = [ln for ln in lines if ln.startswith("| ") and not ln.startswith(f"| {panda['robot']} |")][1:]
+    assert other and all(ln.split(" | ")[4] == "-" for ln in other)

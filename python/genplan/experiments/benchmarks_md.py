@@ -444,17 +444,29 @@ def adapt(res: Results) -> str:
 MOTION_FILES = ("motion.json", "motion_ur5.json", "motion_baxter.json", "motion_kinova.json")
 
 
+#: the motion bench's genplan arms in the table, in its columns' order, with their headers (an arm
+#: is a column when a robot's results hold it; a robot without it shows a dash there)
+MOTION_ARMS = {
+    "genplan_spheres": "genplan spheres: success, ms plan + simplify (plan / VAMP); length / VAMP",
+    "genplan_hybrid": "genplan hybrid (spheres, contacts confirmed exactly): the same",
+    "genplan_exact": "genplan exact: the same",
+}
+
+
 def motion(res: Results) -> str:
     """Free-space planning against VAMP on MotionBenchMaker-style families, per robot: success,
     median planning and simplification time, path length against VAMP's; the geometric mean of
     the families' planning-time ratios. A robot VAMP does not ship (the Kinova) has genplan's arms
-    only: their lengths in rad, no ratios."""
+    only: their lengths in rad, no ratios. The columns are the arms of :data:`MOTION_ARMS` any
+    robot's results hold (the hybrid checker was added to the bench after some robots' runs)."""
     rows = []
+    present = {r["arm"] for name in MOTION_FILES for r in res[name]["rows"]}
+    columns = [a for a in MOTION_ARMS if a in present]
     for name in MOTION_FILES:
         m = res[name]
         by = {(r["family"], r["arm"]): r for r in m["rows"]}
         families = list(dict.fromkeys(r["family"] for r in m["rows"]))
-        arms = [a for a in ("genplan_spheres", "genplan_exact") if any(k[1] == a for k in by)]
+        arms = [a for a in columns if any(k[1] == a for k in by)]
         vamp = any(k[1] == "vamp" for k in by)
         for fam in families:
             if vamp:
@@ -462,28 +474,29 @@ def motion(res: Results) -> str:
                 cells = [m["robot"], fam, f"{v['success_pct']:.0f} %, {v['plan_ms_median']:.2f} + {v['simplify_ms_median']:.2f}"]
             else:
                 cells = [m["robot"], fam, "(not shipped)"]
-            for arm in arms:
+            for arm in columns:
+                if arm not in arms:
+                    cells.append("-")
+                    continue
                 g = by[(fam, arm)]
                 timing = f"{g['success_pct']:.0f} %, {g['plan_ms_median']:.2f} + {g['simplify_ms_median']:.2f}"
                 cells.append(f"{timing} ({_x(g['plan_ms_over_vamp'])}); length {g['length_over_vamp_median']:.2f}x"
                              if vamp else f"{timing}; length {g['length_median']:.2f} rad")
             rows.append(cells)
         if vamp:
-            means = [geometric_mean([by[(f, arm)]["plan_ms_over_vamp"] for f in families]) for arm in arms]
+            means = {arm: geometric_mean([by[(f, arm)]["plan_ms_over_vamp"] for f in families]) for arm in arms}
             rows.append([m["robot"], "**geometric mean of the planning-time ratios**", "1x",
-                         *[f"**{_x(x)}**" for x in means]])
-    table = _md(["robot", "family", "VAMP: success, ms plan + simplify",
-                 "genplan spheres: success, ms plan + simplify (plan / VAMP); length / VAMP",
-                 "genplan exact: the same"], rows)
+                         *[f"**{_x(means[arm])}**" if arm in means else "-" for arm in columns]])
+    table = _md(["robot", "family", "VAMP: success, ms plan + simplify", *[MOTION_ARMS[a] for a in columns]], rows)
     # genplan's planner on VAMP's own spheres (hand-made, not a guaranteed cover), where run
     notes = []
     for name in MOTION_FILES:
         m = res[name]
         own = {r["family"]: r for r in m["rows"] if r["arm"] == "genplan_vamp_spheres"}
         if own:
-            cells = ", ".join(f"{f} {_x(r['plan_ms_over_vamp'])}" for f, r in own.items())
+            listed = ", ".join(f"{f} {_x(r['plan_ms_over_vamp'])}" for f, r in own.items())
             notes.append(f"genplan's planner on VAMP's own spheres of the {m['robot']} (`genplan_vamp_spheres` in "
-                         f"{name}; hand-made, not a guaranteed cover): plan time over VAMP's {cells}; geometric mean "
+                         f"{name}; hand-made, not a guaranteed cover): plan time over VAMP's {listed}; geometric mean "
                          f"**{_x(geometric_mean([r['plan_ms_over_vamp'] for r in own.values()]))}**.")
     return table + "".join("\n\n" + n for n in notes)
 

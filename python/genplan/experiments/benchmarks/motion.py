@@ -32,10 +32,18 @@ alternates problem by problem:
   smoothing, up to 5 rounds), each call timed from Python;
 * ``genplan_spheres``: ``Planner(robot, world, task="free", checker="spheres")``, RRT-Connect with
   simplification, genplan's own covering spheres (a guaranteed cover of the meshes);
+* ``genplan_hybrid``: the same planner with ``checker="hybrid"``: the same spheres first, each
+  collision they find checked again by the exact geometry, whose answer stands (the spheres as
+  the fast path, the exact geometry as the final word: no state the spheres refuse for their
+  cover's excess alone is lost);
 * ``genplan_vamp_spheres``: the same planner on VAMP's 59 spheres of the Panda
   (``sphere_checker(robot, world, spheres=...)``: VAMP's spheres found in genplan's link frames
   from VAMP's forward kinematics), so both check the same robot geometry;
-* ``genplan_exact``: the same planner on the exact geometry (parry's convex hulls).
+* ``genplan_exact``: the same planner on the exact geometry (parry's convex hulls);
+* ``roboplan`` and ``ompl`` (each when installed: the ``peers`` and ``bench`` extras): roboplan's
+  RRT-Connect and path shortcutter on the robot's own URDF and SRDF (Pinocchio + coal), and OMPL's
+  RRTConnect and ``simplifySolution`` with genplan's exact collision world as its validity checker
+  from Python (python/genplan/experiments/benchmarks/motion_peers.py).
 
 genplan's arms are one ``Planner.plan`` call each (simplification included); the planning time is
 the call's wall time less the simplification (``stats.simplify_s``). Path length: the joint-space
@@ -65,6 +73,8 @@ from numpy.typing import NDArray  # noqa: E402
 
 import genplan  # noqa: E402
 from genplan.cli import args as A  # noqa: E402
+from genplan.errors import MissingExtraError  # noqa: E402
+from genplan.experiments.benchmarks.motion_peers import OmplArm, RoboplanArm  # noqa: E402
 from genplan.experiments.common import geometric_mean, machine, table, write_json  # noqa: E402
 from genplan.ik import frame_task, solve_ik  # noqa: E402
 from genplan.planning import Planner, PlannerSettings, sphere_checker  # noqa: E402
@@ -76,7 +86,7 @@ FINGERS = {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}
 #: the Panda's ready posture, the start of every problem (with jitter)
 READY = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
 #: the arms, in the table's order
-ARMS = ("vamp", "genplan_spheres", "genplan_vamp_spheres", "genplan_exact")
+ARMS = ("vamp", "genplan_spheres", "genplan_hybrid", "genplan_vamp_spheres", "genplan_exact", "roboplan", "ompl")
 #: the tool frame the goal poses place
 TOOL = "tcp"
 
@@ -547,11 +557,20 @@ def run(families: list[str], n: int, seed: int, arms: list[str] | None = None, r
     skipped = {} if vamp is not None else {
         "vamp": "not installed (pip install the vamp_planner wheel)" if installed is None else
         f"VAMP does not ship a {robot_name} model"}
-    checker_of = {"genplan_spheres": "spheres", "genplan_vamp_spheres": vsph, "genplan_exact": "exact"}
+    checker_of = {"genplan_spheres": "spheres", "genplan_hybrid": "hybrid", "genplan_vamp_spheres": vsph,
+                  "genplan_exact": "exact"}
     if vsph is None and "genplan_vamp_spheres" in arms:
         arms.remove("genplan_vamp_spheres")
         skipped["genplan_vamp_spheres"] = ("needs VAMP's spheres: vamp not installed" if robot_name == "panda" else
                                            "VAMP's spheres are mapped onto the Panda only")
+    peers: dict[str, Any] = {}
+    for arm, make in (("roboplan", RoboplanArm), ("ompl", OmplArm)):
+        if arm in arms:
+            try:
+                peers[arm] = make(robot, seed=seed)
+            except MissingExtraError as exc:
+                arms.remove(arm)
+                skipped[arm] = str(exc)
     load0 = os.getloadavg()
     t_start = time.time()
     records: list[dict[str, Any]] = []
@@ -563,8 +582,12 @@ def run(families: list[str], n: int, seed: int, arms: list[str] | None = None, r
             order = arms if p.index % 2 == 0 else arms[::-1]  # alternate who runs first
             pseed = seed * 100_003 + p.index
             for arm in order:
-                rec = (_vamp_arm(vamp, p, pseed, setup) if arm == "vamp" else
-                       _genplan_arm(robot, p, checker_of[arm], pseed))
+                if arm in peers:
+                    rec = peers[arm].plan(p.start, p.goal, p.obstacles, pseed)
+                    rec.pop("path")
+                else:
+                    rec = (_vamp_arm(vamp, p, pseed, setup) if arm == "vamp" else
+                           _genplan_arm(robot, p, checker_of[arm], pseed))
                 records.append({"family": family, "problem": p.index, "arm": arm, **rec})
     rows = summarize(records, families, arms)
     robot_label = "panda (fingers open 0.04 m)" if robot_name == "panda" else robot_name
@@ -575,7 +598,7 @@ def run(families: list[str], n: int, seed: int, arms: list[str] | None = None, r
 
 
 def summarize(records: list[dict[str, Any]], families: list[str], arms: list[str]) -> list[dict[str, Any]]:
-    """Per family and arm: success %, median plan / simplify ms, median length; the genplan arms
+    """Per family and arm: success %, median plan / simplify ms, median length; every other arm
     against VAMP's (when it ran): the median per-problem length ratio and the plan-time ratio."""
     rows = []
     for family in families:
