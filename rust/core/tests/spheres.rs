@@ -2,8 +2,8 @@
 //! (`planning::SphereChecker`): each obstacle shape's closed-form test against the exact world
 //! on a robot that is one sphere, conservativeness on the Panda against the exact world, the
 //! batch and motion forms against the one-configuration form, the links fixed to the world
-//! (checked once, their self pairs through a tree) against every sphere pair, and the input
-//! checks.
+//! (checked once, their self pairs through a tree) and links of many spheres (placed when a test
+//! needs them) against every sphere pair, and the input checks.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -354,8 +354,24 @@ fn a_fixed_link_meeting_an_obstacle_makes_every_configuration_collide() {
 
 #[test]
 fn a_fixed_link_of_many_spheres_answers_as_every_sphere_pair() {
+    // the base (a fixed link) in cells of 2.5 cm, hundreds: its tree has several levels (the
+    // moving links in 6 cm cells: the pairs below are compared one by one in a debug build)
+    answers_as_every_sphere_pair(23, |name| if name == "panda_link0" { 0.025 } else { 0.06 });
+}
+
+#[test]
+fn moving_links_of_many_spheres_answer_as_every_sphere_pair() {
+    // every link in cells of 3 cm: links of tens of spheres, whose spheres are placed only when
+    // a test needs them and pruned one by one against the other link's bounding sphere
+    answers_as_every_sphere_pair(29, |_| 0.03);
+}
+
+/// The Panda among random balls, covered by [`box_cover_cells`] with `cell`: each configuration's
+/// answer (batch and single) is the one of every sphere against every ball and every sphere
+/// pair of the self pairs, computed in `f64`, wherever the least gap is not within 1e-4 m of 0.
+fn answers_as_every_sphere_pair(seed: u64, cell: impl Fn(&str) -> f64) {
     let (model, mut w) = preset("panda").unwrap().load().unwrap();
-    let mut rng = StdRng::seed_from_u64(23);
+    let mut rng = StdRng::seed_from_u64(seed);
     let mut balls = Vec::new();
     for k in 0..12 {
         let c = [rng.random_range(-0.7..0.7), rng.random_range(-0.7..0.7), rng.random_range(0.0..1.0)];
@@ -367,9 +383,7 @@ fn a_fixed_link_of_many_spheres_answers_as_every_sphere_pair() {
         w.add_sphere(&format!("b{k}"), r, c).unwrap();
         balls.push((c, r));
     }
-    // the base (a fixed link) in cells of 2.5 cm, hundreds: its tree has several levels (the
-    // moving links in 6 cm cells: the pairs below are compared one by one in a debug build)
-    let spheres = box_cover_cells(&w, |name| if name == "panda_link0" { 0.025 } else { 0.06 });
+    let spheres = box_cover_cells(&w, cell);
     let base = model.link_index("panda_link0").unwrap();
     let on_base = spheres.link.iter().filter(|&&l| l == base).count();
     assert!(on_base > 16 * FIXED_LEAF, "{on_base} spheres on the base");
@@ -383,7 +397,7 @@ fn a_fixed_link_of_many_spheres_answers_as_every_sphere_pair() {
     let mut one = SphereScratch::default();
     let of_link = |l: usize| (0..spheres.len()).filter(|&i| spheres.link[i] == l).collect::<Vec<_>>();
     let pair_spheres: Vec<(bool, Vec<usize>, Vec<usize>)> = pairs.iter().map(|&(a, b)| (a == base || b == base, of_link(a), of_link(b))).collect();
-    let (mut poses, mut compared, mut by_base) = (Vec::new(), 0, 0);
+    let (mut poses, mut compared, mut by_base, mut by_moving) = (Vec::new(), 0, 0, 0);
     for (row, q) in qs.chunks(model.nq).enumerate() {
         // every sphere in the world frame (f64), every obstacle and self pair of spheres
         model.forward_kinematics(q, &mut poses).unwrap();
@@ -391,7 +405,7 @@ fn a_fixed_link_of_many_spheres_answers_as_every_sphere_pair() {
             .map(|i| (poses[spheres.link[i]] * nalgebra::Point3::new(spheres.x[i], spheres.y[i], spheres.z[i])).coords)
             .collect();
         // the least gap (distance less the radii) of any tested pair, and of the base's
-        let (mut gap, mut base_gap) = (f64::INFINITY, f64::INFINITY);
+        let (mut gap, mut base_gap, mut moving_gap) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
         for i in 0..spheres.len() {
             for (c, r) in &balls {
                 gap = gap.min((at[i] - Vector3::from(*c)).norm() - spheres.radius[i] - r);
@@ -404,6 +418,8 @@ fn a_fixed_link_of_many_spheres_answers_as_every_sphere_pair() {
                     gap = gap.min(g);
                     if *with_base {
                         base_gap = base_gap.min(g);
+                    } else {
+                        moving_gap = moving_gap.min(g);
                     }
                 }
             }
@@ -413,7 +429,8 @@ fn a_fixed_link_of_many_spheres_answers_as_every_sphere_pair() {
             assert_eq!(batch[row], gap < 0.0, "row {row}: least gap {gap}");
             compared += 1;
             by_base += (base_gap < 0.0) as usize;
+            by_moving += (moving_gap < 0.0) as usize;
         }
     }
-    assert!(compared > n * 9 / 10 && by_base > 5, "{compared} rows compared, {by_base} met by the base");
+    assert!(compared > n * 9 / 10 && by_base > 5 && by_moving > 5, "{compared} rows compared, {by_base} met by the base, {by_moving} by two moving links");
 }

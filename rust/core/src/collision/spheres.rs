@@ -31,8 +31,13 @@
 //! link's spheres only in the lanes where that bounding sphere meets the obstacle's world box (or
 //! reaches below a half-space's plane). Self-collision tests the sphere pairs of the link pairs
 //! the world checks (its self pairs, the SRDF's and the computed disabled pairs left out),
-//! after the same test on the two links' bounding spheres. A batch stops when every lane is in
-//! collision; a motion at its first state in collision.
+//! after the same test on the two links' bounding spheres, and each sphere of the one link
+//! against the other's bounding sphere before that link's spheres. Per check only the moving
+//! links' bounding spheres are placed in the world; a link's spheres are placed when a test
+//! first needs them (its bounding sphere meets an obstacle, a fixed link's tree leaf or a link
+//! of its self pairs), so a link clear of everything costs its bounding sphere alone (a robot of
+//! many spheres, such as Baxter's arms, places few of them per check). A batch stops when every
+//! lane is in collision; a motion at its first state in collision.
 //!
 //! An obstacle's padding (its own, else the world's: [`CollisionWorld::padding`]) grows every
 //! sphere and bounding sphere tested against it, so a configuration is in collision when a
@@ -323,13 +328,16 @@ pub struct SphereScratch<const N: usize> {
     centers: Vec<[[f32; N]; 3]>,
     /// Per link with spheres: world centre of its bounding sphere per lane.
     bounds: Vec<[[f32; N]; 3]>,
+    /// Per link with spheres: are its spheres' `centers` placed for these lanes? A link's
+    /// spheres are placed only when a test needs them ([`SphereWorld::place_link`]).
+    placed: Vec<bool>,
     state: Vec<f64>,
     dq: Vec<f64>,
 }
 
 impl<const N: usize> Default for SphereScratch<N> {
     fn default() -> Self {
-        SphereScratch { one: Vec::new(), four: Vec::new(), frames: Vec::new(), centers: Vec::new(), bounds: Vec::new(), state: Vec::new(), dq: Vec::new() }
+        SphereScratch { one: Vec::new(), four: Vec::new(), frames: Vec::new(), centers: Vec::new(), bounds: Vec::new(), placed: Vec::new(), state: Vec::new(), dq: Vec::new() }
     }
 }
 
@@ -748,36 +756,44 @@ impl SphereWorld {
         dispatch_place(self, s);
     }
 
-    /// The kernel of [`place`](Self::place) after the frames are written.
+    /// The kernel of [`place`](Self::place) after the frames are written: each moving link's
+    /// bounding sphere; its spheres wait until a test needs them ([`place_link`](Self::place_link)).
     #[inline(always)]
     fn place_spheres<const N: usize>(&self, s: &mut SphereScratch<N>) {
         s.centers.resize(self.spheres.len(), [[0.0; N]; 3]);
         s.bounds.resize(self.links.len(), [[0.0; N]; 3]);
-        let [x, y, z, _] = &self.local;
+        s.placed.clear();
+        s.placed.resize(self.links.len(), false);
         for (k, ls) in self.links.iter().enumerate().filter(|(_, ls)| !ls.fixed) {
-            let f = &s.frames[ls.link];
-            let put = |p: [f32; 3], out: &mut [[f32; N]; 3]| {
-                for i in 0..3 {
-                    for l in 0..N {
-                        out[i][l] = f[3 * i][l] * p[0] + f[3 * i + 1][l] * p[1] + f[3 * i + 2][l] * p[2] + f[9 + i][l];
-                    }
-                }
-            };
-            put(ls.center, &mut s.bounds[k]);
-            for i in ls.start..ls.end {
-                put([x[i], y[i], z[i]], &mut s.centers[i]);
-            }
+            put(&s.frames[ls.link], ls.center, &mut s.bounds[k]);
+        }
+    }
+
+    /// Places the spheres of the moving link `k` (index into `links`) for the lanes of the last
+    /// [`place`](Self::place), unless they are already: a link whose bounding sphere meets no
+    /// obstacle and no link of its self pairs never needs them.
+    #[inline(always)]
+    fn place_link<const N: usize>(&self, s: &mut SphereScratch<N>, k: usize) {
+        if s.placed[k] {
+            return;
+        }
+        s.placed[k] = true;
+        let ls = &self.links[k];
+        let [x, y, z, _] = &self.local;
+        let f = &s.frames[ls.link];
+        for i in ls.start..ls.end {
+            put(f, [x[i], y[i], z[i]], &mut s.centers[i]);
         }
     }
 
     /// Which lanes are in collision (`live` lanes only). `any`: stop at the first lane in
     /// collision (else when every live lane is).
-    fn collide<const N: usize>(&self, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+    fn collide<const N: usize>(&self, s: &mut SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
         dispatch_collide(self, s, live, any)
     }
 
     #[inline(always)]
-    fn collide_kernel<const N: usize>(&self, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+    fn collide_kernel<const N: usize>(&self, s: &mut SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
         if self.fixed_hit {
             return live;
         }
@@ -787,7 +803,8 @@ impl SphereWorld {
         // the lane masks combine with `&` and `|` (no short circuit), so that each lane loop
         // stays one vector instruction per operation
         for (k, ls) in self.links.iter().enumerate().filter(|(_, ls)| !ls.fixed) {
-            let bc = &s.bounds[k];
+            let bc = s.bounds[k];
+            let bc = &bc;
             // lanes still to decide: live and not yet in collision
             let mut open: [bool; N] = std::array::from_fn(|l| live[l] & !hit[l]);
             for o in &self.obstacles {
@@ -804,6 +821,7 @@ impl SphereWorld {
                 if !near.iter().fold(false, |a, &n| a | n) {
                     continue;
                 }
+                self.place_link(s, k);
                 for i in ls.start..ls.end {
                     let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK + o.pad, &near);
                     for l in 0..N {
@@ -844,8 +862,26 @@ impl SphereWorld {
             if !near.iter().fold(false, |a, &n| a | n) {
                 continue;
             }
+            self.place_link(s, a);
+            self.place_link(s, b);
+            let cb = s.bounds[b];
             for i in la.start..la.end {
                 let p = &s.centers[i];
+                // the lanes where sphere i reaches b's bounding sphere (with a second slack: the
+                // bounding sphere's centre and the spheres' are rounded to f32 separately): a
+                // prune no tighter than the pair test it spares
+                let rb = radius[i] + 2.0 * F32_SLACK + lb.radius;
+                let mut e2 = [0.0f32; N];
+                for c in 0..3 {
+                    for l in 0..N {
+                        let e = p[c][l] - cb[c][l];
+                        e2[l] += e * e;
+                    }
+                }
+                let close: [bool; N] = std::array::from_fn(|l| near[l] & (e2[l] <= rb * rb));
+                if !close.iter().fold(false, |a, &n| a | n) {
+                    continue;
+                }
                 for j in lb.start..lb.end {
                     let q = &s.centers[j];
                     let rr = radius[i] + radius[j] + 2.0 * F32_SLACK;
@@ -853,7 +889,7 @@ impl SphereWorld {
                         let d2 = (p[0][l] - q[0][l]) * (p[0][l] - q[0][l])
                             + (p[1][l] - q[1][l]) * (p[1][l] - q[1][l])
                             + (p[2][l] - q[2][l]) * (p[2][l] - q[2][l]);
-                        hit[l] |= near[l] & (d2 <= rr * rr);
+                        hit[l] |= close[l] & (d2 <= rr * rr);
                     }
                 }
             }
@@ -869,10 +905,11 @@ impl SphereWorld {
     /// whose bounding sphere meets the link's, then per leaf each of the link's spheres against
     /// the leaf's bounding sphere and, where it reaches it, the leaf's spheres.
     #[inline(always)]
-    fn against_fixed<const N: usize>(&self, s: &SphereScratch<N>, k: usize, root: usize, open: [bool; N], hit: &mut [bool; N]) {
+    fn against_fixed<const N: usize>(&self, s: &mut SphereScratch<N>, k: usize, root: usize, open: [bool; N], hit: &mut [bool; N]) {
         let ls = &self.links[k];
         let f = &self.fixed;
-        let bc = &s.bounds[k];
+        let bc = s.bounds[k];
+        let bc = &bc;
         let radius = &self.local[3];
         let within = |c: &[[f32; N]; 3], p: [f32; 3], reach: f32, mask: &[bool; N]| -> [bool; N] {
             let mut d2 = [0.0f32; N];
@@ -904,6 +941,7 @@ impl SphereWorld {
                 top += 2;
                 continue;
             }
+            self.place_link(s, k);
             for i in ls.start..ls.end {
                 let c = &s.centers[i];
                 // the sphere's own slack too, as in the pair test below: a prune may not be
@@ -1007,6 +1045,17 @@ impl SphereWorld {
             },
         }
         out
+    }
+}
+
+/// The point `p` (link frame) in the world per lane, for the link's frames `f` (rotation
+/// row-major, 9, and translation, 3, per lane).
+#[inline(always)]
+fn put<const N: usize>(f: &[[f32; N]; 12], p: [f32; 3], out: &mut [[f32; N]; 3]) {
+    for i in 0..3 {
+        for l in 0..N {
+            out[i][l] = f[3 * i][l] * p[0] + f[3 * i + 1][l] * p[1] + f[3 * i + 2][l] * p[2] + f[9 + i][l];
+        }
     }
 }
 
@@ -1169,12 +1218,12 @@ fn dispatch_place<const N: usize>(w: &SphereWorld, s: &mut SphereScratch<N>) {
 }
 
 /// [`SphereWorld::collide_kernel`], compiled with AVX2 and FMA where the processor has them.
-fn dispatch_collide<const N: usize>(w: &SphereWorld, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+fn dispatch_collide<const N: usize>(w: &SphereWorld, s: &mut SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
     #[cfg(target_arch = "x86_64")]
     {
         if avx2() {
             #[target_feature(enable = "avx2,fma")]
-            fn collide_avx2<const N: usize>(w: &SphereWorld, s: &SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
+            fn collide_avx2<const N: usize>(w: &SphereWorld, s: &mut SphereScratch<N>, live: [bool; N], any: bool) -> [bool; N] {
                 w.collide_kernel(s, live, any)
             }
             // SAFETY: the processor has AVX2 and FMA (checked at run time just above)
