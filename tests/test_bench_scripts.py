@@ -330,3 +330,16 @@ def test_nonconvex_meshes_times_the_ur10_against_a_baseline_build(tmp_path, monk
     assert b["after_before"]["decomposed"] == b["after"]["check_us"]["decomposed"] / b["before"]["check_us"]["decomposed"]
     assert ur10["rows"]["decomposed"]["missed"] == 0
     assert "UR10 decomposed / hulls: after" in capsys.readouterr().out
+
+
+def test_execute_instructions_child_runs_each_row_once_and_refuses_an_unknown_one(monkeypatch, capsys, tmp_path) -> None:
+    # the process valgrind runs: one JSON line per row with its ticks (the divisor of the count)
+    _run("execute_instructions.py", ["--child", "panda:joint"], monkeypatch)
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
+    assert [x["key"] for x in lines] == ["panda:joint"] and lines[0]["ticks"] == 2001
+    with pytest.raises(SystemExit, match="unknown row 'panda:nowhere'"):
+        _run("execute_instructions.py", ["--child", "panda:nowhere"], monkeypatch)
+    # a callgrind dump's count is its totals line
+    dump = tmp_path / "callgrind.out.1"
+    dump.write_text("version: 1\nevents: Ir\nfn=(1) f\n3 12\ntotals: 87439865\n")
+    assert runpy.run_path(str(BENCHES / "execute_instructions.py"))["totals"](dump) == 87439865

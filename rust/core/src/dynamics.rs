@@ -1127,31 +1127,34 @@ impl Dynamics {
             let b = &self.bodies[j];
             let a = b.world_axis(&ws.rw[j]);
             let c = b.v_index;
+            let jc = column6(jac, c);
             match b.kind {
                 JointKind::Revolute | JointKind::Continuous => {
                     let r = pf - ws.pw[j];
                     let lin = a.cross(&r);
                     for k in 0..3 {
-                        jac[(k, c)] = lin[k];
-                        jac[(k + 3, c)] = a[k];
+                        jc[k] = lin[k];
+                        jc[k + 3] = a[k];
                     }
                     if let Some(d) = djac.as_deref_mut() {
+                        let dc = column6(d, c);
                         let ad = ws.ww[j].cross(&a);
                         let lind = ad.cross(&r) + a.cross(&(vf - ws.vw[j]));
                         for k in 0..3 {
-                            d[(k, c)] = lind[k];
-                            d[(k + 3, c)] = ad[k];
+                            dc[k] = lind[k];
+                            dc[k + 3] = ad[k];
                         }
                     }
                 }
                 JointKind::Prismatic => {
                     for k in 0..3 {
-                        jac[(k, c)] = a[k];
+                        jc[k] = a[k];
                     }
                     if let Some(d) = djac.as_deref_mut() {
+                        let dc = column6(d, c);
                         let ad = ws.ww[j].cross(&a);
                         for k in 0..3 {
-                            d[(k, c)] = ad[k];
+                            dc[k] = ad[k];
                         }
                     }
                 }
@@ -1206,6 +1209,13 @@ impl Dynamics {
     pub fn moving_mass(&self) -> f64 {
         self.bodies.iter().map(|b| b.inertia.mass).sum()
     }
+}
+
+/// Column `c` of a 6-row matrix (column-major storage): one bounds check for the column
+/// instead of a shape check per element.
+#[inline(always)]
+fn column6(m: &mut DMatrix<f64>, c: usize) -> &mut [f64; 6] {
+    (&mut m.as_mut_slice()[6 * c..6 * c + 6]).try_into().expect("a 6-row matrix")
 }
 
 fn check_len(what: &str, out: &[f64], n: usize) -> Result<()> {

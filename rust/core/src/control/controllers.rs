@@ -379,28 +379,34 @@ impl Controller {
             xdd += cmd.acc;
         }
         if self.square {
-            let j = Matrix6::from_iterator(self.jac.iter().copied());
+            // the 6 x 6 Jacobian's column-major storage as it is (no element-wise iterator)
+            let j = Matrix6::from_column_slice(self.jac.as_slice());
             let (x, det, damped) = damped_solve(&j, &(xdd - self.djv), c.singular_det, c.max_damping);
             self.qdd_ref.copy_from_slice(x.as_slice());
             return (det, damped);
         }
         // the servoed rows: J_s, b = xdd - dJ v
+        // column-major storage read through slices: the same sums in the same order as indexing
+        // the matrices element by element, without a shape check per element
         let nv = self.qdd_ref.len();
-        for (k, &r) in self.rows.iter().enumerate() {
-            for col in 0..nv {
-                self.js[(k, col)] = self.jac[(r, col)];
-            }
-            self.b[k] = xdd[r] - self.djv[r];
-        }
         let m = self.rows.len();
-        for i in 0..m {
-            for k in 0..=i {
-                let mut s = 0.0;
-                for col in 0..nv {
-                    s += self.js[(i, col)] * self.js[(k, col)];
+        {
+            let (jac, js) = (&self.jac.as_slice()[..6 * nv], &mut self.js.as_mut_slice()[..m * nv]);
+            for (k, &r) in self.rows.iter().enumerate() {
+                for (dst, src) in js[k..].iter_mut().step_by(m).zip(jac[r..].iter().step_by(6)) {
+                    *dst = *src;
                 }
-                self.a[(i, k)] = s;
-                self.a[(k, i)] = s;
+                self.b[k] = xdd[r] - self.djv[r];
+            }
+        }
+        {
+            let (js, a) = (&self.js.as_slice()[..m * nv], &mut self.a.as_mut_slice()[..m * m]);
+            for i in 0..m {
+                for k in 0..=i {
+                    let s = js[i..].iter().step_by(m).zip(js[k..].iter().step_by(m)).fold(0.0, |s, (&x, &y)| s + x * y);
+                    a[i + k * m] = s;
+                    a[k + i * m] = s;
+                }
             }
         }
         // Yoshikawa's manipulability from the Cholesky factor; damped below singular_det

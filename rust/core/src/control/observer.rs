@@ -74,7 +74,8 @@ impl DisturbanceObserver {
             Some(h) => self.prev_h.copy_from_slice(h),
             None => self.prev_h.fill(0.0),
         }
-        self.prev_m.copy_from(m);
+        // one copy of the storage (both nv x nv, column-major) instead of element by element
+        self.prev_m.as_mut_slice().copy_from_slice(m.as_slice());
         self.prev_v.copy_from_slice(v);
         self.has_prev = true;
     }

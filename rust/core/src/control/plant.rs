@@ -112,7 +112,6 @@ pub struct Plant {
     q_step: Vec<f64>,
     v_step: Vec<f64>,
     qt: Vec<f64>,
-    vt: Vec<f64>,
     k1: Vec<f64>,
     k2: Vec<f64>,
     k3: Vec<f64>,
@@ -155,7 +154,6 @@ impl Plant {
             q,
             v: z.clone(),
             v_step: z.clone(),
-            vt: z.clone(),
             k1: z.clone(),
             k2: z.clone(),
             k3: z.clone(),
@@ -246,21 +244,19 @@ impl Plant {
                 out.copy_from_slice(&self.k1);
             }
             // the later stages' joint rotations from this state's by angle addition
+            // each stage's speed written once where the next stages read it (no copies)
             for i in 0..nv {
-                self.vt[i] = v[i] + 0.5 * h * self.k1[i];
+                self.v2[i] = v[i] + 0.5 * h * self.k1[i];
             }
-            self.v2.copy_from_slice(&self.vt);
-            f.accel_moved(&self.angles, q, v, 0.5 * h, tau, &self.vt, &mut self.k2)?;
+            f.accel_moved(&self.angles, q, v, 0.5 * h, tau, &self.v2, &mut self.k2)?;
             for i in 0..nv {
-                self.vt[i] = v[i] + 0.5 * h * self.k2[i];
+                self.v3[i] = v[i] + 0.5 * h * self.k2[i];
             }
-            self.v3.copy_from_slice(&self.vt);
-            f.accel_moved(&self.angles, q, &self.v2, 0.5 * h, tau, &self.vt, &mut self.k3)?;
+            f.accel_moved(&self.angles, q, &self.v2, 0.5 * h, tau, &self.v3, &mut self.k3)?;
             for i in 0..nv {
-                self.vt[i] = v[i] + h * self.k3[i];
+                self.v4[i] = v[i] + h * self.k3[i];
             }
-            self.v4.copy_from_slice(&self.vt);
-            f.accel_moved(&self.angles, q, &self.v3, h, tau, &self.vt, &mut self.k4)?;
+            f.accel_moved(&self.angles, q, &self.v3, h, tau, &self.v4, &mut self.k4)?;
             for i in 0..nv {
                 self.sum[i] = v[i] + 2.0 * self.v2[i] + 2.0 * self.v3[i] + self.v4[i];
             }

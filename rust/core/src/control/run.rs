@@ -328,17 +328,20 @@ impl PayloadStage {
         let bc = Vector3::new(c.djv[0], c.djv[1], c.djv[2]) + bw.cross(&rc) + w.cross(&w.cross(&rc));
         let f = (bc - gravity) * self.mass;
         let n = iw * bw + w.cross(&(iw * w));
-        let m = c.mass();
-        for (k, col) in self.cols.iter_mut().enumerate() {
-            let jw = Vector3::new(c.jac[(3, k)], c.jac[(4, k)], c.jac[(5, k)]);
-            let jc = Vector3::new(c.jac[(0, k)], c.jac[(1, k)], c.jac[(2, k)]) + jw.cross(&rc);
+        // the matrices' column-major storage through slices (no shape check per element)
+        let nv = self.cols.len();
+        let m = &c.mass().as_slice()[..nv * nv];
+        for ((k, col), jk) in self.cols.iter_mut().enumerate().zip(c.jac.as_slice().chunks_exact(6)) {
+            let jw = Vector3::new(jk[3], jk[4], jk[5]);
+            let jc = Vector3::new(jk[0], jk[1], jk[2]) + jw.cross(&rc);
             *col = [jc, jw, iw * jw];
             self.rhs[k] = torque[k] - c.h[k] - jc.dot(&f) - jw.dot(&n);
         }
         // the lower triangle (what the factorisation reads)
+        let a = &mut self.a.as_mut_slice()[..nv * nv];
         for (i, ci) in self.cols.iter().enumerate() {
             for (k, ck) in self.cols.iter().enumerate().skip(i) {
-                self.a[(k, i)] = m[(k, i)] + self.mass * ck[0].dot(&ci[0]) + ck[1].dot(&ci[2]);
+                a[k + i * nv] = m[k + i * nv] + self.mass * ck[0].dot(&ci[0]) + ck[1].dot(&ci[2]);
             }
         }
         cholesky_in_place(&self.a, &mut self.l).map_err(|k| {
