@@ -73,3 +73,16 @@ def test_roboplan_refuses_a_shape_it_cannot_hold(panda) -> None:
 
     with pytest.raises(SettingsError, match="boxes and capsules"):
         peers.RoboplanArm(panda)._place([Sphere("ball", 0.1)])
+
+
+@pytest.mark.parametrize("arm", ["ompl", "roboplan"])
+def test_a_robot_with_continuous_joints_is_refused_by_name(arm) -> None:
+    pytest.importorskip(arm)
+    import genplan
+    from genplan.errors import SettingsError
+
+    kinova = genplan.load("kinova")
+    assert kinova.continuous
+    make = peers.OmplArm if arm == "ompl" else peers.RoboplanArm
+    with pytest.raises(SettingsError, match="continuous joints"):
+        make(kinova)

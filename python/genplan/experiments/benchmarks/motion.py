@@ -73,7 +73,7 @@ from numpy.typing import NDArray  # noqa: E402
 
 import genplan  # noqa: E402
 from genplan.cli import args as A  # noqa: E402
-from genplan.errors import MissingExtraError  # noqa: E402
+from genplan.errors import MissingExtraError, SettingsError  # noqa: E402
 from genplan.experiments.benchmarks.motion_peers import OmplArm, RoboplanArm  # noqa: E402
 from genplan.experiments.common import geometric_mean, machine, table, write_json  # noqa: E402
 from genplan.ik import frame_task, solve_ik  # noqa: E402
@@ -568,7 +568,7 @@ def run(families: list[str], n: int, seed: int, arms: list[str] | None = None, r
         if arm in arms:
             try:
                 peers[arm] = make(robot, seed=seed)
-            except MissingExtraError as exc:
+            except (MissingExtraError, SettingsError) as exc:  # not installed; a robot it cannot plan
                 arms.remove(arm)
                 skipped[arm] = str(exc)
     load0 = os.getloadavg()

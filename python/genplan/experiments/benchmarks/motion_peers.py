@@ -53,6 +53,14 @@ def _pose_matrix(pose: Any) -> NDArray[np.float64]:
     return m
 
 
+def _no_continuous(robot: genplan.Robot, arm: str) -> None:
+    """SettingsError for a robot with continuous joints (genplan's q holds each as cos, sin): these
+    arms plan joint angles in a bounded real vector space."""
+    if robot.continuous:
+        raise SettingsError(f"{arm} arm plans bounded joint angles; robot {robot.name!r} has continuous joints "
+                            f"(their configuration is cos, sin)")
+
+
 class RoboplanArm:
     """roboplan on ``robot``'s URDF and SRDF; :meth:`plan` one problem at a time (its obstacles
     replace the previous problem's)."""
@@ -63,8 +71,7 @@ class RoboplanArm:
             import roboplan.rrt as rr
         except ImportError as exc:
             raise MissingExtraError(f"roboplan is not installed ({exc}): pip install roboplan (the 'peers' extra)") from None
-        if robot.urdf_path is None:
-            raise SettingsError(f"robot {robot.name!r} has no URDF file for roboplan to read")
+        _no_continuous(robot, "roboplan's")
         self.rc, self.rr = rc, rr
         self.scene = rc.Scene(robot.name, rc.loadUrdfSceneDescription(str(robot.urdf_path),
                                                                        [str(p) for p in robot.package_dirs]))
@@ -140,6 +147,7 @@ class OmplArm:
             from ompl import util as ou
         except ImportError as exc:
             raise MissingExtraError(f"ompl is not installed ({exc}): pip install ompl (the 'bench' extra)") from None
+        _no_continuous(robot, "OMPL's")
         self.ob, self.og, self.ou, self.robot = ob, og, ou, robot
         ou.setLogLevel(ou.LogLevel.LOG_WARN)
         # OMPL seeds its generator once per process, before its first sample (the problems then
