@@ -444,12 +444,14 @@ def adapt(res: Results) -> str:
 MOTION_FILES = ("motion.json", "motion_ur5.json", "motion_baxter.json", "motion_kinova.json")
 
 
-#: the motion bench's genplan arms in the table, in its columns' order, with their headers (an arm
+#: the motion bench's arms besides VAMP's in the table, in its columns' order, with their headers (an arm
 #: is a column when a robot's results hold it; a robot without it shows a dash there)
 MOTION_ARMS = {
     "genplan_spheres": "genplan spheres: success, ms plan + simplify (plan / VAMP); length / VAMP",
     "genplan_hybrid": "genplan hybrid (spheres, contacts confirmed exactly): the same",
     "genplan_exact": "genplan exact: the same",
+    "roboplan": "roboplan (Pinocchio + coal): the same",
+    "ompl": "OMPL RRTConnect (genplan's exact checker from Python): the same",
 }
 
 
@@ -610,6 +612,15 @@ def execute_ticks(res: Results) -> str:
                 "best run", "real time / wall time (median)"], rows) + f"\n\nLoad average during the run: {_load(r)}."
 
 
+def execute_instructions(res: Results) -> str:
+    """Instructions per 1 kHz tick (callgrind, ``Simulation::tick`` alone): a count the machine's
+    load does not move."""
+    r = res["execute_instructions.json"]
+    rows = [[t["robot"], t["configuration"], str(t["joints"]), f"{t['instructions_per_tick'] / 1e3:.1f}k"]
+            for t in r["rows"]]
+    return _md(["robot", "controller", "joints", "instructions per tick"], rows)
+
+
 def execute_tracking(res: Results) -> str:
     """The Panda shelf plans executed with an unknown payload, friction and offsets in the plant:
     tracking error with and without the disturbance observer, torques, limits, collisions."""
@@ -629,6 +640,32 @@ def execute_tracking(res: Results) -> str:
     return (f"{table}\n\nIn the plant: {d['payload']['mass']} kg at `{d['payload']['link']}` (com "
             f"{d['payload']['com']}), Coulomb friction {d['coulomb']} N m, viscous {d['viscous']} N m s, "
             f"offsets {d['offset']} N m, per joint.")
+
+
+def compiled_robot(res: Results) -> str:
+    """genplan's data-driven sphere checker against the same Panda compiled in (VAMP's way), on the
+    same states of one motion-bench scene: instructions per state (callgrind), VAMP's per edge
+    state, and what the faster checker would make of genplan's planning time (Amdahl)."""
+    r = res["compiled_robot.json"]
+    ips = r["instructions_per_state"]
+    labels = {"cover": "genplan's cover", "vamp": "VAMP's 59 spheres"}
+    modes = (("single_random", "one state"), ("batch8", "8 states at once"), ("edge", "an edge's states (motion_free)"))
+    rows = []
+    for spheres, label in labels.items():
+        i = ips[spheres]
+        for mode, what in modes:
+            g, c = i[f"{mode}_genplan"], i[f"{mode}_compiled"]
+            rows.append([label, what, f"{g:,.0f}", f"{c:,.0f}", f"**{_x(g / c)}**"])
+    a = r["summary"]["cover"]["amdahl"]
+    b = a["by_instructions"]
+    return (_md(["spheres", "check", "genplan instructions / state", "compiled", "genplan / compiled"], rows)
+            + f"\n\nVAMP: {r['vamp']['instructions_per_edge_state']:,.0f} instructions per edge state on the same scene. "
+            f"genplan's tests against obstacles and self pairs are {100 * ips['cover']['genplan_tests_share']:.0f} % of "
+            f"its instructions, the compiled kinematics and placement {100 * ips['cover']['compiled_batch8_placement_share']:.0f} % "
+            f"of the compiled check. The checker's share of genplan's planning time on the motion problems "
+            f"({r['plans']['problems_per_family']} a family) is {a['checker_share']:.2f}: a checker "
+            f"{b['checker_speedup']:.2f}x cheaper would make planning {b['plan_time_factor']:.2f}x as long. "
+            f"Load average {min(r['load_1min_start'], r['load_1min_end']):.1f}-{max(r['load_1min_start'], r['load_1min_end']):.1f}.")
 
 
 def point_clouds(res: Results) -> str:
@@ -740,6 +777,10 @@ TABLES: dict[str, Table] = {
                                         baxter_tray_quiet_training),
     "execute_ticks": Table(("execute_ticks.json",), "python benches/execute.py --plans 0 --repeats 5 --out "
                            "benches/results/execute_ticks.json", execute_ticks),
+    "execute_instructions": Table(("execute_instructions.json",), "python benches/execute_instructions.py --out "
+                                  "benches/results/execute_instructions.json", execute_instructions),
+    "compiled_robot": Table(("compiled_robot.json",), "python benches/compiled_robot.py --problems 3 --out "
+                            "benches/results/compiled_robot.json", compiled_robot),
     "execute_tracking": Table(("execute.json",), "python benches/execute.py --plans 20 --out benches/results/execute.json",
                               execute_tracking),
     "point_clouds": Table(("point_clouds.json",), "python benches/point_clouds.py --rounds 5", point_clouds),
