@@ -65,7 +65,7 @@ class RoboplanArm:
     """roboplan on ``robot``'s URDF and SRDF; :meth:`plan` one problem at a time (its obstacles
     replace the previous problem's)."""
 
-    def __init__(self, robot: genplan.Robot, seed: int = 0) -> None:
+    def __init__(self, robot: genplan.Robot, seed: int = 0) -> None:  # seed: per plan (roboplan's RNG is the planner's)
         try:
             import roboplan.core as rc
             import roboplan.rrt as rr
@@ -76,7 +76,7 @@ class RoboplanArm:
         self.scene = rc.Scene(robot.name, rc.loadUrdfSceneDescription(str(robot.urdf_path),
                                                                        [str(p) for p in robot.package_dirs]))
         if robot.srdf_path is not None:
-            self.scene.importSrdf(open(robot.srdf_path).read())
+            self.scene.importSrdf(robot.srdf_path.read_text())
         self.names = list(robot.joint_names)
         self.scene.addGroup("genplan", self.names)
         full = np.asarray(self.scene.getCurrentJointPositions(), dtype=np.float64)
@@ -85,7 +85,6 @@ class RoboplanArm:
             if name in every:
                 full[every.index(name)] = float(value)
         self.full = full
-        self.seed = seed
         self.obstacles: list[str] = []
 
     def _place(self, obstacles: list[Any]) -> None:
