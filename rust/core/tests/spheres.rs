@@ -3,12 +3,13 @@
 //! on a robot that is one sphere, conservativeness on the Panda against the exact world, the
 //! batch and motion forms against the one-configuration form, the links fixed to the world
 //! (checked once, their self pairs through a tree) and links of many spheres (placed when a test
-//! needs them) against every sphere pair, and the input checks.
+//! needs them) against every sphere pair, links of many spheres in groups (each group's bounding
+//! sphere tested first) against every sphere's own test, and the input checks.
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld, FIXED_LEAF, LANES};
+use genplan_core::collision::spheres::{SphereModel, SphereScratch, SphereWorld, FIXED_LEAF, LANES, MOVING_GROUP};
 use genplan_core::collision::CollisionWorld;
 use genplan_core::error::Error;
 use genplan_core::kinematics::KinematicModel;
@@ -364,6 +365,79 @@ fn moving_links_of_many_spheres_answer_as_every_sphere_pair() {
     // every link in cells of 3 cm: links of tens of spheres, whose spheres are placed only when
     // a test needs them and pruned one by one against the other link's bounding sphere
     answers_as_every_sphere_pair(29, |_| 0.03);
+}
+
+#[test]
+fn moving_links_in_groups_answer_as_every_sphere_against_every_obstacle() {
+    // every link in cells of 2 cm: links of tens to hundreds of spheres, split into groups of at
+    // most MOVING_GROUP; obstacles of every kind placed at spheres of drawn configurations. The
+    // reference: each sphere alone, its least gap to the obstacles by the exact geometry of the
+    // one-sphere probe (radius 0.1) at its centre, in f64.
+    let cube = cube_file();
+    let (model, mut w) = preset("panda").unwrap().load().unwrap();
+    w.check_self = false;
+    w.set_padding(0.01).unwrap();
+    let mut probe = probe_world();
+    let spheres = box_cover_cells(&w, |_| 0.02);
+    let most = (0..model.n_links()).map(|l| spheres.link.iter().filter(|&&k| k == l).count()).max().unwrap();
+    assert!(most > 8 * MOVING_GROUP, "{most} spheres on the largest link");
+    let mut rng = StdRng::seed_from_u64(31);
+    let mut poses = Vec::new();
+    let mut placed = 0;
+    while placed < 5 {
+        // at a sphere of a drawn configuration, clear of the base (a fixed link: checked once)
+        // and of the shoulder (there in every configuration)
+        model.forward_kinematics(&draw(&model, &mut rng), &mut poses).unwrap();
+        let i = rng.random_range(0..spheres.len());
+        let c = poses[spheres.link[i]] * nalgebra::Point3::new(spheres.x[i], spheres.y[i], spheres.z[i]);
+        if (c.x.hypot(c.y) < 0.3 && c.z < 0.4) || (c.coords - Vector3::new(0.0, 0.0, 0.333)).norm() < 0.4 {
+            continue;
+        }
+        let axis = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let pose = Isometry3::new(c.coords, axis * rng.random_range(0.0..3.0));
+        let size = rng.random_range(0.02..0.05);
+        let name = format!("o{placed}");
+        for world in [&mut w, &mut probe] {
+            match placed % 5 {
+                0 => world.add_box(&name, [size, 0.5 * size, 1.5 * size], pose).unwrap(),
+                1 => world.add_sphere(&name, size, c.coords.into()).unwrap(),
+                2 => world.add_cylinder(&name, size, 2.0 * size, pose).unwrap(),
+                3 => world.add_capsule(&name, 0.5 * size, 2.0 * size, pose).unwrap(),
+                _ => world.add_mesh(&name, &cube, [2.0 * size, 3.0 * size, size], pose).unwrap(),
+            }
+        }
+        placed += 1;
+    }
+    // a half-space beyond the base's reach
+    for world in [&mut w, &mut probe] {
+        world.add_halfspace("floor", [0.3, 0.2, 1.0], -0.5).unwrap();
+    }
+    let sw = SphereWorld::new(Arc::new(w.clone()), spheres.clone()).unwrap();
+    let n = 160;
+    let qs: Vec<f64> = (0..n).flat_map(|_| draw(&model, &mut rng)).collect();
+    let mut batch = vec![false; n];
+    sw.in_collision_batch(&qs, &mut batch, &mut SphereScratch::default());
+    let (mut one, mut s8) = (SphereScratch::default(), SphereScratch::default());
+    let (mut compared, mut hits) = (0, 0);
+    for (row, q) in qs.chunks(model.nq).enumerate() {
+        model.forward_kinematics(q, &mut poses).unwrap();
+        // the least gap of any sphere: the probe's distance less the radius beyond the probe's
+        // and the padding (1 cm)
+        let gap = (0..spheres.len())
+            .map(|i| {
+                let c = poses[spheres.link[i]] * nalgebra::Point3::new(spheres.x[i], spheres.y[i], spheres.z[i]);
+                probe.min_distance(&[c.x, c.y, c.z]).unwrap() + 0.1 - spheres.radius[i] - 0.01
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(sw.in_collision_unchecked(q, &mut one), batch[row], "row {row}: batch and single differ");
+        assert_eq!(sw.any_in_collision(q, &mut s8).0, batch[row], "row {row}: any and batch differ");
+        if gap.abs() > 1e-4 {
+            assert_eq!(batch[row], gap < 0.0, "row {row}: least gap {gap}");
+            compared += 1;
+            hits += (gap < 0.0) as usize;
+        }
+    }
+    assert!(compared > n * 9 / 10 && hits > n / 10 && compared - hits > n / 10, "{compared} rows compared, {hits} in collision");
 }
 
 /// The Panda among random balls, covered by [`box_cover_cells`] with `cell`: each configuration's

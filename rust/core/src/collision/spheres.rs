@@ -29,7 +29,12 @@
 //!
 //! The broad phase: each link's spheres have a bounding sphere; an obstacle is tested against a
 //! link's spheres only in the lanes where that bounding sphere meets the obstacle's world box (or
-//! reaches below a half-space's plane). Self-collision tests the sphere pairs of the link pairs
+//! reaches below a half-space's plane). A moving link of more than [`MOVING_GROUP`] spheres is
+//! split when the checker is built into spatial groups (halved at the median of the longest
+//! side of their centres' box, the spheres reordered so that each group's are contiguous), each
+//! with its bounding sphere: where the link's bounding sphere is near an obstacle, each group's
+//! bounding sphere is tested against the obstacle first (the same closed-form test), and only
+//! the groups it meets are placed and tested sphere by sphere. Self-collision tests the sphere pairs of the link pairs
 //! the world checks (its self pairs, the SRDF's and the computed disabled pairs left out),
 //! after the same test on the two links' bounding spheres, and each sphere of the one link
 //! against the other's bounding sphere before that link's spheres. Per check only the moving
@@ -77,6 +82,10 @@ pub const F32_SLACK: f32 = 1e-5;
 
 /// The most spheres of a fixed link in one leaf of its tree of bounding spheres.
 pub const FIXED_LEAF: usize = 8;
+
+/// The most spheres of a moving link in one group (a link of more spheres is split into
+/// spatial groups, each with its bounding sphere, tested before its spheres).
+pub const MOVING_GROUP: usize = 8;
 
 /// Per-link spheres as struct-of-arrays: sphere i belongs to link `link[i]` (an index into the
 /// kinematic model's links) with centre (`x[i]`, `y[i]`, `z[i]`) in that link's frame and radius
@@ -152,6 +161,56 @@ struct LinkSpheres {
     /// The attached object (index into the world's [`CollisionWorld::attached`]) these spheres
     /// cover, on its holding link; None for the link's own.
     object: Option<usize>,
+    /// A moving link's groups of spheres: `groups` of [`SphereWorld`] `g0..g1` (one group, the
+    /// whole link, for a link of at most [`MOVING_GROUP`] spheres; none for a fixed link).
+    g0: usize,
+    g1: usize,
+}
+
+/// A group of a moving link's spheres, `start..end` (the checker's order: each link's spheres
+/// reordered so that a group's are contiguous), and the sphere bounding them in the link frame
+/// (its radius with two [`F32_SLACK`]: its own and one for its centre and its spheres' being
+/// rounded to `f32` separately, so that the group's test is never tighter than its spheres').
+#[derive(Clone, Debug)]
+struct Group {
+    center: [f32; 3],
+    radius: f32,
+    start: usize,
+    end: usize,
+}
+
+/// Splits the spheres `order` (indices of `spheres`, reordered: each group contiguous) into
+/// groups of at most [`MOVING_GROUP`], halving at the median of the centres along the longest
+/// side of their box (as a fixed link's tree), and appends the groups, their runs starting at
+/// `start`, to `groups`.
+fn split_groups(spheres: &SphereModel, order: &mut [usize], start: usize, groups: &mut Vec<Group>) {
+    let c = |i: usize| Point3::new(spheres.x[i], spheres.y[i], spheres.z[i]);
+    if order.len() > MOVING_GROUP {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for &i in order.iter() {
+            for k in 0..3 {
+                lo[k] = lo[k].min(c(i)[k]);
+                hi[k] = hi[k].max(c(i)[k]);
+            }
+        }
+        let axis = (0..3).max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b]))).unwrap_or(0);
+        let mid = order.len() / 2;
+        order.select_nth_unstable_by(mid, |&a, &b| c(a)[axis].total_cmp(&c(b)[axis]));
+        let (left, right) = order.split_at_mut(mid);
+        split_groups(spheres, left, start, groups);
+        split_groups(spheres, right, start + mid, groups);
+        return;
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for &i in order.iter() {
+        for k in 0..3 {
+            lo[k] = lo[k].min(c(i)[k] - spheres.radius[i]);
+            hi[k] = hi[k].max(c(i)[k] + spheres.radius[i]);
+        }
+    }
+    let center = Point3::new(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]));
+    let reach = order.iter().map(|&i| (c(i) - center).norm() + spheres.radius[i]).fold(0.0, f64::max);
+    groups.push(Group { center: f3(&center.coords), radius: (reach * (1.0 + 1e-6)) as f32 + 2.0 * F32_SLACK, start, end: start + order.len() });
 }
 
 /// A node of a fixed link's tree: the sphere bounding the fixed spheres `start..end` (world
@@ -275,8 +334,11 @@ pub struct SphereWorld {
     /// The world the obstacles, the self pairs and the kinematics come from.
     pub world: Arc<CollisionWorld>,
     spheres: SphereModel,
+    /// The spheres in the link frames (`f32`), each moving link's reordered by its groups.
     local: [Vec<f32>; 4],
     links: Vec<LinkSpheres>,
+    /// The moving links' groups of spheres ([`LinkSpheres`] `g0..g1`).
+    groups: Vec<Group>,
     /// Self pairs as indices into `links`.
     pairs: Vec<(usize, usize)>,
     /// The self pairs of two moving links.
@@ -328,16 +390,20 @@ pub struct SphereScratch<const N: usize> {
     centers: Vec<[[f32; N]; 3]>,
     /// Per link with spheres: world centre of its bounding sphere per lane.
     bounds: Vec<[[f32; N]; 3]>,
-    /// Per link with spheres: are its spheres' `centers` placed for these lanes? A link's
-    /// spheres are placed only when a test needs them ([`SphereWorld::place_link`]).
+    /// Per link with spheres: are its groups' centres (`gbounds`) placed for these lanes?
     placed: Vec<bool>,
+    /// Per group: world centre of its bounding sphere per lane (a link of several groups).
+    gbounds: Vec<[[f32; N]; 3]>,
+    /// Per group: are its spheres' `centers` placed for these lanes? A group's spheres are
+    /// placed only when a test needs them ([`SphereWorld::place_group`]).
+    gplaced: Vec<bool>,
     state: Vec<f64>,
     dq: Vec<f64>,
 }
 
 impl<const N: usize> Default for SphereScratch<N> {
     fn default() -> Self {
-        SphereScratch { one: Vec::new(), four: Vec::new(), frames: Vec::new(), centers: Vec::new(), bounds: Vec::new(), placed: Vec::new(), state: Vec::new(), dq: Vec::new() }
+        SphereScratch { one: Vec::new(), four: Vec::new(), frames: Vec::new(), centers: Vec::new(), bounds: Vec::new(), placed: Vec::new(), gbounds: Vec::new(), gplaced: Vec::new(), state: Vec::new(), dq: Vec::new() }
     }
 }
 
@@ -387,7 +453,7 @@ impl SphereWorld {
         for i in 0..spheres.len() {
             match links.last_mut() {
                 Some(ls) if ls.link == spheres.link[i] => ls.end = i + 1,
-                _ => links.push(LinkSpheres { link: spheres.link[i], start: i, end: i + 1, center: [0.0; 3], radius: 0.0, fixed: false, object: None }),
+                _ => links.push(LinkSpheres { link: spheres.link[i], start: i, end: i + 1, center: [0.0; 3], radius: 0.0, fixed: false, object: None, g0: 0, g1: 0 }),
             }
         }
         if links.windows(2).any(|w| w[0].link >= w[1].link) {
@@ -420,7 +486,7 @@ impl SphereWorld {
             spheres.z.extend(own.z);
             spheres.radius.extend(own.radius);
             attached_slot.push((a.geometry, links.len()));
-            links.push(LinkSpheres { link: a.link, start, end: spheres.len(), center: [0.0; 3], radius: 0.0, fixed: false, object: Some(ai) });
+            links.push(LinkSpheres { link: a.link, start, end: spheres.len(), center: [0.0; 3], radius: 0.0, fixed: false, object: Some(ai), g0: 0, g1: 0 });
         }
         for ls in &mut links {
             // the centre of the spheres' box, the radius reaching the farthest sphere
@@ -485,7 +551,6 @@ impl SphereWorld {
         }
         let link_ids: Vec<usize> = links.iter().map(|l| l.link).collect();
         let joints = lane_joints(model, model.joints_placing(&link_ids));
-        let local = [&spheres.x, &spheres.y, &spheres.z, &spheres.radius].map(|v| v.iter().map(|&a| a as f32).collect());
         // the links no joint moves (none on a floating base): their poses at any configuration
         let mut moves = vec![model.floating_base; model.n_links()];
         for j in &model.joints {
@@ -501,6 +566,15 @@ impl SphereWorld {
                 fixed.add_link(&spheres, ls, &poses[ls.link]);
             }
         }
+        // each moving link's spheres in spatial groups; `perm`: the checker's order of spheres
+        let mut perm: Vec<usize> = (0..spheres.len()).collect();
+        let mut groups = Vec::new();
+        for ls in links.iter_mut().filter(|ls| !ls.fixed) {
+            ls.g0 = groups.len();
+            split_groups(&spheres, &mut perm[ls.start..ls.end], ls.start, &mut groups);
+            ls.g1 = groups.len();
+        }
+        let local = [&spheres.x, &spheres.y, &spheres.z, &spheres.radius].map(|v| perm.iter().map(|&i| v[i] as f32).collect());
         let root_of = |k: usize| fixed.root.iter().find(|&&(l, _)| l == k).map(|&(_, r)| r);
         let mut moving_pairs = Vec::new();
         let mut fixed_pairs = Vec::new();
@@ -513,7 +587,7 @@ impl SphereWorld {
                 (Some(ra), Some(rb)) => fixed_fixed.push((ra, rb)),
             }
         }
-        let mut sw = SphereWorld { world, spheres, local, links, pairs, moving_pairs, fixed_pairs, fixed, fixed_hit: false, obstacles, joints };
+        let mut sw = SphereWorld { world, spheres, local, links, groups, pairs, moving_pairs, fixed_pairs, fixed, fixed_hit: false, obstacles, joints };
         sw.fixed_hit = sw.fixed_collides(&fixed_fixed);
         Ok(sw)
     }
@@ -764,6 +838,9 @@ impl SphereWorld {
         s.bounds.resize(self.links.len(), [[0.0; N]; 3]);
         s.placed.clear();
         s.placed.resize(self.links.len(), false);
+        s.gbounds.resize(self.groups.len(), [[0.0; N]; 3]);
+        s.gplaced.clear();
+        s.gplaced.resize(self.groups.len(), false);
         for (k, ls) in self.links.iter().enumerate().filter(|(_, ls)| !ls.fixed) {
             put(&s.frames[ls.link], ls.center, &mut s.bounds[k]);
         }
@@ -774,14 +851,39 @@ impl SphereWorld {
     /// obstacle and no link of its self pairs never needs them.
     #[inline(always)]
     fn place_link<const N: usize>(&self, s: &mut SphereScratch<N>, k: usize) {
-        if s.placed[k] {
+        let ls = &self.links[k];
+        for g in ls.g0..ls.g1 {
+            self.place_group(s, ls.link, g);
+        }
+    }
+
+    /// Places the centres of the groups of the moving link `k` (index into `links`), unless
+    /// they are already or the link is one group (whose test would repeat the link's).
+    #[inline(always)]
+    fn place_groups<const N: usize>(&self, s: &mut SphereScratch<N>, k: usize) {
+        let ls = &self.links[k];
+        if s.placed[k] || ls.g1 - ls.g0 < 2 {
             return;
         }
         s.placed[k] = true;
-        let ls = &self.links[k];
-        let [x, y, z, _] = &self.local;
         let f = &s.frames[ls.link];
-        for i in ls.start..ls.end {
+        for g in ls.g0..ls.g1 {
+            put(f, self.groups[g].center, &mut s.gbounds[g]);
+        }
+    }
+
+    /// Places the spheres of group `g` of a moving link (`link`: its index in the model),
+    /// unless they are already.
+    #[inline(always)]
+    fn place_group<const N: usize>(&self, s: &mut SphereScratch<N>, link: usize, g: usize) {
+        if s.gplaced[g] {
+            return;
+        }
+        s.gplaced[g] = true;
+        let gr = &self.groups[g];
+        let [x, y, z, _] = &self.local;
+        let f = &s.frames[link];
+        for i in gr.start..gr.end {
             put(f, [x[i], y[i], z[i]], &mut s.centers[i]);
         }
     }
@@ -821,11 +923,28 @@ impl SphereWorld {
                 if !near.iter().fold(false, |a, &n| a | n) {
                     continue;
                 }
-                self.place_link(s, k);
-                for i in ls.start..ls.end {
-                    let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK + o.pad, &near);
-                    for l in 0..N {
-                        hit[l] |= h[l] & near[l];
+                self.place_groups(s, k);
+                let several = ls.g1 - ls.g0 > 1;
+                for g in ls.g0..ls.g1 {
+                    let gr = &self.groups[g];
+                    // a group of a link of several: its bounding sphere first (it holds its
+                    // spheres with a slack to spare: a pure prune)
+                    let gnear = if several {
+                        let h = self.sphere_hits(o, &s.gbounds[g], gr.radius + o.pad, &near);
+                        let m: [bool; N] = std::array::from_fn(|l| h[l] & near[l]);
+                        if !m.iter().fold(false, |a, &n| a | n) {
+                            continue;
+                        }
+                        m
+                    } else {
+                        near
+                    };
+                    self.place_group(s, ls.link, g);
+                    for i in gr.start..gr.end {
+                        let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK + o.pad, &gnear);
+                        for l in 0..N {
+                            hit[l] |= h[l] & gnear[l];
+                        }
                     }
                 }
                 if done(&hit) {
