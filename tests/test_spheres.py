@@ -328,6 +328,10 @@ def test_a_link_gets_a_max_error_of_its_own(small: genplan.Robot) -> None:
     assert plain.geometry_hash == sph.geometry_hash(geoms, 0.04, 0.02, plain.padding)
     assert sph.robot_spheres(small, max_error=0.04, cache=False, link_max_error={}) == plain
     assert tight.geometry_hash not in (plain.geometry_hash, sph.geometry_hash(geoms, 0.04, 0.02, plain.padding, {"l1": 0.02}))
+    # an explicit resolution grids l1 at it, not at half l1's max_error: another cover, another key
+    given = sph.robot_spheres(small, max_error=0.04, resolution=0.02, cache=False, link_max_error={"l1": 0.01})
+    assert given.geometry_hash != tight.geometry_hash
+    assert sph.robot_spheres(small, max_error=0.04, resolution=0.02, cache=False).geometry_hash == plain.geometry_hash
     back = sph.RobotSpheres.from_dict(json.loads(json.dumps(tight.to_dict())))
     assert back == tight and back.link_max_error == {"l1": 0.01}
     assert "link_max_error" not in plain.to_dict()

@@ -488,14 +488,17 @@ def _padding(value: Any) -> float:
 
 
 def geometry_hash(geometries: Sequence[LinkGeometry], max_error: float, resolution: float, padding: float,
-                  link_max_error: Mapping[str, float] | None = None) -> str:
+                  link_max_error: Mapping[str, float] | None = None, link_resolution: float | None = None) -> str:
     """The sha256 (hex) of the geometry and the parameters: the cache key (``link_max_error``, the
-    links with a max_error of their own, only when there are any: a cover without them keeps its key)."""
+    links with a max_error of their own, only when there are any: a cover without them keeps its key;
+    ``link_resolution``, their grid spacing when it was given rather than half their max_error)."""
     h = hashlib.sha256()
     params: dict[str, Any] = {"format": FORMAT, "algorithm": ALGORITHM_VERSION, "max_error": max_error,
                               "resolution": resolution, "padding": padding}
     if link_max_error:
         params["link_max_error"] = {str(k): float(v) for k, v in link_max_error.items()}
+        if link_resolution is not None:
+            params["link_resolution"] = float(link_resolution)
     h.update(json.dumps(params, sort_keys=True).encode())
     for g in geometries:
         g.digest(h)
@@ -571,7 +574,9 @@ def robot_spheres(
                 raise SettingsError(f"link_max_error: {name!r} is no link with collision geometry of '{robot.name}' "
                                     f"(those: {', '.join(with_geometry)})")
             per_link[name] = _positive(value, f"link_max_error[{name!r}]", 1.0)
-    key = geometry_hash(geometries, eps, res, pad, per_link)
+    # the links of their own max_error are gridded at half of it unless a resolution was given:
+    # the same (max_error, resolution) pair must not name two covers
+    key = geometry_hash(geometries, eps, res, pad, per_link, None if resolution is None else res)
     if cache and key in _MEMO:
         return _MEMO[key]
     path = _cache_path(robot.name, key)

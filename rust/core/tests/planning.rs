@@ -917,6 +917,8 @@ fn a_search_out_of_its_time_limit_is_an_unsuccessful_plan() {
         assert!(sol.stats.timed_out, "{algorithm:?}: {:?}", sol.stats);
         assert!(sol.stats.time_s >= 0.05, "{algorithm:?} stopped before its limit: {:?}", sol.stats);
         assert!(sol.stats.extensions < 1_000_000_000);
+        // the tree the search had grown when the clock stopped it
+        assert!(sol.stats.nodes > 1, "{algorithm:?}: {:?}", sol.stats);
         // without a limit, the budget ends it: not a time-out
         let sol = plan(0.0, 50);
         assert!(!sol.success && !sol.stats.timed_out, "{algorithm:?}: {:?}", sol.stats);

@@ -137,7 +137,10 @@ class RoboplanArm:
 
 
 class OmplArm:
-    """OMPL's RRTConnect on a real vector space, genplan's exact world as its validity checker."""
+    """OMPL's RRTConnect on a real vector space, genplan's exact world as its validity checker.
+    OMPL's generator is seeded once per process, before its first sample (it cannot be seeded
+    again after that): :meth:`plan`'s ``seed`` is not used, and its draws depend on the order the
+    problems run in (the benchmark's order is fixed) and on no other OMPL use before it."""
 
     def __init__(self, robot: genplan.Robot, seed: int = 0) -> None:
         try:

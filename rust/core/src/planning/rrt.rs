@@ -632,6 +632,8 @@ impl Run<'_> {
         let mut found = None;
         let mut q_rand = Vec::with_capacity(nq);
         for _ in 0..self.st.max_extensions {
+            // kept current: a time-out (poll, next_sample) leaves the attempt by `?`
+            self.space.stats.nodes = tree.len();
             self.poll()?;
             self.space.stats.extensions += 1;
             self.next_sample(&mut q_rand)?;

@@ -30,6 +30,8 @@ impl Run<'_> {
         // the sample and the state reached, in memory kept across iterations
         let (mut q_rand, mut target) = (Vec::with_capacity(nq), Vec::with_capacity(nq));
         for _ in 0..self.st.max_extensions {
+            // kept current: a time-out (poll, next_sample) leaves the attempt by `?`
+            self.space.stats.nodes = trees[0].len() + trees[1].len();
             self.poll()?;
             self.space.stats.extensions += 1;
             self.next_sample(&mut q_rand)?;
