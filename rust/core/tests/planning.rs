@@ -18,12 +18,16 @@ use rand::SeedableRng;
 
 fn sphere_plan(algorithm: Algorithm, neighbors: NeighborIndex, lazy_edges: bool, simplify: bool, seed: u64) -> genplan_core::planning::Solution {
     let settings = Settings { algorithm, neighbors, lazy_edges, simplify, ..Settings::default() };
+    pole_to_pole(settings, &mut Band, seed)
+}
+
+/// From the south to the north pole of the unit sphere with `settings` and `checker`.
+fn pole_to_pole(settings: Settings, checker: &mut dyn ValidityChecker, seed: u64) -> genplan_core::planning::Solution {
     let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
     let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(seed) };
     let mut projector = SphereProjector { radius: 1.0 };
-    let mut checker = Band;
     let mut interrupt = no_interrupt;
-    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
+    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker, interrupt: &mut interrupt };
     planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap()
 }
 
@@ -903,13 +907,7 @@ fn a_search_out_of_its_time_limit_is_an_unsuccessful_plan() {
     for algorithm in [Algorithm::Crrt, Algorithm::RrtConnect] {
         let plan = |time_limit: f64, max_extensions: usize| {
             let settings = Settings { algorithm, time_limit, max_extensions, retries: 1_000, ..Settings::default() };
-            let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
-            let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(1) };
-            let mut projector = SphereProjector { radius: 1.0 };
-            let mut checker = ShutBand;
-            let mut interrupt = no_interrupt;
-            let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
-            planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap()
+            pole_to_pole(settings, &mut ShutBand, 1)
         };
         // a budget of 10^9 iterations a try and 1,000 retries: only the clock ends the search
         let sol = plan(0.05, 1_000_000_000);
@@ -925,14 +923,7 @@ fn a_search_out_of_its_time_limit_is_an_unsuccessful_plan() {
         assert_eq!(sol.stats.retries, 1_000);
     }
     // a path found within the limit is returned and simplified as without one
-    let settings = Settings { time_limit: 60.0, simplify: true, ..Settings::default() };
-    let planner = Planner::new(Arc::new(EuclideanSpace(3)), settings).unwrap();
-    let mut sampler = CubeSampler { dim: 3, half: 1.0, rng: StdRng::seed_from_u64(1) };
-    let mut projector = SphereProjector { radius: 1.0 };
-    let mut checker = Band;
-    let mut interrupt = no_interrupt;
-    let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
-    let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
+    let sol = pole_to_pole(Settings { time_limit: 60.0, simplify: true, ..Settings::default() }, &mut Band, 1);
     assert!(sol.success && !sol.stats.timed_out);
     let plain = sphere_plan(Algorithm::Crrt, NeighborIndex::Auto, true, true, 1);
     assert_eq!((&sol.path, &sol.waypoints, sol.stats.shortcuts), (&plain.path, &plain.waypoints, plain.stats.shortcuts));
