@@ -143,12 +143,12 @@ class OmplArm:
     problems run in (the benchmark's order is fixed) and on no other OMPL use before it."""
 
     def __init__(self, robot: genplan.Robot, seed: int = 0) -> None:
+        from genplan.experiments.peers.ompl import _ompl  # the OMPL peer's one import of the bindings
+
         try:
-            from ompl import base as ob
-            from ompl import geometric as og
-            from ompl import util as ou
+            ob, og, ou = _ompl()
         except ImportError as exc:
-            raise MissingExtraError(f"ompl is not installed ({exc}): pip install ompl (the 'bench' extra)") from None
+            raise MissingExtraError(str(exc)) from None
         _no_continuous(robot, "OMPL's")
         self.ob, self.og, self.ou, self.robot = ob, og, ou, robot
         ou.setLogLevel(ou.LogLevel.LOG_WARN)
