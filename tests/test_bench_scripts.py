@@ -343,3 +343,25 @@ def test_execute_instructions_child_runs_each_row_once_and_refuses_an_unknown_on
     dump = tmp_path / "callgrind.out.1"
     dump.write_text("version: 1\nevents: Ir\nfn=(1) f\n3 12\ntotals: 87439865\n")
     assert runpy.run_path(str(BENCHES / "execute_instructions.py"))["totals"](dump) == 87439865
+
+
+def test_free_space_settings_compares_extension_lengths(tmp_path, monkeypatch, capsys) -> None:
+    """benches/free_space_settings.py: one row per family and value (and VAMP's when installed),
+    each plan successful, ratios to the reference; a geometric mean per robot and over robots."""
+    out = tmp_path / "fss.json"
+    _run("free_space_settings.py", ["--robots", "ur5", "--families", "table_pick", "--problems", "1", "--rounds", "1",
+                                    "--increments", "3", "10", "--out", str(out)], monkeypatch)
+    data = json.loads(out.read_text())
+    arms = {r["arm"] for r in data["rows"]}
+    assert {"3", "10"} <= arms <= {"3", "10", "vamp"}
+    assert all(r["success_pct"] == 100.0 and r["plan_ms_median"] > 0 and r["over_reference"] > 0 for r in data["rows"])
+    ref = data["rows"][0]["reference"]
+    assert ref in ("vamp", "10") and [r["over_reference"] for r in data["rows"] if r["arm"] == ref] == [1.0]
+    assert set(data["over_robots"]) == {"3", "10"} and data["default_max_increments"] == 3
+    assert "geometric mean over the robots" in capsys.readouterr().out
+
+
+def test_free_space_settings_refuses_the_report_seed(monkeypatch, capsys) -> None:
+    with pytest.raises(SystemExit):
+        _run("free_space_settings.py", ["--seed", "0"], monkeypatch)
+    assert "seed 0" in capsys.readouterr().err

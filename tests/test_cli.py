@@ -470,17 +470,19 @@ def test_plan_without_a_task_plans_in_free_space(tmp_path, capsys) -> None:
     start, goal = "0 -0.5 0 -2.4 0 1.9 0.8", "0.5 -0.3 0.2 -2.2 0 2.0 0.8"
     out = tmp_path / "plan.json"
     argv = ["plan", "--robot", "panda", "--scene", "panda_shelf", "--start", start, "--goal", goal, "--out", str(out)]
-    assert main(argv) == 0, capsys.readouterr()
+    assert main([*argv, "--no-simplify"]) == 0, capsys.readouterr()
     d = json.loads(out.read_text())
     assert d["task"] == "free" and d["manifold"] == "free" and d["success"]
+    assert d["algorithm"] == "rrt_connect"  # the free-space default (FREE_SPACE_SETTINGS)
     assert d["stats"]["projections"] == 0 and d["stats"]["projector_s"] == 0
     path = np.array(d["path"])
     assert np.allclose(path[0], [float(x) for x in start.split()]) and np.allclose(path[-1], [float(x) for x in goal.split()])
     assert np.all(path >= panda.lower) and np.all(path <= panda.upper)
     world = genplan.planning.environment("panda_shelf").world(panda)
     assert not np.any(world.in_collision(path))
-    # --simplify: shortcuts and smoothing, the same ends, a path no longer than before, still valid
-    assert main([*argv, "--simplify"]) == 0, capsys.readouterr()
+    # simplified by default in free space: shortcuts and smoothing, the same ends, a path no longer
+    # than the one planned with --no-simplify, still valid
+    assert main(argv) == 0, capsys.readouterr()
     short = np.array(json.loads(out.read_text())["path"])
     assert np.allclose(short[[0, -1]], path[[0, -1]]) and not np.any(world.in_collision(short))
     length = lambda p: float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())  # noqa: E731
@@ -505,8 +507,9 @@ def test_a_plan_that_fails_exits_3_not_1_and_writes_no_trajectory(tmp_path, caps
     import genplan.planning
     from genplan.cli.args import FAILED
 
-    real = genplan.planning.PlannerSettings
-    monkeypatch.setattr(genplan.planning, "PlannerSettings", lambda **kw: real(**kw, max_extensions=1))
+    # the free-space defaults the command plans with, cut to one extension and no retry
+    monkeypatch.setattr(genplan.planning, "FREE_SPACE_SETTINGS",
+                        genplan.planning.FREE_SPACE_SETTINGS.replace(max_extensions=1, retries=0))
     # the straight line between them crosses the shelf: no path within one extension
     start, goal = "0 -0.5 0 -2.4 0 1.9 0.8", "1.77 1.09 0.09 -2.21 -2.58 1.43 -0.53"
     out, traj = tmp_path / "plan.json", tmp_path / "plan.npz"

@@ -13,7 +13,7 @@ import genplan
 from genplan import _core
 from genplan import projection as P
 from genplan.errors import InvalidGoalError, InvalidStartError, SettingsError, UnknownNameError
-from genplan.planning import Planner, PlannerSettings, environment, make_query, plan
+from genplan.planning import FREE_SPACE_SETTINGS, Planner, PlannerSettings, environment, make_query, plan
 
 
 @pytest.fixture(scope="module")
@@ -62,6 +62,28 @@ def test_free_plans_project_nothing_and_are_valid(panda, shelf, algorithm) -> No
             assert traj.q.shape[1] == panda.nq
 
 
+def test_a_free_task_plans_with_the_free_space_defaults(panda, shelf) -> None:
+    """Without settings a free plan gets FREE_SPACE_SETTINGS (RRT-Connect, simplified, extensions
+    of at most 3 steps), a constrained one the paper's PlannerSettings(); settings given are used
+    as they are, ``algorithm=`` replacing theirs; plan() and the result follow the same rule."""
+    world, qs = shelf
+    assert FREE_SPACE_SETTINGS.algorithm == "rrt_connect" and FREE_SPACE_SETTINGS.simplify
+    assert FREE_SPACE_SETTINGS.max_increments == 3 and FREE_SPACE_SETTINGS.max_increments < PlannerSettings().max_increments
+    assert Planner(panda, world, task="free").settings == FREE_SPACE_SETTINGS
+    assert Planner(panda, world, task="panda_projection").settings == PlannerSettings()
+    given = PlannerSettings(step=0.2)
+    assert Planner(panda, world, task="free", settings=given).settings == given
+    assert Planner(panda, world, task="free", algorithm="crrt").settings == FREE_SPACE_SETTINGS.replace(algorithm="crrt")
+    # a task of joint limits alone given as a Task is free too; a projector given makes it constrained
+    free = P.load_task("free", panda)
+    assert Planner(panda, world, task=free).settings == FREE_SPACE_SETTINGS
+    projector = P.GaussNewtonProjector(panda, free)
+    assert Planner(panda, world, task=free, projector=projector).settings == PlannerSettings()
+    out = plan(panda, "free", "panda_shelf", start=qs[0], goal=qs[1])
+    assert out.algorithm == "rrt_connect" and out.result.success
+    assert_free_path(panda, world, out.result, qs[0], qs[1])
+
+
 def straight_edge(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The states of the straight edge from a to b at the default edge resolution, as the
     planner spaces them (ends included)."""
@@ -78,10 +100,11 @@ def test_free_plans_match_the_projector_that_has_nothing_to_do(panda, shelf) -> 
     world, qs = shelf
     goal = next(q for q in qs[1:] if np.any(world.in_collision(straight_edge(qs[0], q))))
     free = P.load_task("free", panda)
+    settings = PlannerSettings()  # the same for both (a free task's defaults are FREE_SPACE_SETTINGS)
     for algorithm in ("crrt", "rrt_connect"):
-        a = Planner(panda, world, task="free", algorithm=algorithm, seed=5).plan(qs[0], goal)
+        a = Planner(panda, world, task="free", algorithm=algorithm, settings=settings, seed=5).plan(qs[0], goal)
         projector = P.GaussNewtonProjector(panda, free.with_tolerances_scaled(0.1))
-        through = Planner(panda, world, task=free, projector=projector, algorithm=algorithm, seed=5)
+        through = Planner(panda, world, task=free, projector=projector, algorithm=algorithm, settings=settings, seed=5)
         assert not through.free
         b = through.plan(qs[0], goal)
         assert a.success and b.success

@@ -8,7 +8,9 @@ space by default, or on a task's constraint manifold.
         --sampler gan --model cup.safetensors --out plan.json --html plan.html
 
 Without ``--task`` the plan is in free space (the shipped ``free`` task: the joint limits alone,
-nothing projected; the start and goal must be within the limits as they are). With a task, the
+nothing projected; the start and goal must be within the limits as they are), by RRT-Connect with
+the path simplified (genplan.planning.FREE_SPACE_SETTINGS; ``--algorithm crrt``, ``--no-simplify``
+change them). With a task, the
 start (``default`` or nq numbers) is projected onto its manifold, or found by IK for
 ``--start-target`` (as the goals for ``--target``). The goal is a configuration
 (``--goal``, nq numbers) or IK solutions for ``--target``: X Y Z, a target of the task's
@@ -78,14 +80,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "condition frame (a task without a [condition], such as free, needs it)")
     p.add_argument("--goals", type=A.positive_int, default=10, help="IK goals for --target (default 10)")
     p.add_argument("--sampler", choices=SAMPLERS, default="uniform")
-    p.add_argument("--algorithm", choices=ALGORITHMS, default="crrt",
-                   help="crrt: the GAN paper's constrained RRT (default); rrt_connect: bidirectional RRT-Connect")
+    p.add_argument("--algorithm", choices=ALGORITHMS, default=None,
+                   help="crrt: the GAN paper's constrained RRT (the default on a task's manifold); rrt_connect: "
+                        "bidirectional RRT-Connect (the default in free space: genplan.planning.FREE_SPACE_SETTINGS)")
     p.add_argument("--edge-check", choices=EDGE_CHECKS, default="sampled",
                    help="sampled: edge states checked 0.025 rad apart (default); certified: every motion between "
                         "them certified collision-free as well (PlannerSettings.edge_check; slower)")
     p.add_argument("--model", type=A.existing_file, default=None, help="the learned sampler's file (a GAN or a flow) for --sampler gan, hybrid or adaptive")
-    p.add_argument("--simplify", action="store_true",
-                   help="shorten the path: shortcuts (and, in free space, B-spline smoothing) between checked states")
+    p.add_argument("--simplify", action=argparse.BooleanOptionalAction, default=None,
+                   help="shorten the path: shortcuts (and, in free space, B-spline smoothing) between checked states "
+                        "(default: on in free space, off on a task's manifold)")
     p.add_argument("--time-limit", type=A.non_negative_float, default=0.0, metavar="S",
                    help="seconds the search may take (PlannerSettings.time_limit; default 0: no limit but the "
                         "iteration budget); a plan out of time is reported as not found (exit status 3)")
@@ -101,27 +105,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from genplan._files import write_text
     from genplan.errors import InvalidTrajectoryError
-    from genplan.planning import PlannerSettings, plan
+    from genplan import projection as P
+    from genplan.planning import FREE_SPACE_SETTINGS, PlannerSettings, plan
+    from genplan.robots import load
 
     if args.trajectory is not None and args.trajectory.suffix.lower() not in (".npz", ".json", ".csv"):
         raise A.UsageError(f"--trajectory {args.trajectory}: expected a .npz, .json or .csv file")
-    robot, task = args.robot, "free" if args.task is None else args.task
-    if args.allow_python and args.task is not None:  # the file's python terms imported only on request
-        from genplan import projection as P
-        from genplan.robots import load
-
-        robot = load(args.robot)
-        task = P.load_task(args.task, robot, allow_python=True)
+    robot = load(args.robot)
+    # the file's python terms imported only on request
+    task = P.load_task("free" if args.task is None else args.task, robot,
+                       allow_python=bool(args.allow_python and args.task is not None))
+    # a free task's defaults (RRT-Connect, simplified) or the constrained planner's, with the options given
+    changes: dict[str, Any] = {"edge_check": args.edge_check, "time_limit": args.time_limit}
+    if args.simplify is not None:
+        changes["simplify"] = args.simplify
+    settings = (FREE_SPACE_SETTINGS if task.free else PlannerSettings()).replace(**changes)
     outcome = plan(robot, task, args.scene, start=args.start,
                    goal=args.goal, target=args.target, frame=args.frame, sampler=args.sampler, model=args.model,
-                   k=args.goals, seed=args.seed, algorithm=args.algorithm,
-                   settings=PlannerSettings(edge_check=args.edge_check, simplify=args.simplify, time_limit=args.time_limit),
+                   k=args.goals, seed=args.seed, algorithm=args.algorithm, settings=settings,
                    start_target=args.start_target)
     r = outcome.result
     write_text(args.out, json.dumps(outcome.to_dict(), indent=1) + "\n")
     found = "found" if r.success else "no path found within --time-limit" if r.stats.timed_out else "no path found"
     print(f"{found}: {len(r.path)} states, {r.stats.extensions} extensions, "
-          f"{r.time_s * 1e3:.1f} ms ({args.algorithm}, {args.sampler} sampler, {args.edge_check} edges); wrote {args.out}")
+          f"{r.time_s * 1e3:.1f} ms ({outcome.algorithm}, {args.sampler} sampler, {args.edge_check} edges); wrote {args.out}")
     traj = None
     if args.trajectory is not None:
         if not r.success:

@@ -42,9 +42,11 @@ Free space: ``Planner(robot, world, task="free")`` (the shipped task of the join
 task whose primary terms are all :class:`~genplan.projection.JointLimits` is free,
 :attr:`Task.free <genplan.projection.Task.free>`) plans with no projector in the loop: samples,
 steps and edge states are taken as they are, and the checker holds the joint limits and the
-collisions of every state (``stats.projections == 0``, ``stats.projector_s == 0``).
+collisions of every state (``stats.projections == 0``, ``stats.projector_s == 0``). Without
+``settings`` a free plan takes :data:`FREE_SPACE_SETTINGS` (RRT-Connect, extensions of at most
+0.9 rad, the path simplified), a constrained one the paper's ``PlannerSettings()``.
 
->>> planner = Planner(robot, world=env.world(robot), task="free", algorithm="rrt_connect")
+>>> planner = Planner(robot, world=env.world(robot), task="free")   # FREE_SPACE_SETTINGS
 >>> result = planner.plan(start, goal)                   # configurations, (nq,) and (k, nq)
 """
 
@@ -72,6 +74,7 @@ __all__ = [
     "ALGORITHMS",
     "CHECKERS",
     "EDGE_CHECKS",
+    "FREE_SPACE_SETTINGS",
     "SAMPLINGS",
     "ENVIRONMENT_NAMES",
     "Environment",
@@ -127,6 +130,19 @@ ADAPTIVE_HALF_LIFE = 1600.0
 #: keyword-only, immutable (``settings.replace(step=0.2)`` makes a changed copy), validated
 #: (:class:`~genplan.errors.SettingsError` names the field). Defaults: the GAN paper's public code.
 PlannerSettings = _core.PlannerSettings
+#: The settings of a free-space plan when none are given (:class:`Planner` with a free task,
+#: :func:`plan`, ``genplan plan`` without ``--task``): RRT-Connect, the path simplified, extensions
+#: of at most 3 steps of 0.3 rad (0.9 rad, the order of VAMP's RRT-Connect range; the paper's 10
+#: steps, 3 rad, suit its constrained RRT), and a search budget of 20,000 iterations per attempt,
+#: 5 attempts (VAMP's order: a failure is the planner's, not a budget's; ``time_limit`` bounds it in
+#: seconds). The extension length was chosen on the motion bench's tuning problems (seed 1; the
+#: tables report seed 0) of the Panda, the UR5 and Baxter, against VAMP (benches/free_space_settings.py,
+#: benches/results/free_space_settings.json): 2 and 3 steps plan fastest, within a few per cent of
+#: each other (the geometric mean over the robots), 5 and 10 steps (the paper's) slower.
+FREE_SPACE_SETTINGS = PlannerSettings(algorithm="rrt_connect", simplify=True, max_increments=3,
+                                      max_extensions=20_000, retries=4)
+
+
 class PlanResult:
     """A plan's outcome: the native result (``_core.PlanResult``: ``success``, dense ``path``,
     ``waypoints``, ``goal_index``, ``time_s``, ``projections``, ``extensions``, ``retries`` and its
@@ -340,7 +356,9 @@ class Planner:
     all (unless ``projector`` is given): the checker holds the limits (the native one checks
     them; a row outside them is invalid whatever a Python ``checker`` answers for it),
     ``stats.projections`` and ``stats.projector_s`` stay 0, the path is straight segments at
-    ``edge_resolution``, and :attr:`free` is True. Otherwise the
+    ``edge_resolution``, :attr:`free` is True, and without ``settings`` the plan takes
+    :data:`FREE_SPACE_SETTINGS` (RRT-Connect, simplified; the paper's ``PlannerSettings()``
+    otherwise). Otherwise the
     native Gauss-Newton projector solves it unless ``projector`` is given, with every tolerance
     multiplied by ``tolerance_factor`` (default 0.1): states are projected ten times tighter than
     the constraint requires, and the midpoint of every straight chord between two consecutive
@@ -373,12 +391,12 @@ class Planner:
                  gan_model: Any = None, hybrid_p: float = 0.8, half_life: float = ADAPTIVE_HALF_LIFE,
                  tolerance_factor: float = TOLERANCE_FACTOR, algorithm: str | None = None) -> None:
         self.robot = robot
-        self.settings = settings or PlannerSettings()
-        if algorithm is not None:
-            self.settings = self.settings.replace(algorithm=_check_algorithm(algorithm))
         self.task = P.load_task(task, robot) if task is not None else paper_task(robot, "projection")
         #: free space: no projector in the loop (the task's only constraint is the joint limits)
         self.free = projector is None and self.task.free
+        self.settings = settings or (FREE_SPACE_SETTINGS if self.free else PlannerSettings())
+        if algorithm is not None:
+            self.settings = self.settings.replace(algorithm=_check_algorithm(algorithm))
         self.world = world if world is not None else robot.collision_world()
         self.parallel = bool(parallel)
         self.base_box = uniform_base_box(robot, self.task)

@@ -77,7 +77,7 @@ from genplan.errors import MissingExtraError, SettingsError  # noqa: E402
 from genplan.experiments.benchmarks.motion_peers import OmplArm, RoboplanArm  # noqa: E402
 from genplan.experiments.common import geometric_mean, machine, table, write_json  # noqa: E402
 from genplan.ik import frame_task, solve_ik  # noqa: E402
-from genplan.planning import Planner, PlannerSettings, sphere_checker  # noqa: E402
+from genplan.planning import FREE_SPACE_SETTINGS, Planner, PlannerSettings, sphere_checker  # noqa: E402
 from genplan.scene import Box, Capsule, Pose, Scene  # noqa: E402
 from genplan.spheres import RobotSpheres, robot_spheres  # noqa: E402
 
@@ -503,9 +503,10 @@ def path_length(path: Any) -> float:
 
 
 def settings() -> PlannerSettings:
-    """genplan's free-space settings here: RRT-Connect, simplification on, a search budget of
-    VAMP's order (its 100,000 iterations) so that a failure is the planner's, not a budget's."""
-    return PlannerSettings(algorithm="rrt_connect", simplify=True, max_extensions=20_000, retries=4)
+    """genplan's free-space settings here: what a free-space plan gets by default
+    (:data:`genplan.planning.FREE_SPACE_SETTINGS`: RRT-Connect, simplification on, a search budget
+    of VAMP's order, its 100,000 iterations, so that a failure is the planner's, not a budget's)."""
+    return FREE_SPACE_SETTINGS
 
 
 def _genplan_arm(robot: genplan.Robot, problem: Problem, checker: Any, seed: int) -> dict[str, Any]:
