@@ -350,14 +350,15 @@ def test_free_space_settings_compares_extension_lengths(tmp_path, monkeypatch, c
     each plan successful, ratios to the reference; a geometric mean per robot and over robots."""
     out = tmp_path / "fss.json"
     _run("free_space_settings.py", ["--robots", "ur5", "--families", "table_pick", "--problems", "1", "--rounds", "1",
-                                    "--increments", "3", "10", "--out", str(out)], monkeypatch)
+                                    "--increments", "3", "10", "--balance", "0", "1", "--out", str(out)], monkeypatch)
     data = json.loads(out.read_text())
     arms = {r["arm"] for r in data["rows"]}
-    assert {"3", "10"} <= arms <= {"3", "10", "vamp"}
+    expected = {"3", "10", "3+balance", "10+balance"}
+    assert expected <= arms <= expected | {"vamp"}
     assert all(r["success_pct"] == 100.0 and r["plan_ms_median"] > 0 and r["over_reference"] > 0 for r in data["rows"])
     ref = data["rows"][0]["reference"]
     assert ref in ("vamp", "10") and [r["over_reference"] for r in data["rows"] if r["arm"] == ref] == [1.0]
-    assert set(data["over_robots"]) == {"3", "10"} and data["default_max_increments"] == 3
+    assert set(data["over_robots"]) == expected and data["default_max_increments"] == 3 and data["default_balance"]
     assert "geometric mean over the robots" in capsys.readouterr().out
 
 

@@ -69,6 +69,7 @@ def test_a_free_task_plans_with_the_free_space_defaults(panda, shelf) -> None:
     world, qs = shelf
     assert FREE_SPACE_SETTINGS.algorithm == "rrt_connect" and FREE_SPACE_SETTINGS.simplify
     assert FREE_SPACE_SETTINGS.max_increments == 3 and FREE_SPACE_SETTINGS.max_increments < PlannerSettings().max_increments
+    assert FREE_SPACE_SETTINGS.balance and not PlannerSettings().balance  # the smaller tree grows
     assert Planner(panda, world, task="free").settings == FREE_SPACE_SETTINGS
     assert Planner(panda, world, task="panda_projection").settings == PlannerSettings()
     given = PlannerSettings(step=0.2)

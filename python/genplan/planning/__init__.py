@@ -131,15 +131,16 @@ ADAPTIVE_HALF_LIFE = 1600.0
 #: (:class:`~genplan.errors.SettingsError` names the field). Defaults: the GAN paper's public code.
 PlannerSettings = _core.PlannerSettings
 #: The settings of a free-space plan when none are given (:class:`Planner` with a free task,
-#: :func:`plan`, ``genplan plan`` without ``--task``): RRT-Connect, the path simplified, extensions
-#: of at most 3 steps of 0.3 rad (0.9 rad, the order of VAMP's RRT-Connect range; the paper's 10
-#: steps, 3 rad, suit its constrained RRT), and a search budget of 20,000 iterations per attempt,
-#: 5 attempts (VAMP's order: a failure is the planner's, not a budget's; ``time_limit`` bounds it in
-#: seconds). The extension length was chosen on the motion bench's tuning problems (seed 1; the
-#: tables report seed 0) of the Panda, the UR5 and Baxter, against VAMP (benches/free_space_settings.py,
-#: benches/results/free_space_settings.json): 2 and 3 steps plan fastest, within a few per cent of
-#: each other (the geometric mean over the robots), 5 and 10 steps (the paper's) slower.
-FREE_SPACE_SETTINGS = PlannerSettings(algorithm="rrt_connect", simplify=True, max_increments=3,
+#: :func:`plan`, ``genplan plan`` without ``--task``): RRT-Connect growing the smaller tree
+#: (``balance``), the path simplified, extensions of at most 3 steps of 0.3 rad (0.9 rad, the
+#: order of VAMP's RRT-Connect range; the paper's 10 steps, 3 rad, suit its constrained RRT), and a
+#: search budget of 20,000 iterations per attempt, 5 attempts (VAMP's order: a failure is the
+#: planner's, not a budget's; ``time_limit`` bounds it in seconds). Chosen on the motion bench's
+#: tuning problems (seed 1; the tables report seed 0) of the Panda, the UR5 and Baxter against
+#: VAMP (benches/free_space_settings.py, benches/results/free_space_settings.json): of 2, 3, 5 and
+#: 10 steps, each with and without ``balance``, 3 steps balanced planned fastest (the geometric mean
+#: over the robots of the planning time over VAMP's; 2 steps balanced within a few per cent).
+FREE_SPACE_SETTINGS = PlannerSettings(algorithm="rrt_connect", simplify=True, max_increments=3, balance=True,
                                       max_extensions=20_000, retries=4)
 
 

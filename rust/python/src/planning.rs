@@ -614,7 +614,8 @@ settings_class!(
     Settings,
     |s: &Settings| s.validate().map_err(plan_error_to_py),
     [step, max_increments, max_jump, goal_tolerance, max_extensions, retries, project_samples, sample_batch,
-     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm, edge_check, sampling, time_limit]
+     edge_resolution, lazy_edges, simplify, neighbors, max_empty_batches, algorithm, edge_check, sampling, time_limit,
+     balance]
 );
 
 record_class!(

@@ -140,6 +140,14 @@ pub struct Settings {
     /// iteration budgets. A plan out of time is unsuccessful with `Stats::timed_out` set. At
     /// most [`MAX_TIME_LIMIT`](Self::MAX_TIME_LIMIT).
     pub time_limit: f64,
+    /// RRT-Connect only: each iteration extends the smaller tree towards the sample (the start
+    /// tree on a tie) and connects the other one to it, as VAMP's RRT-Connect does, instead of
+    /// alternating the trees. Off by default (the behaviour the paper's tables were measured
+    /// with); on in free space (genplan.planning.FREE_SPACE_SETTINGS), where it planned the
+    /// motion bench's tuning problems 1.07-1.6x faster (benches/free_space_settings.py). A tree
+    /// that cannot grow (its extensions all blocked) is tried every iteration while it is the
+    /// smaller one.
+    pub balance: bool,
 }
 
 impl Default for Settings {
@@ -162,6 +170,7 @@ impl Default for Settings {
             edge_check: EdgeCheck::Sampled,
             sampling: Sampling::Random,
             time_limit: 0.0,
+            balance: false,
         }
     }
 }

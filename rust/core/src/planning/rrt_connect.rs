@@ -3,7 +3,8 @@
 //! a tree from the start and one tree holding every valid goal as a root. Each iteration draws a
 //! (projected) sample, extends one tree towards it (ConstrainedExtend: constrained steps, each a
 //! node), then *connects* the other tree to the state reached (ConstrainedExtend after
-//! ConstrainedExtend while each ends closer to it), and the trees swap roles. When the trees
+//! ConstrainedExtend while each ends closer to it), and the trees swap roles (or, with
+//! [`Settings::balance`](super::Settings::balance), the smaller tree grows next). When the trees
 //! meet, the path through the meeting state is validated edge by edge like the cRRT's (lazy
 //! edges: a failing edge prunes its subtree and the search goes on); the goal reached is the
 //! goal tree's root the path ends at. Tree logic only: every state and edge comes from the
@@ -50,7 +51,7 @@ impl Run<'_> {
                     }
                 }
             }
-            a = 1 - a;
+            a = if self.st.balance { usize::from(trees[0].len() > trees[1].len()) } else { 1 - a };
         }
         self.space.stats.nodes = trees[0].len() + trees[1].len();
         Ok(found)
@@ -148,9 +149,9 @@ mod tests {
     fn rrt_connect_goes_through_the_door_to_one_of_the_goals() {
         // two goals in the north, one of them blocked (in the band, away from the door)
         let goals = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0];
-        for lazy_edges in [true, false] {
+        for (lazy_edges, balance) in [(true, false), (false, false), (true, true), (false, true)] {
             for seed in 0..5 {
-                let st = Settings { algorithm: Algorithm::RrtConnect, lazy_edges, ..Settings::default() };
+                let st = Settings { algorithm: Algorithm::RrtConnect, lazy_edges, balance, ..Settings::default() };
                 let planner = Planner::new(Arc::new(EuclideanSpace(3)), st.clone()).unwrap();
                 let (mut sampler, mut projector, mut checker) = (Cube(StdRng::seed_from_u64(seed)), Sphere, Wall);
                 let mut interrupt = || Ok(());
@@ -176,6 +177,43 @@ mod tests {
                 }
                 assert!(sol.stats.nodes >= sol.waypoints.len() / 3 && sol.stats.extensions > 0 && sol.stats.projections > 0);
             }
+        }
+    }
+
+    #[test]
+    fn balanced_rrt_connect_grows_the_smaller_tree() {
+        // in free R^3 (no projector): three goal roots near (0, 0, 1) in a slab no step of 0.3
+        // leaves valid, samples in the open south, one node per extension: the goal tree never
+        // grows. Alternating, the start tree (1 node) grows on iterations 0 and 2 of 3; balanced,
+        // on all three (the smaller tree each time: 1, 2, 3 nodes against 3, the start tree on a tie)
+        struct Slab;
+        impl ValidityChecker for Slab {
+            fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
+                for (q, v) in qs.chunks(3).zip(valid.iter_mut()) {
+                    *v = q[2] <= -0.2 || q[2] >= 0.95;
+                }
+                Ok(())
+            }
+        }
+        struct South(StdRng);
+        impl Sampler for South {
+            fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
+                for q in out.chunks_mut(3).take(n) {
+                    q.copy_from_slice(&[self.0.random_range(-1.0..1.0), self.0.random_range(-1.0..1.0), self.0.random_range(-1.0..-0.5)]);
+                }
+                Ok(())
+            }
+        }
+        let goals = [0.0, 0.0, 1.0, 0.05, 0.0, 1.0, 0.0, 0.05, 1.0];
+        for (balance, start_nodes) in [(false, 3), (true, 4)] {
+            let st = Settings { algorithm: Algorithm::RrtConnect, balance, max_increments: 1, max_extensions: 3, retries: 0, ..Settings::default() };
+            let planner = Planner::new(Arc::new(EuclideanSpace(3)), st).unwrap();
+            let (mut sampler, mut checker) = (South(StdRng::seed_from_u64(3)), Slab);
+            let mut interrupt = || Ok(());
+            let mut c = Components { sampler: &mut sampler, projector: None, checker: &mut checker, interrupt: &mut interrupt };
+            let sol = planner.plan(&[0.0, 0.0, -1.0], &goals, &mut c).unwrap();
+            assert!(!sol.success);
+            assert_eq!(sol.stats.nodes, start_nodes + 3, "balance {balance}: {:?}", sol.stats);
         }
     }
 
