@@ -175,6 +175,12 @@ pub struct KinematicModel {
     /// of locked joints at the values they follow.
     pub locked: Vec<(String, f64)>,
     link_index: HashMap<String, usize>,
+    /// q is a vector space with q = v coordinate by coordinate: no free-flyer, every moving
+    /// joint that is not a mimic revolute or prismatic with its q index equal to its v index,
+    /// and those indices exactly 0..nq = 0..nv. Then [`integrate`](Self::integrate) and
+    /// [`difference`](Self::difference) are `q + v` and `q1 - q0` on whole slices (the same
+    /// numbers as joint by joint), see [`euclidean`](Self::euclidean).
+    euclidean: bool,
 }
 
 fn normalized_axis(joint: &str, axis: Vector3<f64>) -> Result<Unit<Vector3<f64>>> {
@@ -187,6 +193,31 @@ fn normalized_axis(joint: &str, axis: Vector3<f64>) -> Result<Unit<Vector3<f64>>
 /// finite (which [`KinematicModel::check_configuration`] refuses).
 fn base_rotation(q: &[f64]) -> UnitQuaternion<f64> {
     unit_quaternion(q[6], q[3], q[4], q[5], 0.0).unwrap_or_else(UnitQuaternion::identity)
+}
+
+/// True when the model's q is a vector space coordinate by coordinate
+/// ([`KinematicModel::euclidean`]): no free-flyer, nq = nv, and the joints that are neither
+/// fixed nor mimics (the ones [`KinematicModel::integrate`] and [`KinematicModel::difference`]
+/// visit) are revolute or prismatic, each with its q index equal to its v index, those indices
+/// being 0..nq once each.
+fn euclidean_coordinates(floating_base: bool, joints: &[Joint], nq: usize, nv: usize) -> bool {
+    if floating_base || nq != nv {
+        return false;
+    }
+    let mut seen = vec![false; nq];
+    for j in joints.iter().filter(|j| j.mimic.is_none()) {
+        match j.motion {
+            Motion::Fixed => {}
+            Motion::Continuous { .. } => return false,
+            Motion::Revolute { .. } | Motion::Prismatic { .. } => {
+                if j.q_index != j.v_index || j.q_index >= nq || seen[j.q_index] {
+                    return false;
+                }
+                seen[j.q_index] = true;
+            }
+        }
+    }
+    seen.iter().all(|&s| s)
 }
 
 /// A cycle of the joint graph, if any, as (joint names, link names) along it: following each
@@ -630,6 +661,7 @@ impl KinematicModel {
         let total_mass = masses.iter().sum();
         let mut locked: Vec<(String, f64)> = locked.into_iter().collect();
         locked.sort_by(|a, b| a.0.cmp(&b.0));
+        let euclidean = euclidean_coordinates(options.floating_base, &joints, nq, nv);
         Ok(KinematicModel {
             link_names,
             joints,
@@ -648,7 +680,16 @@ impl KinematicModel {
             total_mass,
             locked,
             link_index,
+            euclidean,
         })
+    }
+
+    /// q is a vector space coordinate by coordinate (no free-flyer, no continuous joint, each
+    /// moving joint's q index its v index, covering 0..nq = 0..nv): [`integrate`](Self::integrate),
+    /// [`difference`](Self::difference) and the planner's distances and interpolations are then
+    /// element-wise on whole slices (`planning/space.rs`).
+    pub fn euclidean(&self) -> bool {
+        self.euclidean
     }
 
     /// Number of links.
@@ -860,6 +901,13 @@ impl KinematicModel {
 
     /// q (+) v: Pinocchio's `integrate` (free-flyer: M exp6(v), joints: q + v).
     pub fn integrate(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        if self.euclidean {
+            let n = self.nq;
+            for ((o, a), b) in out[..n].iter_mut().zip(&q[..n]).zip(&v[..n]) {
+                *o = a + b;
+            }
+            return;
+        }
         out.copy_from_slice(q);
         if self.floating_base {
             let m = Self::base_pose(q) * exp6(&Vector6::from_column_slice(&v[..6]));
@@ -882,6 +930,13 @@ impl KinematicModel {
 
     /// q1 (-) q0 in the tangent space: Pinocchio's `difference(q0, q1)`.
     pub fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
+        if self.euclidean {
+            let n = self.nv;
+            for ((o, a), b) in out[..n].iter_mut().zip(&q0[..n]).zip(&q1[..n]) {
+                *o = b - a;
+            }
+            return;
+        }
         if self.floating_base {
             let d = log6(&(Self::base_pose(q0).inverse() * Self::base_pose(q1)));
             out[..6].copy_from_slice(d.as_slice());

@@ -300,3 +300,69 @@ fn integrity_5_a_locked_joint_outside_its_limits_is_refused() {
     let e = KinematicModel::from_urdf(&urdf, &lock("tool_joint", 0.0)).unwrap_err().to_string();
     assert_eq!(e, "locked joint 'tool_joint' is a fixed joint: it does not move");
 }
+
+/// `KinematicModel::euclidean`: q is a vector space coordinate by coordinate for the planar arm
+/// (its fixed tool no coordinate), the mimic arm (its mimics none) and a model with a locked
+/// joint; not with a free-flyer or a continuous joint. Where it is, integrate and difference are
+/// q + v and q1 - q0 bit for bit, and the planner's distance, interpolation and chart
+/// (`planning/space.rs`, on whole slices there) are R^n's (`EuclideanSpace`, the trait's own
+/// formulas) bit for bit; where it is not, the distance is still the norm of the difference.
+#[test]
+fn a_vector_space_of_coordinates_is_integrated_and_differenced_on_whole_slices() {
+    use genplan_core::planning::{EuclideanSpace, Space};
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    let locked = model(&ModelOptions { locked_joints: HashMap::from([("j1".to_string(), 0.2)]), ..Default::default() });
+    let continuous = PLANAR.replace(r#"<joint name="j2" type="revolute">"#, r#"<joint name="j2" type="continuous">"#);
+    let continuous = KinematicModel::from_urdf(&Urdf::parse(&continuous).unwrap(), &ModelOptions::default()).unwrap();
+    let flyer = model(&ModelOptions { floating_base: true, ..Default::default() });
+    let mut rng = StdRng::seed_from_u64(3);
+    let plain = model(&ModelOptions::default());
+    let mimic = mimic_model(&[]).unwrap();
+    let models = [(plain, true), (mimic, true), (locked, true), (continuous, false), (flyer, false)];
+    for (m, euclidean) in models {
+        assert_eq!(m.euclidean(), euclidean, "{:?}", m.active_joints);
+        let mut draw = |n: usize| -> Vec<f64> { (0..n).map(|_| rng.random_range(-2.0..2.0)).collect() };
+        for _ in 0..50 {
+            let (mut q0, mut q1, v, t) = (draw(m.nq), draw(m.nq), draw(m.nv), draw(1)[0]);
+            // valid configurations: a unit (cos, sin) pair, a unit base quaternion
+            let fix = |q: &mut Vec<f64>| {
+                let mut n = vec![0.0; m.nq];
+                m.integrate(&q.clone(), &vec![0.0; m.nv], &mut n);
+                *q = n;
+            };
+            if !euclidean {
+                for q in [&mut q0, &mut q1] {
+                    if m.floating_base {
+                        let s = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
+                        q[3..7].iter_mut().for_each(|x| *x /= s);
+                    } else {
+                        let a = q[1];
+                        (q[1], q[2]) = (a.cos(), a.sin());
+                    }
+                    fix(q);
+                }
+            }
+            let (mut d, mut out) = (vec![0.0; m.nv], vec![0.0; m.nq]);
+            m.difference(&q0, &q1, &mut d);
+            let norm = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+            assert_eq!(Space::distance(&m, &q0, &q1).to_bits(), norm.to_bits());
+            if !euclidean {
+                continue;
+            }
+            let r = EuclideanSpace(m.nq);
+            let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&d), bits(&q0.iter().zip(&q1).map(|(a, b)| b - a).collect::<Vec<_>>()));
+            m.integrate(&q0, &v, &mut out);
+            assert_eq!(bits(&out), bits(&q0.iter().zip(&v).map(|(a, b)| a + b).collect::<Vec<_>>()));
+            assert_eq!(Space::distance(&m, &q0, &q1).to_bits(), r.distance(&q0, &q1).to_bits());
+            let mut expected = vec![0.0; m.nq];
+            Space::interpolate(&m, &q0, &q1, t, &mut out);
+            r.interpolate(&q0, &q1, t, &mut expected);
+            assert_eq!(bits(&out), bits(&expected));
+            Space::coordinates(&m, &q0, &mut out);
+            assert_eq!(bits(&out), bits(&q0));
+        }
+    }
+}

@@ -37,6 +37,8 @@ pub struct ConstrainedSpace<'a> {
     /// What the space's calls cost so far (projections, edge projections, checks, projector and
     /// checker times); a planner adds its own counts to it.
     pub stats: Stats,
+    /// An edge's states in rake order ([`rake_into`]), in memory kept from edge to edge.
+    raked: Vec<f64>,
 }
 
 /// One constrained step that succeeded ([`ConstrainedSpace::step`]).
@@ -61,7 +63,7 @@ impl<'a> ConstrainedSpace<'a> {
         checker: &'a mut dyn ValidityChecker,
         settings: &'a Settings,
     ) -> ConstrainedSpace<'a> {
-        ConstrainedSpace { ambient, projector, checker, settings, stats: Stats::default() }
+        ConstrainedSpace { ambient, projector, checker, settings, stats: Stats::default(), raked: Vec::new() }
     }
 
     /// A projector defines the manifold (false: free space, nothing is projected).
@@ -224,6 +226,14 @@ impl<'a> ConstrainedSpace<'a> {
     /// In free space the states are the interpolations themselves, evenly spaced: nothing is
     /// projected and no chord can stray.
     pub fn geodesic(&mut self, a: &[f64], b: &[f64], check_end: bool) -> PlanResult<Option<Vec<f64>>> {
+        let mut states = Vec::new();
+        Ok(self.geodesic_into(a, b, check_end, &mut states)?.then_some(states))
+    }
+
+    /// [`geodesic`](Self::geodesic) into `out` (its memory reused: a planner validating edge
+    /// after edge allocates nothing per edge in free space): true and the states in `out`, or
+    /// false (`out` then holds nothing of use).
+    pub fn geodesic_into(&mut self, a: &[f64], b: &[f64], check_end: bool, out: &mut Vec<f64>) -> PlanResult<bool> {
         let space = self.ambient;
         let nq = space.nq();
         let resolution = self.settings.edge_resolution;
@@ -233,13 +243,15 @@ impl<'a> ConstrainedSpace<'a> {
             // (Settings::validate), a longer edge (a shortcut) that needs more is not taken
             let intervals = (dist / resolution).ceil();
             if intervals.is_nan() || intervals > Settings::MAX_EDGE_STATES as f64 {
-                return Ok(None);
+                return Ok(false);
             }
             (intervals as usize).saturating_sub(1)
         } else {
             0
         };
-        let mut states = vec![0.0; (n_mid + 1) * nq];
+        let mut states = std::mem::take(out);
+        states.clear();
+        states.resize((n_mid + 1) * nq, 0.0);
         if n_mid > 0 && !self.constrained() {
             for k in 0..n_mid {
                 let t = (k + 1) as f64 / (n_mid + 1) as f64;
@@ -254,45 +266,61 @@ impl<'a> ConstrainedSpace<'a> {
             let mut reps = vec![Projection::default(); n_mid];
             self.project_edge_states(&lin, self.is_tree_edge(dist), &mut states[..n_mid * nq], &mut reps)?;
             if reps.iter().any(|r| !r.success) || states.iter().any(|x| !x.is_finite()) {
-                return Ok(None);
+                return Ok(false);
             }
             let max_gap = MAX_SPACING * resolution;
             let mut prev = a;
             for k in 0..n_mid {
                 let s = &states[k * nq..(k + 1) * nq];
                 if space.distance(prev, s) > max_gap {
-                    return Ok(None);
+                    return Ok(false);
                 }
                 prev = s;
             }
             if space.distance(prev, b) > max_gap {
-                return Ok(None);
+                return Ok(false);
             }
         }
         states[n_mid * nq..].copy_from_slice(b);
         if resolution == 0.0 {
             // no edge validation: the end only
+            let mut valid = [false];
             let n_check = usize::from(check_end);
-            let mut valid = vec![false; n_check];
-            self.check(&states[..n_check * nq], &mut valid)?;
-            return Ok(valid.iter().all(|&v| v).then(Vec::new));
+            self.check(&states[..n_check * nq], &mut valid[..n_check])?;
+            states.clear();
+            *out = states;
+            return Ok(valid[..n_check].iter().all(|&v| v));
         }
         let tree_edge = self.is_tree_edge(dist);
         let Some(mut states) = self.hold_chords(a, states, tree_edge)? else {
-            return Ok(None);
+            return Ok(false);
         };
         let n_mid = states.len() / nq - 1;
         if self.settings.edge_check == EdgeCheck::Certified {
-            return self.certify_states(a, states, tree_edge);
+            return Ok(match self.certify_states(a, states, tree_edge)? {
+                Some(states) => {
+                    *out = states;
+                    true
+                }
+                None => false,
+            });
         }
         let n_check = n_mid + usize::from(check_end);
-        let raked = rake(&states[..n_check * nq], nq);
-        if self.all_valid(&raked, n_check)? {
-            states.truncate(n_mid * nq);
-            Ok(Some(states))
-        } else {
-            Ok(None)
-        }
+        let ok = self.all_valid_raked(&states[..n_check * nq]);
+        states.truncate(n_mid * nq);
+        *out = states;
+        ok
+    }
+
+    /// [`all_valid`](Self::all_valid) of the rows of `states` (in order along a motion), checked
+    /// in [`rake`] order (arranged in memory kept from call to call).
+    pub(super) fn all_valid_raked(&mut self, states: &[f64]) -> PlanResult<bool> {
+        let nq = self.ambient.nq();
+        let mut raked = std::mem::take(&mut self.raked);
+        rake_into(states, nq, &mut raked);
+        let ok = self.all_valid(&raked, states.len().checked_div(nq).unwrap_or(0));
+        self.raked = raked;
+        ok
     }
 
     /// The chords of an edge held to the projector's chord tolerance
@@ -495,17 +523,24 @@ pub(super) const RAKE: usize = 8;
 /// rows spread evenly along the motion first (every `ceil(n / RAKE)`-th row), then the batches
 /// between them, so that a checker that stops at its first invalid row
 /// ([`ValidityChecker::all_valid`]) refuses a blocked motion after a few checks instead of
-/// all of its states.
+/// all of its states. (The planner arranges them with [`rake_into`], in memory it keeps.)
+#[cfg(test)]
 pub(super) fn rake(states: &[f64], nq: usize) -> Vec<f64> {
-    let n = if nq == 0 { 0 } else { states.len() / nq };
-    let stride = n.div_ceil(RAKE).max(1);
     let mut out = Vec::with_capacity(states.len());
+    rake_into(states, nq, &mut out);
+    out
+}
+
+/// [`rake`] into `out` (cleared first; its memory reused).
+pub(super) fn rake_into(states: &[f64], nq: usize, out: &mut Vec<f64>) {
+    out.clear();
+    let n = states.len().checked_div(nq).unwrap_or(0);
+    let stride = n.div_ceil(RAKE).max(1);
     for r in 0..stride.min(n) {
         for k in (r..n).step_by(stride) {
             out.extend_from_slice(&states[k * nq..(k + 1) * nq]);
         }
     }
-    out
 }
 
 #[cfg(test)]

@@ -370,6 +370,12 @@ pub(super) struct Run<'a> {
     pub(super) interrupt: &'a mut dyn FnMut() -> PlanResult<()>,
     /// When the search must stop (`time_limit`; None: no limit, or the search is over).
     deadline: Option<Instant>,
+    /// The clock is read for the deadline every `clock_stride` polls (`polls_left` to go), as
+    /// many as took about [`CLOCK_PERIOD`] at the pace of the last ones, at most
+    /// [`MAX_CLOCK_STRIDE`]; `last_clock`: when it was read last.
+    clock_stride: u32,
+    polls_left: u32,
+    last_clock: Instant,
     /// The buffered samples (rows of nq, projected when `project_samples`), the next one at
     /// `next` (an offset into it); refilled a batch at a time into the same memory.
     samples: Vec<f64>,
@@ -379,7 +385,18 @@ pub(super) struct Run<'a> {
     /// A free-space extension's steps (rows of nq) and their validity ([`Run::extend_free`]).
     line: Vec<f64>,
     line_ok: Vec<bool>,
+    /// A validated edge's states and a chain of nodes ([`Run::validate_path`]), in memory kept
+    /// from call to call.
+    edge: Vec<f64>,
+    chain: Vec<usize>,
 }
+
+/// The time limit is checked about this often (the clock read every few polls): a search stops
+/// within about this much of its deadline, past the poll that finds it out of time.
+const CLOCK_PERIOD: Duration = Duration::from_micros(500);
+
+/// Polls between two reads of the clock, at most.
+const MAX_CLOCK_STRIDE: u32 = 32;
 
 impl<'a> Run<'a> {
     fn new(space: &'a dyn Space, st: &'a Settings, c: &'a mut Components<'_>) -> Run<'a> {
@@ -390,23 +407,46 @@ impl<'a> Run<'a> {
             sampler: &mut **sampler,
             interrupt: &mut **interrupt,
             deadline: None,
+            clock_stride: 1,
+            polls_left: 1,
+            last_clock: Instant::now(),
             samples: Vec::new(),
             next: 0,
             raw: Vec::new(),
             line: Vec::new(),
             line_ok: Vec::new(),
+            edge: Vec::new(),
+            chain: Vec::new(),
         }
     }
 
     /// Asked at every iteration of a loop: the caller's interrupt check (Ctrl-C), then the time
     /// limit while one is set ([`PlanError::TimeLimit`], which [`Planner::plan`] turns into an
-    /// unsuccessful plan).
+    /// unsuccessful plan). The clock is read every `clock_stride` polls, adapted so that reads
+    /// are about [`CLOCK_PERIOD`] apart: a poll costs no clock read but every few, and the limit
+    /// is kept to within about that period (at least one poll every that long).
     pub(super) fn poll(&mut self) -> PlanResult<()> {
         (self.interrupt)()?;
-        match self.deadline {
-            Some(d) if Instant::now() >= d => Err(PlanError::TimeLimit),
-            _ => Ok(()),
+        let Some(deadline) = self.deadline else {
+            return Ok(());
+        };
+        if self.polls_left > 1 {
+            self.polls_left -= 1;
+            return Ok(());
         }
+        let now = Instant::now();
+        if now >= deadline {
+            return Err(PlanError::TimeLimit);
+        }
+        let since = now - self.last_clock;
+        self.last_clock = now;
+        if since < CLOCK_PERIOD / 2 {
+            self.clock_stride = (self.clock_stride * 2).min(MAX_CLOCK_STRIDE);
+        } else if since > CLOCK_PERIOD {
+            self.clock_stride = (self.clock_stride / 2).max(1);
+        }
+        self.polls_left = self.clock_stride;
+        Ok(())
     }
 
     pub(super) fn ambient(&self) -> &'a dyn Space {
@@ -450,7 +490,10 @@ impl Planner {
             return Err(PlanError::InvalidGoal(format!("goals: expected rows of {nq} numbers, got {} numbers", goals.len())));
         }
         for (i, g) in goals.chunks(nq).enumerate() {
-            space.check(g, &format!("goals[{i}]")).map_err(PlanError::InvalidGoal)?;
+            // named only when it fails (a message per goal would allocate per plan and goal)
+            if space.check(g, "goals").is_err() {
+                space.check(g, &format!("goals[{i}]")).map_err(PlanError::InvalidGoal)?;
+            }
         }
         if self.settings.edge_check == EdgeCheck::Certified && !c.checker.certifies_motions() {
             return Err(PlanError::Settings {
@@ -461,6 +504,7 @@ impl Planner {
         let mut run = Run::new(space, &self.settings, c);
         if self.settings.time_limit > 0.0 {
             run.deadline = Some(t0 + Duration::from_secs_f64(self.settings.time_limit));
+            run.last_clock = t0;
         }
         let (start, goals) = run.space.onto_manifold(start, goals)?;
         let (start, goals) = (&start[..], &goals[..]);
@@ -556,7 +600,8 @@ impl Planner {
     fn check_solution(&self, path: &[f64], start: &[f64], goal: &[f64]) -> PlanResult<()> {
         let nq = self.space.nq();
         let fail = |why: &str| Err(PlanError::Internal(format!("the planner found a path that fails its own check: {why}")));
-        if path.len() < nq || path.len() % nq != 0 || path.iter().any(|x| !x.is_finite()) {
+        // a fold without early exit: vectorised, and a path is finite but for a broken invariant
+        if path.len() < nq || path.len() % nq != 0 || !path.iter().fold(true, |ok, x| ok & x.is_finite()) {
             return fail("not whole rows of finite numbers");
         }
         if path[..nq] != *start {
@@ -890,20 +935,28 @@ impl Run<'_> {
     /// Validate the edges from the root to `node` that are not yet; prune below the first that
     /// fails. True when the whole path is valid.
     pub(super) fn validate_path(&mut self, tree: &mut Tree, node: usize) -> PlanResult<bool> {
-        for i in tree.chain(node) {
+        let (mut chain, mut edge) = (std::mem::take(&mut self.chain), std::mem::take(&mut self.edge));
+        tree.chain_into(node, &mut chain);
+        let mut valid = Ok(true);
+        for &i in &chain {
             if tree.validated[i] {
                 continue;
             }
-            let (a, b) = (tree.node(tree.parent[i]).to_vec(), tree.node(i).to_vec());
-            match self.space.geodesic(&a, &b, false)? {
-                Some(states) => tree.set_edge(i, &states),
-                None => {
+            match self.space.geodesic_into(tree.node(tree.parent[i]), tree.node(i), false, &mut edge) {
+                Ok(true) => tree.set_edge(i, &edge),
+                Ok(false) => {
                     self.space.stats.pruned += tree.prune(i);
-                    return Ok(false);
+                    valid = Ok(false);
+                    break;
+                }
+                Err(e) => {
+                    valid = Err(e);
+                    break;
                 }
             }
         }
-        Ok(true)
+        (self.chain, self.edge) = (chain, edge);
+        valid
     }
 }
 

@@ -97,7 +97,10 @@ fn join(start_tree: &Tree, s_node: usize, goal_tree: &Tree, g_node: usize, valid
     let chain = goal_tree.chain(g_node);
     for &i in chain[1..].iter().rev() {
         waypoints.push(goal_tree.node(goal_tree.parent[i]).to_vec());
-        edges.push(goal_tree.edge(i).chunks(nq).rev().flatten().copied().collect());
+        let states = goal_tree.edge(i);
+        let mut reversed = Vec::with_capacity(states.len());
+        states.chunks(nq).rev().for_each(|q| reversed.extend_from_slice(q));
+        edges.push(reversed);
     }
     Found { waypoints, edges, goal: valid_goals[chain[0]] }
 }

@@ -24,7 +24,6 @@
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use super::constrained::rake;
 use super::rrt::Run;
 use super::{EdgeCheck, PlanResult, Settings};
 
@@ -99,8 +98,7 @@ impl Run<'_> {
         }
         states[n_mid * nq..].copy_from_slice(b);
         let n_check = n_mid + usize::from(check_end);
-        let raked = rake(&states[..n_check * nq], nq);
-        if !self.space.all_valid(&raked, n_check)? {
+        if !self.space.all_valid_raked(&states[..n_check * nq])? {
             return Ok(None);
         }
         states.truncate(n_mid * nq);

@@ -72,7 +72,38 @@ impl Space for KinematicModel {
     fn integrate(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
         KinematicModel::integrate(self, q, v, out)
     }
+    /// [`Space::distance`]'s numbers; on whole slices when the model is
+    /// [`euclidean`](KinematicModel::euclidean) (no tangent buffer, no pass per joint).
+    fn distance(&self, q0: &[f64], q1: &[f64]) -> f64 {
+        if !self.euclidean() {
+            return with_tangent(self.nv, |v| {
+                KinematicModel::difference(self, q0, q1, v);
+                v.iter().map(|x| x * x).sum::<f64>().sqrt()
+            });
+        }
+        let n = self.nv;
+        q0[..n].iter().zip(&q1[..n]).map(|(a, b)| (b - a) * (b - a)).sum::<f64>().sqrt()
+    }
+    /// [`Space::interpolate`]'s numbers; on whole slices when the model is
+    /// [`euclidean`](KinematicModel::euclidean).
+    fn interpolate(&self, q0: &[f64], q1: &[f64], t: f64, out: &mut [f64]) {
+        if !self.euclidean() {
+            return with_tangent(self.nv, |v| {
+                KinematicModel::difference(self, q0, q1, v);
+                v.iter_mut().for_each(|x| *x *= t);
+                KinematicModel::integrate(self, q0, v, out);
+            });
+        }
+        let n = self.nq;
+        for ((o, a), b) in out[..n].iter_mut().zip(&q0[..n]).zip(&q1[..n]) {
+            *o = a + (b - a) * t;
+        }
+    }
     fn coordinates(&self, q: &[f64], out: &mut [f64]) {
+        if self.euclidean() {
+            out[..self.nq].copy_from_slice(&q[..self.nq]);
+            return;
+        }
         let mut iq = 0;
         let mut iv = 0;
         if self.floating_base {

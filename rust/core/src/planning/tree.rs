@@ -4,6 +4,10 @@
 
 use super::{NearestNeighbors, NeighborIndex, Space};
 
+/// Nodes a tree has room for when it is made (a free-space RRT-Connect tree rarely grows beyond:
+/// its vectors are not reallocated while it grows to there).
+const RESERVED_NODES: usize = 256;
+
 /// The tree of one attempt: node configurations and, per node, the states on the edge from its
 /// parent (exclusive of both ends, in the order parent to node).
 pub(super) struct Tree {
@@ -32,19 +36,23 @@ impl Tree {
     pub(super) fn len(&self) -> usize {
         self.parent.len()
     }
+    /// An empty tree, with room for [`RESERVED_NODES`] nodes.
     pub(super) fn new(nq: usize, nv: usize, neighbors: NeighborIndex) -> Tree {
+        let n = RESERVED_NODES;
+        let mut nn = neighbors.build(nv);
+        nn.reserve(n);
         Tree {
             nq,
-            q: Vec::new(),
-            parent: Vec::new(),
-            first_child: Vec::new(),
-            next_sibling: Vec::new(),
-            validated: Vec::new(),
-            dead: Vec::new(),
-            edge_start: Vec::new(),
-            edge_count: Vec::new(),
+            q: Vec::with_capacity(n * nq),
+            parent: Vec::with_capacity(n),
+            first_child: Vec::with_capacity(n),
+            next_sibling: Vec::with_capacity(n),
+            validated: Vec::with_capacity(n),
+            dead: Vec::with_capacity(n),
+            edge_start: Vec::with_capacity(n),
+            edge_count: Vec::with_capacity(n),
             edge_states: Vec::new(),
-            nn: neighbors.build(nv),
+            nn,
             coords: vec![0.0; nv],
         }
     }
@@ -107,7 +115,14 @@ impl Tree {
     }
     /// Node indices from the root to `node`.
     pub(super) fn chain(&self, node: usize) -> Vec<usize> {
-        let mut chain = vec![node];
+        let mut chain = Vec::new();
+        self.chain_into(node, &mut chain);
+        chain
+    }
+    /// [`chain`](Self::chain) into `chain` (cleared first; its memory reused).
+    pub(super) fn chain_into(&self, node: usize, chain: &mut Vec<usize>) {
+        chain.clear();
+        chain.push(node);
         while let Some(&last) = chain.last() {
             match self.parent[last] {
                 usize::MAX => break,
@@ -115,7 +130,6 @@ impl Tree {
             }
         }
         chain.reverse();
-        chain
     }
 }
 
@@ -130,8 +144,9 @@ pub(super) fn extract(tree: &Tree, goal_node: usize) -> (Vec<Vec<f64>>, Vec<Vec<
 
 /// Flatten waypoints and their edges into (waypoints, dense path).
 pub(super) fn flatten(waypoints: &[Vec<f64>], edges: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
-    let mut w = Vec::new();
-    let mut path = Vec::new();
+    let n_w: usize = waypoints.iter().map(Vec::len).sum();
+    let mut w = Vec::with_capacity(n_w);
+    let mut path = Vec::with_capacity(n_w + edges.iter().map(Vec::len).sum::<usize>());
     for (q, e) in waypoints.iter().zip(edges) {
         path.extend_from_slice(e);
         path.extend_from_slice(q);
