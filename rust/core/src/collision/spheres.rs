@@ -29,7 +29,11 @@
 //!
 //! The broad phase: each link's spheres have a bounding sphere; an obstacle is tested against a
 //! link's spheres only in the lanes where that bounding sphere meets the obstacle's world box (or
-//! reaches below a half-space's plane). A moving link of more than [`MOVING_GROUP`] spheres is
+//! reaches below a half-space's plane). Before that test, per link, the box of its bounding
+//! sphere's centres over the lanes is tested against 8 obstacles at once (their boxes grown, when
+//! the checker is built, by the link's radius, the obstacle's padding and a margin beyond the
+//! `f32` rounding): only the obstacles it meets get the per-lane test, so that a link far from
+//! most obstacles costs a few vector instructions (a pure prune: the same answers). A moving link of more than [`MOVING_GROUP`] spheres is
 //! split when the checker is built into spatial groups (halved at the median of the longest
 //! side of their centres' box, the spheres reordered so that each group's are contiguous), each
 //! with its bounding sphere: where the link's bounding sphere is near an obstacle, each group's
@@ -327,6 +331,22 @@ struct Compiled {
     pad: f32,
 }
 
+/// [`PREFILTER`] obstacles' world boxes grown by the reach of one link's bounding sphere, as
+/// arrays ([`SphereWorld::near_obstacles`]): `lo` and `hi` the corners of obstacle `o`'s box
+/// (none: unbounded, as a half-space's) moved out by the link's radius, the obstacle's padding
+/// and a margin (relative 1e-4, and 1e-5 m), in `f64` and then rounded outwards to `f32`.
+#[derive(Clone, Debug)]
+struct BoxChunk {
+    lo: [[f32; PREFILTER]; 3],
+    hi: [[f32; PREFILTER]; 3],
+    /// The obstacles in this chunk (the first `count` entries; the chunk starts at obstacle
+    /// `PREFILTER` times its index).
+    count: usize,
+}
+
+/// Obstacles per [`BoxChunk`]: one AVX register of `f32`.
+const PREFILTER: usize = 8;
+
 /// The robot's spheres against the obstacles of a [`CollisionWorld`] (as it was when this was
 /// built): see the module text.
 #[derive(Clone)]
@@ -351,6 +371,9 @@ pub struct SphereWorld {
     /// configuration is in collision.
     fixed_hit: bool,
     obstacles: Vec<Compiled>,
+    /// Per entry of `links` (its index times the chunks' count, plus the chunk's): the
+    /// obstacles' boxes grown by the link's reach, in chunks, the prefilter of its obstacle tests.
+    chunks: Vec<BoxChunk>,
     /// The joints that place every link with spheres (the kinematics' order, parents first),
     /// in `f32`.
     joints: Vec<LaneJoint>,
@@ -397,13 +420,15 @@ pub struct SphereScratch<const N: usize> {
     /// Per group: are its spheres' `centers` placed for these lanes? A group's spheres are
     /// placed only when a test needs them ([`SphereWorld::place_group`]).
     gplaced: Vec<bool>,
+    /// Per joint of the kinematics: its values per lane ([`joint_frame`]'s `a`).
+    values: Vec<[[f32; N]; 2]>,
     state: Vec<f64>,
     dq: Vec<f64>,
 }
 
 impl<const N: usize> Default for SphereScratch<N> {
     fn default() -> Self {
-        SphereScratch { one: Vec::new(), four: Vec::new(), frames: Vec::new(), centers: Vec::new(), bounds: Vec::new(), placed: Vec::new(), gbounds: Vec::new(), gplaced: Vec::new(), state: Vec::new(), dq: Vec::new() }
+        SphereScratch { one: Vec::new(), four: Vec::new(), frames: Vec::new(), centers: Vec::new(), bounds: Vec::new(), placed: Vec::new(), gbounds: Vec::new(), gplaced: Vec::new(), values: Vec::new(), state: Vec::new(), dq: Vec::new() }
     }
 }
 
@@ -549,6 +574,27 @@ impl SphereWorld {
             let pad = (pad * (1.0 + 1e-6)) as f32;
             obstacles.push(Compiled { shape, aabb, pad });
         }
+        let mut chunks = Vec::new();
+        for ls in &links {
+            for c in obstacles.chunks(PREFILTER) {
+                let mut ch =
+                    BoxChunk { lo: [[f32::NEG_INFINITY; PREFILTER]; 3], hi: [[f32::INFINITY; PREFILTER]; 3], count: c.len() };
+                for (o, ob) in c.iter().enumerate() {
+                    if let Some((lo, hi)) = &ob.aabb {
+                        // beyond the f32 rounding of the reach and of box_near's arithmetic;
+                        // moved out by 2^-22 of its size before the rounding to f32 (at most
+                        // 2^-24 of it), so that the f32 corner is never inside the f64 one
+                        let reach = (f64::from(ls.radius) + f64::from(ob.pad)) * (1.0 + 1e-4) + 1e-5;
+                        let out = |x: f64, side: f64| (x + side * x.abs() * 2f64.powi(-22)) as f32;
+                        for i in 0..3 {
+                            ch.lo[i][o] = out(f64::from(lo[i]) - reach, -1.0);
+                            ch.hi[i][o] = out(f64::from(hi[i]) + reach, 1.0);
+                        }
+                    }
+                }
+                chunks.push(ch);
+            }
+        }
         let link_ids: Vec<usize> = links.iter().map(|l| l.link).collect();
         let joints = lane_joints(model, model.joints_placing(&link_ids));
         // the links no joint moves (none on a floating base): their poses at any configuration
@@ -587,7 +633,7 @@ impl SphereWorld {
                 (Some(ra), Some(rb)) => fixed_fixed.push((ra, rb)),
             }
         }
-        let mut sw = SphereWorld { world, spheres, local, links, groups, pairs, moving_pairs, fixed_pairs, fixed, fixed_hit: false, obstacles, joints };
+        let mut sw = SphereWorld { world, spheres, local, links, groups, pairs, moving_pairs, fixed_pairs, fixed, fixed_hit: false, obstacles, chunks, joints };
         sw.fixed_hit = sw.fixed_collides(&fixed_fixed);
         Ok(sw)
     }
@@ -786,27 +832,34 @@ impl SphereWorld {
 
     /// Pose the links with spheres for each lane's configuration and place every sphere and
     /// every link's bounding sphere in the world. The kinematics run in `f32` across the lanes
-    /// (the joint angles' sines and cosines in `f64`); a floating base is placed by
-    /// [`KinematicModel::forward_kinematics_prefix`] (`f64`).
+    /// (the joint angles' sines and cosines in `f64`), every joint in one call of the AVX2
+    /// kernel ([`place_spheres`](Self::place_spheres)); a floating base is placed by
+    /// [`KinematicModel::base_pose`] (`f64`).
     fn place<const N: usize>(&self, qs: [&[f64]; N], s: &mut SphereScratch<N>) {
         let m = &self.world.model;
         let n_links = m.n_links();
         s.frames.resize(n_links, [[0.0; N]; 12]);
         let mut root = [[0.0f32; N]; 12];
-        for l in 0..N {
-            let p = if m.floating_base { KinematicModel::base_pose(qs[l]) } else { Isometry3::identity() };
-            let r = p.rotation.to_rotation_matrix().into_inner();
-            for i in 0..3 {
-                for j in 0..3 {
-                    root[3 * i + j][l] = r[(i, j)] as f32;
+        if m.floating_base {
+            for l in 0..N {
+                let p = KinematicModel::base_pose(qs[l]);
+                let r = p.rotation.to_rotation_matrix().into_inner();
+                for i in 0..3 {
+                    for j in 0..3 {
+                        root[3 * i + j][l] = r[(i, j)] as f32;
+                    }
+                    root[9 + i][l] = p.translation.vector[i] as f32;
                 }
-                root[9 + i][l] = p.translation.vector[i] as f32;
+            }
+        } else {
+            for i in 0..3 {
+                root[4 * i] = [1.0; N];
             }
         }
         s.frames[m.root] = root;
         // the joints' values per lane: the angle's cosine and sine, or the displacement
-        let mut a = [[0.0f32; N]; 2];
-        for j in &self.joints {
+        s.values.resize(self.joints.len(), [[0.0; N]; 2]);
+        for (j, a) in self.joints.iter().zip(s.values.iter_mut()) {
             match &j.motion {
                 LaneMotion::Fixed => {}
                 LaneMotion::Revolute { index, multiplier, offset, continuous, .. } => {
@@ -824,16 +877,23 @@ impl SphereWorld {
                     }
                 }
             }
-            let child = dispatch_joint(j, &s.frames[j.parent], &a);
-            s.frames[j.child] = child;
         }
         dispatch_place(self, s);
     }
 
-    /// The kernel of [`place`](Self::place) after the frames are written: each moving link's
-    /// bounding sphere; its spheres wait until a test needs them ([`place_link`](Self::place_link)).
+    /// The kernel of [`place`](Self::place) after the joints' values are written: the joints'
+    /// frames (parents first), then each moving link's bounding sphere; its spheres wait until a test needs them ([`place_link`](Self::place_link)).
     #[inline(always)]
     fn place_spheres<const N: usize>(&self, s: &mut SphereScratch<N>) {
+        for (j, a) in self.joints.iter().zip(&s.values) {
+            if j.parent < j.child {
+                let (before, after) = s.frames.split_at_mut(j.child);
+                after[0] = joint_frame(j, &before[j.parent], a);
+            } else {
+                let parent = s.frames[j.parent];
+                s.frames[j.child] = joint_frame(j, &parent, a);
+            }
+        }
         s.centers.resize(self.spheres.len(), [[0.0; N]; 3]);
         s.bounds.resize(self.links.len(), [[0.0; N]; 3]);
         s.placed.clear();
@@ -909,49 +969,61 @@ impl SphereWorld {
             let bc = &bc;
             // lanes still to decide: live and not yet in collision
             let mut open: [bool; N] = std::array::from_fn(|l| live[l] & !hit[l]);
-            for o in &self.obstacles {
-                // lanes where the link's bounding sphere (grown by the obstacle's padding)
-                // meets the obstacle's box (or plane)
-                let reach = ls.radius + o.pad;
-                let mut near = match &o.aabb {
-                    Some((lo, hi)) => box_near(lo, hi, bc, reach * reach, &open),
-                    None => open,
-                };
-                if let Shape::Cloud { index } = &o.shape {
-                    near = self.cloud_near(*index, bc, reach, near);
-                }
-                if !near.iter().fold(false, |a, &n| a | n) {
-                    continue;
-                }
-                self.place_groups(s, k);
-                let several = ls.g1 - ls.g0 > 1;
-                for g in ls.g0..ls.g1 {
-                    let gr = &self.groups[g];
-                    // a group of a link of several: its bounding sphere first (it holds its
-                    // spheres with a slack to spare: a pure prune)
-                    let gnear = if several {
-                        let h = self.sphere_hits(o, &s.gbounds[g], gr.radius + o.pad, &near);
-                        let m: [bool; N] = std::array::from_fn(|l| h[l] & near[l]);
-                        if !m.iter().fold(false, |a, &n| a | n) {
-                            continue;
-                        }
-                        m
-                    } else {
-                        near
+            // the box of the bounding sphere's centres over the lanes
+            let mut lane_box = [[f32::INFINITY; 3], [f32::NEG_INFINITY; 3]];
+            for i in 0..3 {
+                lane_box[0][i] = bc[i].iter().fold(f32::INFINITY, |a, &c| a.min(c));
+                lane_box[1][i] = bc[i].iter().fold(f32::NEG_INFINITY, |a, &c| a.max(c));
+            }
+            let per_link = self.obstacles.len().div_ceil(PREFILTER);
+            for (ci, chunk) in self.chunks[k * per_link..(k + 1) * per_link].iter().enumerate() {
+                let mut todo = near_obstacles(chunk, &lane_box);
+                while todo != 0 {
+                    let o = &self.obstacles[ci * PREFILTER + todo.trailing_zeros() as usize];
+                    todo &= todo - 1;
+                    // lanes where the link's bounding sphere (grown by the obstacle's padding)
+                    // meets the obstacle's box (or plane)
+                    let reach = ls.radius + o.pad;
+                    let mut near = match &o.aabb {
+                        Some((lo, hi)) => box_near(lo, hi, bc, reach * reach, &open),
+                        None => open,
                     };
-                    self.place_group(s, ls.link, g);
-                    for i in gr.start..gr.end {
-                        let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK + o.pad, &gnear);
-                        for l in 0..N {
-                            hit[l] |= h[l] & gnear[l];
+                    if let Shape::Cloud { index } = &o.shape {
+                        near = self.cloud_near(*index, bc, reach, near);
+                    }
+                    if !near.iter().fold(false, |a, &n| a | n) {
+                        continue;
+                    }
+                    self.place_groups(s, k);
+                    let several = ls.g1 - ls.g0 > 1;
+                    for g in ls.g0..ls.g1 {
+                        let gr = &self.groups[g];
+                        // a group of a link of several: its bounding sphere first (it holds its
+                        // spheres with a slack to spare: a pure prune)
+                        let gnear = if several {
+                            let h = self.sphere_hits(o, &s.gbounds[g], gr.radius + o.pad, &near);
+                            let m: [bool; N] = std::array::from_fn(|l| h[l] & near[l]);
+                            if !m.iter().fold(false, |a, &n| a | n) {
+                                continue;
+                            }
+                            m
+                        } else {
+                            near
+                        };
+                        self.place_group(s, ls.link, g);
+                        for i in gr.start..gr.end {
+                            let h = self.sphere_hits(o, &s.centers[i], radius[i] + F32_SLACK + o.pad, &gnear);
+                            for l in 0..N {
+                                hit[l] |= h[l] & gnear[l];
+                            }
                         }
                     }
-                }
-                if done(&hit) {
-                    return hit;
-                }
-                for l in 0..N {
-                    open[l] &= !hit[l];
+                    if done(&hit) {
+                        return hit;
+                    }
+                    for l in 0..N {
+                        open[l] &= !hit[l];
+                    }
                 }
             }
         }
@@ -1040,6 +1112,12 @@ impl SphereWorld {
             }
             std::array::from_fn(|l| mask[l] & (d2[l] <= reach * reach))
         };
+        // most calls end at the root: tested before the stack is set up
+        let mask: [bool; N] = std::array::from_fn(|l| open[l] & !hit[l]);
+        let rn = &f.nodes[root];
+        if !within(bc, rn.center, ls.radius + rn.radius, &mask).iter().fold(false, |a, &n| a | n) {
+            return;
+        }
         let mut stack = [0usize; 64];
         stack[0] = root;
         let mut top = 1;
@@ -1220,6 +1298,56 @@ fn box_near<const N: usize>(lo: &[f32; 3], hi: &[f32; 3], c: &[[f32; N]; 3], r2:
     std::array::from_fn(|l| open[l] & (d2[l] <= r2))
 }
 
+/// The obstacles of `chunk` (bit `o` for its obstacle `o`) that the link's bounding sphere
+/// may meet with its centre anywhere in the box `lane_box` (low and high corners): those whose
+/// grown box ([`BoxChunk`]) meets `lane_box`. A pure prune of [`box_near`]'s test, which runs
+/// after it: the margin exceeds the `f32` rounding of both tests (relative 6e-8 per operation,
+/// below 1 um within 10 m of the origin), so that an obstacle left out is one [`box_near`]
+/// finds beyond the reach of every lane's sphere.
+#[inline(always)]
+fn near_obstacles(chunk: &BoxChunk, lane_box: &[[f32; 3]; 2]) -> u32 {
+    let [lo, hi] = lane_box;
+    // the largest gap along an axis between the two boxes (the sign of a difference of floats
+    // is exact), a NaN never taken
+    #[cfg(target_arch = "x86_64")]
+    let bits = {
+        use std::arch::x86_64::{_mm_cmple_ps, _mm_loadu_ps, _mm_max_ps, _mm_movemask_ps, _mm_set1_ps, _mm_setzero_ps, _mm_sub_ps};
+        let mut bits = 0u32;
+        for h in 0..PREFILTER / 4 {
+            // SAFETY: SSE is part of the x86-64 baseline; the loads read 4 of the 8 entries of
+            // each array, at 0 or 4
+            unsafe {
+                let mut gap = _mm_set1_ps(f32::NEG_INFINITY);
+                for i in 0..3 {
+                    let below = _mm_sub_ps(_mm_loadu_ps(chunk.lo[i].as_ptr().add(4 * h)), _mm_set1_ps(hi[i]));
+                    let above = _mm_sub_ps(_mm_set1_ps(lo[i]), _mm_loadu_ps(chunk.hi[i].as_ptr().add(4 * h)));
+                    // maxps gives its second operand where either is NaN
+                    gap = _mm_max_ps(_mm_max_ps(below, above), gap);
+                }
+                bits |= (_mm_movemask_ps(_mm_cmple_ps(gap, _mm_setzero_ps())) as u32) << (4 * h);
+            }
+        }
+        bits
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let bits = {
+        let mut gap = [f32::NEG_INFINITY; PREFILTER];
+        for i in 0..3 {
+            for (o, g) in gap.iter_mut().enumerate() {
+                let (below, above) = (chunk.lo[i][o] - hi[i], lo[i] - chunk.hi[i][o]);
+                let m = if below > above { below } else { above };
+                *g = if m > *g { m } else { *g };
+            }
+        }
+        let mut bits = 0u32;
+        for (o, &g) in gap.iter().enumerate() {
+            bits |= u32::from(g <= 0.0) << o;
+        }
+        bits
+    };
+    bits & ((1u32 << chunk.count) - 1)
+}
+
 /// The joints of `model` that [`KinematicModel::forward_kinematics_prefix`] would run (the first
 /// `count`), in `f32` for the lanes.
 fn lane_joints(model: &KinematicModel, count: usize) -> Vec<LaneJoint> {
@@ -1302,22 +1430,6 @@ fn joint_frame<const N: usize>(j: &LaneJoint, p: &[[f32; N]; 12], a: &[[f32; N];
             out
         }
     }
-}
-
-/// [`joint_frame`], compiled with AVX2 and FMA where the processor has them.
-fn dispatch_joint<const N: usize>(j: &LaneJoint, p: &[[f32; N]; 12], a: &[[f32; N]; 2]) -> [[f32; N]; 12] {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if avx2() {
-            #[target_feature(enable = "avx2,fma")]
-            fn joint_avx2<const N: usize>(j: &LaneJoint, p: &[[f32; N]; 12], a: &[[f32; N]; 2]) -> [[f32; N]; 12] {
-                joint_frame(j, p, a)
-            }
-            // SAFETY: the processor has AVX2 and FMA (checked at run time just above)
-            return unsafe { joint_avx2(j, p, a) };
-        }
-    }
-    joint_frame(j, p, a)
 }
 
 /// [`SphereWorld::place_spheres`], compiled with AVX2 and FMA where the processor has them.
