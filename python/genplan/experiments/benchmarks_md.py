@@ -576,6 +576,21 @@ def jerk_timing(res: Results) -> str:
                  f"({_x(s['profile_time_ratio_vs_ruckig_phase'])})", f"{s['genplan_parameterize_jerk_ms_median']:.2f}"]])
 
 
+def free_space_settings(res: Results) -> str:
+    """The free-space defaults' tuning run: per arm (max_increments, alternating or balanced
+    trees), the planning time over VAMP's, geometric mean over the families, per robot and over
+    the robots; the default's row in bold."""
+    r = res["free_space_settings.json"]
+    robots = list(dict.fromkeys(row["robot"] for row in r["rows"]))
+    default = f"{r['default_max_increments']}+balance" if r["default_balance"] else str(r["default_max_increments"])
+    rows = []
+    for arm, overall in r["over_robots"].items():
+        label = f"{arm.replace('+balance', ' steps, balanced')}" if "+" in arm else f"{arm} steps, alternating"
+        cells = [label, *(_x(r["summary"][f"{robot}/{arm}"]) for robot in robots), _x(overall)]
+        rows.append([f"**{c}**" for c in cells] if arm == default else cells)
+    return _md(["extensions of at most (0.3 rad steps), trees", *robots, "over the robots"], rows)
+
+
 def baxter_tray(res: Results) -> str:
     """Baxter carrying a tray in both hands through a padded two-box scene, every 1 kHz sample
     checked again with Pinocchio + coal."""
@@ -785,6 +800,9 @@ TABLES: dict[str, Table] = {
                                   "benches/results/execute_instructions.json", execute_instructions),
     "compiled_robot": Table(("compiled_robot.json",), "python benches/compiled_robot.py --problems 3 --out "
                             "benches/results/compiled_robot.json", compiled_robot),
+    "free_space_settings": Table(("free_space_settings.json",), "python benches/free_space_settings.py --robots panda ur5 "
+                                 "baxter --problems 10 --rounds 2 --increments 2 3 5 10 --balance 0 1 --seed 1 --out "
+                                 "benches/results/free_space_settings.json", free_space_settings),
     "execute_tracking": Table(("execute.json",), "python benches/execute.py --plans 20 --out benches/results/execute.json",
                               execute_tracking),
     "point_clouds": Table(("point_clouds.json",), "python benches/point_clouds.py --rounds 5", point_clouds),
