@@ -75,7 +75,10 @@ def test_plan_with_the_tasks_data_needs_no_model(arm: genplan.Robot, cup: P.Task
     js = tmp_path / "plan.json"
     assert main(["plan", "--robot", str(ROBOT), "--task", str(TASK), "--scene", str(SCENE), "--target", "0.45", "-0.3",
                  "0.25", "--sampler", "data", "--out", str(js)]) == 0
-    assert json.loads(js.read_text())["success"] and "data sampler" in capsys.readouterr().out
+    d = json.loads(js.read_text())
+    assert d["success"] and "data sampler" in capsys.readouterr().out
+    # a task's manifold keeps the constrained planner's defaults (FREE_SPACE_SETTINGS are free space's)
+    assert d["algorithm"] == "crrt" and d["stats"]["simplify_s"] == 0.0
 
 
 def test_queries_start_on_the_manifold_and_goals_by_ik(arm: genplan.Robot, cup: P.Task) -> None:

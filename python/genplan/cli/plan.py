@@ -82,7 +82,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sampler", choices=SAMPLERS, default="uniform")
     p.add_argument("--algorithm", choices=ALGORITHMS, default=None,
                    help="crrt: the GAN paper's constrained RRT (the default on a task's manifold); rrt_connect: "
-                        "bidirectional RRT-Connect (the default in free space: genplan.planning.FREE_SPACE_SETTINGS)")
+                        "bidirectional RRT-Connect (the default in free space, where the other free-space "
+                        "defaults of genplan.planning.FREE_SPACE_SETTINGS stay whichever is chosen)")
     p.add_argument("--edge-check", choices=EDGE_CHECKS, default="sampled",
                    help="sampled: edge states checked 0.025 rad apart (default); certified: every motion between "
                         "them certified collision-free as well (PlannerSettings.edge_check; slower)")
@@ -107,6 +108,7 @@ def main(args: argparse.Namespace) -> int:
     from genplan.errors import InvalidTrajectoryError
     from genplan import projection as P
     from genplan.planning import FREE_SPACE_SETTINGS, PlannerSettings, plan
+    from genplan.planning.queries import query_manifold
     from genplan.robots import load
 
     if args.trajectory is not None and args.trajectory.suffix.lower() not in (".npz", ".json", ".csv"):
@@ -115,11 +117,13 @@ def main(args: argparse.Namespace) -> int:
     # the file's python terms imported only on request
     task = P.load_task("free" if args.task is None else args.task, robot,
                        allow_python=bool(args.allow_python and args.task is not None))
-    # a free task's defaults (RRT-Connect, simplified) or the constrained planner's, with the options given
+    # the defaults of free space (RRT-Connect, simplified) or of the constrained planner, by the
+    # manifold plan() plans on (as Planner chooses them), with the options given
     changes: dict[str, Any] = {"edge_check": args.edge_check, "time_limit": args.time_limit}
     if args.simplify is not None:
         changes["simplify"] = args.simplify
-    settings = (FREE_SPACE_SETTINGS if task.free else PlannerSettings()).replace(**changes)
+    base = FREE_SPACE_SETTINGS if query_manifold(task, robot).free else PlannerSettings()
+    settings = base.replace(**changes)
     outcome = plan(robot, task, args.scene, start=args.start,
                    goal=args.goal, target=args.target, frame=args.frame, sampler=args.sampler, model=args.model,
                    k=args.goals, seed=args.seed, algorithm=args.algorithm, settings=settings,

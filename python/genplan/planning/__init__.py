@@ -138,8 +138,9 @@ PlannerSettings = _core.PlannerSettings
 #: planner's, not a budget's; ``time_limit`` bounds it in seconds). Chosen on the motion bench's
 #: tuning problems (seed 1; the tables report seed 0) of the Panda, the UR5 and Baxter against
 #: VAMP (benches/free_space_settings.py, benches/results/free_space_settings.json): of 2, 3, 5 and
-#: 10 steps, each with and without ``balance``, 3 steps balanced planned fastest (the geometric mean
-#: over the robots of the planning time over VAMP's; 2 steps balanced within a few per cent).
+#: 10 steps, each with and without ``balance``, 3 and 2 steps balanced planned fastest (the
+#: geometric mean over the robots of the planning time over VAMP's: within 3 % of each other, the
+#: noise of that run), the paper's 10 steps alternating 1.45x as long.
 FREE_SPACE_SETTINGS = PlannerSettings(algorithm="rrt_connect", simplify=True, max_increments=3, balance=True,
                                       max_extensions=20_000, retries=4)
 
@@ -541,7 +542,8 @@ def plan(robot: Robot | str | os.PathLike[str], task: P.Task | str | os.PathLike
     ``sampler``: "uniform", "gan", "hybrid" or "adaptive" (the learned sampler of ``model``, which
     must be trained for this robot and task), or "data" (:func:`data_sampler` of this task: no
     model, no training), the last four for a task with a [condition] only; ``algorithm``: one of
-    :data:`ALGORITHMS` (default: ``settings.algorithm``, "crrt"); ``checker``: one of
+    :data:`ALGORITHMS` (default: ``settings.algorithm``; without ``settings``, "rrt_connect" of
+    :data:`FREE_SPACE_SETTINGS` when the manifold is free, else "crrt"); ``checker``: one of
     :data:`CHECKERS` ("exact"; "spheres": the robot's covering spheres; "hybrid": the spheres,
     their collisions confirmed by the exact geometry).
 

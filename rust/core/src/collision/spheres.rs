@@ -975,6 +975,11 @@ impl SphereWorld {
                 lane_box[0][i] = bc[i].iter().fold(f32::INFINITY, |a, &c| a.min(c));
                 lane_box[1][i] = bc[i].iter().fold(f32::NEG_INFINITY, |a, &c| a.max(c));
             }
+            // f32::min and max skip a NaN: a lane placed at NaN (never from checked input) meets
+            // every obstacle's box, as box_near then finds
+            if bc.iter().flatten().any(|c| c.is_nan()) {
+                lane_box = [[f32::NEG_INFINITY; 3], [f32::INFINITY; 3]];
+            }
             let per_link = self.obstacles.len().div_ceil(PREFILTER);
             for (ci, chunk) in self.chunks[k * per_link..(k + 1) * per_link].iter().enumerate() {
                 let mut todo = near_obstacles(chunk, &lane_box);

@@ -391,8 +391,10 @@ pub(super) struct Run<'a> {
     chain: Vec<usize>,
 }
 
-/// The time limit is checked about this often (the clock read every few polls): a search stops
-/// within about this much of its deadline, past the poll that finds it out of time.
+/// The time limit is checked about this often (the clock read every few polls, as many as took
+/// about this long at the pace of the last ones): a search stops within about this much of its
+/// deadline, past the poll that finds it out of time; where polls turn slow all at once, within
+/// [`MAX_CLOCK_STRIDE`] of the slow polls at most.
 const CLOCK_PERIOD: Duration = Duration::from_micros(500);
 
 /// Polls between two reads of the clock, at most.
@@ -423,8 +425,10 @@ impl<'a> Run<'a> {
     /// Asked at every iteration of a loop: the caller's interrupt check (Ctrl-C), then the time
     /// limit while one is set ([`PlanError::TimeLimit`], which [`Planner::plan`] turns into an
     /// unsuccessful plan). The clock is read every `clock_stride` polls, adapted so that reads
-    /// are about [`CLOCK_PERIOD`] apart: a poll costs no clock read but every few, and the limit
-    /// is kept to within about that period (at least one poll every that long).
+    /// are about [`CLOCK_PERIOD`] apart (a poll costs no clock read but every few): the stride
+    /// doubles while reads come less than half a period apart, falls to 1 when a read comes more
+    /// than two periods after the last one or the deadline is less than two periods away, and
+    /// halves otherwise beyond a period.
     pub(super) fn poll(&mut self) -> PlanResult<()> {
         (self.interrupt)()?;
         let Some(deadline) = self.deadline else {
@@ -440,7 +444,9 @@ impl<'a> Run<'a> {
         }
         let since = now - self.last_clock;
         self.last_clock = now;
-        if since < CLOCK_PERIOD / 2 {
+        if since > 2 * CLOCK_PERIOD || deadline - now < 2 * CLOCK_PERIOD {
+            self.clock_stride = 1;
+        } else if since < CLOCK_PERIOD / 2 {
             self.clock_stride = (self.clock_stride * 2).min(MAX_CLOCK_STRIDE);
         } else if since > CLOCK_PERIOD {
             self.clock_stride = (self.clock_stride / 2).max(1);
