@@ -55,7 +55,7 @@ mod tree;
 
 pub use checker::{AlwaysValid, CollisionChecker, SphereChecker, ValidityChecker};
 pub use error::{ComponentError, PlanError, PlanResult};
-pub use nearest::{KdForest, LinearNearest, NearestNeighbors, NeighborIndex, KD_MAX_DIM};
+pub use nearest::{KdForest, LinearNearest, NearestNeighbors, NeighborIndex, KD_BRUTE, KD_MAX_DIM};
 pub use projector::{GaussNewtonProjector, Projection, Projector};
 pub use constrained::{ConstrainedSpace, Step};
 pub use rrt::{Algorithm, Components, EdgeCheck, Named, Planner, Settings, Solution, Stats, MAX_SPACING};

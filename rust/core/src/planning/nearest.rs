@@ -196,7 +196,7 @@ const KD_BUFFER: usize = 64;
 /// points: to 256 points 44 % fewer than with trees from 64 points on, to 512 20 %, to 1024 5 %,
 /// to 2048 10 %; and 3 % fewer in all over the Panda's free-space RRT-Connect plans, whose trees
 /// hold tens to hundreds of nodes.
-const KD_BRUTE: usize = 512;
+pub const KD_BRUTE: usize = 512;
 
 impl KdForest {
     /// An empty index of points of dimension `dim`.
