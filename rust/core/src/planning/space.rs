@@ -27,20 +27,30 @@ pub trait Space: Send + Sync {
 
     /// Tangent distance |q1 (-) q0|.
     fn distance(&self, q0: &[f64], q1: &[f64]) -> f64 {
-        with_tangent(self.nv(), |v| {
-            self.difference(q0, q1, v);
-            v.iter().map(|x| x * x).sum::<f64>().sqrt()
-        })
+        tangent_distance(self, q0, q1)
     }
 
     /// `out = q0 (+) t (q1 (-) q0)`.
     fn interpolate(&self, q0: &[f64], q1: &[f64], t: f64, out: &mut [f64]) {
-        with_tangent(self.nv(), |v| {
-            self.difference(q0, q1, v);
-            v.iter_mut().for_each(|x| *x *= t);
-            self.integrate(q0, v, out);
-        })
+        tangent_interpolate(self, q0, q1, t, out)
     }
+}
+
+/// [`Space::distance`] through the tangent space: |difference(q0, q1)|.
+fn tangent_distance<S: Space + ?Sized>(space: &S, q0: &[f64], q1: &[f64]) -> f64 {
+    with_tangent(space.nv(), |v| {
+        space.difference(q0, q1, v);
+        v.iter().map(|x| x * x).sum::<f64>().sqrt()
+    })
+}
+
+/// [`Space::interpolate`] through the tangent space: integrate(q0, t difference(q0, q1)).
+fn tangent_interpolate<S: Space + ?Sized>(space: &S, q0: &[f64], q1: &[f64], t: f64, out: &mut [f64]) {
+    with_tangent(space.nv(), |v| {
+        space.difference(q0, q1, v);
+        v.iter_mut().for_each(|x| *x *= t);
+        space.integrate(q0, v, out);
+    })
 }
 
 /// Tangent vectors up to this length live on the stack in [`Space::distance`] and
@@ -76,10 +86,7 @@ impl Space for KinematicModel {
     /// [`euclidean`](KinematicModel::euclidean) (no tangent buffer, no pass per joint).
     fn distance(&self, q0: &[f64], q1: &[f64]) -> f64 {
         if !self.euclidean() {
-            return with_tangent(self.nv, |v| {
-                KinematicModel::difference(self, q0, q1, v);
-                v.iter().map(|x| x * x).sum::<f64>().sqrt()
-            });
+            return tangent_distance(self, q0, q1);
         }
         let n = self.nv;
         q0[..n].iter().zip(&q1[..n]).map(|(a, b)| (b - a) * (b - a)).sum::<f64>().sqrt()
@@ -88,11 +95,7 @@ impl Space for KinematicModel {
     /// [`euclidean`](KinematicModel::euclidean).
     fn interpolate(&self, q0: &[f64], q1: &[f64], t: f64, out: &mut [f64]) {
         if !self.euclidean() {
-            return with_tangent(self.nv, |v| {
-                KinematicModel::difference(self, q0, q1, v);
-                v.iter_mut().for_each(|x| *x *= t);
-                KinematicModel::integrate(self, q0, v, out);
-            });
+            return tangent_interpolate(self, q0, q1, t, out);
         }
         let n = self.nq;
         for ((o, a), b) in out[..n].iter_mut().zip(&q0[..n]).zip(&q1[..n]) {
