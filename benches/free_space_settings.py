@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import time
 from pathlib import Path
 from typing import Any
 
@@ -31,8 +30,7 @@ import numpy as np
 
 from genplan.experiments.benchmarks import motion as M
 from genplan.experiments.common import geometric_mean, machine, table, write_json
-from genplan.planning import FREE_SPACE_SETTINGS, Planner
-from genplan.scene import Scene
+from genplan.planning import FREE_SPACE_SETTINGS
 
 
 def arm_name(increments: int, balance: bool) -> str:
@@ -40,16 +38,10 @@ def arm_name(increments: int, balance: bool) -> str:
 
 
 def plan_once(robot: Any, problem: M.Problem, increments: int, balance: bool, seed: int) -> dict[str, Any]:
-    """One free-space plan of ``problem`` with the default settings but ``max_increments`` and ``balance``."""
-    world = robot.collision_world()
-    world.add_scene(Scene(name="problem", obstacles=tuple(problem.obstacles)))
-    planner = Planner(robot, world, task="free", checker="spheres",
-                      settings=FREE_SPACE_SETTINGS.replace(max_increments=increments, balance=balance), seed=seed)
-    t0 = time.perf_counter()
-    r = planner.plan(problem.start, problem.goal)
-    wall = time.perf_counter() - t0
-    return {"success": bool(r.success), "plan_ms": (wall - float(r.stats.simplify_s)) * 1e3,
-            "checks": int(r.stats.validity_checks), "length": M.path_length(r.path) if r.success else math.nan}
+    """One free-space plan of ``problem`` (the motion bench's genplan arm with the spheres) with
+    the default settings but ``max_increments`` and ``balance``."""
+    return M._genplan_arm(robot, problem, "spheres", seed,
+                          FREE_SPACE_SETTINGS.replace(max_increments=increments, balance=balance))
 
 
 def run_robot(name: str, families: list[str], n: int, rounds: int, increments: list[int], balance: list[bool],

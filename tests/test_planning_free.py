@@ -13,7 +13,8 @@ import genplan
 from genplan import _core
 from genplan import projection as P
 from genplan.errors import InvalidGoalError, InvalidStartError, SettingsError, UnknownNameError
-from genplan.planning import FREE_SPACE_SETTINGS, Planner, PlannerSettings, environment, make_query, plan
+from genplan.planning import (FREE_SPACE_SETTINGS, Planner, PlannerSettings, default_settings, environment,
+                              make_query, plan)
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +71,7 @@ def test_a_free_task_plans_with_the_free_space_defaults(panda, shelf) -> None:
     assert FREE_SPACE_SETTINGS.algorithm == "rrt_connect" and FREE_SPACE_SETTINGS.simplify
     assert FREE_SPACE_SETTINGS.max_increments == 3 and FREE_SPACE_SETTINGS.max_increments < PlannerSettings().max_increments
     assert FREE_SPACE_SETTINGS.balance and not PlannerSettings().balance  # the smaller tree grows
+    assert default_settings(True) == FREE_SPACE_SETTINGS and default_settings(False) == PlannerSettings()
     assert Planner(panda, world, task="free").settings == FREE_SPACE_SETTINGS
     assert Planner(panda, world, task="panda_projection").settings == PlannerSettings()
     given = PlannerSettings(step=0.2)

@@ -107,7 +107,7 @@ def main(args: argparse.Namespace) -> int:
     from genplan._files import write_text
     from genplan.errors import InvalidTrajectoryError
     from genplan import projection as P
-    from genplan.planning import FREE_SPACE_SETTINGS, PlannerSettings, plan
+    from genplan.planning import default_settings, plan
     from genplan.planning.queries import query_manifold
     from genplan.robots import load
 
@@ -122,8 +122,7 @@ def main(args: argparse.Namespace) -> int:
     changes: dict[str, Any] = {"edge_check": args.edge_check, "time_limit": args.time_limit}
     if args.simplify is not None:
         changes["simplify"] = args.simplify
-    base = FREE_SPACE_SETTINGS if query_manifold(task, robot).free else PlannerSettings()
-    settings = base.replace(**changes)
+    settings = default_settings(query_manifold(task, robot).free).replace(**changes)
     outcome = plan(robot, task, args.scene, start=args.start,
                    goal=args.goal, target=args.target, frame=args.frame, sampler=args.sampler, model=args.model,
                    k=args.goals, seed=args.seed, algorithm=args.algorithm, settings=settings,

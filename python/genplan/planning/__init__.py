@@ -87,6 +87,7 @@ __all__ = [
     "SAMPLERS",
     "environment",
     "data_sampler",
+    "default_settings",
     "make_query",
     "make_sampler",
     "sphere_checker",
@@ -143,6 +144,12 @@ PlannerSettings = _core.PlannerSettings
 #: noise of that run), the paper's 10 steps alternating 1.45x as long.
 FREE_SPACE_SETTINGS = PlannerSettings(algorithm="rrt_connect", simplify=True, max_increments=3, balance=True,
                                       max_extensions=20_000, retries=4)
+
+
+def default_settings(free: bool) -> PlannerSettings:
+    """The settings a plan takes when none are given: :data:`FREE_SPACE_SETTINGS` in free space
+    (``free``: nothing projected), the paper's ``PlannerSettings()`` on a constraint manifold."""
+    return FREE_SPACE_SETTINGS if free else PlannerSettings()
 
 
 class PlanResult:
@@ -396,7 +403,7 @@ class Planner:
         self.task = P.load_task(task, robot) if task is not None else paper_task(robot, "projection")
         #: free space: no projector in the loop (the task's only constraint is the joint limits)
         self.free = projector is None and self.task.free
-        self.settings = settings or (FREE_SPACE_SETTINGS if self.free else PlannerSettings())
+        self.settings = settings or default_settings(self.free)
         if algorithm is not None:
             self.settings = self.settings.replace(algorithm=_check_algorithm(algorithm))
         self.world = world if world is not None else robot.collision_world()

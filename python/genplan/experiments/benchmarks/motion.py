@@ -509,12 +509,15 @@ def settings() -> PlannerSettings:
     return FREE_SPACE_SETTINGS
 
 
-def _genplan_arm(robot: genplan.Robot, problem: Problem, checker: Any, seed: int) -> dict[str, Any]:
+def _genplan_arm(robot: genplan.Robot, problem: Problem, checker: Any, seed: int,
+                 plan_settings: PlannerSettings | None = None) -> dict[str, Any]:
+    """One genplan plan of ``problem`` with ``checker`` and ``plan_settings`` (default
+    :func:`settings`), timed as the module text says."""
     world = robot.collision_world()
     world.add_scene(Scene(name="problem", obstacles=tuple(problem.obstacles)))
     if isinstance(checker, RobotSpheres):
         checker = sphere_checker(robot, world, spheres=checker)
-    planner = Planner(robot, world, task="free", checker=checker, settings=settings(), seed=seed)
+    planner = Planner(robot, world, task="free", checker=checker, settings=plan_settings or settings(), seed=seed)
     t0 = time.perf_counter()
     r = planner.plan(problem.start, problem.goal)
     wall = time.perf_counter() - t0
