@@ -127,23 +127,29 @@ mod tests {
         }
     }
 
-    /// The band |z| < 0.2 blocked but for a door around +y.
-    struct Wall;
+    /// The points of R^3 where the function holds are valid.
+    struct Region(fn(&[f64]) -> bool);
 
-    impl ValidityChecker for Wall {
+    impl ValidityChecker for Region {
         fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
             for (q, v) in qs.chunks(3).zip(valid.iter_mut()) {
-                *v = q[2].abs() >= 0.2 || q[1] > 0.8;
+                *v = (self.0)(q);
             }
             Ok(())
         }
     }
 
-    struct Cube(StdRng);
+    /// The band |z| < 0.2 blocked but for a door around +y.
+    const WALL: Region = Region(|q| q[2].abs() >= 0.2 || q[1] > 0.8);
+
+    /// Uniform samples of [-1, 1]^2 x `z`.
+    struct Cube(StdRng, std::ops::Range<f64>);
 
     impl Sampler for Cube {
         fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
-            out.iter_mut().take(3 * n).for_each(|x| *x = self.0.random_range(-1.0..1.0));
+            for q in out.chunks_mut(3).take(n) {
+                q.copy_from_slice(&[self.0.random_range(-1.0..1.0), self.0.random_range(-1.0..1.0), self.0.random_range(self.1.clone())]);
+            }
             Ok(())
         }
     }
@@ -156,7 +162,7 @@ mod tests {
             for seed in 0..5 {
                 let st = Settings { algorithm: Algorithm::RrtConnect, lazy_edges, balance, ..Settings::default() };
                 let planner = Planner::new(Arc::new(EuclideanSpace(3)), st.clone()).unwrap();
-                let (mut sampler, mut projector, mut checker) = (Cube(StdRng::seed_from_u64(seed)), Sphere, Wall);
+                let (mut sampler, mut projector, mut checker) = (Cube(StdRng::seed_from_u64(seed), -1.0..1.0), Sphere, WALL);
                 let mut interrupt = || Ok(());
                 let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
                 let sol = planner.plan(&[0.0, 0.0, -1.0], &goals, &mut c).unwrap();
@@ -189,29 +195,11 @@ mod tests {
         // leaves valid, samples in the open south, one node per extension: the goal tree never
         // grows. Alternating, the start tree (1 node) grows on iterations 0 and 2 of 3; balanced,
         // on all three (the smaller tree each time: 1, 2, 3 nodes against 3, the start tree on a tie)
-        struct Slab;
-        impl ValidityChecker for Slab {
-            fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
-                for (q, v) in qs.chunks(3).zip(valid.iter_mut()) {
-                    *v = q[2] <= -0.2 || q[2] >= 0.95;
-                }
-                Ok(())
-            }
-        }
-        struct South(StdRng);
-        impl Sampler for South {
-            fn sample(&mut self, n: usize, out: &mut [f64]) -> PlanResult<()> {
-                for q in out.chunks_mut(3).take(n) {
-                    q.copy_from_slice(&[self.0.random_range(-1.0..1.0), self.0.random_range(-1.0..1.0), self.0.random_range(-1.0..-0.5)]);
-                }
-                Ok(())
-            }
-        }
         let goals = [0.0, 0.0, 1.0, 0.05, 0.0, 1.0, 0.0, 0.05, 1.0];
         for (balance, start_nodes) in [(false, 3), (true, 4)] {
             let st = Settings { algorithm: Algorithm::RrtConnect, balance, max_increments: 1, max_extensions: 3, retries: 0, ..Settings::default() };
             let planner = Planner::new(Arc::new(EuclideanSpace(3)), st).unwrap();
-            let (mut sampler, mut checker) = (South(StdRng::seed_from_u64(3)), Slab);
+            let (mut sampler, mut checker) = (Cube(StdRng::seed_from_u64(3), -1.0..-0.5), Region(|q| q[2] <= -0.2 || q[2] >= 0.95));
             let mut interrupt = || Ok(());
             let mut c = Components { sampler: &mut sampler, projector: None, checker: &mut checker, interrupt: &mut interrupt };
             let sol = planner.plan(&[0.0, 0.0, -1.0], &goals, &mut c).unwrap();
@@ -223,18 +211,9 @@ mod tests {
     #[test]
     fn rrt_connect_reports_failure_when_the_goal_is_walled_off() {
         // the door closed: no path from the south to the north
-        struct Closed;
-        impl ValidityChecker for Closed {
-            fn check(&mut self, qs: &[f64], valid: &mut [bool]) -> PlanResult<()> {
-                for (q, v) in qs.chunks(3).zip(valid.iter_mut()) {
-                    *v = q[2].abs() >= 0.2;
-                }
-                Ok(())
-            }
-        }
         let st = Settings { algorithm: Algorithm::RrtConnect, max_extensions: 60, retries: 1, ..Settings::default() };
         let planner = Planner::new(Arc::new(EuclideanSpace(3)), st).unwrap();
-        let (mut sampler, mut projector, mut checker) = (Cube(StdRng::seed_from_u64(1)), Sphere, Closed);
+        let (mut sampler, mut projector, mut checker) = (Cube(StdRng::seed_from_u64(1), -1.0..1.0), Sphere, Region(|q| q[2].abs() >= 0.2));
         let mut interrupt = || Ok(());
         let mut c = Components { sampler: &mut sampler, projector: Some(&mut projector), checker: &mut checker, interrupt: &mut interrupt };
         let sol = planner.plan(&[0.0, 0.0, -1.0], &[0.0, 0.0, 1.0], &mut c).unwrap();
