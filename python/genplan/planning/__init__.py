@@ -138,10 +138,9 @@ PlannerSettings = _core.PlannerSettings
 #: search budget of 20,000 iterations per attempt, 5 attempts (VAMP's order: a failure is the
 #: planner's, not a budget's; ``time_limit`` bounds it in seconds). Chosen on the motion bench's
 #: tuning problems (seed 1; the tables report seed 0) of the Panda, the UR5 and Baxter against
-#: VAMP (benches/free_space_settings.py, benches/results/free_space_settings.json): of 2, 3, 5 and
-#: 10 steps, each with and without ``balance``, 3 and 2 steps balanced planned fastest (the
-#: geometric mean over the robots of the planning time over VAMP's: within 3 % of each other, the
-#: noise of that run), the paper's 10 steps alternating 1.45x as long.
+#: VAMP (benches/free_space_settings.py, its figures in benches/results/free_space_settings.json):
+#: of 2, 3, 5 and 10 steps, each with and without ``balance``, 3 and 2 steps balanced planned
+#: fastest (a tie within that run's noise), the paper's 10 steps alternating markedly slower.
 FREE_SPACE_SETTINGS = PlannerSettings(algorithm="rrt_connect", simplify=True, max_increments=3, balance=True,
                                       max_extensions=20_000, retries=4)
 

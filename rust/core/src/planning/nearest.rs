@@ -191,11 +191,9 @@ pub struct KdForest {
 const KD_BUFFER: usize = 64;
 
 /// Points searched by brute force before the first static tree is built: below it a scan of the
-/// contiguous points costs less than building the trees and searching them. Measured in
-/// instructions (callgrind), growing a 7-D forest by uniform points with two queries every three
-/// points: to 256 points 44 % fewer than with trees from 64 points on, to 512 20 %, to 1024 5 %,
-/// to 2048 10 %; and 3 % fewer in all over the Panda's free-space RRT-Connect plans, whose trees
-/// hold tens to hundreds of nodes.
+/// contiguous points costs fewer instructions than building the trees and searching them, as a
+/// free-space RRT-Connect tree of tens to hundreds of nodes does (the measurement is in the
+/// commit that set it).
 pub const KD_BRUTE: usize = 512;
 
 impl KdForest {

@@ -142,9 +142,9 @@ pub struct Settings {
     pub time_limit: f64,
     /// RRT-Connect only: each iteration extends the smaller tree towards the sample (the start
     /// tree on a tie) and connects the other one to it, as VAMP's RRT-Connect does, instead of
-    /// alternating the trees. Off by default (the behaviour the paper's tables were measured
-    /// with); on in free space (genplan.planning.FREE_SPACE_SETTINGS), where it planned the
-    /// motion bench's tuning problems 1.07-1.6x faster (benches/free_space_settings.py). A tree
+    /// alternating the trees. Off by default (the paper's planner alternates); on in free space
+    /// (genplan.planning.FREE_SPACE_SETTINGS), where it planned the motion bench's tuning
+    /// problems faster on every robot (benches/free_space_settings.py). A tree
     /// that cannot grow (its extensions all blocked) is tried every iteration while it is the
     /// smaller one.
     pub balance: bool,
